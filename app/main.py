@@ -1,0 +1,86 @@
+"""The FastAPI application: a thin factory that wires settings, routers, problems and the pool."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+
+from fastapi import FastAPI
+
+from app import problems
+from app.routers import health, plants, simulate
+from app.settings import Settings, get_settings
+from optim.workers import SolverPool
+
+DESCRIPTION = """
+Designs motor commands for machines whose load hangs on something elastic (belts, compliant
+shafts, springs, ropes), so that the load arrives, or comes up to speed, without ringing.
+
+Conventions: SI units, with the unit in each field's name; motor positions in the plant's motor
+coordinate (rad or m). The drive is assumed to execute the motor command exactly; the load follows
+through the plant's transfer function. Every error is `application/problem+json` whose `type` is
+documented under `/problems/{type}`.
+"""
+
+
+def create_app(settings: Settings | None = None) -> FastAPI:
+    settings = settings or get_settings()
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        pool = SolverPool(settings.workers, settings.worker_start_timeout_s)
+        app.state.pool = pool
+        pool.start_in_background()
+        try:
+            yield
+        finally:
+            await pool.close()
+
+    app = FastAPI(
+        title="Vibration-free motion profiles",
+        version="0.1.0",
+        description=DESCRIPTION,
+        lifespan=lifespan,
+    )
+    app.state.settings = settings
+    app.dependency_overrides[get_settings] = lambda: settings
+    problems.install(app)
+    app.add_middleware(problems.BodySizeLimit, max_bytes=settings.max_body_bytes)
+    app.openapi_schema = None
+    for router in (health.router, plants.router, simulate.router, problems.router):
+        app.include_router(router)
+    _declare_problem_schema(app)
+    logging.getLogger("vibfree").setLevel(logging.INFO)
+    return app
+
+
+def _declare_problem_schema(app: FastAPI) -> None:
+    """Add the Problem schema to the OpenAPI components, referenced by every error response."""
+    original = app.openapi
+
+    def openapi() -> dict:
+        if app.openapi_schema:
+            return app.openapi_schema
+        schema = original()
+        components = schema.setdefault("components", {}).setdefault("schemas", {})
+        components["Problem"] = problems.Problem.model_json_schema(ref_template="#/components/schemas/{model}")
+        components.update(components["Problem"].pop("$defs", {}))
+        # FastAPI documents its own 422 (HTTPValidationError); ours is a problem.
+        for path in schema.get("paths", {}).values():
+            for operation in path.values():
+                for status, response in operation.get("responses", {}).items():
+                    content = response.get("content", {})
+                    if status == "422" and "application/json" in content and "HTTPValidationError" in str(content):
+                        response["content"] = {
+                            problems.PROBLEM_MEDIA_TYPE: {"schema": {"$ref": "#/components/schemas/Problem"}}
+                        }
+        for name in ("HTTPValidationError", "ValidationError"):
+            components.pop(name, None)
+        app.openapi_schema = schema
+        return schema
+
+    app.openapi = openapi  # type: ignore[method-assign]
+
+
+app = create_app()

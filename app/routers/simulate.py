@@ -1,0 +1,39 @@
+"""Simulation of any sampled motor command on any plant."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, Body, Depends
+
+from app import problems
+from app.examples import SIMULATE_EXAMPLES
+from app.responses import NumpyJSONResponse
+from app.schemas.plants import to_plant
+from app.schemas.simulate import SimulateRequest, SimulateResponse, load_out, metrics_out, profile_out, to_command
+from app.settings import Settings, get_settings
+from models.simulation import metrics, simulate
+
+router = APIRouter(prefix="/v1", tags=["simulation"])
+
+
+@router.post(
+    "/simulate",
+    summary="Load response of a plant to a sampled motor command",
+    response_model=SimulateResponse,
+    responses=problems.responses(413, 422),
+)
+def simulate_profile(
+    request: Annotated[SimulateRequest, Body(openapi_examples=SIMULATE_EXAMPLES)],
+    settings: Annotated[Settings, Depends(get_settings)],
+) -> NumpyJSONResponse:
+    """Simulate the plant, started at rest, driven by the command, exactly for the chosen hold
+    between samples. The metrics measure the load's free oscillation from the state at the
+    command's end (not a sampled peak), so they do not depend on the horizon."""
+    plant = to_plant(request.plant)
+    command, warnings = to_command(request.profile, request, settings.max_samples)
+    response = simulate(plant, command)
+    result = metrics(response, request.settling_tolerance, request.settling_window)
+    return NumpyJSONResponse(
+        {"profile": profile_out(command), "load": load_out(response), "metrics": metrics_out(result), "warnings": warnings}
+    )

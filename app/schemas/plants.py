@@ -1,0 +1,185 @@
+"""Plant schemas: the ``plant`` object of every request, and the analysis response."""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+from pydantic import Field
+
+from app.problems import UNION_TAGS
+from app.schemas.common import OutModel, StrictModel
+from models.errors import InvalidParameter
+from models.plants import (
+    FREQUENCY_MAX_HZ,
+    FREQUENCY_MIN_HZ,
+    MAX_TRANSFER_FUNCTION_ORDER,
+    PARAMETER_MAX,
+    BeltPlatformPlant,
+    Plant,
+    make_plant,
+)
+
+Positive = Annotated[float, Field(gt=0, le=PARAMETER_MAX)]
+NonNegative = Annotated[float, Field(ge=0, le=PARAMETER_MAX)]
+
+
+class ModeIn(StrictModel):
+    """One vibration mode: the load follows the motor through (2 zeta w s + w^2)/(s^2 + 2 zeta w s + w^2)."""
+
+    kind: Literal["mode"]
+    natural_frequency_hz: float = Field(
+        ge=FREQUENCY_MIN_HZ, le=FREQUENCY_MAX_HZ, description="Undamped natural frequency f_n, Hz."
+    )
+    damping_ratio: float = Field(0.0, ge=0, lt=1, description="Damping ratio zeta, 0 <= zeta < 1.")
+
+
+class TwoInertiaIn(StrictModel):
+    """Motor and load inertias on a compliant shaft (Cusimano Fig. 1); motor torque is defined."""
+
+    kind: Literal["two_inertia"]
+    motor_inertia_kgm2: Positive = Field(description="Motor inertia J_M, kg m^2.")
+    load_inertia_kgm2: Positive = Field(description="Load inertia J_L, kg m^2.")
+    stiffness_nm_per_rad: Positive = Field(description="Shaft torsional stiffness k, N m/rad.")
+    damping_nms_per_rad: NonNegative = Field(0.0, description="Shaft damping c, N m s/rad.")
+
+
+class BeltPlatformIn(StrictModel):
+    """Rotary platform on a two-branch belt behind a reducer (Incerti Fig. 1, Table I).
+
+    The command is the motor angle (rad); the load is the platform angle (rad).
+    """
+
+    kind: Literal["belt_platform"]
+    platform_inertia_kgm2: Positive = Field(description="Platform inertia J, kg m^2.")
+    branch_stiffness_n_per_m: Positive = Field(description="Stiffness k of each belt branch, N/m.")
+    branch_damping_ns_per_m: NonNegative = Field(description="Damping c of each belt branch, N s/m.")
+    motor_pulley_radius_m: Positive = Field(description="Radius r of pulley (1), on the reducer, m.")
+    platform_pulley_radius_m: Positive = Field(description="Radius R of pulley (2), on the platform, m.")
+    gear_ratio: Positive = Field(description="Reducer ratio z = pulley (1) speed / motor speed (0.1 for 1:10).")
+
+
+class RigidFlexibleIn(StrictModel):
+    """Drive and load masses on a spring (Chatlatanagulchai Fig. 2), modelled by eq. (3) as printed.
+
+    The command is the drive's velocity v; the load output is x1 = P(s) V(s). Eq. (3) as printed
+    equals s X1(s)/F(s) of the paper's equations of motion, not X1/V: the service keeps it
+    because the paper's mode (0.577 rad/s, zeta 0.0577) and figures come from it.
+    """
+
+    kind: Literal["rigid_flexible"]
+    drive_mass_kg: Positive = Field(description="Driving mass m0, kg.")
+    load_mass_kg: Positive = Field(description="Driven mass m1, kg.")
+    stiffness_n_per_m: Positive = Field(description="Spring stiffness k, N/m.")
+    damping_ns_per_m: NonNegative = Field(description="Spring damping c, N s/m.")
+    drive_damping_ns_per_m: Positive = Field(description="Drive damping c0, N s/m (> 0: c0 k is eq. 3's constant term).")
+
+
+class TransferFunctionIn(StrictModel):
+    """Any stable, proper transfer function from the motor command to the load."""
+
+    kind: Literal["transfer_function"]
+    numerator: list[float] = Field(
+        min_length=1, max_length=MAX_TRANSFER_FUNCTION_ORDER + 1, description="Numerator, highest power of s first."
+    )
+    denominator: list[float] = Field(
+        min_length=2, max_length=MAX_TRANSFER_FUNCTION_ORDER + 1, description="Denominator, highest power of s first."
+    )
+    command_input: Literal["position", "velocity"] = Field(
+        "position", description="Whether the transfer function takes the motor position or velocity."
+    )
+
+
+PlantIn = Annotated[
+    ModeIn | TwoInertiaIn | BeltPlatformIn | RigidFlexibleIn | TransferFunctionIn, Field(discriminator="kind")
+]
+UNION_TAGS.update({"mode", "two_inertia", "belt_platform", "rigid_flexible", "transfer_function"})
+
+
+def to_plant(schema: ModeIn | TwoInertiaIn | BeltPlatformIn | RigidFlexibleIn | TransferFunctionIn) -> Plant:
+    """The core plant of a request's ``plant`` object; physics errors name ``plant.<field>``."""
+    try:
+        return make_plant(**schema.model_dump())
+    except InvalidParameter as exc:
+        raise exc.under("plant") from None
+
+
+# --- analysis response --------------------------------------------------------------------
+
+
+class ModeOut(OutModel):
+    natural_frequency_hz: float
+    natural_frequency_rad_s: float
+    damping_ratio: float
+    damped_frequency_hz: float
+    damped_frequency_rad_s: float
+    natural_period_s: float
+    damped_period_s: float
+    decay_rate_1_s: float = Field(description="sigma = zeta w_n: the envelope decays as exp(-sigma t).")
+
+
+class TransferFunctionOut(OutModel):
+    numerator: list[float] = Field(description="Highest power of s first.")
+    denominator: list[float]
+    input: Literal["position", "velocity"] = Field(description="The motor quantity the function takes.")
+
+
+class StateSpaceOut(OutModel):
+    a: list[list[float]]
+    b: list[list[float]]
+    c: list[list[float]]
+    d: list[list[float]]
+
+
+class PlantAnalysis(OutModel):
+    kind: str
+    parameters: dict[str, float | list[float] | str]
+    modes: list[ModeOut] = Field(description="Vibration modes (complex pole pairs), lowest first.")
+    dc_gain: float = Field(description="G(0): load displacement per unit motor displacement (0 for velocity input).")
+    transfer_function: TransferFunctionOut = Field(description="The kind's transfer function, from its command input.")
+    load_transfer_function: TransferFunctionOut = Field(description="G(s) from the motor position to the load position.")
+    state_space: StateSpaceOut = Field(description="A realisation of G(s): motor position in, load position out.")
+    derived: dict[str, float] = Field(description="Kind-specific derived quantities (k_t, c_t, lambda, ...).")
+    defines_energy: bool = Field(description="Whether the vibration energy (J) is defined for this kind.")
+    defines_motor_torque: bool
+
+
+def mode_out(mode) -> ModeOut:  # noqa: ANN001 - models.plants.Mode
+    return ModeOut(
+        natural_frequency_hz=mode.natural_frequency_hz,
+        natural_frequency_rad_s=mode.natural_frequency_rad_s,
+        damping_ratio=mode.damping_ratio,
+        damped_frequency_hz=mode.damped_frequency_hz,
+        damped_frequency_rad_s=mode.damped_frequency_rad_s,
+        natural_period_s=mode.natural_period_s,
+        damped_period_s=mode.damped_period_s,
+        decay_rate_1_s=mode.decay_rate_1_s,
+    )
+
+
+def analyse(plant: Plant) -> PlantAnalysis:
+    num, den = plant.command_transfer_function()
+    lnum, lden = plant.load_transfer_function()
+    ss = plant.state_space()
+    derived: dict[str, float] = {}
+    if isinstance(plant, BeltPlatformPlant):
+        derived = {
+            "equivalent_stiffness_nm_per_rad": plant.equivalent_stiffness_nm_per_rad,
+            "equivalent_damping_nms_per_rad": plant.equivalent_damping_nms_per_rad,
+            "transmission_ratio": plant.transmission_ratio,
+        }
+    inertias = plant.torque_inertias()
+    if inertias is not None:
+        derived = {"total_inertia_kgm2": sum(inertias), "inertia_ratio": inertias[1] / inertias[0]}
+    params = {k: (list(v) if isinstance(v, tuple) else v) for k, v in plant.parameter_values().items()}
+    return PlantAnalysis(
+        kind=plant.kind,
+        parameters=params,
+        modes=[mode_out(m) for m in plant.modes()],
+        dc_gain=plant.dc_gain,
+        transfer_function=TransferFunctionOut(numerator=num.tolist(), denominator=den.tolist(), input=plant.command_input),
+        load_transfer_function=TransferFunctionOut(numerator=lnum.tolist(), denominator=lden.tolist(), input="position"),
+        state_space=StateSpaceOut(a=ss.a.tolist(), b=ss.b.tolist(), c=ss.c.tolist(), d=ss.d.tolist()),
+        derived=derived,
+        defines_energy=plant.energy_inertia is not None,
+        defines_motor_torque=inertias is not None,
+    )

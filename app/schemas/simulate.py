@@ -1,0 +1,191 @@
+"""Sampled profiles in and out, the load response, and the simulation metrics."""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+import numpy as np
+from pydantic import Field
+
+from app.schemas.common import OutModel, StrictModel
+from app.schemas.plants import PlantIn
+from models.commands import DERIVATIVE_NAMES, PiecewiseCommand
+from models.errors import InvalidParameter
+from models.simulation import Metrics, Response
+
+Quantity = Literal["position", "velocity", "acceleration", "jerk"]
+_CONSISTENCY_TOLERANCE = 1e-6
+
+
+class ProfileIn(StrictModel):
+    """A sampled motor command: a time grid and one or more of its derivatives."""
+
+    time_s: list[float] = Field(min_length=2, description="Strictly increasing sample times, s.")
+    position: list[float] | None = Field(None, description="Motor position (rad or m), one per time.")
+    velocity: list[float] | None = Field(None, description="Motor velocity, one per time.")
+    acceleration: list[float] | None = Field(None, description="Motor acceleration, one per time.")
+    jerk: list[float] | None = Field(None, description="Motor jerk, one per time.")
+
+
+class SimulationOptions(StrictModel):
+    held_quantity: Quantity | None = Field(
+        None,
+        description="Which array drives the simulation (default: the highest derivative given). Lower "
+        "derivatives are its exact integrals, starting from the first sample of each one given (else 0).",
+    )
+    hold: Literal["linear", "zero"] = Field(
+        "linear",
+        description="Between samples the held quantity is linear (first-order hold) or constant (zero-order hold). "
+        "The simulation is exact for that interpolation.",
+    )
+    settling_tolerance: float = Field(
+        1e-3, gt=0, le=1, description="Settling band as a fraction of the load's displacement (or final speed)."
+    )
+    settling_window: float | None = Field(
+        None, gt=0, description="Absolute settling band in load units; overrides settling_tolerance."
+    )
+
+
+class SimulateRequest(SimulationOptions):
+    plant: PlantIn
+    profile: ProfileIn
+
+
+class ProfileOut(OutModel):
+    """The motor command, sampled: what to paste into a drive."""
+
+    time_s: list[float]
+    position: list[float]
+    velocity: list[float]
+    acceleration: list[float]
+    jerk: list[float] = Field(description="Right-hand values where the jerk jumps.")
+
+
+class LoadOut(OutModel):
+    """The predicted load motion at the same times."""
+
+    time_s: list[float]
+    position: list[float] = Field(description="Load position, in the load's units (platform rad for belt_platform).")
+    velocity: list[float]
+    acceleration: list[float]
+    deflection: list[float] | None = Field(
+        None, description="Load position minus G(0) times the motor position; null for velocity-input plants."
+    )
+    motor_torque_nm: list[float] | None = Field(None, description="J_M th_M'' + J_L th_L'' (two_inertia only).")
+
+
+class ModeResidualOut(OutModel):
+    natural_frequency_hz: float
+    damping_ratio: float
+    residual_amplitude: float
+    residual_velocity_amplitude: float
+
+
+class MetricsOut(OutModel):
+    command_end_s: float = Field(description="Time of the command's last change: where the residual is measured.")
+    residual_amplitude: float = Field(
+        description="Envelope of the load's free oscillation when the command ends, from the state (sum over modes)."
+    )
+    residual_velocity_amplitude: float = Field(description="The same for the load velocity.")
+    modes: list[ModeResidualOut]
+    final_energy_j: float | None = Field(
+        description="Vibration energy J/2 alpha'^2 + k/2 alpha^2 left when the command ends (physical plants only)."
+    )
+    settling_time_s: float | None = Field(
+        description="From the command's start until the load stays within the band; null if it never does."
+    )
+    settled: bool
+    settling_quantity: Literal["position", "velocity"]
+    settling_window: float = Field(description="Half-width of the settling band, in load units.")
+    peak_velocity: float | None = Field(description="Peak |command velocity|; null where it is impulsive.")
+    peak_acceleration: float | None
+    peak_jerk: float | None
+    peak_motor_torque_nm: float | None = Field(description="Peak |motor torque| at the samples (two_inertia only).")
+
+
+class SimulateResponse(OutModel):
+    profile: ProfileOut
+    load: LoadOut
+    metrics: MetricsOut
+    warnings: list[str]
+
+
+def check_sample_count(field: str, count: int, max_samples: int) -> None:
+    if count > max_samples:
+        raise InvalidParameter(field, f"{count} samples", f"at most {max_samples} samples are allowed (VIBFREE_MAX_SAMPLES)")
+
+
+def to_command(
+    profile: ProfileIn, options: SimulationOptions, max_samples: int
+) -> tuple[PiecewiseCommand, list[str]]:
+    """The piecewise-polynomial command a sampled profile describes, and consistency warnings."""
+    check_sample_count("profile.time_s", len(profile.time_s), max_samples)
+    given = [name for name in DERIVATIVE_NAMES if getattr(profile, name) is not None]
+    if not given:
+        raise InvalidParameter("profile", "no samples", "give at least one of position, velocity, acceleration, jerk")
+    held = options.held_quantity or given[-1]
+    if held not in given:
+        raise InvalidParameter("held_quantity", held, f"profile.{held} is not given")
+    arrays = {name: np.asarray(getattr(profile, name), dtype=float) for name in given}
+    for name, arr in arrays.items():
+        if arr.size != len(profile.time_s):
+            raise InvalidParameter(
+                f"profile.{name}", f"{arr.size} samples", f"must have as many samples as profile.time_s ({len(profile.time_s)})"
+            )
+    order = DERIVATIVE_NAMES.index(held)
+    initial = tuple(float(arrays[n][0]) if n in arrays else 0.0 for n in DERIVATIVE_NAMES[:order])
+    command = PiecewiseCommand.from_samples(
+        np.asarray(profile.time_s, dtype=float), arrays[held], order, hold=options.hold, initial=initial
+    )
+    warnings = []
+    for m, name in enumerate(DERIVATIVE_NAMES[:order]):
+        if name in arrays:
+            given_values = arrays[name]
+            gap = np.abs(command.derivative(m) - given_values)
+            scale = max(float(np.max(np.abs(given_values))), 1e-300)
+            if float(np.max(gap)) > _CONSISTENCY_TOLERANCE * scale:
+                k = int(np.argmax(gap))
+                warnings.append(
+                    f"profile.{name} differs from the integral of profile.{held} by up to {gap[k]:.3g} "
+                    f"(at t = {command.time_s[k]:.6g} s); the simulation uses profile.{held}"
+                )
+    return command, warnings
+
+
+def profile_out(command: PiecewiseCommand) -> dict[str, Any]:
+    return {
+        "time_s": command.time_s,
+        "position": command.derivative(0),
+        "velocity": command.derivative(1),
+        "acceleration": command.derivative(2),
+        "jerk": command.derivative(3),
+    }
+
+
+def load_out(response: Response) -> dict[str, Any]:
+    return {
+        "time_s": response.time_s,
+        "position": response.load_position,
+        "velocity": response.load_velocity,
+        "acceleration": response.load_acceleration,
+        "deflection": response.deflection,
+        "motor_torque_nm": response.motor_torque_nm,
+    }
+
+
+def metrics_out(m: Metrics) -> dict[str, Any]:
+    return {
+        "command_end_s": m.command_end_s,
+        "residual_amplitude": m.residual_amplitude,
+        "residual_velocity_amplitude": m.residual_velocity_amplitude,
+        "modes": [vars(mode) for mode in m.modes],
+        "final_energy_j": m.final_energy_j,
+        "settling_time_s": m.settling.time_s,
+        "settled": m.settling.time_s is not None,
+        "settling_quantity": m.settling.quantity,
+        "settling_window": float(m.settling.window),
+        "peak_velocity": m.peak_velocity,
+        "peak_acceleration": m.peak_acceleration,
+        "peak_jerk": m.peak_jerk,
+        "peak_motor_torque_nm": m.peak_motor_torque_nm,
+    }

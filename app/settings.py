@@ -1,0 +1,32 @@
+"""Service settings, read from the environment with the ``VIBFREE_`` prefix."""
+
+from __future__ import annotations
+
+import os
+from functools import lru_cache
+
+from pydantic import Field
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+
+def _default_workers() -> int:
+    return max(1, min(2, os.cpu_count() or 1))
+
+
+class Settings(BaseSettings):
+    """Limits that keep every request bounded in memory and time."""
+
+    model_config = SettingsConfigDict(env_prefix="VIBFREE_", extra="ignore")
+
+    max_samples: int = Field(200_000, ge=2, description="Most samples in any sampled array, in or out.")
+    max_body_bytes: int = Field(32 * 1024 * 1024, ge=1024, description="Largest request body accepted (413 above).")
+    solve_time_limit_s: float = Field(10.0, gt=0, description="Wall-time cap of one solve (IPOPT max_wall_time).")
+    solve_max_iterations: int = Field(3000, ge=1, description="Iteration cap of one solve (IPOPT max_iter).")
+    solve_grace_s: float = Field(5.0, ge=0, description="Extra time before a stuck worker is killed.")
+    workers: int = Field(default_factory=_default_workers, ge=1, le=64, description="Solver worker processes.")
+    worker_start_timeout_s: float = Field(120.0, gt=0, description="Time allowed for the workers to start.")
+
+
+@lru_cache
+def get_settings() -> Settings:
+    return Settings()

@@ -1,0 +1,241 @@
+"""Motor commands as piecewise polynomials.
+
+A command is described exactly by its breakpoints t_0 < ... < t_{N-1} and, at each breakpoint,
+the right-hand derivatives p^(m)(t_k+) for m = 0..d: on [t_k, t_{k+1}) it is the Taylor polynomial
+of degree d built from them. Before t_0 the motor rests at p(t_0); after t_{N-1} the last
+polynomial continues (a held velocity for a rest-to-velocity move, rest for a rest-to-rest move).
+
+Sampled commands become piecewise polynomials by holding their highest given derivative: a
+first-order hold (piecewise linear, the default) or a zero-order hold (piecewise constant), the
+lower derivatives being its exact integrals. A trapezoidal acceleration sampled at its corners is
+described exactly by a first-order hold on the acceleration, for example.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Literal
+
+import numpy as np
+
+from models.errors import InvalidParameter
+
+Hold = Literal["linear", "zero"]
+DERIVATIVE_NAMES = ("position", "velocity", "acceleration", "jerk")
+_JUMP_RELATIVE_TOLERANCE = 64 * np.finfo(float).eps
+# Bounds that keep every integral and power of a step finite in double precision.
+MAX_ABS_TIME_S = 1e7
+MIN_STEP_S = 1e-9
+_UNIFORM_GRID_TOLERANCE = 1e-12
+MAX_ABS_VALUE = 1e12
+
+
+def _taylor_step(derivatives: np.ndarray, h: np.ndarray, m: int, degree: int, start: int | None = None) -> np.ndarray:
+    """sum_{n=start..degree} D_n h^(n-m) / (n-m)!, by Horner's rule (start defaults to m)."""
+    start = m if start is None else start
+    acc = derivatives[degree] / math.factorial(degree - m)
+    for n in range(degree - 1, start - 1, -1):
+        acc = acc * h + derivatives[n] / math.factorial(n - m)
+    for _ in range(start - m):
+        acc = acc * h
+    return acc
+
+
+def check_time_grid(time_s: np.ndarray, field: str = "time_s") -> np.ndarray:
+    """A finite, strictly increasing grid of at least two samples."""
+    t = np.asarray(time_s, dtype=float)
+    if t.ndim != 1 or t.size < 2:
+        raise InvalidParameter(field, f"{t.size} samples", "needs at least 2 samples")
+    if not np.all(np.isfinite(t)):
+        raise InvalidParameter(field, "non-finite value", "every time must be finite")
+    if np.max(np.abs(t)) > MAX_ABS_TIME_S:
+        raise InvalidParameter(field, float(np.max(np.abs(t))), f"times must lie within +-{MAX_ABS_TIME_S:g} s")
+    steps = np.diff(t)
+    if np.any(steps <= 0.0):
+        k = int(np.argmax(steps <= 0.0))
+        raise InvalidParameter(
+            f"{field}[{k + 1}]", float(t[k + 1]), f"times must be strictly increasing (previous is {float(t[k])!r})"
+        )
+    if np.any(steps < MIN_STEP_S):
+        k = int(np.argmax(steps < MIN_STEP_S))
+        raise InvalidParameter(f"{field}[{k + 1}]", float(t[k + 1]), f"samples must be at least {MIN_STEP_S:g} s apart")
+    return t
+
+
+@dataclass(frozen=True)
+class PiecewiseCommand:
+    """A motor command that is a polynomial of degree ``degree`` between breakpoints.
+
+    ``derivatives[m, k]`` is p^(m)(t_k+), the right-hand m-th derivative at breakpoint k.
+    """
+
+    time_s: np.ndarray
+    derivatives: np.ndarray
+    continuous_orders: int = 0  # p .. p^(continuous_orders - 1) are continuous after t_0
+
+    @property
+    def degree(self) -> int:
+        return self.derivatives.shape[0] - 1
+
+    @property
+    def steps_s(self) -> np.ndarray:
+        return np.diff(self.time_s)
+
+    @cached_property
+    def is_uniform(self) -> bool:
+        """True when t_k = t_0 + k h to within round-off (then one recurrence step fits all)."""
+        t = self.time_s
+        span = t[-1] - t[0]
+        ideal = np.linspace(t[0], t[-1], t.size)
+        return bool(np.max(np.abs(t - ideal)) <= _UNIFORM_GRID_TOLERANCE * span)
+
+    def derivative(self, m: int) -> np.ndarray:
+        """p^(m) at the breakpoints (right-hand values); zero above the degree."""
+        if m <= self.degree:
+            return self.derivatives[m]
+        return np.zeros_like(self.time_s)
+
+    def left_limits(self) -> np.ndarray:
+        """p^(m)(t_k-), from the piece before each breakpoint; rest at p(t_0) before t_0."""
+        return np.array([self.left_limit(m) for m in range(self.degree + 1)])
+
+    def left_limit(self, m: int) -> np.ndarray:
+        """p^(m)(t_k-) for one order m (computed once)."""
+        cache = self.__dict__.setdefault("_left_cache", {})
+        if m not in cache:
+            d = self.degree
+            left = np.empty_like(self.time_s)
+            left[0] = self.derivatives[0, 0] if m == 0 else 0.0
+            left[1:] = _taylor_step(self.derivatives[:, :-1], self.steps_s, m, d)
+            left.setflags(write=False)
+            cache[m] = left
+        return cache[m]
+
+    @cached_property
+    def _jumps(self) -> np.ndarray:
+        d = self.degree
+        jumps = np.zeros_like(self.derivatives)
+        jumps[1:, 0] = self.derivatives[1:, 0]  # leaving rest at t_0
+        for m in range(self.continuous_orders, d + 1):  # loop over derivative orders
+            left = self.left_limit(m)[1:]
+            right = self.derivatives[m, 1:]
+            diff = right - left
+            noise = _JUMP_RELATIVE_TOLERANCE * (np.abs(right) + np.abs(left))
+            jumps[m, 1:] = np.where(np.abs(diff) <= noise, 0.0, diff)
+        jumps.setflags(write=False)
+        return jumps
+
+    def jumps(self) -> np.ndarray:
+        """p^(m)(t_k+) - p^(m)(t_k-): the discontinuities that excite the plant's free response.
+
+        Differences at round-off level are set to zero; so are the orders that are continuous
+        by construction (``continuous_orders``).
+        """
+        return self._jumps
+
+    def end_index(self) -> int:
+        """Index of the last breakpoint where the command changes (its end, for residual metrics)."""
+        changed = np.flatnonzero(np.any(self.jumps()[1:] != 0.0, axis=0))
+        return int(changed[-1]) if changed.size else 0
+
+    def evaluate(self, m: int, t: np.ndarray) -> np.ndarray:
+        """p^(m)(t) at arbitrary times (right-continuous)."""
+        t = np.asarray(t, dtype=float)
+        k = np.clip(np.searchsorted(self.time_s, t, side="right") - 1, 0, self.time_s.size - 1)
+        tau = t - self.time_s[k]
+        out = np.zeros_like(tau)
+        for n in range(m, self.degree + 1):
+            out += self.derivatives[n, k] * tau ** (n - m) / math.factorial(n - m)
+        before = t < self.time_s[0]
+        if np.any(before):
+            out[before] = self.derivatives[0, 0] if m == 0 else 0.0
+        return out
+
+    def peak_abs(self, m: int) -> float | None:
+        """max |p^(m)| over [t_0, t_{N-1}], including extrema inside the pieces.
+
+        None when p^(m) is impulsive, i.e. a lower derivative jumps somewhere (including a start
+        from rest with a non-zero value). Exact when p^(m) has degree <= 3 inside a piece (its derivative's
+        roots are found in closed form); otherwise also sampled at 16 interior points per piece.
+        """
+        if m >= 1 and np.any(self.jumps()[:m] != 0.0):
+            return None
+        if m > self.degree:
+            return 0.0
+        candidates = [np.abs(self.derivatives[m]), np.abs(self.left_limit(m)[1:])]
+        h = self.steps_s
+        deg_inside = self.degree - m  # degree of p^(m) within a piece
+        coeffs = [self.derivatives[m + 1 + i, :-1] / math.factorial(i) for i in range(deg_inside)]
+        # Roots tau of p^(m+1)(t_k + tau) = sum_i coeffs[i] tau^i inside (0, h_k).
+        roots: list[np.ndarray] = []
+        if deg_inside == 2:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                roots.append(-coeffs[0] / coeffs[1])
+        elif deg_inside == 3:
+            c0, c1, c2 = coeffs
+            disc = c1 * c1 - 4.0 * c2 * c0
+            with np.errstate(divide="ignore", invalid="ignore"):
+                sq = np.sqrt(np.where(disc >= 0.0, disc, np.nan))
+                roots += [(-c1 + sq) / (2.0 * c2), (-c1 - sq) / (2.0 * c2), -c0 / c1]
+        elif deg_inside > 3:
+            roots += [h * f for f in np.linspace(0.0, 1.0, 18)[1:-1]]
+        for tau in roots:
+            ok = np.isfinite(tau) & (tau > 0.0) & (tau < h)
+            if np.any(ok):
+                k = np.flatnonzero(ok)
+                tk = tau[k]
+                value = np.zeros_like(tk)
+                for n in range(m, self.degree + 1):
+                    value += self.derivatives[n, k] * tk ** (n - m) / math.factorial(n - m)
+                candidates.append(np.abs(value))
+        return float(max(np.max(c) if c.size else 0.0 for c in candidates))
+
+    @classmethod
+    def from_samples(
+        cls,
+        time_s: np.ndarray,
+        values: np.ndarray,
+        order: int,
+        *,
+        hold: Hold = "linear",
+        initial: tuple[float, ...] = (),
+        field: str = "profile",
+    ) -> PiecewiseCommand:
+        """The command whose ``order``-th derivative (0 position .. 3 jerk) is ``values`` held
+        linearly or constantly between samples; ``initial`` gives p, p', ... at t_0 (default 0).
+
+        After the last sample the held quantity keeps its last value.
+        """
+        t = check_time_grid(time_s, f"{field}.time_s")
+        u = np.asarray(values, dtype=float)
+        name = DERIVATIVE_NAMES[order]
+        if u.shape != t.shape:
+            raise InvalidParameter(
+                f"{field}.{name}", f"{u.size} samples", f"must have as many samples as time_s ({t.size})"
+            )
+        bad = ~np.isfinite(u) | (np.abs(u) > MAX_ABS_VALUE)
+        if np.any(bad):
+            k = int(np.argmax(bad))
+            raise InvalidParameter(f"{field}.{name}[{k}]", str(u[k]), f"must be finite and within +-{MAX_ABS_VALUE:g}")
+        for m, value in enumerate(initial):
+            if not (math.isfinite(value) and abs(value) <= MAX_ABS_VALUE):
+                raise InvalidParameter(f"{field}.{DERIVATIVE_NAMES[m]}[0]", value, f"must be finite and within +-{MAX_ABS_VALUE:g}")
+        h = np.diff(t)
+        degree = order + 1 if hold == "linear" else order
+        der = np.zeros((degree + 1, t.size))
+        der[order] = u
+        if hold == "linear":
+            der[order + 1, :-1] = np.diff(u) / h
+        for m in range(order - 1, -1, -1):
+            increments = _taylor_step(der[:, :-1], h, m, degree, start=m + 1)
+            start = initial[m] if m < len(initial) else 0.0
+            der[m, 0] = start
+            der[m, 1:] = start + np.cumsum(increments)
+        return cls(t, der, continuous_orders=order + 1 if hold == "linear" else order)
+
+    @classmethod
+    def from_derivatives(cls, time_s: np.ndarray, derivatives: np.ndarray) -> PiecewiseCommand:
+        """A command given exactly by its right-hand derivatives at its breakpoints."""
+        return cls(check_time_grid(time_s), np.atleast_2d(np.asarray(derivatives, dtype=float)))

@@ -1,0 +1,561 @@
+"""Plant kinds: the elastic machines that the motor command drives.
+
+Every kind maps the motor command to the load motion through a linear transfer function, defined
+once by ``_command_tf`` with plain arithmetic so that the same formula serves the numeric form
+(floats -> numpy state space) and the symbolic form (CasADi SX -> symbolic state space for the
+optimisers). The convention of all four papers is that the drive executes the motor command
+exactly (an ideal, "kinematic" motor) and the load follows through the elastic element.
+
+Kinds and their sources:
+
+- ``mode``: one vibration mode, G(s) = (2 zeta w s + w^2) / (s^2 + 2 zeta w s + w^2)
+  (Biagiotti eq. 7 rewritten for the load, Cusimano eq. 4, Incerti eq. 4).
+- ``two_inertia``: motor and load inertias on a compliant shaft (Cusimano Fig. 1, eqs. 1-3).
+- ``belt_platform``: rotary platform on a two-branch belt behind a reducer (Incerti Fig. 1,
+  eqs. 1-4, Tables I and III).
+- ``rigid_flexible``: two masses on a spring, velocity-commanded drive (Chatlatanagulchai Fig. 2,
+  eq. 3 as printed; see ``RigidFlexiblePlant``).
+- ``transfer_function``: any stable rational transfer function given by its coefficients.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, fields
+from typing import Any, ClassVar, Literal
+
+import numpy as np
+
+from models.errors import InvalidParameter
+
+# Ranges that keep every derived quantity finite in double precision; they are far outside
+# what a machine can have, so they only refuse nonsense.
+PARAMETER_MAX = 1e12
+FREQUENCY_MIN_HZ = 1e-3
+FREQUENCY_MAX_HZ = 1e5
+MAX_TRANSFER_FUNCTION_ORDER = 20
+_REPEATED_POLE_RELATIVE_GAP = 1e-6
+_ROOT_TOLERANCE = 1e-9  # relative: roots of s^2 + w^2 come out with |Re| ~ 1e-16 |p|
+
+CommandInput = Literal["position", "velocity"]
+
+
+@dataclass(frozen=True)
+class Mode:
+    """A vibration mode: a pair of complex poles -zeta w +- j w sqrt(1 - zeta^2)."""
+
+    natural_frequency_rad_s: float
+    damping_ratio: float
+
+    @classmethod
+    def from_pole(cls, pole: complex) -> Mode:
+        """The mode of a pole in the upper half-plane: w = |p|, zeta = -Re(p)/|p|."""
+        omega = abs(pole)
+        return cls(omega, max(0.0, -pole.real / omega))
+
+    @property
+    def natural_frequency_hz(self) -> float:
+        return self.natural_frequency_rad_s / (2.0 * math.pi)
+
+    @property
+    def damped_frequency_rad_s(self) -> float:
+        return self.natural_frequency_rad_s * math.sqrt(1.0 - self.damping_ratio**2)
+
+    @property
+    def damped_frequency_hz(self) -> float:
+        return self.damped_frequency_rad_s / (2.0 * math.pi)
+
+    @property
+    def natural_period_s(self) -> float:
+        return 1.0 / self.natural_frequency_hz
+
+    @property
+    def damped_period_s(self) -> float:
+        return 1.0 / self.damped_frequency_hz
+
+    @property
+    def decay_rate_1_s(self) -> float:
+        """sigma = zeta w: the envelope decays as exp(-sigma t)."""
+        return self.damping_ratio * self.natural_frequency_rad_s
+
+    @property
+    def pole(self) -> complex:
+        return complex(-self.decay_rate_1_s, self.damped_frequency_rad_s)
+
+
+@dataclass(frozen=True)
+class StateSpace:
+    """x' = A x + B u, y = C x + D u, with u the motor position and y the load position."""
+
+    a: np.ndarray
+    b: np.ndarray
+    c: np.ndarray
+    d: np.ndarray
+
+
+@dataclass(frozen=True)
+class SymbolicPlant:
+    """The plant's state space as CasADi SX expressions of its parameter vector.
+
+    ``function`` maps the parameter values to (A, B, C, D); an optimiser builds its problem once
+    with ``parameters`` as CasADi parameters and sets the plant's values per solve.
+    """
+
+    parameter_names: tuple[str, ...]
+    parameters: Any  # casadi.SX column
+    a: Any
+    b: Any
+    c: Any
+    d: Any
+
+    def function(self) -> Any:
+        import casadi as ca
+
+        return ca.Function(
+            "state_space", [self.parameters], [self.a, self.b, self.c, self.d], ["p"], ["A", "B", "C", "D"]
+        )
+
+
+def _check_positive(name: str, value: float, *, allow_zero: bool = False) -> float:
+    value = float(value)
+    if not math.isfinite(value):
+        raise InvalidParameter(name, value, "must be a finite number")
+    if allow_zero and value < 0.0:
+        raise InvalidParameter(name, value, "must be >= 0")
+    if not allow_zero and value <= 0.0:
+        raise InvalidParameter(name, value, "must be > 0")
+    if value > PARAMETER_MAX:
+        raise InvalidParameter(name, value, f"must be <= {PARAMETER_MAX:g}")
+    return value
+
+
+def _check_modes(modes: Sequence[Mode], field: str) -> None:
+    for mode in modes:
+        f = mode.natural_frequency_hz
+        if not FREQUENCY_MIN_HZ <= f <= FREQUENCY_MAX_HZ:
+            raise InvalidParameter(
+                field,
+                f,
+                f"the derived natural frequency {f:.6g} Hz must lie in "
+                f"[{FREQUENCY_MIN_HZ:g}, {FREQUENCY_MAX_HZ:g}] Hz",
+            )
+        if mode.damping_ratio >= 1.0:
+            raise InvalidParameter(field, mode.damping_ratio, "the derived damping ratio must be < 1")
+
+
+def _realise(num: Sequence[Any], den: Sequence[Any]) -> tuple[list, list, list, list]:
+    """Controllable canonical realisation of num/den (descending powers, deg num <= deg den).
+
+    The same layout as ``scipy.signal.tf2ss``; written with plain arithmetic so it builds either
+    floats or CasADi expressions.
+    """
+    n = len(den) - 1
+    lead = den[0]
+    a_coef = [den[i] / lead for i in range(1, n + 1)]
+    padded = [0.0] * (n + 1 - len(num)) + list(num)
+    b_coef = [padded[i] / lead for i in range(n + 1)]
+    a = [[-a_coef[j] if i == 0 else (1.0 if j == i - 1 else 0.0) for j in range(n)] for i in range(n)]
+    b = [[1.0] if i == 0 else [0.0] for i in range(n)]
+    c = [[b_coef[j + 1] - a_coef[j] * b_coef[0] for j in range(n)]]
+    d = [[b_coef[0]]]
+    return a, b, c, d
+
+
+class Plant:
+    """Base of the plant kinds. Subclasses are frozen dataclasses whose fields are parameters."""
+
+    kind: ClassVar[str]
+
+    # --- defined by each kind -------------------------------------------------------------
+    @staticmethod
+    def _command_tf(p: Mapping[str, Any]) -> tuple[list[Any], list[Any]]:
+        """Numerator and denominator (descending powers) from the command input to the load."""
+        raise NotImplementedError
+
+    @property
+    def command_input(self) -> CommandInput:
+        """The motor quantity the transfer function takes: ``position`` or ``velocity``."""
+        return "position"
+
+    # Physical data for energy and torque, where the kind has them.
+    @property
+    def energy_inertia(self) -> float | None:
+        """Inertia (or mass) of the vibrating load, for the vibration energy."""
+        return None
+
+    @property
+    def energy_stiffness(self) -> float | None:
+        """Stiffness of the elastic element, in the load's coordinate."""
+        return None
+
+    def torque_inertias(self) -> tuple[float, float] | None:
+        """(J_M, J_L) where the kind defines the motor torque J_M th_M'' + J_L th_L''."""
+        return None
+
+    # --- shared ---------------------------------------------------------------------------
+    def parameter_values(self) -> dict[str, float]:
+        return {f.name: getattr(self, f.name) for f in fields(self)}  # type: ignore[arg-type]
+
+    def command_transfer_function(self) -> tuple[np.ndarray, np.ndarray]:
+        """The kind's own transfer function (from ``command_input`` to the load), as numbers."""
+        num, den = self._command_tf(self.parameter_values())
+        return np.asarray(num, dtype=float), np.asarray(den, dtype=float)
+
+    def load_transfer_function(self) -> tuple[np.ndarray, np.ndarray]:
+        """G(s) from the motor position to the load position (numerator, denominator)."""
+        num, den = self.command_transfer_function()
+        if self.command_input == "velocity":
+            num = np.append(num, 0.0)  # V(s) = s Theta_m(s)
+        num = np.trim_zeros(num, "f")
+        return num, den
+
+    def modes(self) -> tuple[Mode, ...]:
+        """The vibration modes: the complex pole pairs, lowest frequency first."""
+        _, den = self.command_transfer_function()
+        poles = np.roots(den)
+        upper = sorted((p for p in poles if p.imag > 0.0), key=abs)
+        return tuple(Mode.from_pole(complex(p)) for p in upper)
+
+    @property
+    def dc_gain(self) -> float:
+        """G(0): load displacement per unit motor displacement (0 for velocity-input kinds)."""
+        num, den = self.load_transfer_function()
+        return float(num[-1] / den[-1])
+
+    def state_space(self) -> StateSpace:
+        """Numeric state space of G(s) (motor position in, load position out)."""
+        num, den = self.load_transfer_function()
+        a, b, c, d = _realise(list(num), den.tolist())
+        return StateSpace(*(np.array(m, dtype=float).reshape(len(m), -1) for m in (a, b, c, d)))
+
+    def symbolic(self) -> SymbolicPlant:
+        """The same state space with the parameters as CasADi symbols.
+
+        It depends only on the kind and its shape (``symbolic_key``), never on parameter values,
+        so an optimiser builds it once per key and passes ``symbolic_parameter_values()``.
+        """
+        import casadi as ca
+
+        sizes = self.symbolic_sizes()
+        names: list[str] = []
+        values: dict[str, Any] = {}
+        for f in fields(self):  # type: ignore[arg-type]
+            if f.name in _NON_NUMERIC_FIELDS:
+                continue
+            if f.name in sizes:
+                values[f.name] = [ca.SX.sym(f"{f.name}_{i}") for i in range(sizes[f.name])]
+                names += [f"{f.name}[{i}]" for i in range(sizes[f.name])]
+            else:
+                values[f.name] = ca.SX.sym(f.name)
+                names.append(f.name)
+        num, den = self._command_tf(values)
+        if self.command_input == "velocity":
+            num = list(num) + [0.0]
+        a, b, c, d = (
+            ca.vertcat(*[ca.horzcat(*[ca.SX(e) if isinstance(e, float) else e for e in row]) for row in m])
+            for m in _realise(num, den)
+        )
+        flat = [s for v in values.values() for s in (v if isinstance(v, list) else [v])]
+        return SymbolicPlant(tuple(names), ca.vertcat(*flat), a, b, c, d)
+
+    def symbolic_key(self) -> tuple:
+        """What the symbolic form depends on: kind, vector sizes and command input."""
+        return (self.kind, tuple(sorted(self.symbolic_sizes().items())), self.command_input)
+
+    def symbolic_parameter_values(self) -> np.ndarray:
+        """The numeric parameter vector matching ``symbolic()``'s parameter order."""
+        out: list[float] = []
+        for name, value in self.parameter_values().items():
+            if name in _NON_NUMERIC_FIELDS:
+                continue
+            out += list(value) if isinstance(value, tuple) else [value]
+        return np.asarray(out, dtype=float)
+
+    def symbolic_sizes(self) -> dict[str, int]:
+        return {}
+
+
+_NON_NUMERIC_FIELDS = {"command_input"}
+
+
+@dataclass(frozen=True)
+class ModePlant(Plant):
+    """A single mode given by its natural frequency and damping ratio.
+
+    The load follows the motor through G(s) = (2 zeta w s + w^2)/(s^2 + 2 zeta w s + w^2): the
+    model of all four papers (Cusimano eq. 4, Incerti eq. 4 with lambda = 1, Biagiotti eq. 7,
+    Chatlatanagulchai eq. 1).
+    """
+
+    kind: ClassVar[str] = "mode"
+    natural_frequency_hz: float
+    damping_ratio: float = 0.0
+
+    def __post_init__(self) -> None:
+        f = _check_positive("natural_frequency_hz", self.natural_frequency_hz)
+        if not FREQUENCY_MIN_HZ <= f <= FREQUENCY_MAX_HZ:
+            raise InvalidParameter(
+                "natural_frequency_hz", f, f"must lie in [{FREQUENCY_MIN_HZ:g}, {FREQUENCY_MAX_HZ:g}] Hz"
+            )
+        z = float(self.damping_ratio)
+        if not (math.isfinite(z) and 0.0 <= z < 1.0):
+            raise InvalidParameter("damping_ratio", z, "must satisfy 0 <= damping_ratio < 1")
+
+    @staticmethod
+    def _command_tf(p: Mapping[str, Any]) -> tuple[list[Any], list[Any]]:
+        w = 2.0 * math.pi * p["natural_frequency_hz"]
+        z = p["damping_ratio"]
+        return [2.0 * z * w, w * w], [1.0, 2.0 * z * w, w * w]
+
+    def modes(self) -> tuple[Mode, ...]:
+        return (Mode(2.0 * math.pi * self.natural_frequency_hz, self.damping_ratio),)
+
+
+@dataclass(frozen=True)
+class TwoInertiaPlant(Plant):
+    """Motor inertia J_M driving a load J_L through a shaft of stiffness k and damping c.
+
+    Cusimano Fig. 1: Omega_n = sqrt(k/J_L) (eq. 1), zeta = c/(2 sqrt(k J_L)) (eq. 3); the load
+    obeys J_L th_L'' = k (th_M - th_L) + c (th_M' - th_L'), so G(s) = (c s + k)/(J_L s^2 + c s + k)
+    (eq. 4 in absolute coordinates). The motor torque of a motion is J_M th_M'' + J_L th_L''.
+    """
+
+    kind: ClassVar[str] = "two_inertia"
+    motor_inertia_kgm2: float
+    load_inertia_kgm2: float
+    stiffness_nm_per_rad: float
+    damping_nms_per_rad: float = 0.0
+
+    def __post_init__(self) -> None:
+        _check_positive("motor_inertia_kgm2", self.motor_inertia_kgm2)
+        _check_positive("load_inertia_kgm2", self.load_inertia_kgm2)
+        _check_positive("stiffness_nm_per_rad", self.stiffness_nm_per_rad)
+        _check_positive("damping_nms_per_rad", self.damping_nms_per_rad, allow_zero=True)
+        _check_modes(self.modes(), "stiffness_nm_per_rad")
+
+    @staticmethod
+    def _command_tf(p: Mapping[str, Any]) -> tuple[list[Any], list[Any]]:
+        k, c, j_l = p["stiffness_nm_per_rad"], p["damping_nms_per_rad"], p["load_inertia_kgm2"]
+        return [c, k], [j_l, c, k]
+
+    def modes(self) -> tuple[Mode, ...]:
+        k, j_l = self.stiffness_nm_per_rad, self.load_inertia_kgm2
+        return (Mode(math.sqrt(k / j_l), self.damping_nms_per_rad / (2.0 * math.sqrt(k * j_l))),)
+
+    def torque_inertias(self) -> tuple[float, float]:
+        return self.motor_inertia_kgm2, self.load_inertia_kgm2
+
+    @property
+    def energy_inertia(self) -> float:
+        return self.load_inertia_kgm2
+
+    @property
+    def energy_stiffness(self) -> float:
+        return self.stiffness_nm_per_rad
+
+
+@dataclass(frozen=True)
+class BeltPlatformPlant(Plant):
+    """Rotary platform driven by a servomotor through a reducer and a two-branch belt.
+
+    Incerti Fig. 1 and eqs. (1)-(4): k_t = 2 k R^2, c_t = 2 c R^2, lambda = z r / R,
+    omega_n = sqrt(k_t / J), xi = c_t / (2 J omega_n). The platform angle follows the motor angle
+    through G(s) = lambda (c_t s + k_t) / (J s^2 + c_t s + k_t). ``gear_ratio`` is z, the speed of
+    pulley (1) over the motor speed (0.1 for the 1:10 reducer of Table III). The vibration
+    energy is E = J/2 (alpha'^2 + omega_n^2 alpha^2) with alpha = theta - lambda phi_m
+    (eqs. 24-26).
+    """
+
+    kind: ClassVar[str] = "belt_platform"
+    platform_inertia_kgm2: float
+    branch_stiffness_n_per_m: float
+    branch_damping_ns_per_m: float
+    motor_pulley_radius_m: float
+    platform_pulley_radius_m: float
+    gear_ratio: float
+
+    def __post_init__(self) -> None:
+        _check_positive("platform_inertia_kgm2", self.platform_inertia_kgm2)
+        _check_positive("branch_stiffness_n_per_m", self.branch_stiffness_n_per_m)
+        _check_positive("branch_damping_ns_per_m", self.branch_damping_ns_per_m, allow_zero=True)
+        _check_positive("motor_pulley_radius_m", self.motor_pulley_radius_m)
+        _check_positive("platform_pulley_radius_m", self.platform_pulley_radius_m)
+        _check_positive("gear_ratio", self.gear_ratio)
+        _check_modes(self.modes(), "branch_stiffness_n_per_m")
+
+    @staticmethod
+    def _command_tf(p: Mapping[str, Any]) -> tuple[list[Any], list[Any]]:
+        r_big = p["platform_pulley_radius_m"]
+        k_t = 2.0 * p["branch_stiffness_n_per_m"] * r_big * r_big
+        c_t = 2.0 * p["branch_damping_ns_per_m"] * r_big * r_big
+        lam = p["gear_ratio"] * p["motor_pulley_radius_m"] / r_big
+        return [lam * c_t, lam * k_t], [p["platform_inertia_kgm2"], c_t, k_t]
+
+    @property
+    def equivalent_stiffness_nm_per_rad(self) -> float:
+        """k_t = 2 k R^2 (eq. 3)."""
+        return 2.0 * self.branch_stiffness_n_per_m * self.platform_pulley_radius_m**2
+
+    @property
+    def equivalent_damping_nms_per_rad(self) -> float:
+        """c_t = 2 c R^2 (eq. 3)."""
+        return 2.0 * self.branch_damping_ns_per_m * self.platform_pulley_radius_m**2
+
+    @property
+    def transmission_ratio(self) -> float:
+        """lambda = z r / R (eq. 2): platform angle per motor angle for a rigid belt."""
+        return self.gear_ratio * self.motor_pulley_radius_m / self.platform_pulley_radius_m
+
+    def modes(self) -> tuple[Mode, ...]:
+        j, k_t, c_t = self.platform_inertia_kgm2, self.equivalent_stiffness_nm_per_rad, self.equivalent_damping_nms_per_rad
+        omega = math.sqrt(k_t / j)
+        return (Mode(omega, c_t / (2.0 * j * omega)),)
+
+    @property
+    def energy_inertia(self) -> float:
+        return self.platform_inertia_kgm2
+
+    @property
+    def energy_stiffness(self) -> float:
+        return self.equivalent_stiffness_nm_per_rad
+
+
+@dataclass(frozen=True)
+class RigidFlexiblePlant(Plant):
+    """Drive mass m0 and load mass m1 on a spring k with damping c; drive damping c0.
+
+    Chatlatanagulchai Fig. 2 and eq. (3) *as printed*:
+    P(s) = (c s + k) / (m0 m1 s^3 + (m0 c + m1 c + m1 c0) s^2 + (m0 k + m1 k + c c0) s + c0 k),
+    taken from the paper's velocity command v to the load output x1. As the reproduction notes
+    say, that expression is s X1(s)/F(s) of the equations of motion, not X1/V for v = dx0/dt: it
+    is kept because the paper's figures and its printed mode (omega_n = 0.577 rad/s,
+    zeta = 0.0577) come from it. The command input of this kind is therefore the velocity.
+    """
+
+    kind: ClassVar[str] = "rigid_flexible"
+    drive_mass_kg: float
+    load_mass_kg: float
+    stiffness_n_per_m: float
+    damping_ns_per_m: float
+    drive_damping_ns_per_m: float
+
+    def __post_init__(self) -> None:
+        _check_positive("drive_mass_kg", self.drive_mass_kg)
+        _check_positive("load_mass_kg", self.load_mass_kg)
+        _check_positive("stiffness_n_per_m", self.stiffness_n_per_m)
+        _check_positive("damping_ns_per_m", self.damping_ns_per_m, allow_zero=True)
+        # c0 k is the constant term of eq. (3): with c0 = 0 the transfer function has a pole at 0.
+        _check_positive("drive_damping_ns_per_m", self.drive_damping_ns_per_m)
+        modes = self.modes()
+        if not modes:
+            raise InvalidParameter("stiffness_n_per_m", self.stiffness_n_per_m, "the plant has no oscillatory mode")
+        _check_modes(modes, "stiffness_n_per_m")
+
+    @property
+    def command_input(self) -> CommandInput:
+        return "velocity"
+
+    @staticmethod
+    def _command_tf(p: Mapping[str, Any]) -> tuple[list[Any], list[Any]]:
+        m0, m1 = p["drive_mass_kg"], p["load_mass_kg"]
+        k, c, c0 = p["stiffness_n_per_m"], p["damping_ns_per_m"], p["drive_damping_ns_per_m"]
+        return [c, k], [m0 * m1, m0 * c + m1 * c + m1 * c0, m0 * k + m1 * k + c * c0, c0 * k]
+
+
+@dataclass(frozen=True)
+class TransferFunctionPlant(Plant):
+    """Any stable, proper transfer function from the motor command to the load.
+
+    ``numerator`` and ``denominator`` are in descending powers of s. ``command_input`` says
+    whether the input is the motor position (default) or velocity. Poles must lie in the left
+    half-plane; undamped complex pairs on the imaginary axis are allowed, a pole at 0 or repeated
+    poles are not. The complex pole pairs are the modes.
+    """
+
+    kind: ClassVar[str] = "transfer_function"
+    numerator: tuple[float, ...]
+    denominator: tuple[float, ...]
+    command_input: CommandInput = "position"  # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        num = np.asarray(self.numerator, dtype=float)
+        den = np.asarray(self.denominator, dtype=float)
+        if self.command_input not in ("position", "velocity"):
+            raise InvalidParameter("command_input", self.command_input, "must be 'position' or 'velocity'")
+        for name, arr in (("numerator", num), ("denominator", den)):
+            if arr.ndim != 1 or arr.size == 0:
+                raise InvalidParameter(name, arr.ravel().tolist(), "must be a non-empty list of coefficients")
+            if arr.size > MAX_TRANSFER_FUNCTION_ORDER + 1:
+                raise InvalidParameter(name, f"{arr.size} coefficients", f"order must be <= {MAX_TRANSFER_FUNCTION_ORDER}")
+            if not np.all(np.isfinite(arr)):
+                raise InvalidParameter(name, "non-finite coefficient", "every coefficient must be finite")
+        if den[0] == 0.0:
+            raise InvalidParameter("denominator", den.tolist(), "the leading coefficient must not be 0")
+        num = np.trim_zeros(num, "f")
+        if num.size == 0:
+            raise InvalidParameter("numerator", list(self.numerator), "must not be all zeros")
+        if den.size < 2:
+            raise InvalidParameter("denominator", den.tolist(), "must be at least first order")
+        relative = 1 if self.command_input == "velocity" else 0
+        if num.size - 1 + relative > den.size - 1:
+            rule = "numerator degree must be below the denominator degree (velocity input)" if relative else (
+                "numerator degree must not exceed the denominator degree (the plant must be proper)"
+            )
+            raise InvalidParameter("numerator", list(self.numerator), rule)
+        poles = np.roots(den)
+        scale = float(np.max(np.abs(poles)))
+        for p in poles:
+            oscillatory = abs(p.imag) > _ROOT_TOLERANCE * abs(p)
+            if p.real > _ROOT_TOLERANCE * abs(p) or (not oscillatory and p.real >= -_ROOT_TOLERANCE * scale):
+                raise InvalidParameter(
+                    "denominator",
+                    den.tolist(),
+                    f"pole {complex(p):.6g} is not in the left half-plane: the load would not follow the motor",
+                )
+        gaps = np.abs(poles[:, None] - poles[None, :])
+        gaps[np.diag_indices(poles.size)] = np.inf
+        if poles.size > 1 and np.min(gaps) <= _REPEATED_POLE_RELATIVE_GAP * scale:
+            raise InvalidParameter("denominator", den.tolist(), "repeated poles are not supported")
+        _check_modes(self.modes(), "denominator")
+        object.__setattr__(self, "numerator", tuple(float(x) for x in num))
+        object.__setattr__(self, "denominator", tuple(float(x) for x in den))
+
+    @staticmethod
+    def _command_tf(p: Mapping[str, Any]) -> tuple[list[Any], list[Any]]:
+        return list(p["numerator"]), list(p["denominator"])
+
+    def command_transfer_function(self) -> tuple[np.ndarray, np.ndarray]:
+        return np.asarray(self.numerator, dtype=float), np.asarray(self.denominator, dtype=float)
+
+    def symbolic_sizes(self) -> dict[str, int]:
+        return {"numerator": len(self.numerator), "denominator": len(self.denominator)}
+
+
+PLANT_KINDS: dict[str, type[Plant]] = {
+    cls.kind: cls for cls in (ModePlant, TwoInertiaPlant, BeltPlatformPlant, RigidFlexiblePlant, TransferFunctionPlant)
+}
+
+
+def make_plant(kind: str, **parameters: Any) -> Plant:
+    """Build a plant of a kind from its parameters; raises InvalidParameter on bad values."""
+    try:
+        cls = PLANT_KINDS[kind]
+    except KeyError:
+        raise InvalidParameter("kind", kind, f"must be one of {', '.join(PLANT_KINDS)}") from None
+    if cls is TransferFunctionPlant:
+        parameters = {**parameters}
+        for key in ("numerator", "denominator"):
+            if key in parameters:
+                parameters[key] = tuple(parameters[key])
+    return cls(**parameters)
+
+
+def example_plants() -> dict[str, Plant]:
+    """The papers' plants, used by the docs' examples and the tests."""
+    return {
+        "incerti_table_iii": BeltPlatformPlant(6.0, 9e4, 150.0, 0.060, 0.180, 0.1),
+        "cusimano_8hz_equal_inertia": TwoInertiaPlant(0.005, 0.005, 0.005 * (2 * math.pi * 8.0) ** 2, 0.0),
+        "chatlatanagulchai_eq3": RigidFlexiblePlant(2.0, 3.0, 1.0, 0.1, 30.0),
+        "biagiotti_identified": ModePlant(123.71 / (2 * math.pi), 0.1265),
+    }

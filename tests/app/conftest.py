@@ -1,0 +1,49 @@
+"""One running app (with its worker pool) for the API tests, plus test-only routes."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+
+import pytest
+from fastapi import Request
+from fastapi.testclient import TestClient
+
+from app.main import create_app
+from app.settings import Settings
+from optim.solver import raise_for_status
+from tests.app import slow_solves
+
+TEST_SETTINGS = Settings(workers=2, max_samples=5000, max_body_bytes=2 * 1024 * 1024)
+
+
+def _add_test_routes(app) -> None:  # noqa: ANN001
+    async def slow(request: Request, seconds: float, deadline_s: float) -> dict:
+        pid = await request.app.state.pool.run(slow_solves.sleep_for, seconds, deadline_s=deadline_s)
+        return {"pid": pid}
+
+    async def capped(request: Request, wall_time_s: float) -> dict:
+        report = await request.app.state.pool.run(slow_solves.capped_ipopt, wall_time_s, deadline_s=30.0)
+        raise_for_status(report)
+        return {"status": report.status}
+
+    app.add_api_route("/test/slow", slow, methods=["POST"])
+    app.add_api_route("/test/capped", capped, methods=["POST"])
+
+
+def wait_ready(client: TestClient, timeout_s: float = 90.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if client.get("/readyz").status_code == 200:
+            return
+        time.sleep(0.1)
+    raise AssertionError("the worker pool did not become ready")
+
+
+@pytest.fixture(scope="session")
+def client() -> Iterator[TestClient]:
+    app = create_app(TEST_SETTINGS)
+    _add_test_routes(app)
+    with TestClient(app, raise_server_exceptions=False) as test_client:
+        wait_ready(test_client)
+        yield test_client

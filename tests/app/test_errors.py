@@ -1,0 +1,158 @@
+"""Every bad input is a 422 (or 413) problem that names the field; nothing produces a 500."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from app.examples import CUSIMANO_8HZ, INCERTI_TABLE_III
+
+MODE = {"kind": "mode", "natural_frequency_hz": 5.0, "damping_ratio": 0.05}
+
+
+def assert_problem(response, status: int, field: str | None = None, slug: str = "invalid-input") -> dict:
+    assert response.status_code == status, response.text
+    assert response.headers["content-type"] == "application/problem+json"
+    body = response.json()
+    assert body["type"] == f"/problems/{slug}"
+    assert body["status"] == status
+    assert body["title"] and body["detail"]
+    if field is not None:
+        assert body["field"] == field, body
+        assert body["errors"][0]["field"] == field
+        assert body["errors"][0]["rule"]
+    return body
+
+
+@pytest.mark.parametrize(
+    ("plant", "field"),
+    [
+        ({**CUSIMANO_8HZ, "motor_inertia_kgm2": -0.005}, "plant.motor_inertia_kgm2"),
+        ({**CUSIMANO_8HZ, "load_inertia_kgm2": 0}, "plant.load_inertia_kgm2"),
+        ({**MODE, "damping_ratio": 1.0}, "plant.damping_ratio"),
+        ({**MODE, "damping_ratio": 1.5}, "plant.damping_ratio"),
+        ({**MODE, "natural_frequency_hz": 0}, "plant.natural_frequency_hz"),
+        ({**INCERTI_TABLE_III, "gear_ratio": -0.1}, "plant.gear_ratio"),
+        ({"kind": "pendulum", "length_m": 1.0}, "plant"),
+        ({"natural_frequency_hz": 5.0}, "plant"),  # no kind
+        ({**MODE, "colour": "red"}, "plant.colour"),  # unknown field
+        ({"kind": "mode"}, "plant.natural_frequency_hz"),  # missing field
+        ({**MODE, "natural_frequency_hz": "fast"}, "plant.natural_frequency_hz"),
+        # derived frequency sqrt(k/J_L)/2pi = 1.6e11 Hz is out of range
+        ({**CUSIMANO_8HZ, "stiffness_nm_per_rad": 1e12, "load_inertia_kgm2": 1e-12}, "plant.stiffness_nm_per_rad"),
+        # c = 3 on k = J_L = 1 gives zeta = 1.5: no vibration mode
+        ({"kind": "two_inertia", "motor_inertia_kgm2": 1, "load_inertia_kgm2": 1, "stiffness_nm_per_rad": 1, "damping_nms_per_rad": 3}, "plant.stiffness_nm_per_rad"),
+        ({"kind": "transfer_function", "numerator": [1], "denominator": [1, -1, 4]}, "plant.denominator"),
+        ({"kind": "transfer_function", "numerator": [1], "denominator": [1, 0]}, "plant.denominator"),
+        ({"kind": "transfer_function", "numerator": [1, 2, 3], "denominator": [1, 2]}, "plant.numerator"),
+        ({"kind": "transfer_function", "numerator": [1], "denominator": [1] * 30}, "plant.denominator"),
+    ],
+)
+def test_invalid_plants(client, plant, field):
+    assert_problem(client.post("/v1/plants/analyze", json={"plant": plant}), 422, field)
+
+
+@pytest.mark.parametrize("token", ["NaN", "Infinity", "-Infinity", "1e999"])
+def test_non_finite_numbers_are_refused(client, token):
+    body = '{"plant": {"kind": "mode", "natural_frequency_hz": %s}}' % token
+    response = client.post("/v1/plants/analyze", content=body, headers={"content-type": "application/json"})
+    problem = assert_problem(response, 422, "plant.natural_frequency_hz")
+    assert "finite" in problem["errors"][0]["rule"]
+
+
+def test_non_finite_sample_is_refused(client):
+    body = '{"plant": {"kind": "mode", "natural_frequency_hz": 5}, "profile": {"time_s": [0, 1, 2], "velocity": [0, NaN, 1]}}'
+    response = client.post("/v1/simulate", content=body, headers={"content-type": "application/json"})
+    assert_problem(response, 422, "profile.velocity[1]")
+
+
+@pytest.mark.parametrize(
+    ("profile", "field"),
+    [
+        ({"time_s": [0, 1, 1], "velocity": [0, 1, 1]}, "profile.time_s[2]"),
+        ({"time_s": [0, 2, 1], "velocity": [0, 1, 1]}, "profile.time_s[2]"),
+        ({"time_s": [0, 1, 2], "velocity": [0, 1]}, "profile.velocity"),
+        ({"time_s": [0, 1, 2], "position": [0, 1, 2], "acceleration": [0, 1]}, "profile.acceleration"),
+        ({"time_s": [0, 1]}, "profile"),
+        ({"time_s": [0]}, "profile.time_s"),
+        ({"time_s": [0, 1e12], "velocity": [0, 1]}, "profile.time_s"),
+        ({"time_s": [0, 1], "velocity": [0, 1e300]}, "profile.velocity[1]"),
+        ({"time_s": [0, 1], "speed": [0, 1]}, "profile.speed"),
+    ],
+)
+def test_invalid_profiles(client, profile, field):
+    assert_problem(client.post("/v1/simulate", json={"plant": MODE, "profile": profile}), 422, field)
+
+
+def test_more_samples_than_the_cap(client):
+    n = 5001  # the test app's cap is 5000
+    profile = {"time_s": list(range(n)), "velocity": [0.0] * n}
+    problem = assert_problem(client.post("/v1/simulate", json={"plant": MODE, "profile": profile}), 422, "profile.time_s")
+    assert "5000" in problem["errors"][0]["rule"]
+
+
+def test_held_quantity_must_be_given(client):
+    request = {"plant": MODE, "profile": {"time_s": [0, 1], "velocity": [0, 1]}, "held_quantity": "jerk"}
+    assert_problem(client.post("/v1/simulate", json=request), 422, "held_quantity")
+
+
+def test_oversized_body_is_413(client):
+    big = b'{"plant": {"kind": "mode", "natural_frequency_hz": 5}, "profile": {"time_s": [' + b"0," * (1_100_000) + b"1]}}"
+    response = client.post("/v1/simulate", content=big, headers={"content-type": "application/json"})
+    problem = assert_problem(response, 413, slug="body-too-large")
+    assert problem["limit_bytes"] == 2 * 1024 * 1024
+
+
+def test_oversized_streamed_body_is_413(client):
+    def chunks():
+        yield b'{"plant": {"kind": "mode", "natural_frequency_hz": 5}, "profile": {"time_s": ['
+        for _ in range(300):
+            yield b"0," * 5000
+        yield b"1]}}"
+
+    response = client.post("/v1/simulate", content=chunks(), headers={"content-type": "application/json"})
+    assert_problem(response, 413, slug="body-too-large")
+
+
+def test_malformed_json(client):
+    response = client.post("/v1/simulate", content=b'{"plant": ', headers={"content-type": "application/json"})
+    assert_problem(response, 422, "body")
+
+
+def test_unknown_path_and_method_are_problems(client):
+    assert_problem(client.get("/v1/nothing"), 404, slug="not-found")
+    assert_problem(client.get("/v1/simulate"), 405, slug="method-not-allowed")
+
+
+def test_many_bad_samples_give_a_bounded_error_list(client):
+    n = 4000
+    body = json.dumps({"plant": MODE, "profile": {"time_s": ["x"] * n, "velocity": [0] * n}})
+    problem = assert_problem(client.post("/v1/simulate", content=body, headers={"content-type": "application/json"}), 422)
+    assert len(problem["errors"]) <= 20
+    assert f"and {n - 1} more" in problem["detail"]
+
+
+@pytest.mark.parametrize(
+    "payload",
+    [
+        [],
+        "plant",
+        {"plant": None},
+        {"plant": [1, 2]},
+        {"plant": MODE, "profile": {"time_s": [[0], [1]], "velocity": [0, 1]}},
+        {"plant": MODE, "profile": {"time_s": [0, 1e-300], "acceleration": [1e12, -1e12]}},
+        {"plant": MODE, "profile": {"time_s": [0, 1e-9], "acceleration": [1e12, -1e12]}},
+        {"plant": MODE, "profile": {"time_s": [1e7 - 1e-9, 1e7], "jerk": [1e12, -1e12]}},
+        {"plant": MODE, "profile": {"time_s": [-1e7, 1e7], "acceleration": [1e12, -1e12]}},
+        {"plant": {**MODE, "natural_frequency_hz": 1e5}, "profile": {"time_s": [0, 1e7], "jerk": [1e12, 1e12]}},
+        {"plant": MODE, "profile": {"time_s": [0, 1], "velocity": [0, 1]}, "settling_tolerance": 0},
+        {"plant": MODE, "profile": {"time_s": [0, 1], "velocity": [0, 1]}, "settling_window": 1e-300},
+    ],
+)
+def test_odd_payloads_never_500(client, payload):
+    response = client.post("/v1/simulate", json=payload)
+    assert response.status_code in (200, 422), response.text
+    if response.status_code == 200:
+        text = response.text
+        assert "NaN" not in text and "Infinity" not in text
