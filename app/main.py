@@ -9,7 +9,7 @@ from contextlib import asynccontextmanager
 from fastapi import FastAPI
 
 from app import problems
-from app.routers import health, plants, simulate
+from app.routers import health, plants, pseudo_polynomial, shapers, simulate, smoothers, stap
 from app.settings import Settings, get_settings
 from optim.workers import SolverPool
 
@@ -47,8 +47,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.dependency_overrides[get_settings] = lambda: settings
     problems.install(app)
     app.add_middleware(problems.BodySizeLimit, max_bytes=settings.max_body_bytes)
-    app.openapi_schema = None
-    for router in (health.router, plants.router, simulate.router, problems.router):
+    routers = (health, plants, simulate, pseudo_polynomial, stap, smoothers, shapers)
+    for router in (*(r.router for r in routers), problems.router):
         app.include_router(router)
     _declare_problem_schema(app)
     logging.getLogger("vibfree").setLevel(logging.INFO)

@@ -129,7 +129,8 @@ def _validation_errors(exc: RequestValidationError) -> list[dict[str, Any]]:
             field = "body"
         if rule.startswith("Value error, "):
             rule = rule[len("Value error, ") :]
-        out.append({"field": field, "value": summarise(err.get("input")), "rule": rule})
+        value = None if err.get("type") == "missing" else summarise(err.get("input"))
+        out.append({"field": field, "value": value, "rule": rule})
     return out
 
 

@@ -235,6 +235,25 @@ class PiecewiseCommand:
             der[m, 1:] = start + np.cumsum(increments)
         return cls(t, der, continuous_orders=order + 1 if hold == "linear" else order)
 
+    def resampled(self, period_s: float, end_s: float | None = None) -> PiecewiseCommand:
+        """The same command on a uniform grid of ``period_s`` from t_0 to ``end_s`` (default: the
+        last breakpoint), with every breakpoint added to the grid so the samples still describe
+        it exactly. Breakpoints closer than 1e-9 s to a grid point replace it."""
+        t0 = float(self.time_s[0])
+        stop = float(self.time_s[-1] if end_s is None else end_s)
+        count = int(np.floor((stop - t0) / period_s + 1e-9)) + 1
+        grid = t0 + period_s * np.arange(count)
+        inside = self.time_s[self.time_s <= stop]
+        idx = np.searchsorted(inside, grid)
+        before = inside[np.clip(idx - 1, 0, inside.size - 1)]
+        after = inside[np.clip(idx, 0, inside.size - 1)]
+        near = np.minimum(np.abs(grid - before), np.abs(grid - after)) < MIN_STEP_S
+        t = np.union1d(grid[~near], inside)
+        if t[-1] < stop:
+            t = np.append(t, stop)
+        derivatives = np.array([self.evaluate(m, t) for m in range(self.degree + 1)])
+        return PiecewiseCommand(t, derivatives, self.continuous_orders)
+
     @classmethod
     def from_derivatives(cls, time_s: np.ndarray, derivatives: np.ndarray) -> PiecewiseCommand:
         """A command given exactly by its right-hand derivatives at its breakpoints."""

@@ -1,0 +1,7 @@
+"""Placeholder: the stap family's endpoints are added by its issue."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter
+
+router = APIRouter(prefix="/v1", tags=["stap"])

@@ -1,0 +1,102 @@
+"""Robustness of a command: residual vibration when the real mode differs from the estimate.
+
+For a single mode G(s) = (2 zeta w s + w^2)/(s^2 + 2 zeta w s + w^2) the free response left when
+the command ends is sum_k exp(lambda (t_e - t_k)) J_k (see models.simulation), so the residual
+of any piecewise-polynomial command at any (w, zeta) is one dot product over its breakpoints:
+no simulation per frequency. Values are fractions of the move (0.05 = 5 %).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from models.commands import PiecewiseCommand
+
+_CHUNK_ELEMENTS = 2_000_000  # bounds the (frequencies x breakpoints) matrix in memory
+
+
+@dataclass(frozen=True)
+class Sensitivity:
+    frequency_ratio: np.ndarray
+    damping_ratio: np.ndarray  # one per row of residual
+    residual: np.ndarray  # shape (damping ratios, frequency ratios), fraction of the move
+    quantity: str  # "position" (rest-to-rest) or "velocity" (rest-to-velocity)
+
+
+def mode_residuals(
+    command: PiecewiseCommand, natural_frequency_rad_s: np.ndarray, damping_ratio: np.ndarray, derivative: int
+) -> np.ndarray:
+    """Amplitude of the load's free oscillation (position if derivative = 0, velocity if 1)
+    when the command ends, for each (w, zeta) pair, on the mode plant."""
+    w = np.asarray(natural_frequency_rad_s, dtype=float).ravel()
+    z = np.asarray(damping_ratio, dtype=float).ravel()
+    w, z = np.broadcast_arrays(w, z)
+    poles = -z * w + 1j * w * np.sqrt(1.0 - z * z)
+    # Residue of (2 zeta w s + w^2)/(s^2 + 2 zeta w s + w^2) at the upper pole.
+    residues = (2 * z * w * poles + w * w) / (2 * poles + 2 * z * w)
+    end = command.end_index()
+    jumps = command.jumps()[:, : end + 1]
+    keep = np.flatnonzero(np.any(jumps != 0.0, axis=0))
+    jumps = jumps[:, keep]
+    age = command.time_s[end] - command.time_s[keep]
+    out = np.empty(w.size)
+    rows = max(1, _CHUNK_ELEMENTS // max(1, keep.size))
+    for start in range(0, w.size, rows):  # chunks of frequencies, bounded memory
+        lam = poles[start : start + rows, None]
+        drive = sum(jumps[m][None, :] / lam ** (m + 1) for m in range(jumps.shape[0]))
+        free = np.sum(np.exp(lam * age[None, :]) * drive, axis=1)
+        out[start : start + rows] = np.abs(2.0 * residues[start : start + rows] * poles[start : start + rows] ** derivative * free)
+    return out
+
+
+def move_scale(command: PiecewiseCommand) -> tuple[str, float]:
+    """What the residual is measured against: the displacement, or the final speed if the
+    command ends moving (then the velocity residual is the one that matters)."""
+    end = command.end_index()
+    final_velocity = float(command.derivatives[1, end]) if command.degree >= 1 else 0.0
+    if final_velocity != 0.0:
+        return "velocity", abs(final_velocity)
+    return "position", abs(float(command.derivatives[0, end] - command.derivatives[0, 0]))
+
+
+def sensitivity(
+    command: PiecewiseCommand,
+    natural_frequency_rad_s: float,
+    frequency_ratios: np.ndarray,
+    damping_ratios: np.ndarray,
+) -> Sensitivity:
+    """Residual (fraction of the move) versus w/w_e for each damping ratio."""
+    quantity, scale = move_scale(command)
+    ratios = np.asarray(frequency_ratios, dtype=float)
+    zetas = np.atleast_1d(np.asarray(damping_ratios, dtype=float))
+    w = np.repeat(ratios[None, :] * natural_frequency_rad_s, zetas.size, axis=0)
+    z = np.repeat(zetas[:, None], ratios.size, axis=1)
+    amplitudes = mode_residuals(command, w.ravel(), z.ravel(), 0 if quantity == "position" else 1)
+    residual = amplitudes.reshape(zetas.size, ratios.size) / (scale if scale > 0 else 1.0)
+    return Sensitivity(ratios, zetas, residual, quantity)
+
+
+def band_below(ratios: np.ndarray, residual: np.ndarray, threshold: float = 0.05, centre: float = 1.0) -> tuple[float, float] | None:
+    """The interval of frequency ratios around ``centre`` where the residual stays <= threshold,
+    with linearly interpolated ends; None if the residual exceeds it at the centre."""
+    r = np.asarray(ratios, dtype=float)
+    v = np.asarray(residual, dtype=float)
+    order = np.argsort(r)
+    r, v = r[order], v[order]
+    i = int(np.clip(np.searchsorted(r, centre), 1, r.size - 1))
+    k = i - 1 if abs(r[i - 1] - centre) <= abs(r[i] - centre) else i
+    if v[k] > threshold:
+        return None
+    above = np.flatnonzero(v > threshold)
+    left, right = above[above < k], above[above > k]
+    lo = int(left[-1]) + 1 if left.size else 0
+    hi = int(right[0]) - 1 if right.size else r.size - 1
+
+    def cross(a: int, b: int) -> float:
+        return float(r[a] + (threshold - v[a]) * (r[b] - r[a]) / (v[b] - v[a]))
+
+    low = cross(lo - 1, lo) if lo > 0 else float(r[0])
+    high = cross(hi, hi + 1) if hi < r.size - 1 else float(r[-1])
+    return low, high
