@@ -22,13 +22,14 @@ import numpy as np
 
 from models.errors import InvalidParameter
 
-Hold = Literal["linear", "zero"]
+Hold = Literal["linear", "zero", "cubic"]
 DERIVATIVE_NAMES = ("position", "velocity", "acceleration", "jerk")
 _JUMP_RELATIVE_TOLERANCE = 64 * np.finfo(float).eps
 # Bounds that keep every integral and power of a step finite in double precision.
 MAX_ABS_TIME_S = 1e7
 MIN_STEP_S = 1e-9
 _UNIFORM_GRID_TOLERANCE = 1e-12
+_IMPULSE_RELATIVE_TOLERANCE = 1e-9  # a jump below this fraction of its quantity's range is no impulse
 MAX_ABS_VALUE = 1e12
 
 
@@ -41,6 +42,17 @@ def _taylor_step(derivatives: np.ndarray, h: np.ndarray, m: int, degree: int, st
     for _ in range(start - m):
         acc = acc * h
     return acc
+
+
+def _check_samples(values: np.ndarray, t: np.ndarray, field: str) -> np.ndarray:
+    u = np.asarray(values, dtype=float)
+    if u.shape != t.shape:
+        raise InvalidParameter(field, f"{u.size} samples", f"must have as many samples as time_s ({t.size})")
+    bad = ~np.isfinite(u) | (np.abs(u) > MAX_ABS_VALUE)
+    if np.any(bad):
+        k = int(np.argmax(bad))
+        raise InvalidParameter(f"{field}[{k}]", str(u[k]), f"must be finite and within +-{MAX_ABS_VALUE:g}")
+    return u
 
 
 def check_time_grid(time_s: np.ndarray, field: str = "time_s") -> np.ndarray:
@@ -117,7 +129,10 @@ class PiecewiseCommand:
     def _jumps(self) -> np.ndarray:
         d = self.degree
         jumps = np.zeros_like(self.derivatives)
-        jumps[1:, 0] = self.derivatives[1:, 0]  # leaving rest at t_0
+        # Leaving rest at t_0; values at round-off level of their own row count as zero.
+        first = self.derivatives[1:, 0]
+        row_scale = np.max(np.abs(self.derivatives[1:]), axis=1)
+        jumps[1:, 0] = np.where(np.abs(first) <= _JUMP_RELATIVE_TOLERANCE * row_scale, 0.0, first)
         for m in range(self.continuous_orders, d + 1):  # loop over derivative orders
             left = self.left_limit(m)[1:]
             right = self.derivatives[m, 1:]
@@ -160,8 +175,11 @@ class PiecewiseCommand:
         from rest with a non-zero value). Exact when p^(m) has degree <= 3 inside a piece (its derivative's
         roots are found in closed form); otherwise also sampled at 16 interior points per piece.
         """
-        if m >= 1 and np.any(self.jumps()[:m] != 0.0):
-            return None
+        if m >= 1:
+            jumps = np.abs(self.jumps()[:m])
+            scale = np.max(np.abs(self.derivatives[:m]), axis=1, keepdims=True)
+            if np.any(jumps > _IMPULSE_RELATIVE_TOLERANCE * scale):
+                return None
         if m > self.degree:
             return 0.0
         candidates = [np.abs(self.derivatives[m]), np.abs(self.left_limit(m)[1:])]
@@ -200,40 +218,45 @@ class PiecewiseCommand:
         order: int,
         *,
         hold: Hold = "linear",
+        slopes: np.ndarray | None = None,
         initial: tuple[float, ...] = (),
         field: str = "profile",
     ) -> PiecewiseCommand:
-        """The command whose ``order``-th derivative (0 position .. 3 jerk) is ``values`` held
-        linearly or constantly between samples; ``initial`` gives p, p', ... at t_0 (default 0).
+        """The command whose ``order``-th derivative (0 position .. 3 jerk) is ``values`` between
+        samples: held linearly, constantly, or by the cubic Hermite curve through ``values`` with
+        derivatives ``slopes`` (hold "cubic": e.g. accelerations with their jerks). ``initial``
+        gives p, p', ... at t_0 (default 0); the lower derivatives are exact integrals.
 
         After the last sample the held quantity keeps its last value.
         """
         t = check_time_grid(time_s, f"{field}.time_s")
-        u = np.asarray(values, dtype=float)
-        name = DERIVATIVE_NAMES[order]
-        if u.shape != t.shape:
-            raise InvalidParameter(
-                f"{field}.{name}", f"{u.size} samples", f"must have as many samples as time_s ({t.size})"
-            )
-        bad = ~np.isfinite(u) | (np.abs(u) > MAX_ABS_VALUE)
-        if np.any(bad):
-            k = int(np.argmax(bad))
-            raise InvalidParameter(f"{field}.{name}[{k}]", str(u[k]), f"must be finite and within +-{MAX_ABS_VALUE:g}")
+        u = _check_samples(values, t, f"{field}.{DERIVATIVE_NAMES[order]}")
         for m, value in enumerate(initial):
             if not (math.isfinite(value) and abs(value) <= MAX_ABS_VALUE):
                 raise InvalidParameter(f"{field}.{DERIVATIVE_NAMES[m]}[0]", value, f"must be finite and within +-{MAX_ABS_VALUE:g}")
         h = np.diff(t)
-        degree = order + 1 if hold == "linear" else order
+        degree = {"linear": order + 1, "zero": order, "cubic": order + 3}[hold]
         der = np.zeros((degree + 1, t.size))
         der[order] = u
         if hold == "linear":
             der[order + 1, :-1] = np.diff(u) / h
+        elif hold == "cubic":
+            if slopes is None:
+                raise InvalidParameter(f"{field}.{DERIVATIVE_NAMES[order + 1]}", None, "a cubic hold needs these samples")
+            s = _check_samples(slopes, t, f"{field}.{DERIVATIVE_NAMES[order + 1]}")
+            secant = np.diff(u) / h
+            der[order + 1, :-1] = s[:-1]
+            der[order + 2, :-1] = 2.0 * (3.0 * secant - 2.0 * s[:-1] - s[1:]) / h
+            der[order + 3, :-1] = 6.0 * (s[:-1] + s[1:] - 2.0 * secant) / h**2
         for m in range(order - 1, -1, -1):
             increments = _taylor_step(der[:, :-1], h, m, degree, start=m + 1)
             start = initial[m] if m < len(initial) else 0.0
             der[m, 0] = start
             der[m, 1:] = start + np.cumsum(increments)
-        return cls(t, der, continuous_orders=order + 1 if hold == "linear" else order)
+        # Orders that cannot jump after t_0. The cubic hold's slope is continuous inside but drops
+        # to zero after the last sample, so its jumps are computed (round-off is zeroed there).
+        continuous = {"linear": order + 1, "zero": order, "cubic": order + 1}[hold]
+        return cls(t, der, continuous_orders=continuous)
 
     def resampled(self, period_s: float, end_s: float | None = None) -> PiecewiseCommand:
         """The same command on a uniform grid of ``period_s`` from t_0 to ``end_s`` (default: the

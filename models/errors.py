@@ -18,6 +18,9 @@ class InvalidParameter(ValueError):
         self.rule = rule
         super().__init__(f"{field}={value!r}: {rule}")
 
+    def __reduce__(self) -> tuple:  # picklable across the worker-process boundary
+        return (type(self), (self.field, self.value, self.rule))
+
     def under(self, prefix: str) -> InvalidParameter:
         """The same error with its field placed under a parent field (``plant`` -> ``plant.x``)."""
         return InvalidParameter(f"{prefix}.{self.field}" if prefix else self.field, self.value, self.rule)
@@ -30,3 +33,6 @@ class Infeasible(ValueError):
         self.reason = reason
         self.field = field
         super().__init__(reason)
+
+    def __reduce__(self) -> tuple:
+        return (type(self), (self.reason, self.field))

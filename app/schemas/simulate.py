@@ -30,13 +30,16 @@ class ProfileIn(StrictModel):
 class SimulationOptions(StrictModel):
     held_quantity: Quantity | None = Field(
         None,
-        description="Which array drives the simulation (default: the highest derivative given). Lower "
-        "derivatives are its exact integrals, starting from the first sample of each one given (else 0).",
+        description="Which array drives the simulation (default: the highest derivative given; with the cubic "
+        "hold, the one below it). Lower derivatives are its exact integrals, starting from the first sample of "
+        "each one given (else 0).",
     )
-    hold: Literal["linear", "zero"] = Field(
+    hold: Literal["linear", "zero", "cubic"] = Field(
         "linear",
-        description="Between samples the held quantity is linear (first-order hold) or constant (zero-order hold). "
-        "The simulation is exact for that interpolation.",
+        description="Between samples the held quantity is linear (first-order hold), constant (zero-order hold) or "
+        "the cubic Hermite curve through its samples and those of its derivative (e.g. velocity with "
+        "acceleration: what a cam table with velocity feed-forward does). The simulation is exact for that "
+        "interpolation.",
     )
     settling_tolerance: float = Field(
         1e-3, gt=0, le=1, description="Settling band as a fraction of the load's displacement (or final speed)."
@@ -123,9 +126,16 @@ def to_command(
     given = [name for name in DERIVATIVE_NAMES if getattr(profile, name) is not None]
     if not given:
         raise InvalidParameter("profile", "no samples", "give at least one of position, velocity, acceleration, jerk")
-    held = options.held_quantity or given[-1]
+    cubic = options.hold == "cubic"
+    if cubic and options.held_quantity is None and len(given) < 2:
+        raise InvalidParameter("hold", "cubic", "a cubic hold needs a quantity and its derivative (e.g. velocity and acceleration)")
+    held = options.held_quantity or (given[-2] if cubic else given[-1])
     if held not in given:
         raise InvalidParameter("held_quantity", held, f"profile.{held} is not given")
+    if cubic:
+        slope_name = DERIVATIVE_NAMES[DERIVATIVE_NAMES.index(held) + 1] if held != "jerk" else None
+        if slope_name is None or slope_name not in given:
+            raise InvalidParameter("hold", "cubic", f"a cubic hold of {held} needs profile.{slope_name or 'its derivative'}")
     arrays = {name: np.asarray(getattr(profile, name), dtype=float) for name in given}
     for name, arr in arrays.items():
         if arr.size != len(profile.time_s):
@@ -135,7 +145,12 @@ def to_command(
     order = DERIVATIVE_NAMES.index(held)
     initial = tuple(float(arrays[n][0]) if n in arrays else 0.0 for n in DERIVATIVE_NAMES[:order])
     command = PiecewiseCommand.from_samples(
-        np.asarray(profile.time_s, dtype=float), arrays[held], order, hold=options.hold, initial=initial
+        np.asarray(profile.time_s, dtype=float),
+        arrays[held],
+        order,
+        hold=options.hold,
+        slopes=arrays[slope_name] if cubic else None,
+        initial=initial,
     )
     warnings = []
     for m, name in enumerate(DERIVATIVE_NAMES[:order]):

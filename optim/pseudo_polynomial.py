@@ -1,0 +1,609 @@
+"""Exponents of a pseudo-polynomial command chosen by CasADi/IPOPT (Incerti, Secs. IV-V).
+
+The vibration left when the move ends is, for every oscillatory pole lambda_j of the load's
+transfer function, the free state (see models.simulation)
+
+    h_j(T) = 1/lambda_j^2 int_0^T exp(lambda_j (T - tau)) phi''(tau) dtau
+           = -Phi / (T lambda_j^2) sum_i gamma_i (gamma_i - 1) C_i int_0^1 u^(gamma_i - 2) exp(lambda_j T u) du,
+
+the modal form of Incerti's F and G (eqs. 27-30). The integrals are computed by Gauss-Legendre
+quadrature after u = v^2, which makes the integrand smooth at u = 0 (error below 1e-12 for the
+node counts used; see ``quadrature_nodes``). The deflection alpha_j = Re(w r h) and its rate
+alpha_j' = Re(w r lambda h) give the energy E = sum_j m_j/2 (alpha_j'^2 + w_j^2 alpha_j^2), which is
+eq. (26) for the belt platform (m = J) and the two-inertia plant (m = J_L), and the same quantity
+per unit inertia for plants without physical parameters.
+
+"Final energy = 0" is two equations per mode in n + 1 exponents: for n >= 2 the zero-energy
+designs form a curve (PAPER-NOTES). The design is made well-posed by choosing, among them, the one
+closest to the initial exponents (stage "closest_zero_energy": minimise |gamma - gamma_0|^2 subject
+to h_j(T) = 0 and the limits). When no zero-energy design meets the limits, the design minimising
+the energy within them is returned instead (stage "minimum_energy"), with its energy ratio.
+
+Each problem is built once per (order, number of modes, quadrature size, torque limit) with the
+plant's modal data, displacement, duration, initial exponents and limits as parameters, and kept
+in this process's cache: the service builds them in its worker processes.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from models.errors import Infeasible, InvalidParameter
+from models.plants import Plant, TwoInertiaPlant
+from models.pseudo_polynomial import PseudoPolynomial, boundary_matrix, check_exponents, derivative_terms
+from models.simulation import ModalForm, modal_form
+from optim.solver import SolveCaps, SolverReport, ipopt_options, raise_for_status, report_of
+
+QUADRATURE_SIZES = (64, 128, 256, 512, 1024, 2048)
+CONSTRAINT_INTERVALS = 200  # limits are imposed at T/200 spacing, then checked on the samples
+MIN_SEPARATION = 0.05  # consecutive exponents at least this far apart: Z stays invertible, C finite
+MAX_EXPONENT = 80.0
+SPREAD_STARTS = 6  # extra starting points when the closest zero-energy design is not reached
+QUICK_ITERATIONS = 150  # the first try: a reachable closest zero converges in tens of iterations
+SEARCH_ITERATIONS = 250  # each minimum-energy start; its best feasible iterate is kept
+ZERO_ENERGY = 1e-16  # energy ratio below which a design counts as zero-energy (amplitude ratio 1e-8)
+LIMIT_MARGIN = 1e-4  # limits are imposed 0.01 % tighter than asked, absorbing the grid
+MAX_ORDER = 6
+
+
+@dataclass(frozen=True)
+class Limits:
+    max_velocity: float | None = None
+    max_acceleration: float | None = None
+    max_jerk: float | None = None
+    max_torque_nm: float | None = None
+
+
+@dataclass(frozen=True)
+class PseudoPolynomialRequest:
+    plant: Plant
+    displacement: float
+    duration_s: float
+    order: int = 2
+    initial_exponents: tuple[float, ...] | None = None
+    limits: Limits = field(default_factory=Limits)
+    minimize_duration: bool = False
+    residual_tolerance: float | None = None  # load units; default 1e-6 of the load displacement
+    caps: SolveCaps = field(default_factory=SolveCaps)
+
+
+@dataclass(frozen=True)
+class PseudoPolynomialDesign:
+    law: PseudoPolynomial
+    initial: PseudoPolynomial
+    initial_energy: float
+    final_energy: float
+    residual_amplitude: float  # sum over modes of the free-oscillation envelope of the load at T
+    initial_residual_amplitude: float
+    selection: str
+    solver: SolverReport
+    solves: int
+    energy_is_physical: bool
+    duration_search: tuple[tuple[float, bool], ...] = ()
+
+    @property
+    def energy_ratio(self) -> float:
+        return self.final_energy / self.initial_energy if self.initial_energy > 0 else 0.0
+
+
+def default_exponents(order: int) -> tuple[float, ...]:
+    """n+1, ..., 2n+1: the classical polynomial with n null derivatives at both ends ((3, 4, 5)
+    for n = 2); from 3 up for n = 1, where the lower bound is 3."""
+    first = max(order + 1, 3)
+    return tuple(float(first + i) for i in range(order + 1))
+
+
+def quadrature_nodes(phase_rad: float) -> int:
+    """Gauss-Legendre nodes for int_0^1 v^a exp(z v^2) dv with |z| = phase_rad.
+
+    Measured against 30-digit mpmath quadrature: 64 nodes give 1e-13 at |z| = 31 (the Table III
+    case); 192 give 2e-12 at |z| = 250. The rule keeps N >= |z| + 32.
+    """
+    for size in QUADRATURE_SIZES:
+        if size >= phase_rad + 32:
+            return size
+    raise InvalidParameter(
+        "duration_s",
+        phase_rad,
+        f"the move lasts {phase_rad / (2 * math.pi):.0f} periods of the plant's mode; pseudo-polynomial design "
+        f"supports up to {(QUADRATURE_SIZES[-1] - 32) / (2 * math.pi):.0f}",
+    )
+
+
+# ------------------------------------------------------------------------------------------
+# The CasADi problem, built once per shape
+
+
+@dataclass
+class _Compiled:
+    quick: Any  # nlpsol: closest zero-energy design, few iterations (the first try)
+    closest: Any  # nlpsol: closest zero-energy design
+    minimum: Any  # nlpsol: minimum-energy design, few iterations per start
+    evaluate: Any  # Function (gamma, p) -> (energy, residual amplitude, free states)
+    violation: Any  # Function (gamma, p) -> largest breach of the limits and separation (<= 0: feasible)
+    g_bounds: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]  # lbg/ubg closest, lbg/ubg minimum
+    layout: dict[str, slice]
+    parameter_count: int
+
+
+_CACHE: dict[tuple, _Compiled] = {}
+
+
+def _complex_mul(a: tuple[Any, Any], b: tuple[Any, Any]) -> tuple[Any, Any]:
+    return a[0] * b[0] - a[1] * b[1], a[0] * b[1] + a[1] * b[0]
+
+
+def limit_grid_u() -> np.ndarray:
+    """u = 1 - t/T where the limits are imposed: a uniform grid and a geometric cluster near T."""
+    uniform = 1.0 - np.arange(CONSTRAINT_INTERVALS) / CONSTRAINT_INTERVALS
+    near_end = (1.0 / CONSTRAINT_INTERVALS) * 10.0 ** (-np.arange(1, 21) / 2.0)  # down to 1e-12
+    return np.concatenate([uniform, near_end])
+
+
+def lower_bound(order: int) -> float:
+    """Smallest exponent allowed: above n so the end conditions hold (eqs. 17-20), and at least 3
+    so the jerk stays bounded at t = T."""
+    return max(3.0, order + 0.05)
+
+
+def _build(order: int, modes: int, nodes: int, active: tuple[bool, bool, bool, bool], caps: SolveCaps) -> _Compiled:
+    import casadi as ca
+
+    n1 = order + 1
+    gamma = ca.SX.sym("gamma", n1)
+    names = [
+        ("phi", 1), ("T", 1), ("gamma0", n1), ("sigma", modes), ("wd", modes), ("wr_re", modes), ("wr_im", modes),
+        ("mass", modes), ("scale", modes), ("energy_ref", 1), ("inv_limit", 4), ("torque", 3),
+    ]
+    layout: dict[str, slice] = {}
+    start = 0
+    for name, size in names:
+        layout[name] = slice(start, start + size)
+        start += size
+    p = ca.SX.sym("p", start)
+
+    def par(name: str) -> Any:
+        return p[layout[name]]
+
+    phi, T, gamma0 = par("phi"), par("T"), par("gamma0")
+    sigma, wd, wr_re, wr_im, mass, scale = (par(k) for k in ("sigma", "wd", "wr_re", "wr_im", "mass", "scale"))
+    inv_limit, torque_par = par("inv_limit"), par("torque")
+
+    z_matrix = ca.SX(n1, n1)
+    for k, row in enumerate(boundary_matrix([gamma[i] for i in range(n1)])):
+        for i, entry in enumerate(row):
+            z_matrix[k, i] = entry
+    rhs = ca.DM.zeros(n1)
+    rhs[0] = 1.0
+    coefs = ca.solve(z_matrix, rhs)  # eq. (22)
+
+    # Free states h_j(T) by quadrature (module docstring).
+    x, w = np.polynomial.legendre.leggauss(nodes)
+    v = 0.5 * (x + 1.0)
+    weights = ca.DM(w)  # the 1/2 of the map to [0, 1] cancels the 2 of du = 2 v dv
+    log_v = ca.DM(np.log(v))
+    v2 = ca.DM(v * v)
+    energy = 0
+    residual = 0
+    free = []
+    for j in range(modes):
+        z_re, z_im = -sigma[j] * T, wd[j] * T
+        kernel_re = ca.exp(z_re * v2) * ca.cos(z_im * v2)
+        kernel_im = ca.exp(z_re * v2) * ca.sin(z_im * v2)
+        s_re, s_im = 0, 0
+        for i in range(n1):
+            power = ca.exp((2.0 * gamma[i] - 3.0) * log_v)  # v^(2 gamma - 3)
+            scale_i = gamma[i] * (gamma[i] - 1.0) * coefs[i]
+            s_re += scale_i * ca.dot(weights, power * kernel_re)
+            s_im += scale_i * ca.dot(weights, power * kernel_im)
+        lam = (-sigma[j], wd[j])
+        lam2 = _complex_mul(lam, lam)
+        norm = lam2[0] ** 2 + lam2[1] ** 2
+        factor = -phi / T
+        h_re = factor * (s_re * lam2[0] + s_im * lam2[1]) / norm  # factor * S / lambda^2
+        h_im = factor * (s_im * lam2[0] - s_re * lam2[1]) / norm
+        free += [h_re / scale[j], h_im / scale[j]]
+        alpha = _complex_mul((wr_re[j], wr_im[j]), (h_re, h_im))
+        rate = _complex_mul(_complex_mul((wr_re[j], wr_im[j]), lam), (h_re, h_im))
+        omega2 = sigma[j] ** 2 + wd[j] ** 2
+        energy += 0.5 * mass[j] * (rate[0] ** 2 + omega2 * alpha[0] ** 2)
+        residual += ca.sqrt(alpha[0] ** 2 + alpha[1] ** 2)
+
+    # Limits on the grid t = T s, s in [0, 1): phi^(k) = (-1)^(k+1) Phi/T^k sum_i P C u^(gamma - k) (eq. 18),
+    # plus points ever closer to T, where u^(gamma - 3) changes fast when gamma is just above 3.
+    log_u = ca.DM(np.log(limit_grid_u()))
+    kinematic = []
+    for k in (1, 2, 3):
+        if not active[k - 1]:
+            continue
+        total = 0
+        for weight, power in derivative_terms([gamma[i] for i in range(n1)], [coefs[i] for i in range(n1)], k):
+            total += weight * ca.exp(power * log_u)
+        kinematic.append((-1.0) ** (k + 1) * phi / T**k * total * inv_limit[k - 1] * (1.0 + LIMIT_MARGIN))
+    if active[3]:
+        torque_rows = _torque_rows(ca, gamma, coefs, phi, T, sigma[0], wd[0], torque_par)
+        kinematic.append(torque_rows * inv_limit[3] * (1.0 + LIMIT_MARGIN))
+    limit_rows = ca.vertcat(*kinematic) if kinematic else ca.SX(0, 1)
+    separation = ca.vertcat(*[gamma[i + 1] - gamma[i] for i in range(order)])
+
+    m_limits, m_sep, m_free = limit_rows.numel(), separation.numel(), len(free)
+    g_closest = ca.vertcat(ca.vertcat(*free), limit_rows, separation)
+    g_minimum = ca.vertcat(limit_rows, separation)
+    lbg_c = np.concatenate([np.zeros(m_free), -np.ones(m_limits), np.full(m_sep, MIN_SEPARATION)])
+    ubg_c = np.concatenate([np.zeros(m_free), np.ones(m_limits), np.full(m_sep, np.inf)])
+    lbg_m = np.concatenate([-np.ones(m_limits), np.full(m_sep, MIN_SEPARATION)])
+    ubg_m = np.concatenate([np.ones(m_limits), np.full(m_sep, np.inf)])
+
+    options = ipopt_options(caps, **{"ipopt.tol": 1e-12, "ipopt.constr_viol_tol": 1e-12, "ipopt.acceptable_iter": 0})
+    closest_nlp = {"x": gamma, "p": p, "f": 0.5 * ca.sumsqr(gamma - gamma0), "g": g_closest}
+    closest = ca.nlpsol("pp_closest", "ipopt", closest_nlp, options)
+    quick_caps = replace(caps, max_iterations=min(caps.max_iterations, QUICK_ITERATIONS))
+    quick = ca.nlpsol("pp_quick", "ipopt", closest_nlp, {**options, **ipopt_options(quick_caps)})
+    search_caps = replace(caps, max_iterations=min(caps.max_iterations, SEARCH_ITERATIONS))
+    minimum = ca.nlpsol(
+        "pp_minimum",
+        "ipopt",
+        {"x": gamma, "p": p, "f": energy / par("energy_ref"), "g": g_minimum},
+        {**options, **ipopt_options(search_caps), "ipopt.acceptable_tol": 1e-9, "ipopt.acceptable_iter": 10},
+    )
+    evaluate = ca.Function("pp_evaluate", [gamma, p], [energy, residual, ca.vertcat(*free)])
+    breach = ca.vertcat(ca.fabs(limit_rows) - 1.0, MIN_SEPARATION - separation)
+    violation = ca.Function("pp_violation", [gamma, p], [ca.mmax(breach) if breach.numel() else ca.SX(-1.0)])
+    return _Compiled(quick, closest, minimum, evaluate, violation, (lbg_c, ubg_c, lbg_m, ubg_m), layout, start)
+
+
+def _torque_rows(ca: Any, gamma: Any, coefs: Any, phi: Any, T: Any, sigma: Any, wd: Any, torque_par: Any) -> Any:
+    """Motor torque J_M phi'' - k alpha - c alpha' of a two-inertia plant on the constraint grid.
+
+    alpha'' + 2 zeta w alpha' + w^2 alpha = -phi'' (Cusimano eq. 4) is advanced exactly between grid
+    points with phi'' held linearly, in modal form x' = lambda x + phi'' with lambda = -sigma + i w_d:
+    alpha = -2 Re(x / (2 i w_d)) = -Im(x)/w_d and alpha' = -Im(lambda x)/w_d.
+    """
+    j_m, k, c = torque_par[0], torque_par[1], torque_par[2]
+    n1 = gamma.numel()
+    s_grid = np.arange(CONSTRAINT_INTERVALS + 1) / CONSTRAINT_INTERVALS
+    log_u = ca.DM(np.log(np.maximum(1.0 - s_grid, 1e-300)))
+    acc = 0
+    for weight, power in derivative_terms([gamma[i] for i in range(n1)], [coefs[i] for i in range(n1)], 2):
+        acc += weight * ca.exp(power * log_u)
+    acc = -phi / T**2 * acc
+    acc = ca.vertcat(acc[:-1], 0.0)  # phi''(T) = 0 for every exponent > 2
+    dt = T / CONSTRAINT_INTERVALS
+    lam = (-sigma, wd)
+    e_re = ca.exp(-sigma * dt) * ca.cos(wd * dt)
+    e_im = ca.exp(-sigma * dt) * ca.sin(wd * dt)
+    # b1 = (E - 1 - lambda dt)/(lambda^2 dt), b0 = (E - 1)/lambda - b1 (first-order hold, exact)
+    lam2 = _complex_mul(lam, lam)
+    norm2 = lam2[0] ** 2 + lam2[1] ** 2
+    num1 = (e_re - 1.0 + sigma * dt, e_im - wd * dt)
+    b1 = ((num1[0] * lam2[0] + num1[1] * lam2[1]) / (norm2 * dt), (num1[1] * lam2[0] - num1[0] * lam2[1]) / (norm2 * dt))
+    norm1 = sigma**2 + wd**2
+    num0 = (e_re - 1.0, e_im)
+    q = ((num0[0] * lam[0] + num0[1] * lam[1]) / norm1, (num0[1] * lam[0] - num0[0] * lam[1]) / norm1)
+    b0 = (q[0] - b1[0], q[1] - b1[1])
+    x_re, x_im = 0, 0
+    rows = []
+    for step in range(CONSTRAINT_INTERVALS + 1):
+        if step > 0:
+            ex = _complex_mul((e_re, e_im), (x_re, x_im))
+            x_re = ex[0] + b0[0] * acc[step - 1] + b1[0] * acc[step]
+            x_im = ex[1] + b0[1] * acc[step - 1] + b1[1] * acc[step]
+        alpha = -x_im / wd
+        lx = _complex_mul(lam, (x_re, x_im))
+        rate = -lx[1] / wd
+        rows.append(j_m * acc[step] - k * alpha - c * rate)
+    return ca.vertcat(*rows)
+
+
+def _compiled(order: int, modes: int, nodes: int, active: tuple[bool, bool, bool, bool], caps: SolveCaps) -> _Compiled:
+    key = (order, modes, nodes, active, caps)
+    if key not in _CACHE:
+        _CACHE[key] = _build(order, modes, nodes, active, caps)
+    return _CACHE[key]
+
+
+def _active(limits: Limits) -> tuple[bool, bool, bool, bool]:
+    return tuple(x is not None for x in (limits.max_velocity, limits.max_acceleration, limits.max_jerk, limits.max_torque_nm))  # type: ignore[return-value]
+
+
+def warm_up(caps: SolveCaps | None = None) -> None:
+    """Build the common problems (orders 2-4, one mode, short moves, no limits) in a new worker."""
+    for order in (2, 3, 4):
+        _compiled(order, 1, QUADRATURE_SIZES[0], (False,) * 4, caps or SolveCaps())
+
+
+# ------------------------------------------------------------------------------------------
+# Solving
+
+
+def _oscillatory(plant: Plant) -> ModalForm:
+    num, den = plant.load_transfer_function()
+    modal = modal_form(num, den, 1)
+    keep = modal.oscillatory
+    if not np.any(keep):
+        raise InvalidParameter("plant", plant.kind, "the plant has no vibration mode to suppress")
+    return ModalForm(modal.taylor, modal.poles[keep], modal.residues[keep], modal.weights[keep])
+
+
+def _parameters(request: PseudoPolynomialRequest, modal: ModalForm, compiled: _Compiled, gamma0: np.ndarray) -> np.ndarray:
+    lay = compiled.layout
+    p = np.zeros(compiled.parameter_count)
+    p[lay["phi"]] = request.displacement
+    p[lay["T"]] = request.duration_s
+    p[lay["gamma0"]] = gamma0
+    p[lay["sigma"]] = -modal.poles.real
+    p[lay["wd"]] = modal.poles.imag
+    wr = modal.weights * modal.residues
+    p[lay["wr_re"]] = wr.real
+    p[lay["wr_im"]] = wr.imag
+    inertia = request.plant.energy_inertia
+    p[lay["mass"]] = inertia if inertia is not None and modal.poles.size == 1 else 1.0
+    p[lay["scale"]] = 1.0
+    p[lay["energy_ref"]] = 1.0
+    lim = request.limits
+    p[lay["inv_limit"]] = [0.0 if x is None else 1.0 / x for x in (lim.max_velocity, lim.max_acceleration, lim.max_jerk, lim.max_torque_nm)]
+    if isinstance(request.plant, TwoInertiaPlant):
+        p[lay["torque"]] = [request.plant.motor_inertia_kgm2, request.plant.stiffness_nm_per_rad, request.plant.damping_nms_per_rad]
+    return p
+
+
+def check_limits_possible(request: PseudoPolynomialRequest) -> None:
+    """Refuse limits that no motion of this duration can meet, whatever its shape.
+
+    Bang-bang bounds for a rest-to-rest move of Phi in T: the mean speed Phi/T, the least peak
+    acceleration 4 Phi/T^2 and the least peak jerk 32 Phi/T^3.
+    """
+    phi, T, lim = abs(request.displacement), request.duration_s, request.limits
+    checks = (
+        ("max_velocity", lim.max_velocity, phi / T, "the mean speed displacement/duration"),
+        ("max_acceleration", lim.max_acceleration, 4 * phi / T**2, "4 displacement/duration^2, the least any move needs"),
+        ("max_jerk", lim.max_jerk, 32 * phi / T**3, "32 displacement/duration^3, the least any move needs"),
+    )
+    for name, limit, least, what in checks:
+        if limit is not None and limit < least:
+            raise Infeasible(
+                f"limits.{name} = {limit:.6g} is below {least:.6g}, {what}: no command moves {phi:.6g} in "
+                f"{T:.6g} s within it (lengthen duration_s or raise the limit)",
+                field=f"limits.{name}",
+            )
+
+
+def _prepare(request: PseudoPolynomialRequest) -> tuple[_Compiled, np.ndarray, np.ndarray]:
+    """The compiled problem for a request, its parameter vector (scaled at the initial design)
+    and the initial exponents."""
+    modal = _oscillatory(request.plant)
+    phase = float(np.max(np.abs(modal.poles))) * request.duration_s
+    compiled = _compiled(request.order, modal.poles.size, quadrature_nodes(phase), _active(request.limits), request.caps)
+    gamma0 = np.sort(np.asarray(request.initial_exponents, dtype=float))
+    p = _parameters(request, modal, compiled, gamma0)
+    energy0, _, free0 = (np.asarray(v).ravel() for v in compiled.evaluate(gamma0, p))
+    scales = np.hypot(free0[0::2], free0[1::2])
+    p[compiled.layout["scale"]] = np.where(scales > 0, scales, 1.0)
+    p[compiled.layout["energy_ref"]] = energy0[0] if energy0[0] > 0 else 1.0
+    return compiled, p, gamma0
+
+
+def spread_starts(order: int, count: int = SPREAD_STARTS) -> list[np.ndarray]:
+    """Fixed, well-separated starting exponents spread log-uniformly over [lower bound, 40]."""
+    rng = np.random.default_rng(1000 + order)
+    low = lower_bound(order)
+    starts = []
+    while len(starts) < count:
+        g = np.sort(low * np.exp(rng.uniform(0.0, np.log(40.0 / low), order + 1)))
+        if np.min(np.diff(g)) >= 4 * MIN_SEPARATION:
+            starts.append(g)
+    return starts
+
+
+@dataclass(frozen=True)
+class _Attempt:
+    gamma: np.ndarray
+    stage: str
+    report: SolverReport
+    energy: float
+    residual: float
+    solves: int
+
+
+def _solve_at(request: PseudoPolynomialRequest, start: np.ndarray, thorough: bool = True) -> _Attempt:
+    """The design at a fixed duration (see the module docstring for the rule):
+
+    1. the zero-energy design closest to the initial exponents, solved from ``start``;
+    2. if IPOPT does not reach one: minimise the energy from the initial exponents and (when
+       ``thorough``) from fixed spread starts, keeping the lowest-energy design that meets the
+       limits; if its energy is zero to round-off, move it to the closest zero-energy design.
+
+    Raises Infeasible when no start yields a design within the limits.
+    """
+    compiled, p, gamma0 = _prepare(request)
+    lbg_c, ubg_c, lbg_m, ubg_m = compiled.g_bounds
+    lbx, ubx = np.full(gamma0.size, lower_bound(request.order)), np.full(gamma0.size, MAX_EXPONENT)
+    iterations, elapsed, solves = 0, 0.0, 0
+
+    def run(solver: Any, x0: np.ndarray, lbg: np.ndarray, ubg: np.ndarray) -> tuple[np.ndarray, SolverReport]:
+        nonlocal iterations, elapsed, solves
+        started = time.perf_counter()
+        solution = solver(x0=np.clip(x0, lbx, ubx), p=p, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+        report = report_of(solver, time.perf_counter() - started)
+        iterations, elapsed, solves = iterations + report.iterations, elapsed + report.solve_time_s, solves + 1
+        return np.asarray(solution["x"]).ravel(), report
+
+    def attempt(gamma: np.ndarray, stage: str, report: SolverReport) -> _Attempt:
+        gamma = np.clip(gamma, lbx, ubx)  # IPOPT may end a hair outside a bound
+        energy, residual, _ = compiled.evaluate(gamma, p)
+        return _Attempt(gamma, stage, SolverReport(report.status, iterations, elapsed), float(energy), float(residual), solves)
+
+    def feasible(gamma: np.ndarray) -> bool:
+        return float(compiled.violation(gamma, p)) <= 1e-9
+
+    gamma, report = run(compiled.quick, start, lbg_c, ubg_c)
+    if report.timed_out or (report.converged and feasible(gamma)):
+        return attempt(gamma, "closest_zero_energy", report)
+    energy_ref = float(p[compiled.layout["energy_ref"]][0])
+    best: tuple[float, np.ndarray, SolverReport] | None = None
+    for x0 in [gamma0, *(spread_starts(request.order) if thorough else [])]:
+        if elapsed > 2.0 * request.caps.max_wall_time_s:
+            break  # the starts so far have used the time a design may take
+        candidate, rep = run(compiled.minimum, x0, lbg_m, ubg_m)
+        if rep.timed_out:
+            report = rep
+            break
+        if feasible(candidate):
+            energy = float(compiled.evaluate(candidate, p)[0])
+            if best is None or energy < best[0]:
+                best = (energy, candidate, rep)
+            if energy <= ZERO_ENERGY * energy_ref:
+                break
+    if best is None:
+        if report.timed_out:
+            return attempt(gamma, "minimum_energy", report)
+        raise Infeasible(
+            f"no pseudo-polynomial command of order {request.order} found that moves {request.displacement:.6g} in "
+            f"{request.duration_s:.6g} s within the limits; lengthen duration_s, raise the limits or try another order",
+            field="limits",
+        )
+    energy, candidate, rep = best
+    if energy <= ZERO_ENERGY * energy_ref:
+        closer, rep_c = run(compiled.closest, candidate, lbg_c, ubg_c)
+        if rep_c.converged and feasible(closer):
+            return attempt(closer, "closest_zero_energy", rep_c)
+    return attempt(candidate, "minimum_energy", SolverReport("Solve_Succeeded" if rep.converged else "Feasible_Point_Kept", 0, 0))
+
+
+def evaluate(request: PseudoPolynomialRequest, exponents: np.ndarray) -> tuple[float, float]:
+    """Final energy and residual amplitude of given exponents (the optimiser's own model)."""
+    compiled, p, _ = _prepare(replace(request, initial_exponents=tuple(exponents)))
+    energy, residual, _ = compiled.evaluate(np.asarray(exponents, dtype=float), p)
+    return float(energy), float(residual)
+
+
+def _default_tolerance(request: PseudoPolynomialRequest) -> float:
+    """1e-6 of the load's displacement (of the motor's for plants with no position gain)."""
+    return 1e-6 * abs(request.displacement) * (abs(request.plant.dc_gain) or 1.0)
+
+
+def _checked(request: PseudoPolynomialRequest) -> PseudoPolynomialRequest:
+    if not 1 <= request.order <= MAX_ORDER:
+        raise InvalidParameter("order", request.order, f"must lie in 1..{MAX_ORDER}")
+    initial = check_exponents(request.initial_exponents or default_exponents(request.order), request.order)
+    if min(initial) < lower_bound(request.order):
+        raise InvalidParameter(
+            "initial_exponents",
+            list(initial),
+            f"every exponent must be >= {lower_bound(request.order):g} for order {request.order} (above the order, "
+            "and at least 3 so the jerk stays bounded)",
+        )
+    if request.limits.max_torque_nm is not None and not isinstance(request.plant, TwoInertiaPlant):
+        raise InvalidParameter(
+            "limits.max_torque_nm", request.limits.max_torque_nm, f"a {request.plant.kind} plant does not define the motor torque"
+        )
+    if request.minimize_duration and not any(_active(request.limits)):
+        raise InvalidParameter("minimize_duration", True, "needs at least one limit (without limits any duration works)")
+    check_limits_possible(request)
+    return replace(request, initial_exponents=tuple(sorted(initial)))
+
+
+def design(request: PseudoPolynomialRequest) -> PseudoPolynomialDesign:
+    """The design for a request (runs in a worker process)."""
+    request = _checked(request)
+    energy0, residual0 = evaluate(request, np.asarray(request.initial_exponents))
+    started = time.perf_counter()
+    if request.minimize_duration:
+        duration, attempt, tried = _shortest(request)
+    else:
+        duration, attempt, tried = request.duration_s, _solve_at(request, np.asarray(request.initial_exponents)), ()
+        _raise_unless_design(attempt)
+    return PseudoPolynomialDesign(
+        law=PseudoPolynomial(request.displacement, duration, tuple(attempt.gamma)),
+        initial=PseudoPolynomial(request.displacement, request.duration_s, request.initial_exponents),
+        initial_energy=energy0,
+        final_energy=attempt.energy,
+        residual_amplitude=attempt.residual,
+        initial_residual_amplitude=residual0,
+        selection=attempt.stage,
+        solver=replace(attempt.report, solve_time_s=time.perf_counter() - started),
+        solves=attempt.solves,
+        energy_is_physical=request.plant.energy_inertia is not None and _oscillatory(request.plant).poles.size == 1,
+        duration_search=tried,
+    )
+
+
+def _raise_unless_design(attempt: _Attempt) -> None:
+    """A timed-out or failed closest-zero solve is never a design; a minimum-energy design is
+    only returned when it was checked to meet the limits (``_solve_at``)."""
+    if attempt.report.timed_out or attempt.stage == "closest_zero_energy":
+        raise_for_status(attempt.report)
+
+
+def _shortest(request: PseudoPolynomialRequest) -> tuple[float, _Attempt, tuple[tuple[float, bool], ...]]:
+    """The shortest duration whose design meets the residual tolerance within the limits.
+
+    Zero-energy designs exist only in windows of duration (for order 2 roughly around whole
+    numbers of periods of the mode), so feasibility is not monotone in T: the search steps down
+    from the first duration that works, by an eighth of the mode's period (or T/24), to the
+    kinematic lower bound, then bisects between the shortest feasible step and the step below it.
+    """
+    tolerance = request.residual_tolerance or _default_tolerance(request)
+    started = time.perf_counter()
+    budget = 3.0 * request.caps.max_wall_time_s
+    tried: list[tuple[float, bool]] = []
+
+    def attempt(duration: float, start: np.ndarray) -> _Attempt | None:
+        trial = replace(request, duration_s=duration)
+        try:
+            check_limits_possible(trial)
+            result = _solve_at(trial, start, thorough=False)
+        except Infeasible:
+            tried.append((duration, False))
+            return None
+        ok = result.residual <= tolerance and not result.report.timed_out
+        tried.append((duration, ok))
+        return result if ok else None
+
+    def out_of_time() -> bool:
+        return time.perf_counter() - started > budget
+
+    high = request.duration_s
+    best = attempt(high, np.asarray(request.initial_exponents))
+    while best is None:
+        if len(tried) > 8 or out_of_time():
+            raise Infeasible(
+                f"no pseudo-polynomial command of order {request.order} meets the limits with a residual below "
+                f"{tolerance:.3g} for durations up to {high:.6g} s",
+                field="duration_s",
+            )
+        high *= 1.25
+        best = attempt(high, np.asarray(request.initial_exponents))
+    lim, phi = request.limits, abs(request.displacement)
+    floor = max(
+        [0.0]
+        + ([phi / lim.max_velocity] if lim.max_velocity else [])
+        + ([2.0 * math.sqrt(phi / lim.max_acceleration)] if lim.max_acceleration else [])
+        + ([(32.0 * phi / lim.max_jerk) ** (1 / 3)] if lim.max_jerk else [])
+    )
+    period = float(np.min(2 * np.pi / np.abs(_oscillatory(request.plant).poles)))
+    step = min(period / 8.0, high / 24.0)
+    low = floor
+    trial = high - step
+    while trial > floor and not out_of_time():  # a loop over durations, not samples
+        found = attempt(trial, best.gamma)
+        if found is not None:
+            high, best = trial, found
+        elif trial < high - 2.5 * period:
+            low = trial
+            break  # two and a half periods without a feasible duration: the windows have closed
+        trial -= step
+    low = max(low, high - step)
+    while high - low > 1e-3 * high and not out_of_time():
+        mid = 0.5 * (low + high)
+        found = attempt(mid, best.gamma)
+        if found is not None:
+            high, best = mid, found
+        else:
+            low = mid
+    return high, best, tuple(tried)
