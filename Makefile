@@ -26,6 +26,7 @@ test: $(VENV)/.installed-test  ## run the whole test suite
 
 bench: $(VENV)/.installed-test  ## run the benchmarks whose figures are in README.md
 	$(BIN)/python bench/simulation.py
+	$(BIN)/python bench/pseudo_polynomial.py
 
 clean:
 	rm -rf $(VENV) .pytest_cache

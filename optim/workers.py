@@ -118,18 +118,25 @@ class SolverPool:
         self.start_in_background()
 
     async def close(self) -> None:
+        """Stop the workers: let them exit (a second at most), then kill what is left."""
         if self._starting is not None:
             self._starting.cancel()
-        if self._executor is not None:
-            _kill(self._executor)
-            self._executor = None
         self._ready.clear()
+        executor, self._executor = self._executor, None
+        if executor is None:
+            return
+        processes = list((getattr(executor, "_processes", None) or {}).values())
+        executor.shutdown(wait=False, cancel_futures=True)
+        for process in processes:
+            await asyncio.get_running_loop().run_in_executor(None, process.join, 1.0)
+            if process.is_alive():
+                process.kill()
 
 
 def _kill(executor: ProcessPoolExecutor) -> None:
     # ProcessPoolExecutor cannot cancel a running call; terminating its processes is the only
     # way to stop a stuck solve. ``_processes`` is private but stable since Python 3.2.
-    processes = list(getattr(executor, "_processes", {}).values())
+    processes = list((getattr(executor, "_processes", None) or {}).values())
     for process in processes:
         if process.is_alive():
             process.kill()

@@ -2,15 +2,15 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
-from fastapi import APIRouter, Body, Depends, Request
+from fastapi import APIRouter, Body, Depends, Query, Request, Response
 from starlette.concurrency import run_in_threadpool
 
 from app import problems
 from app.examples import CUSIMANO_8HZ, INCERTI_TABLE_III
-from app.responses import NumpyJSONResponse
+from app.responses import CSV_RESPONSE_DOC, negotiate
 from app.schemas.family import family_response, sample_count_check
 from app.schemas.plants import to_plant
 from app.schemas.pseudo_polynomial import SELECTION_RULE, PseudoPolynomialIn, PseudoPolynomialOut
@@ -160,17 +160,18 @@ async def respond(request: PseudoPolynomialIn, settings: Settings, pool: SolverP
     "/profiles/pseudo-polynomial",
     summary="Pseudo-polynomial command with no residual vibration (Incerti)",
     response_model=PseudoPolynomialOut,
-    responses=problems.responses(413, 422, 503, 504),
+    responses={**CSV_RESPONSE_DOC, **problems.responses(413, 422, 503, 504)},
 )
 async def pseudo_polynomial(
     body: Annotated[PseudoPolynomialIn, Body(openapi_examples=EXAMPLES)],
     request: Request,
     settings: Annotated[Settings, Depends(get_settings)],
-) -> NumpyJSONResponse:
+    format: Annotated[Literal["json", "csv"] | None, Query(description="csv: the profile only, as CSV")] = None,
+) -> Response:
     """Chooses the exponents of phi(t) = Phi [1 - sum C_i (1 - t/T)^gamma_i] so that the plant is left
     with no vibration energy when the move ends, within the limits, by IPOPT in a worker process.
 
     The returned profile holds the law's exact values at the sample times; the load response simulates
     the drive following them (velocity on the cubic Hermite curve through the sampled velocities and
     accelerations). A failed or timed-out solve is a problem, never a profile."""
-    return NumpyJSONResponse(await respond(body, settings, request.app.state.pool))
+    return negotiate(request, await respond(body, settings, request.app.state.pool), "pseudo-polynomial profile")

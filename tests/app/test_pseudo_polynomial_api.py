@@ -90,3 +90,19 @@ def test_sensitivity_is_returned_when_asked(client):
     at_one = curve["residual_vibration"][20]
     assert at_one == pytest.approx(body["metrics"]["residual_amplitude"] / math.pi, rel=1e-6, abs=1e-12)
     assert np.max(curve["residual_vibration"]) > 10 * at_one  # it grows away from the design frequency
+
+
+@pytest.mark.parametrize("how", [{"params": {"format": "csv"}}, {"headers": {"accept": "text/csv"}}])
+def test_csv_export_for_a_cam_table(client, how):
+    json_body = client.post(PATH, json=TABLE_III_MOVE).json()
+    response = client.post(PATH, json=TABLE_III_MOVE, **how)
+    assert response.status_code == 200
+    assert response.headers["content-type"].startswith("text/csv")
+    lines = response.text.strip().splitlines()
+    assert lines[0].startswith("#") and "units" in lines[0]
+    assert lines[1] == "time_s,position,velocity,acceleration,jerk"
+    rows = np.loadtxt(lines[2:], delimiter=",")
+    assert rows.shape == (len(json_body["profile"]["time_s"]), 5)
+    # Same numbers as the JSON profile, bit for bit (both are shortest round-trip reprs).
+    np.testing.assert_array_equal(rows[:, 1], json_body["profile"]["position"])
+    np.testing.assert_array_equal(rows[:, 4], json_body["profile"]["jerk"])
