@@ -21,7 +21,8 @@ $(VENV)/.installed-test: pyproject.toml | $(BIN)/python
 serve: $(VENV)/.installed-serve  ## run the service on http://$(HOST):$(PORT) (docs at /docs)
 	$(BIN)/uvicorn app.main:app --host $(HOST) --port $(PORT)
 
-test: $(VENV)/.installed-test  ## run the whole test suite
+test: $(VENV)/.installed-test  ## run the whole test suite (installs Debian's chromium for the browser tests)
+	bash scripts/ensure-chromium.sh
 	$(BIN)/python -m pytest
 
 bench: $(VENV)/.installed-test  ## run the benchmarks whose figures are in README.md

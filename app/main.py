@@ -9,7 +9,7 @@ from contextlib import asynccontextmanager
 from fastapi import FastAPI
 
 from app import problems
-from app.routers import health, plants, pseudo_polynomial, shapers, simulate, smoothers, stap
+from app.routers import compare, health, page, plants, pseudo_polynomial, shapers, simulate, smoothers, stap
 from app.settings import Settings, get_settings
 from optim.workers import SolverPool
 
@@ -47,9 +47,10 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.dependency_overrides[get_settings] = lambda: settings
     problems.install(app)
     app.add_middleware(problems.BodySizeLimit, max_bytes=settings.max_body_bytes)
-    routers = (health, plants, simulate, pseudo_polynomial, stap, smoothers, shapers)
+    routers = (health, plants, simulate, pseudo_polynomial, stap, smoothers, shapers, compare, page)
     for router in (*(r.router for r in routers), problems.router):
         app.include_router(router)
+    app.mount("/static", page.static, name="static")
     _declare_problem_schema(app)
     logging.getLogger("vibfree").setLevel(logging.INFO)
     return app

@@ -45,6 +45,7 @@ MIN_SEPARATION = 0.05  # consecutive exponents at least this far apart: Z stays 
 MAX_EXPONENT = 80.0
 SPREAD_STARTS = 6  # extra starting points when the closest zero-energy design is not reached
 QUICK_ITERATIONS = 150  # the first try: a reachable closest zero converges in tens of iterations
+PROBE_ITERATIONS = 40  # a duration probe in the shortest-duration search (warm-started from a neighbour)
 SEARCH_ITERATIONS = 250  # each minimum-energy start; its best feasible iterate is kept
 ZERO_ENERGY = 1e-16  # energy ratio below which a design counts as zero-energy (amplitude ratio 1e-8)
 LIMIT_MARGIN = 1e-4  # limits are imposed 0.01 % tighter than asked, absorbing the grid
@@ -121,6 +122,7 @@ def quadrature_nodes(phase_rad: float) -> int:
 
 @dataclass
 class _Compiled:
+    probe: Any  # nlpsol: closest zero-energy design, very few iterations (duration search)
     quick: Any  # nlpsol: closest zero-energy design, few iterations (the first try)
     closest: Any  # nlpsol: closest zero-energy design
     minimum: Any  # nlpsol: minimum-energy design, few iterations per start
@@ -244,6 +246,8 @@ def _build(order: int, modes: int, nodes: int, active: tuple[bool, bool, bool, b
     closest = ca.nlpsol("pp_closest", "ipopt", closest_nlp, options)
     quick_caps = replace(caps, max_iterations=min(caps.max_iterations, QUICK_ITERATIONS))
     quick = ca.nlpsol("pp_quick", "ipopt", closest_nlp, {**options, **ipopt_options(quick_caps)})
+    probe_caps = replace(caps, max_iterations=min(caps.max_iterations, PROBE_ITERATIONS))
+    probe = ca.nlpsol("pp_probe", "ipopt", closest_nlp, {**options, **ipopt_options(probe_caps)})
     search_caps = replace(caps, max_iterations=min(caps.max_iterations, SEARCH_ITERATIONS))
     minimum = ca.nlpsol(
         "pp_minimum",
@@ -254,7 +258,7 @@ def _build(order: int, modes: int, nodes: int, active: tuple[bool, bool, bool, b
     evaluate = ca.Function("pp_evaluate", [gamma, p], [energy, residual, ca.vertcat(*free)])
     breach = ca.vertcat(ca.fabs(limit_rows) - 1.0, MIN_SEPARATION - separation)
     violation = ca.Function("pp_violation", [gamma, p], [ca.mmax(breach) if breach.numel() else ca.SX(-1.0)])
-    return _Compiled(quick, closest, minimum, evaluate, violation, (lbg_c, ubg_c, lbg_m, ubg_m), layout, start)
+    return _Compiled(probe, quick, closest, minimum, evaluate, violation, (lbg_c, ubg_c, lbg_m, ubg_m), layout, start)
 
 
 def _torque_rows(ca: Any, gamma: Any, coefs: Any, phi: Any, T: Any, sigma: Any, wd: Any, torque_par: Any) -> Any:
@@ -410,13 +414,14 @@ class _Attempt:
     solves: int
 
 
-def _solve_at(request: PseudoPolynomialRequest, start: np.ndarray, thorough: bool = True) -> _Attempt:
+def _solve_at(request: PseudoPolynomialRequest, start: np.ndarray, effort: str = "thorough") -> _Attempt:
     """The design at a fixed duration (see the module docstring for the rule):
 
     1. the zero-energy design closest to the initial exponents, solved from ``start``;
-    2. if IPOPT does not reach one: minimise the energy from the initial exponents and (when
-       ``thorough``) from fixed spread starts, keeping the lowest-energy design that meets the
-       limits; if its energy is zero to round-off, move it to the closest zero-energy design.
+    2. if IPOPT does not reach one (and ``effort`` is not "probe"): minimise the energy from the
+       initial exponents and (``effort`` "thorough") from fixed spread starts, keeping the
+       lowest-energy design that meets the limits; if its energy is zero to round-off, move it
+       to the closest zero-energy design.
 
     Raises Infeasible when no start yields a design within the limits.
     """
@@ -441,12 +446,14 @@ def _solve_at(request: PseudoPolynomialRequest, start: np.ndarray, thorough: boo
     def feasible(gamma: np.ndarray) -> bool:
         return float(compiled.violation(gamma, p)) <= 1e-9
 
-    gamma, report = run(compiled.quick, start, lbg_c, ubg_c)
+    gamma, report = run(compiled.probe if effort == "probe" else compiled.quick, start, lbg_c, ubg_c)
     if report.timed_out or (report.converged and feasible(gamma)):
         return attempt(gamma, "closest_zero_energy", report)
+    if effort == "probe":
+        raise Infeasible("no zero-energy design reached from the start", field="limits")
     energy_ref = float(p[compiled.layout["energy_ref"]][0])
     best: tuple[float, np.ndarray, SolverReport] | None = None
-    for x0 in [gamma0, *(spread_starts(request.order) if thorough else [])]:
+    for x0 in [gamma0, *(spread_starts(request.order) if effort == "thorough" else [])]:
         if elapsed > 2.0 * request.caps.max_wall_time_s:
             break  # the starts so far have used the time a design may take
         candidate, rep = run(compiled.minimum, x0, lbg_m, ubg_m)
@@ -557,7 +564,7 @@ def _shortest(request: PseudoPolynomialRequest) -> tuple[float, _Attempt, tuple[
         trial = replace(request, duration_s=duration)
         try:
             check_limits_possible(trial)
-            result = _solve_at(trial, start, thorough=False)
+            result = _solve_at(trial, start, effort="probe")
         except Infeasible:
             tried.append((duration, False))
             return None
@@ -569,7 +576,10 @@ def _shortest(request: PseudoPolynomialRequest) -> tuple[float, _Attempt, tuple[
         return time.perf_counter() - started > budget
 
     high = request.duration_s
-    best = attempt(high, np.asarray(request.initial_exponents))
+    first = _solve_at(request, np.asarray(request.initial_exponents), effort="thorough")
+    ok = first.residual <= tolerance and not first.report.timed_out
+    tried.append((high, ok))
+    best = first if ok else None
     while best is None:
         if len(tried) > 8 or out_of_time():
             raise Infeasible(
