@@ -28,7 +28,8 @@ CHATLATANAGULCHAI_EQ3: dict[str, Any] = {
     "damping_ns_per_m": 0.1,
     "drive_damping_ns_per_m": 30.0,
 }
-BIAGIOTTI_MODE: dict[str, Any] = {"kind": "mode", "natural_frequency_hz": 19.689, "damping_ratio": 0.1265}
+# sigma = -15.6539 1/s, Omega = 122.7185 rad/s (Biagiotti Sec. VI): omega_n = 123.7129 rad/s, zeta = 0.126534
+BIAGIOTTI_MODE: dict[str, Any] = {"kind": "mode", "natural_frequency_hz": 19.6895152, "damping_ratio": 0.1265341}
 CUSIMANO_40HZ: dict[str, Any] = {"kind": "mode", "natural_frequency_hz": 40.0, "damping_ratio": 0.0}
 
 PLANT_EXAMPLES: dict[str, dict[str, Any]] = {

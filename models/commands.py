@@ -152,7 +152,7 @@ class PiecewiseCommand:
 
     def end_index(self) -> int:
         """Index of the last breakpoint where the command changes (its end, for residual metrics)."""
-        changed = np.flatnonzero(np.any(self.jumps()[1:] != 0.0, axis=0))
+        changed = np.flatnonzero(np.any(self.jumps() != 0.0, axis=0))
         return int(changed[-1]) if changed.size else 0
 
     def evaluate(self, m: int, t: np.ndarray) -> np.ndarray:

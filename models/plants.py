@@ -557,5 +557,6 @@ def example_plants() -> dict[str, Plant]:
         "incerti_table_iii": BeltPlatformPlant(6.0, 9e4, 150.0, 0.060, 0.180, 0.1),
         "cusimano_8hz_equal_inertia": TwoInertiaPlant(0.005, 0.005, 0.005 * (2 * math.pi * 8.0) ** 2, 0.0),
         "chatlatanagulchai_eq3": RigidFlexiblePlant(2.0, 3.0, 1.0, 0.1, 30.0),
-        "biagiotti_identified": ModePlant(123.71 / (2 * math.pi), 0.1265),
+        # sigma = -15.6539 1/s, Omega = 122.7185 rad/s (Biagiotti Sec. VI)
+        "biagiotti_identified": ModePlant(math.hypot(122.7185, 15.6539) / (2 * math.pi), 15.6539 / math.hypot(122.7185, 15.6539)),
     }

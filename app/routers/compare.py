@@ -13,16 +13,18 @@ from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, Depends, Request
+from fastapi import APIRouter, Body, Depends, Request
 from pydantic import BaseModel, Field, ValidationError, model_validator
 
 from app import problems
+from app.examples import CUSIMANO_8HZ, INCERTI_TABLE_III
 from app.responses import NumpyJSONResponse
-from app.routers import pseudo_polynomial
+from app.routers import pseudo_polynomial, smoothers
 from app.schemas.common import OutModel, StrictModel
 from app.schemas.family import LimitsIn, SensitivityOut
 from app.schemas.plants import PlantIn, to_plant
 from app.schemas.pseudo_polynomial import PseudoPolynomialIn
+from app.schemas.smoothers import SmootherRequest
 from app.schemas.simulate import LoadOut, ProfileOut
 from app.settings import Settings, get_settings
 from models.errors import Infeasible, InvalidParameter
@@ -155,10 +157,25 @@ def _pseudo_polynomial(request: CompareIn, plant: Plant, period_s: float) -> dic
     return body
 
 
+def _smoother(request: CompareIn, plant: Plant, period_s: float) -> dict[str, Any] | str:
+    if request.displacement is None:
+        return "the smoother family shapes rest-to-rest moves (a filtered position step); give a displacement"
+    return {
+        "plant": request.plant.model_dump(),
+        "displacement": request.displacement,
+        "filters": [{"type": "damped_harmonic"}],  # tuned to the plant: 3 pi/Omega, sigma = -zeta omega_n
+        # The family designs for velocity, acceleration and jerk; the torque is checked on the result.
+        "limits": request.limits.model_dump(exclude_none=True, exclude={"max_torque_nm"}),
+        "sample_period_s": period_s,
+        "sensitivity": SENSITIVITY,
+    }
+
+
 RUNNERS: dict[str, Runner] = {
     "pseudo_polynomial": Runner(
         "pseudo_polynomial", "/v1/profiles/pseudo-polynomial", PseudoPolynomialIn, _pseudo_polynomial, pseudo_polynomial.respond
     ),
+    "smoother": Runner("smoother", "/v1/profiles/smoother", SmootherRequest, _smoother, smoothers.respond_async),
 }
 
 
@@ -229,6 +246,22 @@ async def _run(runner: Runner, request: CompareIn, plant: Plant, period_s: float
     return {"row": _row(runner, request, body, built)}
 
 
+EXAMPLES: dict[str, dict[str, Any]] = {
+    "incerti_rest_to_rest": {
+        "summary": "Incerti Table III platform: 15 motor revolutions within velocity and acceleration limits",
+        "value": {
+            "plant": INCERTI_TABLE_III,
+            "displacement": 94.24777960769379,
+            "limits": {"max_velocity": 200.0, "max_acceleration": 700.0},
+        },
+    },
+    "cusimano_rest_to_velocity": {
+        "summary": "Cusimano 8 Hz two-inertia plant: up to 150 rad/s within the 10 N m motor",
+        "value": {"plant": CUSIMANO_8HZ, "target_velocity": 150.0, "limits": {"max_torque_nm": 10.0}},
+    },
+}
+
+
 @router.post(
     "/compare",
     summary="Every family side by side on one plant, move and limits",
@@ -236,7 +269,9 @@ async def _run(runner: Runner, request: CompareIn, plant: Plant, period_s: float
     responses=problems.responses(413, 422, 503),
 )
 async def compare(
-    request: CompareIn, http: Request, settings: Annotated[Settings, Depends(get_settings)]
+    request: Annotated[CompareIn, Body(openapi_examples=EXAMPLES)],
+    http: Request,
+    settings: Annotated[Settings, Depends(get_settings)],
 ) -> NumpyJSONResponse:
     """Runs every family that applies (pseudo-polynomial needs a rest-to-rest move) with the same
     limits, and returns one row per design sorted by the load's settling time. A family that

@@ -109,7 +109,12 @@ def sample_count_check(duration_s: float, sample_period_s: float, max_samples: i
 
 def sensitivity_out(command: PiecewiseCommand, plant: Plant, request: SensitivityIn) -> dict[str, Any]:
     """Residual versus frequency ratio around the plant's first mode."""
-    mode = plant.modes()[0]
+    modes = plant.modes()
+    if not modes:
+        from models.errors import InvalidParameter
+
+        raise InvalidParameter("sensitivity", "requested", "the plant has no vibration mode to evaluate it around")
+    mode = modes[0]
     zetas = request.damping_ratios or [mode.damping_ratio]
     result = sensitivity(command, mode.natural_frequency_rad_s, request.ratios(), np.asarray(zetas))
     band = band_below(result.frequency_ratio, result.residual[0], 0.05)

@@ -21,7 +21,7 @@ const PRESETS = {
     kind: "rigid_flexible", drive_mass_kg: 2, load_mass_kg: 3, stiffness_n_per_m: 1,
     damping_ns_per_m: 0.1, drive_damping_ns_per_m: 30,
   },
-  biagiotti: { kind: "mode", natural_frequency_hz: 19.689, damping_ratio: 0.1265 },
+  biagiotti: { kind: "mode", natural_frequency_hz: 19.6895152, damping_ratio: 0.1265341 },
 };
 
 const $ = (id) => document.getElementById(id);
