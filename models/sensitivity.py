@@ -56,7 +56,8 @@ def move_scale(command: PiecewiseCommand) -> tuple[str, float]:
     command ends moving (then the velocity residual is the one that matters)."""
     end = command.end_index()
     final_velocity = float(command.derivatives[1, end]) if command.degree >= 1 else 0.0
-    if final_velocity != 0.0:
+    peak = float(np.max(np.abs(command.derivatives[1]))) if command.degree >= 1 else 0.0
+    if abs(final_velocity) > 1e-9 * peak:  # round-off of a stop is no final speed
         return "velocity", abs(final_velocity)
     return "position", abs(float(command.derivatives[0, end] - command.derivatives[0, 0]))
 

@@ -121,6 +121,7 @@ class SolverPool:
         """Stop the workers: let them exit (a second at most), then kill what is left."""
         if self._starting is not None:
             self._starting.cancel()
+            await asyncio.gather(self._starting, return_exceptions=True)
         self._ready.clear()
         executor, self._executor = self._executor, None
         if executor is None:

@@ -15,15 +15,17 @@ from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Body, Depends, Request
 from pydantic import BaseModel, Field, ValidationError, model_validator
+from starlette.concurrency import run_in_threadpool
 
 from app import problems
 from app.examples import CUSIMANO_8HZ, INCERTI_TABLE_III
 from app.responses import NumpyJSONResponse
-from app.routers import pseudo_polynomial, smoothers
+from app.routers import pseudo_polynomial, shapers, smoothers
 from app.schemas.common import OutModel, StrictModel
 from app.schemas.family import LimitsIn, SensitivityOut
 from app.schemas.plants import PlantIn, to_plant
 from app.schemas.pseudo_polynomial import PseudoPolynomialIn
+from app.schemas.shapers import InputShapedRequest
 from app.schemas.smoothers import SmootherRequest
 from app.schemas.simulate import LoadOut, ProfileOut
 from app.settings import Settings, get_settings
@@ -171,11 +173,53 @@ def _smoother(request: CompareIn, plant: Plant, period_s: float) -> dict[str, An
     }
 
 
+def acceleration_limit(request: CompareIn, plant: Plant) -> float | None:
+    """max_acceleration, or for a two-inertia plant with a torque limit, M / (J_M + J_L) (Cusimano eq. 19)."""
+    inertias = plant.torque_inertias()
+    candidates = [request.limits.max_acceleration] if request.limits.max_acceleration else []
+    if request.limits.max_torque_nm is not None and inertias is not None:
+        candidates.append(request.limits.max_torque_nm / sum(inertias))
+    return min(candidates) if candidates else None
+
+
+def _input_shaped(request: CompareIn, plant: Plant, period_s: float) -> dict[str, Any] | str:
+    accel = acceleration_limit(request, plant)
+    body: dict[str, Any] = {
+        "plant": request.plant.model_dump(),
+        "shaper": "zvd",
+        "baseline": "modified" if accel is not None else "step",
+        "sample_period_s": period_s,
+        "settling_tolerance": request.settling_tolerance,
+        "sensitivity": SENSITIVITY,
+    }
+    if accel is not None:
+        body["acceleration_limit"] = accel
+    if request.displacement is not None:
+        body["displacement"] = request.displacement
+        if request.limits.max_velocity is not None:
+            body["cruise_velocity"] = request.limits.max_velocity
+    else:
+        body["target_velocity"] = request.target_velocity
+    return body
+
+
+async def _respond_shaped(request: InputShapedRequest, settings: Settings, pool: Any) -> dict[str, Any]:
+    return await run_in_threadpool(shapers.respond, request, settings)
+
+
 RUNNERS: dict[str, Runner] = {
     "pseudo_polynomial": Runner(
         "pseudo_polynomial", "/v1/profiles/pseudo-polynomial", PseudoPolynomialIn, _pseudo_polynomial, pseudo_polynomial.respond
     ),
     "smoother": Runner("smoother", "/v1/profiles/smoother", SmootherRequest, _smoother, smoothers.respond_async),
+    "input_shaped": Runner("input_shaped", "/v1/profiles/input-shaped", InputShapedRequest, _input_shaped, _respond_shaped),
+}
+# When a family's first request is infeasible, the request to try instead (and why).
+FALLBACKS: dict[str, Callable[[dict[str, Any]], dict[str, Any] | None]] = {
+    # The modified baseline needs t_(i+1) - t_i >= Delta; a single slower ramp always exists.
+    "input_shaped": lambda body: {**body, "baseline": "multi_step", "baseline_steps": 1}
+    if body.get("baseline") == "modified"
+    else None,
 }
 
 
@@ -234,8 +278,14 @@ async def _run(runner: Runner, request: CompareIn, plant: Plant, period_s: float
     if isinstance(built, str):
         return {"unavailable": {"family": runner.family, "reason": built}}
     try:
-        family_request = runner.schema.model_validate(built)
-        body = await runner.respond(family_request, settings, pool)
+        try:
+            body = await runner.respond(runner.schema.model_validate(built), settings, pool)
+        except Infeasible:
+            fallback = FALLBACKS.get(runner.family, lambda _: None)(built)
+            if fallback is None:
+                raise
+            built = fallback
+            body = await runner.respond(runner.schema.model_validate(built), settings, pool)
     except (Infeasible, InvalidParameter, SolverFailed, SolveTimeout, ValidationError) as exc:
         slug = {Infeasible: "infeasible", SolveTimeout: "solve-timeout"}.get(type(exc), None)
         if isinstance(exc, SolverFailed):

@@ -1,0 +1,137 @@
+"""Input shapers under an acceleration limit: the catalogue and the input-shaped profile."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field
+
+from app.schemas.common import OutModel, StrictModel
+from app.schemas.family import FamilyResponse, SensitivityIn
+from app.schemas.plants import PlantIn
+from app.schemas.simulate import MetricsOut, ProfileOut
+from optim.shapers import CATALOGUE_NAMES, DEFAULT_VIBRATION_TOLERANCE, MAX_COMMAND_S, MAX_DERIVATIVE_ORDER
+
+MAX_MOVE = 1e9
+MAX_SHAPED_MODES = 3
+
+
+class InputShapedRequest(StrictModel):
+    """A velocity step (``target_velocity``) or a rest-to-rest move (``displacement``), shaped for
+    the plant's mode and kept within the drive's acceleration limit.
+
+    The command is the motor velocity (steps and ramps); for position-input plants the motor
+    position is its exact integral. The drive limits the slope of the velocity it receives to
+    ``acceleration_limit`` (Chatlatanagulchai Fig. 5): the load is simulated with that
+    rate-limited command.
+    """
+
+    plant: PlantIn
+    shaper: str = Field(
+        "zvd",
+        description=f"One of {', '.join(CATALOGUE_NAMES)}, or zv followed by up to {MAX_DERIVATIVE_ORDER} letters d "
+        "(see GET /v1/shapers). Designed for the plant's own mode(s), damping included.",
+    )
+    vibration_tolerance: float = Field(
+        DEFAULT_VIBRATION_TOLERANCE,
+        ge=0.001,
+        le=0.3,
+        description="EI shapers only: the residual (fraction) allowed at the humps, 0.05 = 5 %.",
+    )
+    shaped_modes: Literal["first", "all"] = Field(
+        "first",
+        description="Shape the lowest mode, or every mode (one shaper per mode, convolved; at most "
+        f"{MAX_SHAPED_MODES}).",
+    )
+    target_velocity: float | None = Field(
+        None, ge=-MAX_MOVE, le=MAX_MOVE, description="Rest-to-velocity: the final motor velocity (the paper's a1 or V)."
+    )
+    displacement: float | None = Field(
+        None,
+        ge=-MAX_MOVE,
+        le=MAX_MOVE,
+        description="Rest-to-rest: the motor displacement (give this or target_velocity).",
+    )
+    cruise_velocity: float | None = Field(
+        None,
+        gt=0,
+        le=MAX_MOVE,
+        description="Rest-to-rest only: the baseline's velocity. Default: the one that makes the modified move "
+        "fastest, sqrt(a |D| / max A_i), capped by the no-overlap condition at a min(t_(i+1) - t_i) / max A_i.",
+    )
+    acceleration_limit: float | None = Field(
+        None,
+        gt=0,
+        le=1e12,
+        description="The drive's limit a on |dv/dt|. Required by the modified and multi-step baselines; without "
+        "it the drive follows the shaped command as it is.",
+    )
+    baseline: Literal["step", "modified", "multi_step"] = Field(
+        "modified",
+        description="step: the plain velocity step (or pulse), which the drive's limiter distorts; modified: the "
+        "paper's ramp-plus-step with Delta = a1 max|A_i| / a (Sec. 4); multi_step: steps at the first impulse "
+        "times (Fig. 10), by the paper's relations where they hold (ZV) and otherwise the fastest valid steps.",
+    )
+    baseline_steps: int = Field(2, ge=1, le=32, description="multi_step only: the number of steps (<= impulse count).")
+    horizon_s: float | None = Field(
+        None,
+        gt=0,
+        le=MAX_COMMAND_S,
+        description="End of the returned time series, s (>= the command's end). Default: the end plus three "
+        "damped periods of the first mode.",
+    )
+    sample_period_s: float | None = Field(
+        None,
+        gt=0,
+        le=MAX_COMMAND_S,
+        description="Sampling of the returned series, s (kinks are kept). Default: horizon/2000.",
+    )
+    settling_tolerance: float = Field(1e-3, gt=0, le=1, description="Settling band as a fraction of the move.")
+    sensitivity: SensitivityIn | None = Field(None, description="Residual versus frequency ratio, when asked.")
+
+
+class ImpulsesOut(OutModel):
+    amplitudes: list[float] = Field(description="A_i: they sum to 1 (eq. 6).")
+    times_s: list[float] = Field(description="t_i, s; t_1 = 0 (eq. 7).")
+
+
+class InputShapedResponse(FamilyResponse):
+    """``profile`` is the shaped command sent to the drive (v_s); ``rate_limited`` is what the drive
+    makes of it (v_a), which ``load`` and ``metrics`` simulate; ``unmodified`` gives the metrics of
+    the plain shaped step (or pulse) after the limiter, for comparison."""
+
+    impulses: ImpulsesOut
+    ramp_time_s: float | None = Field(description="Delta, the baseline's ramp rise time (null for the step baseline).")
+    baseline: ProfileOut = Field(description="The baseline command v_b, before shaping.")
+    rate_limited: ProfileOut = Field(description="v_a: the shaped command after the drive's acceleration limit.")
+    unmodified: MetricsOut = Field(description="Metrics of the plain shaped step (or pulse) after the limiter.")
+
+
+class ShaperInfo(OutModel):
+    name: str
+    impulse_count: int
+    duration_periods: float = Field(description="t_n in damped periods of the design mode.")
+    band_5_percent: list[float] | None = Field(
+        description="[low, high] ratios of true to design natural frequency where the residual V stays <= 5 %, "
+        "computed from V (Sec. 3.1); null if V exceeds 5 % at the design frequency."
+    )
+    band_width: float | None = Field(description="high - low: the 5 % insensitivity.")
+    amplitudes: list[float]
+    times_periods: list[float] = Field(description="t_i in damped periods of the design mode.")
+    method: str
+    reference: str
+
+
+class UnavailableShaper(OutModel):
+    name: str
+    reason: str
+
+
+class ShaperCatalogue(OutModel):
+    damping_ratio: float = Field(description="Damping ratio the shapers are designed for (and evaluated at).")
+    vibration_tolerance: float = Field(description="Tolerance of the EI shapers.")
+    band_threshold: float = Field(description="Residual threshold of the bands (0.05 = 5 %).")
+    shapers: list[ShaperInfo]
+    unavailable: list[UnavailableShaper] = Field(
+        description="EI shapers whose defining conditions have no solution at this damping and tolerance."
+    )
