@@ -1,0 +1,113 @@
+"""POST /v1/compare: every family on one plant, with rows equal to the family endpoints' answers."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from app.examples import CUSIMANO_8HZ, INCERTI_TABLE_III
+from tests.app.test_errors import assert_problem
+
+ALL = {"pseudo_polynomial", "stap", "smoother", "input_shaped"}
+METRICS = ("settling_time_s", "peak_velocity", "peak_acceleration", "peak_jerk", "peak_motor_torque_nm", "command_end_s")
+
+
+def assert_rows_match_endpoints(client, body):
+    """Each row's numbers are what its endpoint returns for rows[].request (same code, same input)."""
+    for row in body["rows"]:
+        direct = client.post(row["endpoint"], json=row["request"])
+        assert direct.status_code == 200, (row["family"], direct.text)
+        metrics = direct.json()["metrics"]
+        assert row["settling_time_s"] == metrics["settling_time_s"], row["family"]
+        for key in ("peak_velocity", "peak_acceleration", "peak_jerk", "peak_motor_torque_nm"):
+            assert row[key] == metrics[key], (row["family"], key)
+        assert row["motion_time_s"] == pytest.approx(metrics["command_end_s"] - direct.json()["profile"]["time_s"][0], abs=0)
+        assert row["residual_amplitude"] in (metrics["residual_amplitude"], metrics["residual_velocity_amplitude"])
+        sensitivity = direct.json()["sensitivity"]
+        assert row["band_5_percent"] == (sensitivity["band_5_percent"] if sensitivity else None)
+
+
+def test_incerti_platform_every_family(client):
+    request = {
+        "plant": INCERTI_TABLE_III,
+        "displacement": 30 * math.pi,
+        "limits": {"max_velocity": 200.0, "max_acceleration": 700.0},
+    }
+    body = client.post("/v1/compare", json=request).json()
+    assert body["move"] == "rest_to_rest"
+    families = {r["family"] for r in body["rows"]} | {u["family"] for u in body["unavailable"]}
+    assert families == ALL - ({"stap"} if "stap" not in _registered(client) else set())
+    assert all(u["reason"] for u in body["unavailable"])
+    settling = [r["settling_time_s"] for r in body["rows"] if r["settling_time_s"] is not None]
+    assert settling == sorted(settling)
+    for row in body["rows"]:
+        assert row["limits_met"], row
+        assert row["residual_vibration"] < 1e-3, row  # every family suppresses the nominal mode
+    assert_rows_match_endpoints(client, body)
+
+
+def test_two_inertia_8hz_rest_to_rest_and_rest_to_velocity(client):
+    move = client.post(
+        "/v1/compare",
+        json={"plant": CUSIMANO_8HZ, "displacement": 20.0, "limits": {"max_velocity": 150.0, "max_torque_nm": 10.0}},
+    ).json()
+    assert {r["family"] for r in move["rows"]} | {u["family"] for u in move["unavailable"]} >= ALL - {"stap"}
+    assert_rows_match_endpoints(client, move)
+    for row in move["rows"]:
+        if row["limits_met"]:
+            assert row["peak_motor_torque_nm"] <= 10.0 * (1 + 1e-9)
+    speed = client.post(
+        "/v1/compare", json={"plant": CUSIMANO_8HZ, "target_velocity": 150.0, "limits": {"max_torque_nm": 10.0}}
+    ).json()
+    assert speed["move"] == "rest_to_velocity"
+    reasons = {u["family"]: u["reason"] for u in speed["unavailable"]}
+    assert "rest-to-rest" in reasons["pseudo_polynomial"] and "rest-to-rest" in reasons["smoother"]
+    assert "input_shaped" in {r["family"] for r in speed["rows"]}
+    assert_rows_match_endpoints(client, speed)
+
+
+def test_curves_for_the_page(client):
+    body = client.post(
+        "/v1/compare",
+        json={"plant": {"kind": "mode", "natural_frequency_hz": 5.0, "damping_ratio": 0.02}, "displacement": 1.0,
+              "limits": {"max_velocity": 4.0, "max_acceleration": 40.0}, "families": ["smoother"], "include_curves": True},
+    ).json()
+    (row,) = body["rows"]
+    curves = row["curves"]
+    assert len(curves["profile"]["time_s"]) == len(curves["load"]["position"]) > 10
+    assert len(curves["sensitivity"]["frequency_ratio"]) == 201
+
+
+def test_a_family_that_cannot_meet_the_limits_gives_its_reason(client):
+    # max_velocity 0.01 is below 0.2 rad / 1 s, the mean speed any 1 s move needs.
+    body = client.post(
+        "/v1/compare",
+        json={"plant": {"kind": "mode", "natural_frequency_hz": 0.5, "damping_ratio": 0.0}, "displacement": 0.2,
+              "limits": {"max_acceleration": 100.0, "max_velocity": 0.01}, "families": ["pseudo_polynomial"],
+              "duration_s": 1.0},
+    ).json()
+    assert body["rows"] == []
+    (item,) = body["unavailable"]
+    assert item["problem_type"] == "/problems/infeasible"
+    assert "max_velocity" in item["reason"]
+
+
+@pytest.mark.parametrize(
+    ("request_body", "field"),
+    [
+        ({"plant": CUSIMANO_8HZ}, "body"),
+        ({"plant": CUSIMANO_8HZ, "displacement": 1.0, "target_velocity": 1.0}, "body"),
+        ({"plant": CUSIMANO_8HZ, "displacement": 0.0}, "body"),
+        ({"plant": CUSIMANO_8HZ, "displacement": 1.0, "families": ["magic"]}, "families[0]"),
+        ({"plant": {"kind": "mode", "natural_frequency_hz": -1}, "displacement": 1.0}, "plant.natural_frequency_hz"),
+    ],
+)
+def test_invalid_compare_requests(client, request_body, field):
+    assert_problem(client.post("/v1/compare", json=request_body), 422, field)
+
+
+def _registered(client) -> set[str]:
+    from app.routers.compare import RUNNERS
+
+    return set(RUNNERS)
