@@ -8,14 +8,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
-from fastapi import APIRouter, Body, Depends, Query
+from fastapi import APIRouter, Body, Depends, Query, Request, Response
 
 from app import problems
 from app.examples import CHATLATANAGULCHAI_EQ3
-from app.responses import NumpyJSONResponse
+from app.responses import CSV_RESPONSE_DOC, NumpyJSONResponse, negotiate
 from app.schemas.family import family_response, sample_count_check
 from app.schemas.plants import to_plant
 from app.schemas.shapers import MAX_SHAPED_MODES, InputShapedRequest, InputShapedResponse, ShaperCatalogue
@@ -313,12 +313,14 @@ def respond(request: InputShapedRequest, settings: Settings) -> dict[str, Any]:
     "/profiles/input-shaped",
     summary="Input-shaped velocity command under an acceleration limit (Chatlatanagulchai & Pongpanich)",
     response_model=InputShapedResponse,
-    responses=problems.responses(413, 422),
+    responses={**CSV_RESPONSE_DOC, **problems.responses(413, 422)},
 )
 def input_shaped_profile(
     request: Annotated[InputShapedRequest, Body(openapi_examples=INPUT_SHAPED_EXAMPLES)],
     settings: Annotated[Settings, Depends(get_settings)],
-) -> NumpyJSONResponse:
+    http: Request,
+    format: Annotated[Literal["json", "csv"] | None, Query(description="csv: the shaped profile only, as CSV")] = None,
+) -> Response:
     """Shape a velocity step or a rest-to-rest move for the plant's mode(s) and keep it within the
     drive's acceleration limit.
 
@@ -332,7 +334,7 @@ def input_shaped_profile(
     where the relations give a negative step and a slope of 2a) it finds the fastest valid steps.
     ``unmodified`` gives the metrics of the plain shaped step after the limiter, for comparison.
     """
-    return NumpyJSONResponse(respond(request, settings))
+    return negotiate(http, respond(request, settings), "input-shaped profile (the shaped command sent to the drive)")
 
 
 # ------------------------------------------------------------------------------------------

@@ -111,3 +111,22 @@ def _registered(client) -> set[str]:
     from app.routers.compare import RUNNERS
 
     return set(RUNNERS)
+
+
+@pytest.mark.parametrize(
+    ("endpoint", "request_body"),
+    [
+        ("/v1/profiles/smoother", {"plant": CUSIMANO_8HZ, "displacement": 2.0, "filters": [{"type": "damped_harmonic"}], "sample_period_s": 0.001}),
+        ("/v1/profiles/input-shaped", {"plant": CUSIMANO_8HZ, "shaper": "zvd", "target_velocity": 10.0, "acceleration_limit": 500.0,
+                                       "baseline": "modified", "sample_period_s": 0.001}),
+    ],
+)
+def test_every_profile_endpoint_answers_csv(client, endpoint, request_body):
+    json_profile = client.post(endpoint, json=request_body).json()["profile"]
+    response = client.post(endpoint, json=request_body, params={"format": "csv"})
+    assert response.status_code == 200 and response.headers["content-type"].startswith("text/csv")
+    lines = response.text.strip().splitlines()
+    assert lines[1] == "time_s,position,velocity,acceleration,jerk"
+    first = [float(x) for x in lines[2].split(",")]
+    assert first == [json_profile[k][0] for k in ("time_s", "position", "velocity", "acceleration", "jerk")]
+    assert len(lines) - 2 == len(json_profile["time_s"])
