@@ -15,13 +15,22 @@ per unit inertia for plants without physical parameters.
 
 "Final energy = 0" is two equations per mode in n + 1 exponents: for n >= 2 the zero-energy
 designs form a curve (PAPER-NOTES). The design is made well-posed by choosing, among them, the one
-closest to the initial exponents (stage "closest_zero_energy": minimise |gamma - gamma_0|^2 subject
-to h_j(T) = 0 and the limits). When no zero-energy design meets the limits, the design minimising
-the energy within them is returned instead (stage "minimum_energy"), with its energy ratio.
+closest to the initial exponents that IPOPT reaches from them (stage "closest_zero_energy":
+minimise |gamma - gamma_0|^2 subject to h_j(T) = 0 and the limits). If none is reached, the energy
+is minimised within the limits from the initial exponents and a few fixed spread starts; a
+zero-energy result is moved to the closest zero-energy design near it, otherwise the
+lowest-energy design is returned (stage "minimum_energy") with its energy ratio. Zero-energy
+designs do not exist at every duration: for order 2 they appear near whole numbers of periods of
+the mode (from about three), which is why ``minimize_duration`` scans durations before bisecting.
 
-Each problem is built once per (order, number of modes, quadrature size, torque limit) with the
-plant's modal data, displacement, duration, initial exponents and limits as parameters, and kept
-in this process's cache: the service builds them in its worker processes.
+Bounds: every exponent in [max(3, n + 0.05), 80] (above n for the end conditions, at least 3 so
+the jerk stays bounded at T) and consecutive exponents at least 0.05 apart (eq. 22 stays well
+conditioned). Limits are imposed on a grid of T/200 plus points clustered near T, 0.01 % tighter
+than asked.
+
+Each problem is built once per (order, number of modes, quadrature size, active limits, caps)
+with the plant's modal data, displacement, duration, initial exponents and limits as parameters,
+and kept in this process's cache: the service builds them in its worker processes.
 """
 
 from __future__ import annotations
