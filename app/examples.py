@@ -17,7 +17,7 @@ CUSIMANO_8HZ: dict[str, Any] = {
     "kind": "two_inertia",
     "motor_inertia_kgm2": 0.005,
     "load_inertia_kgm2": 0.005,
-    "stiffness_nm_per_rad": 12.633093633,  # J_L (2 pi 8 Hz)^2
+    "stiffness_nm_per_rad": 12.63309363339438,  # J_L (2 pi 8 Hz)^2
     "damping_nms_per_rad": 0.0,
 }
 CHATLATANAGULCHAI_EQ3: dict[str, Any] = {

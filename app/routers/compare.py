@@ -20,13 +20,14 @@ from starlette.concurrency import run_in_threadpool
 from app import problems
 from app.examples import CUSIMANO_8HZ, INCERTI_TABLE_III
 from app.responses import NumpyJSONResponse
-from app.routers import pseudo_polynomial, shapers, smoothers
+from app.routers import pseudo_polynomial, shapers, smoothers, stap
 from app.schemas.common import OutModel, StrictModel
 from app.schemas.family import LimitsIn, SensitivityOut
 from app.schemas.plants import PlantIn, to_plant
 from app.schemas.pseudo_polynomial import PseudoPolynomialIn
 from app.schemas.shapers import InputShapedRequest
 from app.schemas.smoothers import SmootherRequest
+from app.schemas.stap import StapIn
 from app.schemas.simulate import LoadOut, ProfileOut
 from app.settings import Settings, get_settings
 from models.errors import Infeasible, InvalidParameter
@@ -182,6 +183,31 @@ def acceleration_limit(request: CompareIn, plant: Plant) -> float | None:
     return min(candidates) if candidates else None
 
 
+def _stap(request: CompareIn, plant: Plant, period_s: float) -> dict[str, Any] | str:
+    torque = request.limits.max_torque_nm if plant.torque_inertias() is not None else None
+    if request.limits.max_acceleration is None and torque is None:
+        return "a STAP is designed from the acceleration limit: give max_acceleration (or max_torque_nm on a two_inertia plant)"
+    body: dict[str, Any] = {
+        "plant": request.plant.model_dump(),
+        "jerk_periods": "auto",
+        "method": "closed_form",
+        "sample_period_s": period_s,
+        "settling_tolerance": request.settling_tolerance,
+        "sensitivity": SENSITIVITY,
+    }
+    if request.limits.max_acceleration is not None:
+        body["max_acceleration"] = request.limits.max_acceleration
+    if torque is not None:
+        body["max_torque_nm"] = torque
+    if request.displacement is not None:
+        body["displacement"] = request.displacement
+        if request.limits.max_velocity is not None:
+            body["target_velocity"] = math.copysign(request.limits.max_velocity, request.displacement)
+    else:
+        body["target_velocity"] = request.target_velocity
+    return body
+
+
 def _input_shaped(request: CompareIn, plant: Plant, period_s: float) -> dict[str, Any] | str:
     accel = acceleration_limit(request, plant)
     body: dict[str, Any] = {
@@ -211,6 +237,7 @@ RUNNERS: dict[str, Runner] = {
     "pseudo_polynomial": Runner(
         "pseudo_polynomial", "/v1/profiles/pseudo-polynomial", PseudoPolynomialIn, _pseudo_polynomial, pseudo_polynomial.respond
     ),
+    "stap": Runner("stap", "/v1/profiles/stap", StapIn, _stap, stap.respond),
     "smoother": Runner("smoother", "/v1/profiles/smoother", SmootherRequest, _smoother, smoothers.respond_async),
     "input_shaped": Runner("input_shaped", "/v1/profiles/input-shaped", InputShapedRequest, _input_shaped, _respond_shaped),
 }

@@ -15,7 +15,7 @@ const PRESETS = {
   },
   cusimano: {
     kind: "two_inertia", motor_inertia_kgm2: 0.005, load_inertia_kgm2: 0.005,
-    stiffness_nm_per_rad: 12.633093633, damping_nms_per_rad: 0,
+    stiffness_nm_per_rad: 12.63309363339438, damping_nms_per_rad: 0,
   },
   chatlatanagulchai: {
     kind: "rigid_flexible", drive_mass_kg: 2, load_mass_kg: 3, stiffness_n_per_m: 1,

@@ -37,7 +37,7 @@ def test_incerti_platform_every_family(client):
     body = client.post("/v1/compare", json=request).json()
     assert body["move"] == "rest_to_rest"
     families = {r["family"] for r in body["rows"]} | {u["family"] for u in body["unavailable"]}
-    assert families == ALL - ({"stap"} if "stap" not in _registered(client) else set())
+    assert families == ALL
     assert all(u["reason"] for u in body["unavailable"])
     settling = [r["settling_time_s"] for r in body["rows"] if r["settling_time_s"] is not None]
     assert settling == sorted(settling)
@@ -52,7 +52,7 @@ def test_two_inertia_8hz_rest_to_rest_and_rest_to_velocity(client):
         "/v1/compare",
         json={"plant": CUSIMANO_8HZ, "displacement": 20.0, "limits": {"max_velocity": 150.0, "max_torque_nm": 10.0}},
     ).json()
-    assert {r["family"] for r in move["rows"]} | {u["family"] for u in move["unavailable"]} >= ALL - {"stap"}
+    assert {r["family"] for r in move["rows"]} | {u["family"] for u in move["unavailable"]} == ALL
     assert_rows_match_endpoints(client, move)
     for row in move["rows"]:
         if row["limits_met"]:
@@ -63,7 +63,7 @@ def test_two_inertia_8hz_rest_to_rest_and_rest_to_velocity(client):
     assert speed["move"] == "rest_to_velocity"
     reasons = {u["family"]: u["reason"] for u in speed["unavailable"]}
     assert "rest-to-rest" in reasons["pseudo_polynomial"] and "rest-to-rest" in reasons["smoother"]
-    assert "input_shaped" in {r["family"] for r in speed["rows"]}
+    assert {"input_shaped", "stap"} <= {r["family"] for r in speed["rows"]}
     assert_rows_match_endpoints(client, speed)
 
 
@@ -107,18 +107,13 @@ def test_invalid_compare_requests(client, request_body, field):
     assert_problem(client.post("/v1/compare", json=request_body), 422, field)
 
 
-def _registered(client) -> set[str]:
-    from app.routers.compare import RUNNERS
-
-    return set(RUNNERS)
-
-
 @pytest.mark.parametrize(
     ("endpoint", "request_body"),
     [
         ("/v1/profiles/smoother", {"plant": CUSIMANO_8HZ, "displacement": 2.0, "filters": [{"type": "damped_harmonic"}], "sample_period_s": 0.001}),
         ("/v1/profiles/input-shaped", {"plant": CUSIMANO_8HZ, "shaper": "zvd", "target_velocity": 10.0, "acceleration_limit": 500.0,
                                        "baseline": "modified", "sample_period_s": 0.001}),
+        ("/v1/profiles/stap", {"plant": CUSIMANO_8HZ, "target_velocity": 150.0, "max_torque_nm": 10.0}),
     ],
 )
 def test_every_profile_endpoint_answers_csv(client, endpoint, request_body):

@@ -1,0 +1,286 @@
+"""Request and response of POST /v1/profiles/stap (Cusimano 2022)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Literal
+
+from pydantic import Field, field_validator
+
+from app.schemas.common import OutModel, StrictModel
+from app.schemas.family import SensitivityIn, SensitivityOut
+from app.schemas.plants import PlantIn
+from app.schemas.simulate import LoadOut, MetricsOut, ProfileOut
+from optim.stap import (
+    DEFAULT_FREQUENCY_UNCERTAINTY,
+    DEFAULT_RESIDUAL_TOLERANCE,
+    MAX_BAND_DAMPING_RATIOS,
+    MAX_FREQUENCY_POINTS,
+    OBJECTIVES,
+)
+
+MAX_MOVE = 1e9
+MAX_JERK_PERIODS = 10_000
+
+AUTO_RULE = (
+    "auto follows the Fig. 25 flowchart (Sec. 4). A design 'meets' when its undamped sensitivity curve (Appendix B) "
+    "stays <= residual_tolerance for f_n/f_n,e in [1 - frequency_uncertainty, 1 + frequency_uncertainty]. Without "
+    "acceleration_time_s: k_j = 1 (t_j = 1/f_n,e, eq. 50) first; if f_n,e t_a,min >= 1 (eq. 74) it is the trapezoid "
+    "t_a = t_a,min + 1/f_n,e (eq. 61), and if it does not meet and int(f_n,e t_a,min) >= 2 (eqs. 63, 75) k_j = 2 is "
+    "tried; if f_n,e t_a,min < 1 (eq. 76) it is the triangle t_a = 2/f_n,e (eq. 66, peak by eq. 31), lengthened to "
+    "t_a = n/f_n,e, n = 3..10 with k_j = 1 until it meets. The first design that meets is returned, else the one with "
+    "the lowest worst case (with a warning). With acceleration_time_s: the delta = 0 zero-vibration jerk time "
+    "(eq. 49) with the lowest worst case (smallest k_j on ties); if none fits, the side band (0, 1) with a warning."
+)
+
+
+class OptimizationIn(StrictModel):
+    """Options of method 'optimized' (a CasADi/IPOPT problem over t_a and t_j)."""
+
+    objective: Literal["residual", "worst_case", "residual_and_time"] = Field(
+        "residual",
+        description="residual: minimise the residual at the plant's own modes, t_a fixed (acceleration_time_s or the "
+        "closed-form t_a); worst_case: minimise the largest residual over the frequency band and damping ratios, t_a "
+        "fixed; residual_and_time: the shortest t_a whose residual stays <= residual_tolerance over the band.",
+    )
+    damping_ratios: list[float] | None = Field(
+        None,
+        min_length=1,
+        max_length=MAX_BAND_DAMPING_RATIOS,
+        description="Damping ratios of the band (worst_case, residual_and_time); default: the plant's own.",
+    )
+    frequency_points: int = Field(
+        21, ge=3, le=MAX_FREQUENCY_POINTS, description="Frequency ratios of the band grid, uniform over [1 - u, 1 + u]."
+    )
+
+    @field_validator("damping_ratios")
+    @classmethod
+    def _zetas(cls, value: list[float] | None) -> list[float] | None:
+        if value is not None and any(not (0.0 <= z < 1.0) for z in value):
+            raise ValueError("every damping ratio must satisfy 0 <= zeta < 1")
+        return value
+
+
+class StapIn(StrictModel):
+    """A symmetric trapezoidal acceleration profile (Cusimano 2022): rest to ``target_velocity``, or a
+    rest-to-rest move of ``displacement`` made of an accelerating STAP, a cruise and a decelerating STAP.
+
+    The plant's first vibration mode is the estimate f_n,e the STAP is designed for (give a ``mode`` plant
+    with the estimated frequency, or the physical plant). The closed-form rules assume zeta = 0 (Sec. 2.3);
+    method 'optimized' accounts for damping and frequency uncertainty."""
+
+    plant: PlantIn
+    target_velocity: float | None = Field(
+        None,
+        ge=-MAX_MOVE,
+        le=MAX_MOVE,
+        description="v_max, the final motor velocity (rad/s or m/s). With a displacement: the cruise speed (same "
+        "sign), lowered if the displacement is too short; default then: the fastest move, with no cruise.",
+    )
+    displacement: float | None = Field(
+        None, ge=-MAX_MOVE, le=MAX_MOVE, description="Rest-to-rest: the motor displacement (rad or m)."
+    )
+    max_acceleration: float | None = Field(None, gt=0, le=1e12, description="a_Max, the motor acceleration limit.")
+    max_torque_nm: float | None = Field(
+        None,
+        gt=0,
+        le=1e12,
+        description="two_inertia only: the motor torque limit M_m,Max. It gives a_Max = M/(J_M + J_L) (eq. 19), lowered "
+        "by the torque oscillation of eqs. (57)-(59) over the frequency band (the paper's 0.94 example).",
+    )
+    jerk_periods: int | Literal["auto"] = Field(
+        "auto",
+        description="k_j: t_j = (k_j + delta dec(f_n,e t_a))/f_n,e (eqs. 44, 49); 'auto' applies the flowchart "
+        "(see design.rule).",
+    )
+    delta: int = Field(
+        0, ge=0, le=1, description="delta of eq. (44): 1 takes the side band (needs acceleration_time_s)."
+    )
+    acceleration_time_s: float | None = Field(
+        None,
+        gt=0,
+        le=1e6,
+        description="A caller-fixed t_a (>= t_a,min and >= 1/f_n,e, eq. 72); its zero-vibration jerk times are listed.",
+    )
+    method: Literal["closed_form", "optimized"] = Field(
+        "closed_form", description="closed_form: the paper's rules; optimized: CasADi/IPOPT over (t_a, t_j)."
+    )
+    frequency_uncertainty: float = Field(
+        DEFAULT_FREQUENCY_UNCERTAINTY,
+        ge=0,
+        le=0.9,
+        description="u: the true f_n may lie in [1 - u, 1 + u] f_n,e. Used by auto, the torque rule and the "
+        "worst_case/residual_and_time objectives.",
+    )
+    residual_tolerance: float = Field(
+        DEFAULT_RESIDUAL_TOLERANCE,
+        gt=0,
+        le=1,
+        description="Residual vibration accepted over the band, a fraction of the move ('a few hundredths', Sec. 3).",
+    )
+    optimization: OptimizationIn | None = Field(None, description="Options of method 'optimized'.")
+    sample_period_s: float | None = Field(
+        None,
+        ge=1e-6,
+        le=10,
+        description="Sample period of the returned series, s (corners kept); default horizon/2000.",
+    )
+    horizon_s: float | None = Field(
+        None,
+        gt=0,
+        le=1e6,
+        description="End of the returned series, s (default: the command's end plus 5 periods of the mode).",
+    )
+    settling_tolerance: float = Field(1e-3, gt=0, le=1, description="Settling band as a fraction of the move.")
+    sensitivity: SensitivityIn | None = Field(None, description="Residual versus f_n/f_n,e, when asked.")
+
+    @field_validator("jerk_periods", mode="before")
+    @classmethod
+    def _jerk_periods(cls, value: Any) -> Any:
+        if value == "auto":
+            return value
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, (int, float))
+            or not math.isfinite(value)
+            or value != int(value)
+        ):
+            raise ValueError("must be a whole number k_j >= 0 or 'auto'")
+        if not 0 <= value <= MAX_JERK_PERIODS:
+            raise ValueError(f"must lie in 0..{MAX_JERK_PERIODS} or be 'auto'")
+        return int(value)
+
+
+class SolverOut(OutModel):
+    status: str = Field(description="IPOPT's status of the converged solve(s).")
+    iterations: int
+    solve_time_s: float
+    solves: int
+
+
+class TorqueLimitOut(OutModel):
+    max_torque_nm: float
+    nodal_acceleration_limit: float = Field(description="M/(J_M + J_L) (eq. 19).")
+    nodal_min_acceleration_time_s: float = Field(description="v / nodal limit (eq. 21 with eq. 19).")
+    inertia_ratio: float = Field(description="J_L / J_M.")
+    coefficient: float = Field(description="(J_L/J_M)/(1 + J_L/J_M) (Fig. 19).")
+    load_acceleration_oscillation: float = Field(description="Worst |a_l,c|/a_max over the band (eq. 57).")
+    torque_overshoot: float = Field(description="Worst |M_m,c|/M_m,max over the band (eq. 59).")
+    worst_frequency_ratio: float = Field(description="f_n/f_n,e where it occurs.")
+    factor: float = Field(description="1/(1 + torque_overshoot): the lowered limit over the nodal one.")
+    acceleration_limit: float = Field(description="The lowered acceleration limit.")
+
+
+class CandidateOut(OutModel):
+    k_j: int
+    delta: int
+    jerk_time_s: float
+    kind: Literal["fundamental", "multiple", "side_band"]
+    peak_acceleration: float
+    acceleration_limit: float | None
+    reaches_limit: bool
+    note: str
+
+
+class AutoStepOut(OutModel):
+    what: str
+    acceleration_time_s: float
+    jerk_time_s: float
+    band_worst_residual: float = Field(description="Largest undamped SC (Appendix B) over the band.")
+    meets: bool
+
+
+class StartOut(OutModel):
+    acceleration_time_s: float
+    jerk_time_s: float
+    nominal_residual: float
+    grid_worst_residual: float | None
+
+
+class OptimizationOut(OutModel):
+    objective: str
+    selection: Literal["optimized", "closed_form_kept"] = Field(
+        description="closed_form_kept when no solve improved on the closed-form start (it is then returned)."
+    )
+    nominal_residual: float = Field(
+        description="Sum over the plant's modes of residual / move (the optimiser's model)."
+    )
+    grid_worst_residual: float | None = Field(description="Largest residual / move over the optimiser's band grid.")
+    closed_form: StartOut = Field(description="The closed-form design the optimiser started from.")
+    acceleration_time_bounds_s: list[float]
+    jerk_time_floor_s: float
+    torque_constrained: bool
+    solver: SolverOut
+
+
+class StapDesignOut(OutModel):
+    method: Literal["closed_form", "optimized"]
+    move: Literal["rest_to_velocity", "rest_to_rest"]
+    rule: str = Field(description="The rule (equation) that produced t_a and t_j.")
+    auto_rule: str = AUTO_RULE
+    estimated_frequency_hz: float = Field(description="f_n,e: the plant's first mode.")
+    target_velocity: float = Field(
+        description="v_max reached by the ramp (the cruise velocity of a rest-to-rest move)."
+    )
+    acceleration_time_s: float = Field(description="t_a.")
+    jerk_time_s: float = Field(description="t_j.")
+    constant_acceleration_time_s: float = Field(description="t_c = t_a - 2 t_j.")
+    min_acceleration_time_s: float | None = Field(
+        description="t_a,min = v/a_Max (eq. 21) for the a_Max used; null without a limit."
+    )
+    peak_acceleration: float = Field(description="|a_max| = |v|/(t_a - t_j) (eq. 11; eq. 31 for a triangle).")
+    peak_jerk: float | None = Field(description="|v|/(t_j (t_a - t_j)) (eq. 16); null for a rectangle.")
+    shape: Literal["trapezoid", "triangle", "rectangle"]
+    k_j: int | None = Field(description="k_j of eq. (44) (null for an optimised design).")
+    delta: int | None = Field(description="delta of eq. (44) (null for an optimised design).")
+    jerk_periods: float = Field(description="f_n,e t_j = k_j + delta dec(f_n,e t_a) (eqs. 51-52).")
+    acceleration_time_periods: float = Field(description="r_n,a = f_n,e t_a (eq. 40).")
+    dimensionless_jerk_time: float = Field(description="t_j / t_a (eq. 12).")
+    acceleration_limit: float | None = Field(description="a_Max used (null without a limit).")
+    limit_reached: bool = Field(description="Whether the peak acceleration equals a_Max.")
+    torque_limit: TorqueLimitOut | None = None
+    load_acceleration_oscillation: float = Field(
+        description="|a_l,c|/a_max during t_c at f_n = f_n,e (eq. 57 with k_j = f_n,e t_j): 0 for whole k_j."
+    )
+    frequency_uncertainty: float
+    residual_tolerance: float
+    band_worst_residual: float = Field(description="Largest undamped SC (Appendix B) over [1 - u, 1 + u].")
+    candidates: list[CandidateOut] | None = Field(
+        None, description="With acceleration_time_s: the zero-vibration jerk times that fit (eqs. 44, 49), marked."
+    )
+    candidates_truncated: bool | None = None
+    k_j_max: int | None = Field(None, description="(k_j, delta) of the last zero that fits, by enumeration.")
+    delta_f: int | None = None
+    paper_k_j_max: int | None = Field(None, description="Eq. (45) as printed.")
+    paper_delta_f: int | None = Field(None, description="Eq. (46) as printed.")
+    auto_steps: list[AutoStepOut] | None = Field(None, description="What auto tried, in order.")
+    displacement: float | None = None
+    cruise_velocity: float | None = None
+    cruise_time_s: float | None = None
+    total_time_s: float = Field(description="t_a for rest-to-velocity; 2 t_a + t_cruise for rest-to-rest.")
+    requested_velocity: float | None = None
+    velocity_lowered: bool | None = None
+    residual_vibration: float = Field(
+        description="Residual of the returned samples, simulated on the plant: velocity / |v| (rest-to-velocity) or "
+        "position / |displacement| (rest-to-rest)."
+    )
+    optimization: OptimizationOut | None = None
+
+
+class StapSensitivityOut(SensitivityOut):
+    method: list[Literal["appendix_b", "free_state"]] = Field(
+        description="Per damping ratio: the closed form of Appendix B (zeta = 0, rest-to-velocity) or the exact free "
+        "state of the command (models.sensitivity)."
+    )
+
+
+class StapOut(OutModel):
+    profile: ProfileOut
+    design: StapDesignOut
+    load: LoadOut
+    metrics: MetricsOut
+    sensitivity: StapSensitivityOut | None = None
+    warnings: list[str]
+
+
+__all__ = ["AUTO_RULE", "OBJECTIVES", "OptimizationIn", "StapDesignOut", "StapIn", "StapOut"]
