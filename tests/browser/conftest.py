@@ -10,7 +10,7 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
-import httpx
+import httpx2 as httpx  # the test client library (a test dependency)
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
