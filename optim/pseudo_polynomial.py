@@ -46,7 +46,7 @@ from models.errors import Infeasible, InvalidParameter
 from models.plants import Plant, TwoInertiaPlant
 from models.pseudo_polynomial import PseudoPolynomial, boundary_matrix, check_exponents, derivative_terms
 from models.simulation import ModalForm, modal_form
-from optim.solver import SolveCaps, SolverReport, ipopt_options, raise_for_status, report_of
+from optim.solver import SolveCaps, SolverReport, ipopt_options, parameter_layout, raise_for_status, report_of
 
 QUADRATURE_SIZES = (64, 128, 256, 512, 1024, 2048)
 CONSTRAINT_INTERVALS = 200  # limits are imposed at T/200 spacing, then checked on the samples
@@ -171,11 +171,7 @@ def _build(order: int, modes: int, nodes: int, active: tuple[bool, bool, bool, b
         ("phi", 1), ("T", 1), ("gamma0", n1), ("sigma", modes), ("wd", modes), ("wr_re", modes), ("wr_im", modes),
         ("mass", modes), ("scale", modes), ("energy_ref", 1), ("inv_limit", 4), ("torque", 3),
     ]
-    layout: dict[str, slice] = {}
-    start = 0
-    for name, size in names:
-        layout[name] = slice(start, start + size)
-        start += size
+    layout, start = parameter_layout(names)
     p = ca.SX.sym("p", start)
 
     def par(name: str) -> Any:

@@ -52,6 +52,16 @@ class SolverTimedOut(SolverFailed):
     """IPOPT reached its wall-time cap."""
 
 
+def parameter_layout(blocks: list[tuple[str, int]]) -> tuple[dict[str, slice], int]:
+    """Slices of a flat CasADi parameter vector for named blocks of given sizes, and its length."""
+    layout: dict[str, slice] = {}
+    start = 0
+    for name, size in blocks:
+        layout[name] = slice(start, start + size)
+        start += size
+    return layout, start
+
+
 def ipopt_options(caps: SolveCaps, **extra: Any) -> dict[str, Any]:
     """nlpsol options: silent, capped in iterations and wall time."""
     options: dict[str, Any] = {

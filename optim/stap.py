@@ -92,7 +92,7 @@ from models.stap import (
     stap_sensitivity,
     torque_coefficient,
 )
-from optim.solver import SolveCaps, SolverReport, ipopt_options, raise_for_status, report_of
+from optim.solver import SolveCaps, SolverReport, ipopt_options, parameter_layout, raise_for_status, report_of
 
 DEFAULT_FREQUENCY_UNCERTAINTY = 0.1
 DEFAULT_RESIDUAL_TOLERANCE = 0.05  # "a few hundredths" (Sec. 3)
@@ -821,11 +821,7 @@ def _build(kind: str, points: int, torque_modes: int, torque_grid: int, caps: So
     point = ca.Function("point", [x2, v, pt], [pt[0] * jerk**2 * gap2(pt[1], pt[2], t_r) * gap2(pt[1], pt[2], t_j)])
 
     names = [("ta0", 1), ("v", 1), ("inv_a", 1), ("pts", 3 * points), ("tq", 4 * torque_modes), ("jj", 3)]
-    layout: dict[str, slice] = {}
-    start = 0
-    for name, size in names:
-        layout[name] = slice(start, start + size)
-        start += size
+    layout, start = parameter_layout(names)
     p = ca.MX.sym("p", start)
     n_x = 3 if kind == "max" else 2
     x = ca.MX.sym("x", n_x)
