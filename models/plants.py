@@ -35,7 +35,9 @@ PARAMETER_MAX = 1e12
 FREQUENCY_MIN_HZ = 1e-3
 FREQUENCY_MAX_HZ = 1e5
 MAX_TRANSFER_FUNCTION_ORDER = 20
-_REPEATED_POLE_RELATIVE_GAP = 1e-6
+# Poles closer than this (relative) are repeated or nearly so: np.roots scatters a k-fold root by
+# about eps^(1/k), and partial fractions of near-repeated poles lose all accuracy.
+_REPEATED_POLE_RELATIVE_GAP = 1e-3
 _ROOT_TOLERANCE = 1e-9  # relative: roots of s^2 + w^2 come out with |Re| ~ 1e-16 |p|
 
 CommandInput = Literal["position", "velocity"]
@@ -222,6 +224,12 @@ class Plant:
         """G(0): load displacement per unit motor displacement (0 for velocity-input kinds)."""
         num, den = self.load_transfer_function()
         return float(num[-1] / den[-1])
+
+    def load_move(self, motor_move: float) -> float:
+        """|G(0)| times a motor move: how far the load goes (or how fast it ends up moving). For
+        plants without a position gain (velocity input) the motor's own move is the reference."""
+        gain = abs(self.dc_gain) if self.command_input == "position" else 0.0
+        return abs(motor_move) * (gain if gain > 0.0 else 1.0)
 
     def state_space(self) -> StateSpace:
         """Numeric state space of G(s) (motor position in, load position out)."""
@@ -507,7 +515,7 @@ class TransferFunctionPlant(Plant):
         scale = float(np.max(np.abs(poles)))
         for p in poles:
             oscillatory = abs(p.imag) > _ROOT_TOLERANCE * abs(p)
-            if p.real > _ROOT_TOLERANCE * abs(p) or (not oscillatory and p.real >= -_ROOT_TOLERANCE * scale):
+            if p.real > _ROOT_TOLERANCE * abs(p) or (not oscillatory and p.real >= -_ROOT_TOLERANCE * abs(p)):
                 raise InvalidParameter(
                     "denominator",
                     den.tolist(),
@@ -515,8 +523,14 @@ class TransferFunctionPlant(Plant):
                 )
         gaps = np.abs(poles[:, None] - poles[None, :])
         gaps[np.diag_indices(poles.size)] = np.inf
-        if poles.size > 1 and np.min(gaps) <= _REPEATED_POLE_RELATIVE_GAP * scale:
-            raise InvalidParameter("denominator", den.tolist(), "repeated poles are not supported")
+        size = np.maximum(np.abs(poles[:, None]), np.abs(poles[None, :]))
+        if poles.size > 1 and np.any(gaps <= _REPEATED_POLE_RELATIVE_GAP * size):
+            raise InvalidParameter(
+                "denominator", den.tolist(), "repeated (or less than 0.1 % apart) poles are not supported"
+            )
+        if scale > 2 * math.pi * FREQUENCY_MAX_HZ * 10:
+            raise InvalidParameter("denominator", den.tolist(), f"a pole of magnitude {scale:.3g} rad/s is out of range")
+        _check_partial_fractions(num, den, poles)
         _check_modes(self.modes(), "denominator")
         object.__setattr__(self, "numerator", tuple(float(x) for x in num))
         object.__setattr__(self, "denominator", tuple(float(x) for x in den))
@@ -530,6 +544,23 @@ class TransferFunctionPlant(Plant):
 
     def symbolic_sizes(self) -> dict[str, int]:
         return {"numerator": len(self.numerator), "denominator": len(self.denominator)}
+
+
+def _check_partial_fractions(num: np.ndarray, den: np.ndarray, poles: np.ndarray) -> None:
+    """The simulation writes G(s) = D + sum r_j/(s - p_j); refuse a plant whose poles are so
+    clustered that this form does not reproduce G (checked at s = 0 and at points of the right
+    half-plane, where no pole lies)."""
+    residues = np.polyval(num, poles) / np.polyval(np.polyder(den), poles)
+    direct = num[0] / den[0] if num.size == den.size else 0.0
+    top = float(np.max(np.abs(poles)))
+    for s in (0.0, top * (0.5 + 0.5j), top * (0.2 + 1.3j), top * (1.0 + 0.1j)):
+        exact = np.polyval(num, s) / np.polyval(den, s)
+        rebuilt = direct + np.sum(residues / (s - poles))
+        size = float(np.sum(np.abs(residues / (s - poles)))) + abs(direct)
+        if not np.isfinite(rebuilt) or abs(rebuilt - exact) > 1e-4 * max(abs(exact), 1e-12 * size):
+            raise InvalidParameter(
+                "denominator", den.tolist(), "the poles are too clustered for an accurate partial-fraction form"
+            )
 
 
 PLANT_KINDS: dict[str, type[Plant]] = {

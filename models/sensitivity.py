@@ -13,8 +13,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from models.commands import PiecewiseCommand
+from models.errors import InvalidParameter
 
 _CHUNK_ELEMENTS = 2_000_000  # bounds the (frequencies x breakpoints) matrix in memory
+_ROUNDOFF = 4 * np.finfo(float).eps
+RELIABLE_FRACTION = 1e-6  # a residual whose round-off could exceed this fraction of the move is refused
 
 
 @dataclass(frozen=True)
@@ -27,9 +30,10 @@ class Sensitivity:
 
 def mode_residuals(
     command: PiecewiseCommand, natural_frequency_rad_s: np.ndarray, damping_ratio: np.ndarray, derivative: int
-) -> np.ndarray:
+) -> tuple[np.ndarray, np.ndarray]:
     """Amplitude of the load's free oscillation (position if derivative = 0, velocity if 1)
-    when the command ends, for each (w, zeta) pair, on the mode plant."""
+    when the command ends, for each (w, zeta) pair, on the mode plant; and a bound on its
+    round-off error."""
     w = np.asarray(natural_frequency_rad_s, dtype=float).ravel()
     z = np.asarray(damping_ratio, dtype=float).ravel()
     w, z = np.broadcast_arrays(w, z)
@@ -42,13 +46,18 @@ def mode_residuals(
     jumps = jumps[:, keep]
     age = command.time_s[end] - command.time_s[keep]
     out = np.empty(w.size)
+    error = np.empty(w.size)
     rows = max(1, _CHUNK_ELEMENTS // max(1, keep.size))
     for start in range(0, w.size, rows):  # chunks of frequencies, bounded memory
         lam = poles[start : start + rows, None]
         drive = sum(jumps[m][None, :] / lam ** (m + 1) for m in range(jumps.shape[0]))
-        free = np.sum(np.exp(lam * age[None, :]) * drive, axis=1)
-        out[start : start + rows] = np.abs(2.0 * residues[start : start + rows] * poles[start : start + rows] ** derivative * free)
-    return out
+        terms = np.exp(lam * age[None, :]) * drive
+        gain = np.abs(2.0 * residues[start : start + rows] * poles[start : start + rows] ** derivative)
+        out[start : start + rows] = gain * np.abs(np.sum(terms, axis=1))
+        # The sum cancels terms far larger than itself when the mode is slow next to the command
+        # (the 1/lambda^(m+1) factors): its round-off is about eps times the sum of magnitudes.
+        error[start : start + rows] = gain * _ROUNDOFF * np.sum(np.abs(terms), axis=1)
+    return out, error
 
 
 def move_scale(command: PiecewiseCommand) -> tuple[str, float]:
@@ -74,14 +83,27 @@ def sensitivity(
     zetas = np.atleast_1d(np.asarray(damping_ratios, dtype=float))
     w = np.repeat(ratios[None, :] * natural_frequency_rad_s, zetas.size, axis=0)
     z = np.repeat(zetas[:, None], ratios.size, axis=1)
-    amplitudes = mode_residuals(command, w.ravel(), z.ravel(), 0 if quantity == "position" else 1)
-    residual = amplitudes.reshape(zetas.size, ratios.size) / (scale if scale > 0 else 1.0)
+    amplitudes, error = mode_residuals(command, w.ravel(), z.ravel(), 0 if quantity == "position" else 1)
+    scale = scale if scale > 0 else 1.0
+    bad = ~np.isfinite(amplitudes) | (error > RELIABLE_FRACTION * scale)
+    if np.any(bad):
+        worst = float(np.max(ratios[np.any(bad.reshape(zetas.size, ratios.size), axis=0)]))
+        raise InvalidParameter(
+            "sensitivity",
+            worst,
+            f"at frequency ratios up to {worst:.3g} the mode is so slow next to the command that the residual "
+            f"cannot be computed to {RELIABLE_FRACTION:g} of the move; evaluate higher ratios",
+        )
+    residual = amplitudes.reshape(zetas.size, ratios.size) / scale
     return Sensitivity(ratios, zetas, residual, quantity)
 
 
-def band_below(ratios: np.ndarray, residual: np.ndarray, threshold: float = 0.05, centre: float = 1.0) -> tuple[float, float] | None:
+def band_below(
+    ratios: np.ndarray, residual: np.ndarray, threshold: float = 0.05, centre: float = 1.0
+) -> tuple[float | None, float | None] | None:
     """The interval of frequency ratios around ``centre`` where the residual stays <= threshold,
-    with linearly interpolated ends; None if the residual exceeds it at the centre."""
+    with linearly interpolated ends; an end is None where the band reaches the end of the
+    evaluated ratios (it extends beyond them). None if the residual exceeds it at the centre."""
     r = np.asarray(ratios, dtype=float)
     v = np.asarray(residual, dtype=float)
     order = np.argsort(r)
@@ -98,6 +120,6 @@ def band_below(ratios: np.ndarray, residual: np.ndarray, threshold: float = 0.05
     def cross(a: int, b: int) -> float:
         return float(r[a] + (threshold - v[a]) * (r[b] - r[a]) / (v[b] - v[a]))
 
-    low = cross(lo - 1, lo) if lo > 0 else float(r[0])
-    high = cross(hi, hi + 1) if hi < r.size - 1 else float(r[-1])
+    low = cross(lo - 1, lo) if lo > 0 else None
+    high = cross(hi, hi + 1) if hi < r.size - 1 else None
     return low, high

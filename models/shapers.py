@@ -150,8 +150,9 @@ def vibration_band(
     max_ratio: float = 4.0,
     points: int = 8001,
     slack: float = 1e-9,
-) -> tuple[float, float] | None:
-    """[low, high] ratios w/w_design around 1 where V <= threshold (zeta fixed), or None.
+) -> tuple[float | None, float | None] | None:
+    """[low, high] ratios w/w_design around 1 where V <= threshold (zeta fixed), or None; an end
+    is None where the band runs past the scanned ratios (0, max_ratio].
 
     V is scanned on a grid of ratios in (0, max_ratio] and every crossing is refined by Brent's
     method, so the ends are exact to ~1e-12. ``slack`` (relative) lets a shaper whose residual
@@ -173,8 +174,8 @@ def vibration_band(
     def crossing(outside: int, inside: int) -> float:
         return float(brentq(lambda r: float(v(r)) - limit, ratios[outside], ratios[inside], xtol=1e-14, rtol=1e-13))
 
-    low = crossing(int(left[-1]), int(left[-1]) + 1) if left.size else float(ratios[0])
-    high = crossing(int(right[0]), int(right[0]) - 1) if right.size else float(ratios[-1])
+    low = crossing(int(left[-1]), int(left[-1]) + 1) if left.size else None  # open: below the scanned ratios
+    high = crossing(int(right[0]), int(right[0]) - 1) if right.size else None  # open: above max_ratio
     return low, high
 
 

@@ -30,6 +30,7 @@ from models.errors import InvalidParameter
 from models.plants import Plant
 
 _REAL_POLE_TOLERANCE = 1e-12
+_RELIABLE_RELATIVE = 1e-6  # largest round-off accepted, relative to the load's motion
 
 
 @dataclass(frozen=True)
@@ -176,7 +177,29 @@ def simulate(plant: Plant, command: PiecewiseCommand) -> Response:
     for name, arr in (("load position", position), ("load velocity", velocity), ("load acceleration", acceleration)):
         if not np.all(np.isfinite(arr)):
             raise InvalidParameter("profile", "out of range", f"the {name} overflows double precision")
+    _check_conditioning(command, modal, free, position)
     return Response(plant, command, modal, position, velocity, acceleration, free)
+
+
+def _check_conditioning(command: PiecewiseCommand, modal: ModalForm, free: np.ndarray, position: np.ndarray) -> None:
+    """Refuse a result that round-off could have spoilt.
+
+    The load position is the sum of the quasi-static part sum_m g_m p^(m) and the free responses;
+    when a mode is very slow next to how fast the command changes, both are huge (1/lambda^(m+1))
+    and cancel, and the sum keeps only eps times their size of accuracy.
+    """
+    eps = np.finfo(float).eps
+    size = sum(abs(g) * float(np.max(np.abs(command.derivative(m)))) for m, g in enumerate(modal.taylor))
+    size += float(np.sum(np.abs(modal.weights * modal.residues) * np.max(np.abs(free), axis=1))) if free.size else 0.0
+    scale = max(float(np.max(np.abs(position))), abs(modal.taylor[0]) * float(np.max(np.abs(command.derivative(0)))), 1e-300)
+    if 16 * eps * size > _RELIABLE_RELATIVE * scale:
+        slowest = float(np.min(np.abs(modal.poles))) / (2 * np.pi)
+        raise InvalidParameter(
+            "plant",
+            f"{slowest:.3g} Hz",
+            f"the slowest pole ({slowest:.3g} Hz) is too slow for how fast this command changes: round-off would "
+            f"reach {16 * eps * size / scale:.1e} of the motion; sample a slower command or check the plant",
+        )
 
 
 # ------------------------------------------------------------------------------------------

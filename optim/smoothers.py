@@ -348,7 +348,7 @@ class ChainResidual:
     """The residual vibration of a chain, in closed form (see models.smoothers.mode_residuals)."""
 
     amplitude: float  # sum over modes, load units, when the command ends
-    fraction_of_move: float  # amplitude / |displacement|
+    fraction_of_move: float  # amplitude / the load's move |G(0) displacement|
     percent_residual_vibration: float | None  # 100 |F(p)| on the tuning mode (Sec. IV); None if it overflows
     vibration_free: bool | None  # the chain's zeros cancel the tuning mode; None without a mode
 
@@ -357,12 +357,12 @@ def chain_residual(chain: Chain, plant: Plant, displacement: float, mode: Mode |
     amplitudes, _ = mode_residuals(chain, plant, displacement)
     total = float(np.sum(amplitudes))
     if mode is None:
-        return ChainResidual(total, total / abs(displacement), None, None)
+        return ChainResidual(total, total / plant.load_move(displacement), None, None)
     prv = same_time_ratio(chain, mode)
     finite = math.isfinite(prv)
     return ChainResidual(
         total,
-        total / abs(displacement),
+        total / plant.load_move(displacement),
         100.0 * prv if finite else None,
         bool(finite and prv <= VIBRATION_FREE_TOLERANCE),
     )
@@ -382,7 +382,7 @@ def hold_residual(step: StepResponse, plant: Plant) -> float:
     initial = tuple(float(step.derivative(m)[0]) for m in range(order))
     slopes = step.derivative(order + 1) if hold == "cubic" else None
     command = PiecewiseCommand.from_samples(step.time_s, step.derivative(order), order, hold=hold, slopes=slopes, initial=initial)
-    return metrics(simulate(plant, command)).residual_amplitude / abs(step.displacement)
+    return metrics(simulate(plant, command)).residual_amplitude / plant.load_move(step.displacement)
 
 
 # ------------------------------------------------------------------------------------------
@@ -479,7 +479,7 @@ def design_discrete(
         lead_s=lead,
         percent_residual_vibration=prv,
         residual_amplitude=result.residual_amplitude,
-        residual_fraction_of_move=result.residual_amplitude / abs(displacement),
+        residual_fraction_of_move=result.residual_amplitude / plant.load_move(displacement),
         exact_sample_period_s=commensurate_sample_period_s(chain, mode, ts),
         max_deviation=float(np.max(np.abs(y - reference))),
         samples=last + 1,

@@ -79,7 +79,10 @@ class Row(OutModel):
     settling_time_s: float | None = Field(description="Load within the settling band, from the start; null if never.")
     residual_vibration: float = Field(description="Residual at the nominal frequency, fraction of the move.")
     residual_amplitude: float = Field(description="Load free-oscillation envelope (position; velocity for rest-to-velocity).")
-    band_5_percent: list[float] | None = Field(description="f_n/f_n,e range around 1 where the residual stays <= 5 %.")
+    band_5_percent: list[float | None] | None = Field(
+        description="f_n/f_n,e range around 1 where the residual stays <= 5 % (evaluated on 0.5..1.5; an end is "
+        "null where the band runs past that range)."
+    )
     peak_velocity: float | None
     peak_acceleration: float | None
     peak_jerk: float | None
@@ -273,9 +276,9 @@ def _limits_report(request: CompareIn, metrics: dict[str, Any]) -> list[str]:
 def _row(runner: Runner, request: CompareIn, body: dict[str, Any], family_request: dict[str, Any]) -> dict[str, Any]:
     metrics = body["metrics"]
     velocity_move = request.target_velocity is not None
-    scale = abs(request.target_velocity if velocity_move else request.displacement)  # type: ignore[arg-type]
+    move = request.target_velocity if velocity_move else request.displacement
     amplitude = metrics["residual_velocity_amplitude"] if velocity_move else metrics["residual_amplitude"]
-    load_scale = scale * (1.0 if velocity_move else abs(to_plant(request.plant).dc_gain) or 1.0)
+    load_scale = to_plant(request.plant).load_move(move)  # type: ignore[arg-type]
     violations = _limits_report(request, metrics)
     sensitivity = body.get("sensitivity")
     row = {

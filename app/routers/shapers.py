@@ -362,7 +362,7 @@ def list_shapers(
             "impulse_count": e.impulse_count,
             "duration_periods": e.duration_periods,
             "band_5_percent": list(e.band) if e.band else None,
-            "band_width": e.band[1] - e.band[0] if e.band else None,
+            "band_width": e.band[1] - e.band[0] if e.band and None not in e.band else None,
             "amplitudes": list(e.amplitudes),
             "times_periods": list(e.times_periods),
             "method": e.method,

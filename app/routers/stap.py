@@ -294,7 +294,7 @@ def compose(
     warnings = list(closed.notes if optimized is None else ()) + list(closed.move_notes)
     body, result = family_response(plant, command, {}, settling_tolerance=request.settling_tolerance)
     body["warnings"] = warnings
-    scale = abs(stap.velocity) if move is None else abs(move.displacement)
+    scale = plant.load_move(stap.velocity if move is None else move.displacement)  # the load's move
     amplitude = result.residual_velocity_amplitude if move is None else result.residual_amplitude
     residual = amplitude / scale
     body["design"] = _design_out(request, closed, optimized, residual)

@@ -35,10 +35,10 @@ class SensitivityIn(StrictModel):
     """Where to evaluate the residual vibration versus the true/estimated frequency ratio."""
 
     frequency_ratios: list[float] | None = Field(
-        None, min_length=1, max_length=MAX_SENSITIVITY_POINTS, description="Explicit ratios f_n/f_n,e (each > 0)."
+        None, min_length=1, max_length=MAX_SENSITIVITY_POINTS, description="Explicit ratios f_n/f_n,e (each in [0.01, 100])."
     )
-    min_ratio: float = Field(0.5, gt=0, le=100, description="Start of a uniform range of ratios.")
-    max_ratio: float = Field(1.5, gt=0, le=100, description="End of the range.")
+    min_ratio: float = Field(0.5, ge=0.01, le=100, description="Start of a uniform range of ratios (>= 0.01).")
+    max_ratio: float = Field(1.5, ge=0.01, le=100, description="End of the range.")
     count: int = Field(201, ge=2, le=MAX_SENSITIVITY_POINTS, description="Points in the range.")
     damping_ratios: list[float] | None = Field(
         None,
@@ -51,8 +51,8 @@ class SensitivityIn(StrictModel):
     def _check(self) -> SensitivityIn:
         if self.max_ratio <= self.min_ratio:
             raise ValueError("max_ratio must be greater than min_ratio")
-        if self.frequency_ratios is not None and any(not (0 < r <= 100) for r in self.frequency_ratios):
-            raise ValueError("every frequency ratio must lie in (0, 100]")
+        if self.frequency_ratios is not None and any(not (0.01 <= r <= 100) for r in self.frequency_ratios):
+            raise ValueError("every frequency ratio must lie in [0.01, 100]")
         if self.damping_ratios is not None and any(not (0 <= z < 1) for z in self.damping_ratios):
             raise ValueError("every damping ratio must satisfy 0 <= zeta < 1")
         if self.damping_ratios is not None and len(self.damping_ratios) * self.points > 20 * MAX_SENSITIVITY_POINTS:
@@ -79,8 +79,10 @@ class SensitivityOut(OutModel):
     residual_vibration_grid: list[list[float]] | None = Field(
         None, description="One residual curve per damping ratio, when several were asked."
     )
-    band_5_percent: list[float] | None = Field(
-        None, description="[low, high] ratios around 1 where the residual stays <= 5 % (first damping ratio)."
+    band_5_percent: list[float | None] | None = Field(
+        None,
+        description="[low, high] ratios around 1 where the residual stays <= 5 % (first damping ratio); an end is "
+        "null where the band runs past the evaluated ratios.",
     )
 
 

@@ -111,7 +111,7 @@ class ShaperInfo(OutModel):
     name: str
     impulse_count: int
     duration_periods: float = Field(description="t_n in damped periods of the design mode.")
-    band_5_percent: list[float] | None = Field(
+    band_5_percent: list[float | None] | None = Field(
         description="[low, high] ratios of true to design natural frequency where the residual V stays <= 5 %, "
         "computed from V (Sec. 3.1); null if V exceeds 5 % at the design frequency."
     )

@@ -98,7 +98,9 @@ function renderTable(result) {
     tr.tabIndex = 0;
     tr.dataset.index = String(index);
     tr.setAttribute("aria-selected", String(index === selectedRow));
-    const band = row.band_5_percent ? `${fmt(row.band_5_percent[0], 3)} – ${fmt(row.band_5_percent[1], 3)}` : "–";
+    const [low, high] = row.band_5_percent || [undefined, undefined];
+    const band = row.band_5_percent
+      ? `${low === null ? "below 0.5" : fmt(low, 3)} – ${high === null ? "above 1.5" : fmt(high, 3)}` : "–";
     const cells = [
       FAMILIES[row.family] || row.family, fmt(row.motion_time_s), fmt(row.settling_time_s),
       fmt(100 * row.residual_vibration, 3), band, fmt(row.peak_velocity), fmt(row.peak_acceleration),

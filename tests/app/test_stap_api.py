@@ -150,7 +150,8 @@ def test_sensitivity_uses_appendix_b_at_zero_damping(client):
     assert curve["quantity"] == "velocity"
     assert grid[0][50] < 1e-12 and grid[2][50] > 1e-4  # zero at f_n,e undamped, not with zeta = 0.1
     low, high = curve["band_5_percent"]
-    assert low < 0.8 and high > 1.2  # Fig. 14b: the k_j = 1 SC stays within a few hundredths near 1
+    # Fig. 14b: the k_j = 1 SC stays within a few hundredths near 1 (None: beyond the evaluated range)
+    assert (low is None or low < 0.8) and (high is None or high > 1.2)
 
 
 def test_rest_to_rest_moves(client):

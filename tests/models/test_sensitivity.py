@@ -7,6 +7,8 @@ import pytest
 
 from models.commands import PiecewiseCommand
 from models.plants import ModePlant
+from models.pseudo_polynomial import PseudoPolynomial
+from models.errors import InvalidParameter
 from models.sensitivity import band_below, sensitivity
 from models.simulation import metrics, simulate
 
@@ -53,3 +55,22 @@ def test_resampling_keeps_the_breakpoints_and_the_response():
     assert set(STAP_40HZ.time_s) <= set(awkward.time_s)
     c = metrics(simulate(ModePlant(37.0), awkward)).residual_velocity_amplitude
     assert c == pytest.approx(a, rel=1e-11)
+
+
+def test_band_open_at_the_end_of_the_evaluated_range():
+    ratios = np.linspace(0.5, 1.5, 11)
+    residual = np.where(ratios < 0.8, 0.2, 0.01)  # within 5 % from 0.8 up to the end of the range
+    low, high = band_below(ratios, residual, 0.05)
+    assert low == pytest.approx(0.7 + 0.1 * 0.15 / 0.19, rel=1e-12) and high is None  # linear crossing
+
+
+def test_sensitivity_refuses_ratios_where_round_off_dominates():
+    # A 2001-sample command (Table III's zero-energy pseudo-polynomial, Hermite velocity hold): at
+    # 1e-3 of its 5 Hz mode the sum behind the residual cancels terms far larger than the move.
+    law = PseudoPolynomial(30 * np.pi, 1.0, (3.0117026577, 4.766987994, 5.5975007513))
+    command = law.command(1e-3, 2.0)
+    near_rigid = sensitivity(command, 31.1769, np.array([0.01]), np.array([0.0])).residual[0, 0]
+    assert near_rigid == pytest.approx(1.0, abs=0.01)  # a mode 100 times slower barely follows: ~the whole move
+    with pytest.raises(InvalidParameter) as info:
+        sensitivity(command, 31.1769, np.array([1e-3, 1.0]), np.array([0.0]))
+    assert info.value.field == "sensitivity"
