@@ -279,8 +279,8 @@ def settling(response: Response, tolerance: float = 1e-3, window: float | None =
     """When the load stays within a band around its steady motion.
 
     The band is ``window`` (absolute, load units) or ``tolerance`` times the move: the load's
-    total displacement when it ends at rest, its final speed when it ends moving (then the
-    load velocity is compared). During the command the error is checked at the samples; after
+    total displacement (or its largest excursion, if larger) when it ends at rest, its final
+    speed when it ends moving (then the load velocity is compared). During the command the error is checked at the samples; after
     the command's end the envelope of the free response is used, exactly and without sampling,
     so the answer does not depend on the horizon.
     """
@@ -292,7 +292,9 @@ def settling(response: Response, tolerance: float = 1e-3, window: float | None =
         quantity, error, scale, order = "velocity", response.load_velocity - ss_vel, abs(ss_vel[end]), 1
     else:
         quantity, error = "position", response.load_position - ss_pos
-        scale, order = abs(ss_pos[end] - response.load_position[0]), 0
+        # The move: its net displacement, or its largest excursion for an out-and-back move.
+        excursion = float(np.max(np.abs(response.load_position - response.load_position[0])))
+        scale, order = max(abs(ss_pos[end] - response.load_position[0]), excursion), 0
     band = window if window is not None else tolerance * scale
     if band <= 0.0:
         return Settling(quantity, band, None)

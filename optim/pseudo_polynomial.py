@@ -46,9 +46,18 @@ from models.errors import Infeasible, InvalidParameter
 from models.plants import Plant, TwoInertiaPlant
 from models.pseudo_polynomial import PseudoPolynomial, boundary_matrix, check_exponents, derivative_terms
 from models.simulation import ModalForm, modal_form
-from optim.solver import SolveCaps, SolverReport, ipopt_options, parameter_layout, raise_for_status, report_of
+from optim.solver import (
+    SolveCaps,
+    SolverFailed,
+    SolverReport,
+    ipopt_options,
+    parameter_layout,
+    raise_for_status,
+    report_of,
+)
 
-QUADRATURE_SIZES = (64, 128, 256, 512, 1024, 2048)
+QUADRATURE_SIZES = (64, 128, 256, 512)
+MAX_MODES = 3  # oscillatory modes handled; the problem's size grows with modes x nodes x exponents
 CONSTRAINT_INTERVALS = 200  # limits are imposed at T/200 spacing, then checked on the samples
 MIN_SEPARATION = 0.05  # consecutive exponents at least this far apart: Z stays invertible, C finite
 MAX_EXPONENT = 80.0
@@ -336,6 +345,10 @@ def _oscillatory(plant: Plant) -> ModalForm:
     keep = modal.oscillatory
     if not np.any(keep):
         raise InvalidParameter("plant", plant.kind, "the plant has no vibration mode to suppress")
+    if np.count_nonzero(keep) > MAX_MODES:
+        raise InvalidParameter(
+            "plant", f"{np.count_nonzero(keep)} modes", f"the pseudo-polynomial design handles up to {MAX_MODES} vibration modes"
+        )
     return ModalForm(modal.taylor, modal.poles[keep], modal.residues[keep], modal.weights[keep])
 
 
@@ -458,6 +471,8 @@ def _solve_at(request: PseudoPolynomialRequest, start: np.ndarray, effort: str =
         raise Infeasible("no zero-energy design reached from the start", field="limits")
     energy_ref = float(p[compiled.layout["energy_ref"]][0])
     best: tuple[float, np.ndarray, SolverReport] | None = None
+    last: SolverReport | None = None
+    reached_limits = False
     for x0 in [gamma0, *(spread_starts(request.order) if effort == "thorough" else [])]:
         if elapsed > 2.0 * request.caps.max_wall_time_s:
             break  # the starts so far have used the time a design may take
@@ -465,7 +480,9 @@ def _solve_at(request: PseudoPolynomialRequest, start: np.ndarray, effort: str =
         if rep.timed_out:
             report = rep
             break
-        if feasible(candidate):
+        last = rep
+        reached_limits = reached_limits or feasible(candidate)
+        if rep.converged and feasible(candidate):  # a capped iterate is never a design
             energy = float(compiled.evaluate(candidate, p)[0])
             if best is None or energy < best[0]:
                 best = (energy, candidate, rep)
@@ -474,6 +491,8 @@ def _solve_at(request: PseudoPolynomialRequest, start: np.ndarray, effort: str =
     if best is None:
         if report.timed_out:
             return attempt(gamma, "minimum_energy", report)
+        if reached_limits and last is not None:  # designs within the limits exist, but no solve converged
+            raise SolverFailed(SolverReport(last.status, iterations, elapsed), "no minimum-energy solve converged")
         raise Infeasible(
             f"no pseudo-polynomial command of order {request.order} found that moves {request.displacement:.6g} in "
             f"{request.duration_s:.6g} s within the limits; lengthen duration_s, raise the limits or try another order",
@@ -484,7 +503,7 @@ def _solve_at(request: PseudoPolynomialRequest, start: np.ndarray, effort: str =
         closer, rep_c = run(compiled.closest, candidate, lbg_c, ubg_c)
         if rep_c.converged and feasible(closer):
             return attempt(closer, "closest_zero_energy", rep_c)
-    return attempt(candidate, "minimum_energy", SolverReport("Solve_Succeeded" if rep.converged else "Feasible_Point_Kept", 0, 0))
+    return attempt(candidate, "minimum_energy", rep)
 
 
 def evaluate(request: PseudoPolynomialRequest, exponents: np.ndarray) -> tuple[float, float]:
@@ -503,6 +522,11 @@ def _checked(request: PseudoPolynomialRequest) -> PseudoPolynomialRequest:
     if not 1 <= request.order <= MAX_ORDER:
         raise InvalidParameter("order", request.order, f"must lie in 1..{MAX_ORDER}")
     initial = check_exponents(request.initial_exponents or default_exponents(request.order), request.order)
+    ordered = sorted(initial)
+    if min(b - a for a, b in zip(ordered, ordered[1:], strict=False)) < MIN_SEPARATION:
+        raise InvalidParameter(
+            "initial_exponents", list(initial), f"exponents must be at least {MIN_SEPARATION:g} apart (eq. 22 stays well conditioned)"
+        )
     if min(initial) < lower_bound(request.order):
         raise InvalidParameter(
             "initial_exponents",

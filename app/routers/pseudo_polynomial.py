@@ -130,8 +130,9 @@ def compose(
     }
     warnings = body["warnings"]
     if design.selection == "minimum_energy":
+        within = " within the limits" if any(v is not None for v in request.limits.model_dump().values()) else ""
         warnings.append(
-            f"no zero-energy design meets the limits; this one leaves {100 * design.energy_ratio:.3g} % of the "
+            f"no zero-energy design was found{within}; this one leaves {100 * design.energy_ratio:.3g} % of the "
             "initial design's vibration energy"
         )
     limits = request.limits

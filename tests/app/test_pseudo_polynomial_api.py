@@ -70,6 +70,7 @@ def test_impossible_limits_are_an_infeasible_problem(client):
         ({"order": 9}, "order"),
         ({"initial_exponents": [3, 4]}, "initial_exponents"),
         ({"initial_exponents": [2.5, 4, 5]}, "initial_exponents"),
+        ({"initial_exponents": [3, 3.01, 5]}, "initial_exponents"),  # closer than the 0.05 separation
         ({"displacement": 0}, "displacement"),
         ({"duration_s": -1}, "duration_s"),
         ({"sample_period_s": 1e-6}, "sample_period_s"),  # 2e6 samples: above the cap

@@ -151,7 +151,9 @@ def test_settling_time_is_the_envelope_crossing():
     response = simulate(plant, PiecewiseCommand.from_samples(t, acc, 2))
     m = metrics(response, tolerance=1e-4)
     assert m.settling.quantity == "position"
-    band = 1e-4 * abs(response.command.derivative(0)[-1] - response.load_position[0])  # G(0) = 1
+    # The band: 1e-4 of the move, its net displacement (G(0) = 1) or its largest excursion if larger.
+    net = abs(response.command.derivative(0)[-1] - response.load_position[0])
+    band = 1e-4 * max(net, float(np.max(np.abs(response.load_position - response.load_position[0]))))
     assert m.settling.window == pytest.approx(band, rel=1e-6)
     expected = m.command_end_s + math.log(m.residual_amplitude / band) / mode.decay_rate_1_s
     assert m.settling.time_s == pytest.approx(expected, rel=1e-9)
@@ -211,3 +213,15 @@ def test_long_nonuniform_horizon_stays_finite_and_exact():
     # exp(-500 t) has long died out: the load sits exactly at G(0) times the final position.
     assert response.load_position[-1] == pytest.approx(1.0, rel=1e-13)
     assert metrics(response).residual_amplitude == 0.0  # no complex pole pair: no vibration mode
+
+
+def test_out_and_back_move_settles_against_its_excursion():
+    # A move that goes out and comes back has no net displacement: the band is then a fraction of
+    # its largest excursion (here about 1), not of zero.
+    t = np.linspace(0, 2, 201)
+    out_and_back = np.where(t <= 1.0, np.sin(np.pi * t), 0.0)
+    response = simulate(ModePlant(3.0, 0.05), PiecewiseCommand.from_samples(t, out_and_back, 0))
+    m = metrics(response, tolerance=1e-3)
+    excursion = float(np.max(np.abs(response.load_position)))
+    assert m.settling.window == pytest.approx(1e-3 * excursion, rel=1e-12)
+    assert m.settling.time_s is not None and m.settling.time_s < 10.0
