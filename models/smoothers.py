@@ -474,8 +474,8 @@ def discrete_filter(smoother: Smoother, sample_period_s: float, samples: int) ->
     e^(2 sigma Ts) z^-2), K = (1 - 2 e^(sigma Ts) cos(pi/N) + e^(2 sigma Ts))/(1 + e^(sigma N Ts)); sigma = 0
     gives S. The same construction gives M_sigma: K (z^-1 - e^(sigma N Ts) z^-(N+1))/(1 - e^(sigma Ts) z^-1),
     K = (1 - e^(sigma Ts))/(1 - e^(sigma N Ts)), and M: (1/N) sum_{k=1..N} z^-k (written as an FIR, which has
-    no pole on the unit circle). Being a rectangle-rule sum, each sinusoidal or exponential stage leads its
-    continuous filter by about half a sample (PAPER-NOTES); the rectangular one is exact at the samples.
+    no pole on the unit circle). Being a rectangle-rule sum, each sinusoidal stage leads its continuous
+    filter by about half a sample (PAPER-NOTES); the rectangular and exponential ones are exact at the samples.
     Its zeros lie at z = e^(sigma Ts) e^(j (2m+1) pi / N) (sinusoidal) or e^(sigma Ts) e^(j 2 m pi/N): they
     cancel the plant's pole only when N Ts equals the tuned duration.
     """

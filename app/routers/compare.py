@@ -32,12 +32,13 @@ from app.schemas.simulate import LoadOut, ProfileOut
 from app.settings import Settings, get_settings
 from models.errors import Infeasible, InvalidParameter
 from models.plants import Plant
-from optim.solver import SolverFailed
+from optim.solver import SolverFailed, SolverTimedOut
 from optim.workers import SolveTimeout
 
 router = APIRouter(prefix="/v1", tags=["compare"])
 Family = Literal["pseudo_polynomial", "stap", "smoother", "input_shaped"]
 SENSITIVITY = {"min_ratio": 0.5, "max_ratio": 1.5, "count": 201}
+MIN_PERIOD_S = 1e-6
 
 
 class CompareIn(StrictModel):
@@ -115,8 +116,9 @@ class Runner:
 
 
 def nice_period(span_s: float, samples: int = 500) -> float:
-    """A round sample period (1, 2 or 5 times a power of ten) giving about ``samples`` over the span."""
-    raw = span_s / samples
+    """A round sample period (1, 2 or 5 times a power of ten) giving about ``samples`` over the
+    span, and never below the families' floor of 1 microsecond."""
+    raw = max(span_s / samples, MIN_PERIOD_S)
     exponent = math.floor(math.log10(raw))
     for mantissa in (1.0, 2.0, 5.0, 10.0):
         if mantissa * 10**exponent >= raw:
@@ -253,6 +255,25 @@ FALLBACKS: dict[str, Callable[[dict[str, Any]], dict[str, Any] | None]] = {
 }
 
 
+def _reason(exc: Exception) -> str:
+    """A failure in the user's terms: the field and the rule for invalid input."""
+    if isinstance(exc, ValidationError):
+        return "; ".join(f"{'.'.join(str(p) for p in e['loc']) or 'request'}: {e['msg']}" for e in exc.errors()[:3])
+    if isinstance(exc, InvalidParameter):
+        return f"{exc.field}: {exc.rule}"
+    return str(exc)
+
+
+def _problem_type(exc: Exception) -> str:
+    if isinstance(exc, Infeasible):
+        return "/problems/infeasible"
+    if isinstance(exc, SolveTimeout):
+        return "/problems/solve-timeout"
+    if isinstance(exc, SolverFailed):
+        return "/problems/solve-timeout" if isinstance(exc, SolverTimedOut) else "/problems/solver-failed"
+    return "/problems/invalid-input"
+
+
 def _limits_report(request: CompareIn, metrics: dict[str, Any]) -> list[str]:
     pairs = (
         ("max_velocity", "peak_velocity"),
@@ -317,12 +338,7 @@ async def _run(runner: Runner, request: CompareIn, plant: Plant, period_s: float
             built = fallback
             body = await runner.respond(runner.schema.model_validate(built), settings, pool)
     except (Infeasible, InvalidParameter, SolverFailed, SolveTimeout, ValidationError) as exc:
-        slug = {Infeasible: "infeasible", SolveTimeout: "solve-timeout"}.get(type(exc), None)
-        if isinstance(exc, SolverFailed):
-            slug = "solver-failed"
-        if isinstance(exc, (InvalidParameter, ValidationError)):
-            slug = "invalid-input"
-        return {"unavailable": {"family": runner.family, "reason": str(exc), "problem_type": f"/problems/{slug}"}}
+        return {"unavailable": {"family": runner.family, "reason": _reason(exc), "problem_type": _problem_type(exc)}}
     return {"row": _row(runner, request, body, built)}
 
 

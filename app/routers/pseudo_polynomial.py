@@ -112,7 +112,10 @@ def compose(
     law = design.law
     horizon = _horizon(request, plant, law.duration_s)
     sample_count_check(horizon, request.sample_period_s, settings.max_samples)
-    command = law.command(request.sample_period_s, horizon)
+    try:
+        command = law.command(request.sample_period_s, horizon)
+    except InvalidParameter as exc:  # a sample beyond 1e12: the move itself is out of range
+        raise InvalidParameter("duration_s", law.duration_s, f"the move is too fast to sample ({exc.rule})") from None
     body, result = family_response(
         plant,
         command,

@@ -208,6 +208,9 @@ def _design(request: InputShapedRequest) -> tuple[Plant, ShaperDesign]:
     return plant, design_for_modes(request.shaper, chosen, request.vibration_tolerance)
 
 
+MAX_SHAPED_RAMPS = 1000  # impulses x baseline steps: bounds the limiter's corners and the step programme
+
+
 def _commands(
     baseline: Baseline, shaper: ImpulseSequence, velocity: float, cruise_s: float | None, limit: float | None
 ) -> _Commands:
@@ -264,6 +267,13 @@ def respond(request: InputShapedRequest, settings: Settings) -> dict[str, Any]:
     """The full response body of POST /v1/profiles/input-shaped."""
     plant, design = _design(request)
     shaper, limit = design.impulses, request.acceleration_limit
+    steps = request.baseline_steps if request.baseline == "multi_step" else 1
+    if len(shaper.amplitudes) * steps > MAX_SHAPED_RAMPS:
+        raise InvalidParameter(
+            "baseline_steps" if steps > 1 else "shaper",
+            f"{len(shaper.amplitudes)} impulses x {steps} steps",
+            f"the shaped command would have more than {MAX_SHAPED_RAMPS} ramps; use fewer steps, modes or derivatives",
+        )
     velocity, cruise_s, warnings = _move(request, shaper)
     baseline = design_baseline(request.baseline, velocity, shaper, limit, request.baseline_steps)
     commands = _commands(baseline, shaper, velocity, cruise_s, limit)

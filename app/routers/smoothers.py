@@ -29,7 +29,7 @@ from app.schemas.simulate import check_sample_count
 from app.schemas.smoothers import IdentifyRequest, IdentifyResponse, SmootherRequest, SmootherResponse
 from app.settings import Settings, get_settings
 from models.errors import InvalidParameter
-from models.plants import FREQUENCY_MAX_HZ, FREQUENCY_MIN_HZ
+from models.plants import FREQUENCY_MAX_HZ, FREQUENCY_MIN_HZ, Plant
 from models.smoothers import MAX_RATE_TIMES_PERIOD, Chain, refinement, step_response
 from optim.smoothers import (
     ChainDesign,
@@ -267,9 +267,12 @@ def respond(request: SmootherRequest, settings: Settings) -> dict[str, Any]:
         "predicted_peaks": dict(zip(("velocity", "acceleration", "jerk"), design.predicted_peaks, strict=True)),
         "discrete": None if discrete is None else _discrete_out(discrete),
     }
-    body, result = family_response(
-        plant, response.command(), design_body, sensitivity_request=request.sensitivity, warnings=warnings
-    )
+    command = response.command()
+    horizon = _horizon(request, plant, chain.total_duration_s)
+    if horizon > command.time_s[-1]:
+        sample_count_check(horizon, period, settings.max_samples, "horizon_s")
+        command = command.resampled(period, end_s=horizon)  # the motor rests at h; the load rings, or not
+    body, result = family_response(plant, command, design_body, sensitivity_request=request.sensitivity, warnings=warnings)
     bounds = request.core_limits().by_order()
     measured = (result.peak_velocity, result.peak_acceleration, result.peak_jerk)
     for name, bound, peak in zip(("velocity", "acceleration", "jerk"), bounds, measured, strict=True):
@@ -280,6 +283,15 @@ def respond(request: SmootherRequest, settings: Settings) -> dict[str, Any]:
         elif peak > bound * (1 + 1e-9):
             body["warnings"].append(f"limits.max_{name} is exceeded by the profile: peak {peak:.9g} > {bound:.9g}")
     return body
+
+
+def _horizon(request: SmootherRequest, plant: Plant, end_s: float) -> float:
+    if request.horizon_s is not None:
+        if request.horizon_s < end_s:
+            raise InvalidParameter("horizon_s", request.horizon_s, f"must be >= the filters' total duration ({end_s:.6g} s)")
+        return request.horizon_s
+    modes = plant.modes()
+    return end_s + (5.0 * modes[0].natural_period_s if modes else 0.0)
 
 
 async def respond_async(request: SmootherRequest, settings: Settings, pool: Any = None) -> dict[str, Any]:

@@ -20,6 +20,7 @@ from models.sensitivity import band_below, sensitivity
 from models.simulation import Metrics, metrics, simulate
 
 MAX_SENSITIVITY_POINTS = 4001
+MAX_SENSITIVITY_WORK = 20_000_000  # frequency points x damping ratios x breakpoints: about a second
 
 
 class LimitsIn(StrictModel):
@@ -118,6 +119,16 @@ def sensitivity_out(command: PiecewiseCommand, plant: Plant, request: Sensitivit
         raise InvalidParameter("sensitivity", "requested", "the plant has no vibration mode to evaluate it around")
     mode = modes[0]
     zetas = request.damping_ratios or [mode.damping_ratio]
+    work = request.points * len(zetas) * (command.end_index() + 1)
+    if work > MAX_SENSITIVITY_WORK:
+        from models.errors import InvalidParameter
+
+        raise InvalidParameter(
+            "sensitivity.count",
+            request.points,
+            f"{request.points} ratios x {len(zetas)} damping ratios x {command.end_index() + 1} breakpoints exceed "
+            f"{MAX_SENSITIVITY_WORK:.0e}: ask fewer ratios or a longer sample_period_s",
+        )
     result = sensitivity(command, mode.natural_frequency_rad_s, request.ratios(), np.asarray(zetas))
     band = band_below(result.frequency_ratio, result.residual[0], 0.05)
     return {

@@ -55,6 +55,13 @@ class SmootherRequest(StrictModel):
     sample_period_s: float = Field(
         ge=MIN_STEP_S, le=MAX_DURATION_S, description="Period of the returned profile, s (breakpoints are added)."
     )
+    horizon_s: float | None = Field(
+        None,
+        gt=0,
+        le=MAX_DURATION_S,
+        description="End of the returned samples, s (default: the filters' total duration plus 5 periods of the "
+        "plant's first mode, so the load's free motion after the move shows).",
+    )
     discrete_sample_period_s: float | None = Field(
         None,
         ge=MIN_STEP_S,
