@@ -110,6 +110,30 @@ class SymbolicPlant:
     b: Any
     c: Any
     d: Any
+    numerator: tuple[Any, ...] = ()  # G(s) from the motor position, descending powers
+    denominator: tuple[Any, ...] = ()
+
+    def symbol(self, name: str) -> Any:
+        """The symbol of one scalar parameter."""
+        return self.parameters[self.parameter_names.index(name)]
+
+    def second_order_mode(self) -> tuple[Any, Any, Any, Any]:
+        """(sigma, omega_d, Re r, Im r) of G's upper pole -sigma + i omega_d and its residue r, for a
+        denominator a2 s^2 + a1 s + a0 (the mode of Incerti eq. 4, Cusimano eqs. 1-3), as expressions."""
+        import casadi as ca
+
+        if len(self.denominator) != 3:
+            raise ValueError("not a second-order plant")
+        a2, a1, a0 = self.denominator
+        num = [0.0] * (3 - len(self.numerator)) + list(self.numerator)
+        b2, b1, b0 = num
+        sigma = a1 / (2 * a2)
+        root = ca.sqrt(4 * a0 * a2 - a1 * a1)
+        omega_d = root / (2 * a2)
+        # r = N(p)/D'(p) with D'(p) = 2 a2 p + a1 = i root; G's constant b2/a2 has no residue.
+        n_re = b2 * (sigma * sigma - omega_d * omega_d) - b1 * sigma + b0
+        n_im = -2 * b2 * sigma * omega_d + b1 * omega_d
+        return sigma, omega_d, n_im / root, -n_re / root
 
     def function(self) -> Any:
         import casadi as ca
@@ -265,7 +289,7 @@ class Plant:
             for m in _realise(num, den)
         )
         flat = [s for v in values.values() for s in (v if isinstance(v, list) else [v])]
-        return SymbolicPlant(tuple(names), ca.vertcat(*flat), a, b, c, d)
+        return SymbolicPlant(tuple(names), ca.vertcat(*flat), a, b, c, d, tuple(num), tuple(den))
 
     def symbolic_key(self) -> tuple:
         """What the symbolic form depends on: kind, vector sizes and command input."""

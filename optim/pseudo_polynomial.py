@@ -28,9 +28,13 @@ the jerk stays bounded at T) and consecutive exponents at least 0.05 apart (eq. 
 conditioned). Limits are imposed on a grid of T/200 plus points clustered near T, 0.01 % tighter
 than asked.
 
-Each problem is built once per (order, number of modes, quadrature size, active limits, caps)
-with the plant's modal data, displacement, duration, initial exponents and limits as parameters,
-and kept in this process's cache: the service builds them in its worker processes.
+Each problem is built once per (order, plant kind, quadrature size, active limits, caps) with the
+plant's parameters, displacement, duration, initial exponents and limits as CasADi parameters,
+and kept in this process's cache: the service builds them in its worker processes. The plant
+enters through its symbolic form (models.plants.Plant.symbolic) for the second-order kinds
+(mode, two_inertia, belt_platform), whose mode is a closed-form expression of the parameters;
+for higher-order plants (rigid_flexible, transfer functions), whose poles have no closed form,
+the poles and residues computed from the same transfer function are the parameters.
 """
 
 from __future__ import annotations
@@ -171,24 +175,42 @@ def lower_bound(order: int) -> float:
     return max(3.0, order + 0.05)
 
 
-def _build(order: int, modes: int, nodes: int, active: tuple[bool, bool, bool, bool], caps: SolveCaps) -> _Compiled:
+def _build(
+    order: int, modes: int, nodes: int, active: tuple[bool, bool, bool, bool], caps: SolveCaps, plant: Plant | None
+) -> _Compiled:
+    """The problems of one shape. With ``plant`` (a second-order kind) the plant enters through its
+    symbolic form (``Plant.symbolic``): its parameters are the problem's parameters and the mode,
+    residue, energy inertia and torque coefficients are expressions of them. Otherwise (plants of
+    higher order, whose poles have no closed form) the modal data are parameters."""
     import casadi as ca
 
     n1 = order + 1
     gamma = ca.SX.sym("gamma", n1)
-    names = [
-        ("phi", 1), ("T", 1), ("gamma0", n1), ("sigma", modes), ("wd", modes), ("wr_re", modes), ("wr_im", modes),
-        ("mass", modes), ("scale", modes), ("energy_ref", 1), ("inv_limit", 4), ("torque", 3),
-    ]
+    symbolic = plant.symbolic() if plant is not None else None
+    if symbolic is not None:
+        plant_blocks = [("plant", symbolic.parameters.numel())]
+    else:
+        plant_blocks = [("sigma", modes), ("wd", modes), ("wr_re", modes), ("wr_im", modes), ("mass", modes), ("torque", 3)]
+    names = [("phi", 1), ("T", 1), ("gamma0", n1), *plant_blocks, ("scale", modes), ("energy_ref", 1), ("inv_limit", 4)]
     layout, start = parameter_layout(names)
     p = ca.SX.sym("p", start)
 
     def par(name: str) -> Any:
         return p[layout[name]]
 
-    phi, T, gamma0 = par("phi"), par("T"), par("gamma0")
-    sigma, wd, wr_re, wr_im, mass, scale = (par(k) for k in ("sigma", "wd", "wr_re", "wr_im", "mass", "scale"))
-    inv_limit, torque_par = par("inv_limit"), par("torque")
+    phi, T, gamma0, scale, inv_limit = par("phi"), par("T"), par("gamma0"), par("scale"), par("inv_limit")
+    if symbolic is not None:
+        sigma_s, wd_s, r_re, r_im = symbolic.second_order_mode()
+        inertia = symbolic.denominator[0]  # a2: J for belt_platform, J_L for two_inertia, 1 for a mode
+        torque_exprs = [
+            symbolic.symbol(n) if n in symbolic.parameter_names else ca.SX(0.0)
+            for n in ("motor_inertia_kgm2", "stiffness_nm_per_rad", "damping_nms_per_rad")
+        ]
+        mapping = ca.Function("plant_mode", [symbolic.parameters], [sigma_s, wd_s, 2 * r_re, 2 * r_im, inertia, ca.vertcat(*torque_exprs)])
+        sigma, wd, wr_re, wr_im, mass, torque_par = mapping(par("plant"))
+    else:
+        sigma, wd, wr_re, wr_im, mass = (par(k) for k in ("sigma", "wd", "wr_re", "wr_im", "mass"))
+        torque_par = par("torque")
 
     z_matrix = ca.SX(n1, n1)
     for k, row in enumerate(boundary_matrix([gamma[i] for i in range(n1)])):
@@ -318,10 +340,17 @@ def _torque_rows(ca: Any, gamma: Any, coefs: Any, phi: Any, T: Any, sigma: Any, 
     return ca.vertcat(*rows)
 
 
-def _compiled(order: int, modes: int, nodes: int, active: tuple[bool, bool, bool, bool], caps: SolveCaps) -> _Compiled:
-    key = (order, modes, nodes, active, caps)
+SYMBOLIC_KINDS = ("mode", "two_inertia", "belt_platform")  # second order: the mode has a closed form
+
+
+def _compiled(
+    order: int, modes: int, nodes: int, active: tuple[bool, bool, bool, bool], caps: SolveCaps, plant: Plant | None = None
+) -> _Compiled:
+    """The cached problems: per plant kind for the symbolic kinds, per number of modes otherwise."""
+    symbolic = plant if plant is not None and plant.kind in SYMBOLIC_KINDS else None
+    key = (order, modes, nodes, active, caps, symbolic.symbolic_key() if symbolic is not None else None)
     if key not in _CACHE:
-        _CACHE[key] = _build(order, modes, nodes, active, caps)
+        _CACHE[key] = _build(order, modes, nodes, active, caps, symbolic)
     return _CACHE[key]
 
 
@@ -330,9 +359,14 @@ def _active(limits: Limits) -> tuple[bool, bool, bool, bool]:
 
 
 def warm_up(caps: SolveCaps | None = None) -> None:
-    """Build the common problems (orders 2-4, one mode, short moves, no limits) in a new worker."""
-    for order in (2, 3, 4):
-        _compiled(order, 1, QUADRATURE_SIZES[0], (False,) * 4, caps or SolveCaps())
+    """Build the common problems (orders 2-4, short moves, no limits, each second-order kind) in a
+    new worker."""
+    from models.plants import example_plants
+
+    for plant in example_plants().values():
+        if plant.kind in SYMBOLIC_KINDS:
+            for order in (2, 3, 4):
+                _compiled(order, 1, QUADRATURE_SIZES[0], (False,) * 4, caps or SolveCaps(), plant)
 
 
 # ------------------------------------------------------------------------------------------
@@ -358,19 +392,22 @@ def _parameters(request: PseudoPolynomialRequest, modal: ModalForm, compiled: _C
     p[lay["phi"]] = request.displacement
     p[lay["T"]] = request.duration_s
     p[lay["gamma0"]] = gamma0
-    p[lay["sigma"]] = -modal.poles.real
-    p[lay["wd"]] = modal.poles.imag
-    wr = modal.weights * modal.residues
-    p[lay["wr_re"]] = wr.real
-    p[lay["wr_im"]] = wr.imag
-    inertia = request.plant.energy_inertia
-    p[lay["mass"]] = inertia if inertia is not None and modal.poles.size == 1 else 1.0
+    if "plant" in lay:
+        p[lay["plant"]] = request.plant.symbolic_parameter_values()
+    else:
+        p[lay["sigma"]] = -modal.poles.real
+        p[lay["wd"]] = modal.poles.imag
+        wr = modal.weights * modal.residues
+        p[lay["wr_re"]] = wr.real
+        p[lay["wr_im"]] = wr.imag
+        inertia = request.plant.energy_inertia
+        p[lay["mass"]] = inertia if inertia is not None and modal.poles.size == 1 else 1.0
+        if isinstance(request.plant, TwoInertiaPlant):
+            p[lay["torque"]] = [request.plant.motor_inertia_kgm2, request.plant.stiffness_nm_per_rad, request.plant.damping_nms_per_rad]
     p[lay["scale"]] = 1.0
     p[lay["energy_ref"]] = 1.0
     lim = request.limits
     p[lay["inv_limit"]] = [0.0 if x is None else 1.0 / x for x in (lim.max_velocity, lim.max_acceleration, lim.max_jerk, lim.max_torque_nm)]
-    if isinstance(request.plant, TwoInertiaPlant):
-        p[lay["torque"]] = [request.plant.motor_inertia_kgm2, request.plant.stiffness_nm_per_rad, request.plant.damping_nms_per_rad]
     return p
 
 
@@ -400,7 +437,9 @@ def _prepare(request: PseudoPolynomialRequest) -> tuple[_Compiled, np.ndarray, n
     and the initial exponents."""
     modal = _oscillatory(request.plant)
     phase = float(np.max(np.abs(modal.poles))) * request.duration_s
-    compiled = _compiled(request.order, modal.poles.size, quadrature_nodes(phase), _active(request.limits), request.caps)
+    compiled = _compiled(
+        request.order, modal.poles.size, quadrature_nodes(phase), _active(request.limits), request.caps, request.plant
+    )
     gamma0 = np.sort(np.asarray(request.initial_exponents, dtype=float))
     p = _parameters(request, modal, compiled, gamma0)
     energy0, _, free0 = (np.asarray(v).ravel() for v in compiled.evaluate(gamma0, p))

@@ -142,3 +142,26 @@ def test_plants_without_physical_energy(plant):
     simulated = metrics(simulate(plant, design.law.command(period / 500, 8 * period)))
     initial = metrics(simulate(plant, design.initial.command(period / 500, 8 * period)))
     assert simulated.residual_amplitude < 1e-3 * initial.residual_amplitude
+
+
+def test_problem_is_built_once_per_plant_kind_from_its_symbolic_form():
+    # Two two-inertia plants with different values share one compiled problem (their values are
+    # parameters of the plant's symbolic form), and it agrees with the modal-data form used for
+    # higher-order plants, evaluated on the same plant.
+    a = TwoInertiaPlant(0.005, 0.02, 50.0, 0.05)
+    b = TwoInertiaPlant(0.01, 0.03, 80.0, 0.0)
+    keys_before = set(pp._CACHE)
+    for plant in (a, b):
+        design = pp.design(pp.PseudoPolynomialRequest(plant, 1.0, 5 * plant.modes()[0].natural_period_s))
+        assert design.energy_is_physical and design.energy_ratio < 1.0
+    new = set(pp._CACHE) - keys_before
+    assert len({key[-1] for key in new}) <= 1  # at most one new plant-kind key (none if warm)
+    request = pp.PseudoPolynomialRequest(a, 1.0, 0.6, 2, (3.2, 4.4, 6.1))
+    symbolic_compiled, p_symbolic, gamma = pp._prepare(request)
+    modal = pp._oscillatory(a)
+    numeric_compiled = pp._build(2, 1, pp.quadrature_nodes(abs(modal.poles[0]) * 0.6), (False,) * 4, request.caps, None)
+    p_numeric = pp._parameters(request, modal, numeric_compiled, gamma)
+    e_symbolic = float(symbolic_compiled.evaluate(gamma, p_symbolic)[0])
+    e_numeric = float(numeric_compiled.evaluate(gamma, p_numeric)[0])
+    assert "plant" in symbolic_compiled.layout and "plant" not in numeric_compiled.layout
+    assert e_symbolic == pytest.approx(e_numeric, rel=1e-12)
