@@ -39,7 +39,7 @@ def core() -> None:
         start = time.perf_counter()
         design = pp.design(request)
         times.append(time.perf_counter() - start)
-    print(f"build of the order-2, 3 and 4 problems (one-off, per worker): {1e3 * build_s:.0f} ms")
+    print(f"build of the warm-up problems: orders 2-4 for each second-order plant kind (one-off, per worker): {1e3 * build_s:.0f} ms")
     print(f"design, problem built, median of 50: {1e3 * statistics.median(times):.2f} ms "
           f"(IPOPT {design.solver.iterations} iterations, energy ratio {design.energy_ratio:.1e})")
 
