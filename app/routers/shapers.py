@@ -40,7 +40,7 @@ from optim.shapers import (
 router = APIRouter(prefix="/v1", tags=["shapers"])
 
 DEFAULT_SAMPLES = 2000
-DEFAULT_TAIL_PERIODS = 3.0
+DEFAULT_TAIL_PERIODS = 5.0  # as every family: the load's free motion for 5 periods after the move
 BAND_THRESHOLD = 0.05
 
 _PAPER = {"plant": CHATLATANAGULCHAI_EQ3, "shaper": "zvd", "target_velocity": 1.0, "acceleration_limit": 0.1}
@@ -249,7 +249,7 @@ def _commands(
 def _grid(
     request: InputShapedRequest, commands: _Commands, period_of_mode_s: float, max_samples: int
 ) -> tuple[float, float]:
-    """(horizon, sample period): the request's, or the command's end plus three damped periods
+    """(horizon, sample period): the request's, or the command's end plus five natural periods
     sampled 2000 times; the count is capped."""
     end_s = commands.end_s
     if request.horizon_s is None:
@@ -277,7 +277,7 @@ def respond(request: InputShapedRequest, settings: Settings) -> dict[str, Any]:
     velocity, cruise_s, warnings = _move(request, shaper)
     baseline = design_baseline(request.baseline, velocity, shaper, limit, request.baseline_steps)
     commands = _commands(baseline, shaper, velocity, cruise_s, limit)
-    horizon_s, period_s = _grid(request, commands, design.modes[0].damped_period_s, settings.max_samples)
+    horizon_s, period_s = _grid(request, commands, design.modes[0].natural_period_s, settings.max_samples)
     sent, received, base = (
         _sampled(c, period_s, horizon_s, settings.max_samples)
         for c in (commands.shaped, commands.limited, commands.baseline)
