@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
 import orjson
+from fastapi import Query
 from starlette.responses import Response
 
 _OPTIONS = orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS
@@ -73,3 +74,7 @@ CSV_RESPONSE_DOC: dict[int | str, dict[str, Any]] = {
         "content": {CSV_MEDIA_TYPE: {"schema": {"type": "string"}}},
     }
 }
+
+
+# The ``format`` query parameter every profile route declares (negotiate() reads it).
+CsvFormat = Annotated[Literal["json", "csv"] | None, Query(description="csv: the profile only, as CSV")]

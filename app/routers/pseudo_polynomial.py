@@ -2,15 +2,15 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 import numpy as np
-from fastapi import APIRouter, Body, Depends, Query, Request, Response
+from fastapi import APIRouter, Body, Depends, Request, Response
 from starlette.concurrency import run_in_threadpool
 
 from app import problems
 from app.examples import CUSIMANO_8HZ, INCERTI_TABLE_III
-from app.responses import CSV_RESPONSE_DOC, negotiate
+from app.responses import CSV_RESPONSE_DOC, CsvFormat, negotiate
 from app.schemas.family import family_response, sample_count_check
 from app.schemas.plants import to_plant
 from app.schemas.pseudo_polynomial import SELECTION_RULE, PseudoPolynomialIn, PseudoPolynomialOut
@@ -170,7 +170,7 @@ async def pseudo_polynomial(
     body: Annotated[PseudoPolynomialIn, Body(openapi_examples=EXAMPLES)],
     request: Request,
     settings: Annotated[Settings, Depends(get_settings)],
-    format: Annotated[Literal["json", "csv"] | None, Query(description="csv: the profile only, as CSV")] = None,
+    format: CsvFormat = None,
 ) -> Response:
     """Chooses the exponents of phi(t) = Phi [1 - sum C_i (1 - t/T)^gamma_i] so that the plant is left
     with no vibration energy when the move ends, within the limits, by IPOPT in a worker process.

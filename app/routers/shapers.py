@@ -8,14 +8,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 import numpy as np
 from fastapi import APIRouter, Body, Depends, Query, Request, Response
 
 from app import problems
 from app.examples import CHATLATANAGULCHAI_EQ3
-from app.responses import CSV_RESPONSE_DOC, NumpyJSONResponse, negotiate
+from app.responses import CSV_RESPONSE_DOC, CsvFormat, NumpyJSONResponse, negotiate
 from app.schemas.family import family_response, sample_count_check
 from app.schemas.plants import to_plant
 from app.schemas.shapers import MAX_SHAPED_MODES, InputShapedRequest, InputShapedResponse, ShaperCatalogue
@@ -329,7 +329,7 @@ def input_shaped_profile(
     request: Annotated[InputShapedRequest, Body(openapi_examples=INPUT_SHAPED_EXAMPLES)],
     settings: Annotated[Settings, Depends(get_settings)],
     http: Request,
-    format: Annotated[Literal["json", "csv"] | None, Query(description="csv: the shaped profile only, as CSV")] = None,
+    format: CsvFormat = None,
 ) -> Response:
     """Shape a velocity step or a rest-to-rest move for the plant's mode(s) and keep it within the
     drive's acceleration limit.

@@ -14,15 +14,15 @@ reading two peaks (eq. 16, still reported for comparison).
 from __future__ import annotations
 
 import math
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 import numpy as np
-from fastapi import APIRouter, Body, Depends, Query, Request
+from fastapi import APIRouter, Body, Depends, Request
 from starlette.concurrency import run_in_threadpool
 from starlette.responses import Response
 
 from app import problems
-from app.responses import CSV_RESPONSE_DOC, NumpyJSONResponse, negotiate
+from app.responses import CSV_RESPONSE_DOC, CsvFormat, NumpyJSONResponse, negotiate
 from app.schemas.family import family_response, sample_count_check
 from app.schemas.plants import mode_out, to_plant
 from app.schemas.simulate import check_sample_count
@@ -309,7 +309,7 @@ def smoother_profile(
     request: Annotated[SmootherRequest, Body(openapi_examples=SMOOTHER_EXAMPLES)],
     http: Request,
     settings: Annotated[Settings, Depends(get_settings)],
-    format: Annotated[Literal["json", "csv"] | None, Query(description="csv: the profile only, as CSV")] = None,
+    format: CsvFormat = None,
 ) -> Response:
     """A step of ``displacement`` filtered by a chain of FIR smoothers (Biagiotti et al. 2020).
 

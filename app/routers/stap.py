@@ -3,15 +3,15 @@
 from __future__ import annotations
 
 import math
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 import numpy as np
-from fastapi import APIRouter, Body, Depends, Query, Request, Response
+from fastapi import APIRouter, Body, Depends, Request, Response
 from starlette.concurrency import run_in_threadpool
 
 from app import problems
 from app.examples import CUSIMANO_8HZ, CUSIMANO_40HZ
-from app.responses import CSV_RESPONSE_DOC, negotiate
+from app.responses import CSV_RESPONSE_DOC, CsvFormat, negotiate
 from app.schemas.family import family_response, sample_count_check
 from app.schemas.plants import to_plant
 from app.schemas.stap import AUTO_RULE, StapIn, StapOut
@@ -362,7 +362,7 @@ async def stap_profile(
     body: Annotated[StapIn, Body(openapi_examples=EXAMPLES)],
     request: Request,
     settings: Annotated[Settings, Depends(get_settings)],
-    format: Annotated[Literal["json", "csv"] | None, Query(description="csv: the profile only, as CSV")] = None,
+    format: CsvFormat = None,
 ) -> Response:
     """Designs t_a and t_j of a symmetric trapezoidal acceleration profile (rest-to-velocity, or a rest-to-rest
     move made of two of them and a cruise) so that the load is left without vibration at the estimated
