@@ -39,9 +39,13 @@ def core() -> None:
         start = time.perf_counter()
         design = pp.design(request)
         times.append(time.perf_counter() - start)
-    print(f"build of the warm-up problems: orders 2-4 for each second-order plant kind (one-off, per worker): {1e3 * build_s:.0f} ms")
-    print(f"design, problem built, median of 50: {1e3 * statistics.median(times):.2f} ms "
-          f"(IPOPT {design.solver.iterations} iterations, energy ratio {design.energy_ratio:.1e})")
+    print(
+        f"build of the warm-up problems: orders 2-4 for each second-order plant kind (one-off, per worker): {1e3 * build_s:.0f} ms"
+    )
+    print(
+        f"design, problem built, median of 50: {1e3 * statistics.median(times):.2f} ms "
+        f"(IPOPT {design.solver.iterations} iterations, energy ratio {design.energy_ratio:.1e})"
+    )
 
 
 def http(requests: int = 200, clients: int = 4) -> None:
@@ -50,7 +54,8 @@ def http(requests: int = 200, clients: int = 4) -> None:
         port = s.getsockname()[1]
     server = subprocess.Popen(
         [sys.executable, "-m", "uvicorn", "app.main:app", "--port", str(port), "--log-level", "warning"],
-        cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)},
+        cwd=ROOT,
+        env={**os.environ, "PYTHONPATH": str(ROOT)},
     )
     try:
         base = f"http://127.0.0.1:{port}"
@@ -73,8 +78,10 @@ def http(requests: int = 200, clients: int = 4) -> None:
             with ThreadPoolExecutor(clients) as pool:
                 latencies = list(pool.map(one, range(requests)))
             elapsed = time.perf_counter() - start
-        print(f"HTTP, {requests} requests from {clients} clients: {requests / elapsed:.1f} designs/s, "
-              f"median latency {1e3 * statistics.median(latencies):.0f} ms (2001-sample profile, load response, metrics)")
+        print(
+            f"HTTP, {requests} requests from {clients} clients: {requests / elapsed:.1f} designs/s, "
+            f"median latency {1e3 * statistics.median(latencies):.0f} ms (2001-sample profile, load response, metrics)"
+        )
     finally:
         server.terminate()
         server.wait(10)

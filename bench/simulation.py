@@ -17,9 +17,9 @@ from scipy import signal
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from models.commands import PiecewiseCommand  # noqa: E402
-from models.plants import ModePlant  # noqa: E402
-from models.simulation import metrics, simulate  # noqa: E402
+from models.commands import PiecewiseCommand
+from models.plants import ModePlant
+from models.simulation import metrics, simulate
 
 SAMPLES = 100_000
 
@@ -58,7 +58,10 @@ def main() -> None:
         ("ours, first-order hold on position", median_ms(lambda: ours(t, pos, 0), 30)),
         ("ours, first-order hold on acceleration", median_ms(lambda: ours(t, acc, 2), 30)),
         ("ours, acceleration, non-uniform grid", median_ms(lambda: ours(tn, np.sin(tn), 2), 10)),
-        ("ours, acceleration + all metrics", median_ms(lambda: metrics(simulate(plant, PiecewiseCommand.from_samples(t, acc, 2))), 10)),
+        (
+            "ours, acceleration + all metrics",
+            median_ms(lambda: metrics(simulate(plant, PiecewiseCommand.from_samples(t, acc, 2))), 10),
+        ),
         ("scipy.signal.lsim, same position input", median_ms(lambda: signal.lsim(system, pos, t), 5)),
     ]
     print(f"{SAMPLES} samples, one mode (5 Hz, zeta 0.05), median wall time:")

@@ -233,7 +233,9 @@ class PiecewiseCommand:
         u = _check_samples(values, t, f"{field}.{DERIVATIVE_NAMES[order]}")
         for m, value in enumerate(initial):
             if not (math.isfinite(value) and abs(value) <= MAX_ABS_VALUE):
-                raise InvalidParameter(f"{field}.{DERIVATIVE_NAMES[m]}[0]", value, f"must be finite and within +-{MAX_ABS_VALUE:g}")
+                raise InvalidParameter(
+                    f"{field}.{DERIVATIVE_NAMES[m]}[0]", value, f"must be finite and within +-{MAX_ABS_VALUE:g}"
+                )
         h = np.diff(t)
         degree = {"linear": order + 1, "zero": order, "cubic": order + 3}[hold]
         der = np.zeros((degree + 1, t.size))
@@ -242,7 +244,9 @@ class PiecewiseCommand:
             der[order + 1, :-1] = np.diff(u) / h
         elif hold == "cubic":
             if slopes is None:
-                raise InvalidParameter(f"{field}.{DERIVATIVE_NAMES[order + 1]}", None, "a cubic hold needs these samples")
+                raise InvalidParameter(
+                    f"{field}.{DERIVATIVE_NAMES[order + 1]}", None, "a cubic hold needs these samples"
+                )
             s = _check_samples(slopes, t, f"{field}.{DERIVATIVE_NAMES[order + 1]}")
             secant = np.diff(u) / h
             der[order + 1, :-1] = s[:-1]

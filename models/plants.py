@@ -163,8 +163,7 @@ def _check_modes(modes: Sequence[Mode], field: str) -> None:
             raise InvalidParameter(
                 field,
                 f,
-                f"the derived natural frequency {f:.6g} Hz must lie in "
-                f"[{FREQUENCY_MIN_HZ:g}, {FREQUENCY_MAX_HZ:g}] Hz",
+                f"the derived natural frequency {f:.6g} Hz must lie in [{FREQUENCY_MIN_HZ:g}, {FREQUENCY_MAX_HZ:g}] Hz",
             )
         if mode.damping_ratio >= 1.0:
             raise InvalidParameter(field, mode.damping_ratio, "the derived damping ratio must be < 1")
@@ -283,7 +282,7 @@ class Plant:
                 names.append(f.name)
         num, den = self._command_tf(values)
         if self.command_input == "velocity":
-            num = list(num) + [0.0]
+            num = [*list(num), 0.0]
         a, b, c, d = (
             ca.vertcat(*[ca.horzcat(*[ca.SX(e) if isinstance(e, float) else e for e in row]) for row in m])
             for m in _realise(num, den)
@@ -440,7 +439,11 @@ class BeltPlatformPlant(Plant):
         return self.gear_ratio * self.motor_pulley_radius_m / self.platform_pulley_radius_m
 
     def modes(self) -> tuple[Mode, ...]:
-        j, k_t, c_t = self.platform_inertia_kgm2, self.equivalent_stiffness_nm_per_rad, self.equivalent_damping_nms_per_rad
+        j, k_t, c_t = (
+            self.platform_inertia_kgm2,
+            self.equivalent_stiffness_nm_per_rad,
+            self.equivalent_damping_nms_per_rad,
+        )
         omega = math.sqrt(k_t / j)
         return (Mode(omega, c_t / (2.0 * j * omega)),)
 
@@ -519,7 +522,9 @@ class TransferFunctionPlant(Plant):
             if arr.ndim != 1 or arr.size == 0:
                 raise InvalidParameter(name, arr.ravel().tolist(), "must be a non-empty list of coefficients")
             if arr.size > MAX_TRANSFER_FUNCTION_ORDER + 1:
-                raise InvalidParameter(name, f"{arr.size} coefficients", f"order must be <= {MAX_TRANSFER_FUNCTION_ORDER}")
+                raise InvalidParameter(
+                    name, f"{arr.size} coefficients", f"order must be <= {MAX_TRANSFER_FUNCTION_ORDER}"
+                )
             if not np.all(np.isfinite(arr)):
                 raise InvalidParameter(name, "non-finite coefficient", "every coefficient must be finite")
         if den[0] == 0.0:
@@ -531,8 +536,10 @@ class TransferFunctionPlant(Plant):
             raise InvalidParameter("denominator", den.tolist(), "must be at least first order")
         relative = 1 if self.command_input == "velocity" else 0
         if num.size - 1 + relative > den.size - 1:
-            rule = "numerator degree must be below the denominator degree (velocity input)" if relative else (
-                "numerator degree must not exceed the denominator degree (the plant must be proper)"
+            rule = (
+                "numerator degree must be below the denominator degree (velocity input)"
+                if relative
+                else ("numerator degree must not exceed the denominator degree (the plant must be proper)")
             )
             raise InvalidParameter("numerator", list(self.numerator), rule)
         poles = np.roots(den)
@@ -553,7 +560,9 @@ class TransferFunctionPlant(Plant):
                 "denominator", den.tolist(), "repeated (or less than 0.1 % apart) poles are not supported"
             )
         if scale > 2 * math.pi * FREQUENCY_MAX_HZ * 10:
-            raise InvalidParameter("denominator", den.tolist(), f"a pole of magnitude {scale:.3g} rad/s is out of range")
+            raise InvalidParameter(
+                "denominator", den.tolist(), f"a pole of magnitude {scale:.3g} rad/s is out of range"
+            )
         _check_partial_fractions(num, den, poles)
         _check_modes(self.modes(), "denominator")
         object.__setattr__(self, "numerator", tuple(float(x) for x in num))
@@ -613,5 +622,7 @@ def example_plants() -> dict[str, Plant]:
         "cusimano_8hz_equal_inertia": TwoInertiaPlant(0.005, 0.005, 0.005 * (2 * math.pi * 8.0) ** 2, 0.0),
         "chatlatanagulchai_eq3": RigidFlexiblePlant(2.0, 3.0, 1.0, 0.1, 30.0),
         # sigma = -15.6539 1/s, Omega = 122.7185 rad/s (Biagiotti Sec. VI)
-        "biagiotti_identified": ModePlant(math.hypot(122.7185, 15.6539) / (2 * math.pi), 15.6539 / math.hypot(122.7185, 15.6539)),
+        "biagiotti_identified": ModePlant(
+            math.hypot(122.7185, 15.6539) / (2 * math.pi), 15.6539 / math.hypot(122.7185, 15.6539)
+        ),
     }

@@ -14,6 +14,7 @@ expressions (``falling_factorial``, ``boundary_matrix``, ``derivative_terms``).
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -64,10 +65,12 @@ def check_exponents(exponents: Sequence[float], order: int, field_name: str = "i
     for i, g in enumerate(values):
         if not math.isfinite(g) or g <= order:
             raise InvalidParameter(
-                f"{field_name}[{i}]", g, f"every exponent must exceed the order {order} (eqs. 17-20: the end conditions)"
+                f"{field_name}[{i}]",
+                g,
+                f"every exponent must exceed the order {order} (eqs. 17-20: the end conditions)",
             )
     ordered = sorted(values)
-    if min(b - a for a, b in zip(ordered, ordered[1:], strict=False)) < 1e-6 * ordered[-1]:
+    if min(b - a for a, b in itertools.pairwise(ordered)) < 1e-6 * ordered[-1]:
         raise InvalidParameter(field_name, list(values), "exponents must be distinct (eq. 22 is singular otherwise)")
     return values
 
@@ -123,7 +126,7 @@ class PseudoPolynomial:
         acceleration instead would need the jerk, which is nearly singular at T when the lowest
         exponent is just above n + 1.)"""
         T, h = self.duration_s, sample_period_s
-        moving = h * np.arange(int(math.floor(T / h)) + 1)
+        moving = h * np.arange(math.floor(T / h) + 1)
         t = np.append(moving[moving < T * (1.0 - 1e-12)], T)
         move = PiecewiseCommand.from_samples(t, self.derivative(1, t), 1, hold="cubic", slopes=self.derivative(2, t))
         return move.resampled(h, end_s=max(horizon_s, T))

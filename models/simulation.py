@@ -191,7 +191,9 @@ def _check_conditioning(command: PiecewiseCommand, modal: ModalForm, free: np.nd
     eps = np.finfo(float).eps
     size = sum(abs(g) * float(np.max(np.abs(command.derivative(m)))) for m, g in enumerate(modal.taylor))
     size += float(np.sum(np.abs(modal.weights * modal.residues) * np.max(np.abs(free), axis=1))) if free.size else 0.0
-    scale = max(float(np.max(np.abs(position))), abs(modal.taylor[0]) * float(np.max(np.abs(command.derivative(0)))), 1e-300)
+    scale = max(
+        float(np.max(np.abs(position))), abs(modal.taylor[0]) * float(np.max(np.abs(command.derivative(0)))), 1e-300
+    )
     if 16 * eps * size > _RELIABLE_RELATIVE * scale:
         slowest = float(np.min(np.abs(modal.poles))) / (2 * np.pi)
         raise InvalidParameter(
@@ -300,9 +302,7 @@ def settling(response: Response, tolerance: float = 1e-3, window: float | None =
         return Settling(quantity, band, None)
     outside = np.flatnonzero(np.abs(error[:end]) > band)
     during = t[outside[-1] + 1] if outside.size else t[0]
-    after = _envelope_crossing_s(
-        response.free_amplitudes(end, order), -response.modal.poles.real, band
-    )
+    after = _envelope_crossing_s(response.free_amplitudes(end, order), -response.modal.poles.real, band)
     if after is None:
         return Settling(quantity, band, None)
     return Settling(quantity, band, float(max(during, t[end] + after) - t[0]))

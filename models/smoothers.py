@@ -163,7 +163,11 @@ class Smoother:
         if self.order == 1:
             return np.array([[sigma]]), np.array([1.0]), np.array([1.0])
         a = self.half_angular_rate_rad_s
-        return np.array([[0.0, 1.0], [-(sigma * sigma + a * a), 2.0 * sigma]]), np.array([0.0, 1.0]), np.array([1.0, 0.0])
+        return (
+            np.array([[0.0, 1.0], [-(sigma * sigma + a * a), 2.0 * sigma]]),
+            np.array([0.0, 1.0]),
+            np.array([1.0, 0.0]),
+        )
 
     # --- frequency domain ------------------------------------------------------------------
     def frequency_response(self, s: np.ndarray) -> np.ndarray:
@@ -234,7 +238,10 @@ class Chain:
     @property
     def fastest_rate_1_s(self) -> float:
         """max |lambda| over the filters' poles (sigma +- j pi/T, sigma, 0): the time scale of the profile."""
-        rates = [math.hypot(f.sigma_1_s, f.half_angular_rate_rad_s) if f.kind in SINUSOIDAL else abs(f.sigma_1_s) for f in self.filters]
+        rates = [
+            math.hypot(f.sigma_1_s, f.half_angular_rate_rad_s) if f.kind in SINUSOIDAL else abs(f.sigma_1_s)
+            for f in self.filters
+        ]
         return max(rates)
 
     @property
@@ -327,7 +334,9 @@ class StepResponse:
         continuous = self.chain.continuous_derivatives + 1
         if not self.chain.is_polynomial:
             continuous = min(continuous, 3)
-        return PiecewiseCommand(self.time_s, self.derivatives, continuous_orders=min(continuous, self.derivatives.shape[0]))
+        return PiecewiseCommand(
+            self.time_s, self.derivatives, continuous_orders=min(continuous, self.derivatives.shape[0])
+        )
 
 
 def refinement(chain: Chain, sample_period_s: float) -> int:
@@ -341,7 +350,7 @@ def refinement(chain: Chain, sample_period_s: float) -> int:
 def sample_grid(breakpoints_s: np.ndarray, end_s: float, sample_period_s: float, offset_s: float = 0.0) -> np.ndarray:
     """offset + k Ts for k = 0, 1, ... up to ``end_s``, with the breakpoints added (as
     PiecewiseCommand.resampled): a grid point closer than 1 ns to a breakpoint is replaced by it."""
-    count = max(0, int(math.floor((end_s - offset_s) / sample_period_s + 1e-9)) + 1)
+    count = max(0, math.floor((end_s - offset_s) / sample_period_s + 1e-9) + 1)
     grid = offset_s + sample_period_s * np.arange(count)
     idx = np.searchsorted(breakpoints_s, grid)
     before = breakpoints_s[np.clip(idx - 1, 0, breakpoints_s.size - 1)]
@@ -504,7 +513,9 @@ def discrete_filter(smoother: Smoother, sample_period_s: float, samples: int) ->
     return DiscreteFilter(smoother.kind, n, ts, num, den, gain)
 
 
-def discrete_step_response(filters: list[DiscreteFilter] | tuple[DiscreteFilter, ...], displacement: float, count: int) -> np.ndarray:
+def discrete_step_response(
+    filters: list[DiscreteFilter] | tuple[DiscreteFilter, ...], displacement: float, count: int
+) -> np.ndarray:
     """y[k], k = 0..count-1, of the discrete chain fed with a step of ``displacement`` at k = 0."""
     y = np.full(count, float(displacement))
     for f in filters:  # a loop over filters

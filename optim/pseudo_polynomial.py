@@ -39,6 +39,7 @@ the poles and residues computed from the same transfer function are the paramete
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from dataclasses import dataclass, field, replace
@@ -190,7 +191,14 @@ def _build(
     if symbolic is not None:
         plant_blocks = [("plant", symbolic.parameters.numel())]
     else:
-        plant_blocks = [("sigma", modes), ("wd", modes), ("wr_re", modes), ("wr_im", modes), ("mass", modes), ("torque", 3)]
+        plant_blocks = [
+            ("sigma", modes),
+            ("wd", modes),
+            ("wr_re", modes),
+            ("wr_im", modes),
+            ("mass", modes),
+            ("torque", 3),
+        ]
     names = [("phi", 1), ("T", 1), ("gamma0", n1), *plant_blocks, ("scale", modes), ("energy_ref", 1), ("inv_limit", 4)]
     layout, start = parameter_layout(names)
     p = ca.SX.sym("p", start)
@@ -206,7 +214,9 @@ def _build(
             symbolic.symbol(n) if n in symbolic.parameter_names else ca.SX(0.0)
             for n in ("motor_inertia_kgm2", "stiffness_nm_per_rad", "damping_nms_per_rad")
         ]
-        mapping = ca.Function("plant_mode", [symbolic.parameters], [sigma_s, wd_s, 2 * r_re, 2 * r_im, inertia, ca.vertcat(*torque_exprs)])
+        mapping = ca.Function(
+            "plant_mode", [symbolic.parameters], [sigma_s, wd_s, 2 * r_re, 2 * r_im, inertia, ca.vertcat(*torque_exprs)]
+        )
         sigma, wd, wr_re, wr_im, mass, torque_par = mapping(par("plant"))
     else:
         sigma, wd, wr_re, wr_im, mass = (par(k) for k in ("sigma", "wd", "wr_re", "wr_im", "mass"))
@@ -321,7 +331,10 @@ def _torque_rows(ca: Any, gamma: Any, coefs: Any, phi: Any, T: Any, sigma: Any, 
     lam2 = _complex_mul(lam, lam)
     norm2 = lam2[0] ** 2 + lam2[1] ** 2
     num1 = (e_re - 1.0 + sigma * dt, e_im - wd * dt)
-    b1 = ((num1[0] * lam2[0] + num1[1] * lam2[1]) / (norm2 * dt), (num1[1] * lam2[0] - num1[0] * lam2[1]) / (norm2 * dt))
+    b1 = (
+        (num1[0] * lam2[0] + num1[1] * lam2[1]) / (norm2 * dt),
+        (num1[1] * lam2[0] - num1[0] * lam2[1]) / (norm2 * dt),
+    )
     norm1 = sigma**2 + wd**2
     num0 = (e_re - 1.0, e_im)
     q = ((num0[0] * lam[0] + num0[1] * lam[1]) / norm1, (num0[1] * lam[0] - num0[0] * lam[1]) / norm1)
@@ -344,7 +357,12 @@ SYMBOLIC_KINDS = ("mode", "two_inertia", "belt_platform")  # second order: the m
 
 
 def _compiled(
-    order: int, modes: int, nodes: int, active: tuple[bool, bool, bool, bool], caps: SolveCaps, plant: Plant | None = None
+    order: int,
+    modes: int,
+    nodes: int,
+    active: tuple[bool, bool, bool, bool],
+    caps: SolveCaps,
+    plant: Plant | None = None,
 ) -> _Compiled:
     """The cached problems: per plant kind for the symbolic kinds, per number of modes otherwise."""
     symbolic = plant if plant is not None and plant.kind in SYMBOLIC_KINDS else None
@@ -355,7 +373,9 @@ def _compiled(
 
 
 def _active(limits: Limits) -> tuple[bool, bool, bool, bool]:
-    return tuple(x is not None for x in (limits.max_velocity, limits.max_acceleration, limits.max_jerk, limits.max_torque_nm))  # type: ignore[return-value]
+    return tuple(
+        x is not None for x in (limits.max_velocity, limits.max_acceleration, limits.max_jerk, limits.max_torque_nm)
+    )  # type: ignore[return-value]
 
 
 def warm_up(caps: SolveCaps | None = None) -> None:
@@ -381,12 +401,16 @@ def _oscillatory(plant: Plant) -> ModalForm:
         raise InvalidParameter("plant", plant.kind, "the plant has no vibration mode to suppress")
     if np.count_nonzero(keep) > MAX_MODES:
         raise InvalidParameter(
-            "plant", f"{np.count_nonzero(keep)} modes", f"the pseudo-polynomial design handles up to {MAX_MODES} vibration modes"
+            "plant",
+            f"{np.count_nonzero(keep)} modes",
+            f"the pseudo-polynomial design handles up to {MAX_MODES} vibration modes",
         )
     return ModalForm(modal.taylor, modal.poles[keep], modal.residues[keep], modal.weights[keep])
 
 
-def _parameters(request: PseudoPolynomialRequest, modal: ModalForm, compiled: _Compiled, gamma0: np.ndarray) -> np.ndarray:
+def _parameters(
+    request: PseudoPolynomialRequest, modal: ModalForm, compiled: _Compiled, gamma0: np.ndarray
+) -> np.ndarray:
     lay = compiled.layout
     p = np.zeros(compiled.parameter_count)
     p[lay["phi"]] = request.displacement
@@ -403,11 +427,17 @@ def _parameters(request: PseudoPolynomialRequest, modal: ModalForm, compiled: _C
         inertia = request.plant.energy_inertia
         p[lay["mass"]] = inertia if inertia is not None and modal.poles.size == 1 else 1.0
         if isinstance(request.plant, TwoInertiaPlant):
-            p[lay["torque"]] = [request.plant.motor_inertia_kgm2, request.plant.stiffness_nm_per_rad, request.plant.damping_nms_per_rad]
+            p[lay["torque"]] = [
+                request.plant.motor_inertia_kgm2,
+                request.plant.stiffness_nm_per_rad,
+                request.plant.damping_nms_per_rad,
+            ]
     p[lay["scale"]] = 1.0
     p[lay["energy_ref"]] = 1.0
     lim = request.limits
-    p[lay["inv_limit"]] = [0.0 if x is None else 1.0 / x for x in (lim.max_velocity, lim.max_acceleration, lim.max_jerk, lim.max_torque_nm)]
+    p[lay["inv_limit"]] = [
+        0.0 if x is None else 1.0 / x for x in (lim.max_velocity, lim.max_acceleration, lim.max_jerk, lim.max_torque_nm)
+    ]
     return p
 
 
@@ -420,7 +450,12 @@ def check_limits_possible(request: PseudoPolynomialRequest) -> None:
     phi, T, lim = abs(request.displacement), request.duration_s, request.limits
     checks = (
         ("max_velocity", lim.max_velocity, phi / T, "the mean speed displacement/duration"),
-        ("max_acceleration", lim.max_acceleration, 4 * phi / T**2, "4 displacement/duration^2, the least any move needs"),
+        (
+            "max_acceleration",
+            lim.max_acceleration,
+            4 * phi / T**2,
+            "4 displacement/duration^2, the least any move needs",
+        ),
         ("max_jerk", lim.max_jerk, 32 * phi / T**3, "32 displacement/duration^3, the least any move needs"),
     )
     for name, limit, least, what in checks:
@@ -498,7 +533,9 @@ def _solve_at(request: PseudoPolynomialRequest, start: np.ndarray, effort: str =
     def attempt(gamma: np.ndarray, stage: str, report: SolverReport) -> _Attempt:
         gamma = np.clip(gamma, lbx, ubx)  # IPOPT may end a hair outside a bound
         energy, residual, _ = compiled.evaluate(gamma, p)
-        return _Attempt(gamma, stage, SolverReport(report.status, iterations, elapsed), float(energy), float(residual), solves)
+        return _Attempt(
+            gamma, stage, SolverReport(report.status, iterations, elapsed), float(energy), float(residual), solves
+        )
 
     def feasible(gamma: np.ndarray) -> bool:
         return float(compiled.violation(gamma, p)) <= 1e-9
@@ -562,9 +599,11 @@ def _checked(request: PseudoPolynomialRequest) -> PseudoPolynomialRequest:
         raise InvalidParameter("order", request.order, f"must lie in 1..{MAX_ORDER}")
     initial = check_exponents(request.initial_exponents or default_exponents(request.order), request.order)
     ordered = sorted(initial)
-    if min(b - a for a, b in zip(ordered, ordered[1:], strict=False)) < MIN_SEPARATION:
+    if min(b - a for a, b in itertools.pairwise(ordered)) < MIN_SEPARATION:
         raise InvalidParameter(
-            "initial_exponents", list(initial), f"exponents must be at least {MIN_SEPARATION:g} apart (eq. 22 stays well conditioned)"
+            "initial_exponents",
+            list(initial),
+            f"exponents must be at least {MIN_SEPARATION:g} apart (eq. 22 stays well conditioned)",
         )
     if min(initial) < lower_bound(request.order):
         raise InvalidParameter(
@@ -575,10 +614,14 @@ def _checked(request: PseudoPolynomialRequest) -> PseudoPolynomialRequest:
         )
     if request.limits.max_torque_nm is not None and not isinstance(request.plant, TwoInertiaPlant):
         raise InvalidParameter(
-            "limits.max_torque_nm", request.limits.max_torque_nm, f"a {request.plant.kind} plant does not define the motor torque"
+            "limits.max_torque_nm",
+            request.limits.max_torque_nm,
+            f"a {request.plant.kind} plant does not define the motor torque",
         )
     if request.minimize_duration and not any(_active(request.limits)):
-        raise InvalidParameter("minimize_duration", True, "needs at least one limit (without limits any duration works)")
+        raise InvalidParameter(
+            "minimize_duration", True, "needs at least one limit (without limits any duration works)"
+        )
     check_limits_possible(request)
     return replace(request, initial_exponents=tuple(sorted(initial)))
 

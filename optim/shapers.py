@@ -41,6 +41,7 @@ Baselines under the acceleration limit a (Sec. 4 of Chatlatanagulchai & Pongpani
 
 from __future__ import annotations
 
+import itertools
 import math
 import re
 from dataclasses import dataclass
@@ -432,7 +433,7 @@ def fastest_steps(
         """Row k: the ramps active just after s_k (s_k - Delta < s_l <= s_k)."""
         return ((s[None, :] <= s[:, None]) & (s[None, :] > s[:, None] - delta)).astype(float) @ weights
 
-    for low, high in zip(edges[:-1], edges[1:], strict=True):  # a loop over overlap patterns (a few dozen)
+    for low, high in itertools.pairwise(edges):  # a loop over overlap patterns (a few dozen)
         rows = active(low + 1.0 if math.isinf(high) else 0.5 * (low + high))
         result = linprog(
             cost,
@@ -472,9 +473,7 @@ def multi_step_baseline(
     step_times = shaper.times_s[:steps].copy()
     heights, delta = fastest_steps(velocity, shaper, acceleration_limit, step_times)
     why = "" if steps != 2 else " (the paper's two-step relations assume two impulses with A1 >= A2 and no overlap)"
-    return Baseline(
-        "multi_step", step_times, heights, delta, "fastest non-negative steps by linear programming" + why
-    )
+    return Baseline("multi_step", step_times, heights, delta, "fastest non-negative steps by linear programming" + why)
 
 
 def design_baseline(

@@ -74,7 +74,7 @@ class Limits:
         return max(orders) if orders else 0
 
 
-def _bracket_root(g, start: float) -> tuple[float, float]:  # noqa: ANN001 - a decreasing scalar function
+def _bracket_root(g, start: float) -> tuple[float, float]:
     """(lo, hi) with g(lo) > 0 >= g(hi), by factors of 4 from ``start`` (bounded search)."""
     hi = start
     for _ in range(400):
@@ -381,7 +381,9 @@ def hold_residual(step: StepResponse, plant: Plant) -> float:
     order, hold = (0, "linear") if smooth == 0 else (min(smooth - 1, 2), "cubic")
     initial = tuple(float(step.derivative(m)[0]) for m in range(order))
     slopes = step.derivative(order + 1) if hold == "cubic" else None
-    command = PiecewiseCommand.from_samples(step.time_s, step.derivative(order), order, hold=hold, slopes=slopes, initial=initial)
+    command = PiecewiseCommand.from_samples(
+        step.time_s, step.derivative(order), order, hold=hold, slopes=slopes, initial=initial
+    )
     return metrics(simulate(plant, command)).residual_amplitude / plant.load_move(step.displacement)
 
 
@@ -531,7 +533,7 @@ def _initial_frequency(t: np.ndarray, y: np.ndarray) -> float:
     grid = np.linspace(t[0], t[-1], n)
     u = np.interp(grid, t, y)
     u = (u - np.mean(u)) * np.hanning(n)
-    size = 8 * (1 << int(math.ceil(math.log2(n))))
+    size = 8 * (1 << math.ceil(math.log2(n)))
     spectrum = np.abs(np.fft.rfft(u, size))
     spectrum[0] = 0.0
     k = int(np.argmax(spectrum))

@@ -254,7 +254,7 @@ def worst_torque_overshoot(k_j: float, inertia_ratio: float, uncertainty: float)
     lo, hi = 1.0 - uncertainty, 1.0 + uncertainty
     rhos = [lo, hi]
     if k_j > 0.0:
-        for m in range(int(math.floor(lo * k_j)), int(math.ceil(hi * k_j)) + 1):  # a handful of lobes
+        for m in range(math.floor(lo * k_j), math.ceil(hi * k_j) + 1):  # a handful of lobes
             if m < 1:
                 continue
             x = m + 0.45
@@ -318,12 +318,12 @@ def band_worst(stap: Stap, frequency_hz: float, uncertainty: float) -> float:
 
 def paper_k_j_max(t_hat_j_max: float, r_na: float) -> int:
     """k_j,max = int[t^_j,max int(r_n,a)] (eq. 45), as printed."""
-    return int(math.floor(t_hat_j_max * math.floor(r_na)))
+    return math.floor(t_hat_j_max * math.floor(r_na))
 
 
 def paper_delta_f(t_hat_j_max: float, r_na: float) -> int:
     """delta_f = round(t^_j,max r_n,a - k_j,max) (eq. 46), as printed (halves round up)."""
-    return int(math.floor(t_hat_j_max * r_na - paper_k_j_max(t_hat_j_max, r_na) + 0.5))
+    return math.floor(t_hat_j_max * r_na - paper_k_j_max(t_hat_j_max, r_na) + 0.5)
 
 
 # ------------------------------------------------------------------------------------------
@@ -422,7 +422,7 @@ def zero_vibration_candidates(
     # More zeros fit than are listed: the last one in closed form, with the last listed a_Max
     # (the torque-lowered limit changes by less than 1 % past k_j = 32).
     reach = 0.5 * t_a if a_max is None else min(0.5 * t_a, t_a - velocity / a_max)
-    n = int(math.floor(frequency_hz * reach * (1.0 + 1e-12)))
+    n = math.floor(frequency_hz * reach * (1.0 + 1e-12))
     side = dec > 0.0 and (n + dec) / frequency_hz <= reach * (1.0 + 1e-12)
     final = (n, 1 if side else 0)
     return out, final != last, final[0], final[1]

@@ -26,9 +26,9 @@ from app.schemas.family import LimitsIn, SensitivityOut
 from app.schemas.plants import PlantIn, to_plant
 from app.schemas.pseudo_polynomial import PseudoPolynomialIn
 from app.schemas.shapers import InputShapedRequest
+from app.schemas.simulate import LoadOut, ProfileOut
 from app.schemas.smoothers import SmootherRequest
 from app.schemas.stap import StapIn
-from app.schemas.simulate import LoadOut, ProfileOut
 from app.settings import Settings, get_settings
 from models.errors import Infeasible, InvalidParameter
 from models.plants import Plant
@@ -49,10 +49,15 @@ class CompareIn(StrictModel):
     target_velocity: float | None = Field(None, description="Rest-to-velocity move: final motor speed.")
     limits: LimitsIn = Field(default_factory=LimitsIn)
     duration_s: float | None = Field(
-        None, gt=0, le=1e5, description="Duration of the pseudo-polynomial move (default: the shortest within the limits)."
+        None,
+        gt=0,
+        le=1e5,
+        description="Duration of the pseudo-polynomial move (default: the shortest within the limits).",
     )
     families: list[Family] | None = Field(None, min_length=1, description="Run only these families (default: all).")
-    sample_period_s: float | None = Field(None, ge=1e-6, le=10, description="Sample period (default: about 500 samples per move).")
+    sample_period_s: float | None = Field(
+        None, ge=1e-6, le=10, description="Sample period (default: about 500 samples per move)."
+    )
     settling_tolerance: float = Field(1e-3, gt=0, le=1, description="Settling band as a fraction of the move.")
     include_curves: bool = Field(False, description="Add each design's profile, load response and sensitivity curve.")
 
@@ -79,7 +84,9 @@ class Row(OutModel):
     motion_time_s: float = Field(description="Until the command's last change.")
     settling_time_s: float | None = Field(description="Load within the settling band, from the start; null if never.")
     residual_vibration: float = Field(description="Residual at the nominal frequency, fraction of the move.")
-    residual_amplitude: float = Field(description="Load free-oscillation envelope (position; velocity for rest-to-velocity).")
+    residual_amplitude: float = Field(
+        description="Load free-oscillation envelope (position; velocity for rest-to-velocity)."
+    )
     band_5_percent: list[float | None] | None = Field(
         description="f_n/f_n,e range around 1 where the residual stays <= 5 % (evaluated on 0.5..1.5; an end is "
         "null where the band runs past that range)."
@@ -240,18 +247,24 @@ async def _respond_shaped(request: InputShapedRequest, settings: Settings, pool:
 
 RUNNERS: dict[str, Runner] = {
     "pseudo_polynomial": Runner(
-        "pseudo_polynomial", "/v1/profiles/pseudo-polynomial", PseudoPolynomialIn, _pseudo_polynomial, pseudo_polynomial.respond
+        "pseudo_polynomial",
+        "/v1/profiles/pseudo-polynomial",
+        PseudoPolynomialIn,
+        _pseudo_polynomial,
+        pseudo_polynomial.respond,
     ),
     "stap": Runner("stap", "/v1/profiles/stap", StapIn, _stap, stap.respond),
     "smoother": Runner("smoother", "/v1/profiles/smoother", SmootherRequest, _smoother, smoothers.respond_async),
-    "input_shaped": Runner("input_shaped", "/v1/profiles/input-shaped", InputShapedRequest, _input_shaped, _respond_shaped),
+    "input_shaped": Runner(
+        "input_shaped", "/v1/profiles/input-shaped", InputShapedRequest, _input_shaped, _respond_shaped
+    ),
 }
 # When a family's first request is infeasible, the request to try instead (and why).
 FALLBACKS: dict[str, Callable[[dict[str, Any]], dict[str, Any] | None]] = {
     # The modified baseline needs t_(i+1) - t_i >= Delta; a single slower ramp always exists.
-    "input_shaped": lambda body: {**body, "baseline": "multi_step", "baseline_steps": 1}
-    if body.get("baseline") == "modified"
-    else None,
+    "input_shaped": lambda body: (
+        {**body, "baseline": "multi_step", "baseline_steps": 1} if body.get("baseline") == "modified" else None
+    ),
 }
 
 
@@ -288,7 +301,9 @@ def _limits_report(request: CompareIn, metrics: dict[str, Any]) -> list[str]:
             continue
         peak = metrics.get(peak_name)
         if peak is None:
-            out.append(f"{limit_name}: the {peak_name.removeprefix('peak_').replace('_', ' ')} is impulsive or undefined")
+            out.append(
+                f"{limit_name}: the {peak_name.removeprefix('peak_').replace('_', ' ')} is impulsive or undefined"
+            )
         elif peak > limit * (1 + 1e-9):
             out.append(f"{limit_name}: peak {peak:.6g} > {limit:.6g}")
     return out
@@ -324,7 +339,9 @@ def _row(runner: Runner, request: CompareIn, body: dict[str, Any], family_reques
     return row
 
 
-async def _run(runner: Runner, request: CompareIn, plant: Plant, period_s: float, settings: Settings, pool: Any) -> dict[str, Any]:
+async def _run(
+    runner: Runner, request: CompareIn, plant: Plant, period_s: float, settings: Settings, pool: Any
+) -> dict[str, Any]:
     built = runner.build(request, plant, period_s)
     if isinstance(built, str):
         return {"unavailable": {"family": runner.family, "reason": built}}
@@ -378,7 +395,9 @@ async def compare(
     if not plant.modes():
         raise InvalidParameter("plant", plant.kind, "the plant has no vibration mode to design against")
     mode_period = plant.modes()[0].natural_period_s
-    period_s = request.sample_period_s or nice_period(max(2 * kinematic_floor(request), 5 * mode_period) + 5 * mode_period)
+    period_s = request.sample_period_s or nice_period(
+        max(2 * kinematic_floor(request), 5 * mode_period) + 5 * mode_period
+    )
     wanted = request.families or list(RUNNERS)
     results = await asyncio.gather(
         *(_run(RUNNERS[f], request, plant, period_s, settings, http.app.state.pool) for f in wanted if f in RUNNERS)
@@ -387,5 +406,9 @@ async def compare(
     rows.sort(key=lambda r: (r["settling_time_s"] is None, r["settling_time_s"] or 0.0))
     unavailable = [r["unavailable"] for r in results if "unavailable" in r]
     return NumpyJSONResponse(
-        {"move": "rest_to_velocity" if request.target_velocity is not None else "rest_to_rest", "rows": rows, "unavailable": unavailable}
+        {
+            "move": "rest_to_velocity" if request.target_velocity is not None else "rest_to_rest",
+            "rows": rows,
+            "unavailable": unavailable,
+        }
     )

@@ -116,7 +116,7 @@ def compose(
         command = law.command(request.sample_period_s, horizon)
     except InvalidParameter as exc:  # a sample beyond 1e12: the move itself is out of range
         raise InvalidParameter("duration_s", law.duration_s, f"the move is too fast to sample ({exc.rule})") from None
-    body, result = family_response(
+    body, _result = family_response(
         plant,
         command,
         _design_out(design, request),
@@ -124,7 +124,9 @@ def compose(
         settling_tolerance=request.settling_tolerance,
     )
     body["profile"] = law.samples(command.time_s)  # the law's exact values, for the drive
-    initial_command = design.initial.command(request.sample_period_s, _horizon(request, plant, design.initial.duration_s))
+    initial_command = design.initial.command(
+        request.sample_period_s, _horizon(request, plant, design.initial.duration_s)
+    )
     initial_body, _ = family_response(plant, initial_command, {}, settling_tolerance=request.settling_tolerance)
     body["initial"] = {
         "profile": design.initial.samples(initial_command.time_s),

@@ -35,5 +35,10 @@ def simulate_profile(
     response = simulate(plant, command)
     result = metrics(response, request.settling_tolerance, request.settling_window)
     return NumpyJSONResponse(
-        {"profile": profile_out(command), "load": load_out(response), "metrics": metrics_out(result), "warnings": warnings}
+        {
+            "profile": profile_out(command),
+            "load": load_out(response),
+            "metrics": metrics_out(result),
+            "warnings": warnings,
+        }
     )

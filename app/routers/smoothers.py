@@ -245,13 +245,16 @@ def respond(request: SmootherRequest, settings: Settings) -> dict[str, Any]:
             f"{mode.damping_ratio:.4g}): {100 * residual.fraction_of_move:.3g} % of the move is left; a damped_harmonic "
             f"filter of {', '.join(f'{t:.6g}' for t in free)} s (or omit duration_s) cancels it"
         )
-    if discrete is not None and discrete.percent_residual_vibration is not None and discrete.percent_residual_vibration > 1e-4:
-        if discrete.exact_sample_period_s is not None:
-            warnings.append(
-                f"at Ts = {discrete.sample_period_s:.6g} s the discrete filters round T/Ts, which leaves "
-                f"{discrete.percent_residual_vibration:.3g} % of the unfiltered vibration; Ts = "
-                f"{discrete.exact_sample_period_s:.9g} s makes N Ts = T exactly"
-            )
+    if (
+        discrete is not None
+        and discrete.percent_residual_vibration is not None
+        and discrete.percent_residual_vibration > 1e-4
+    ) and discrete.exact_sample_period_s is not None:
+        warnings.append(
+            f"at Ts = {discrete.sample_period_s:.6g} s the discrete filters round T/Ts, which leaves "
+            f"{discrete.percent_residual_vibration:.3g} % of the unfiltered vibration; Ts = "
+            f"{discrete.exact_sample_period_s:.9g} s makes N Ts = T exactly"
+        )
     design_body = {
         "filters": _filters_out(design),
         "total_duration_s": chain.total_duration_s,
@@ -272,7 +275,9 @@ def respond(request: SmootherRequest, settings: Settings) -> dict[str, Any]:
     if horizon > command.time_s[-1]:
         sample_count_check(horizon, period, settings.max_samples, "horizon_s")
         command = command.resampled(period, end_s=horizon)  # the motor rests at h; the load rings, or not
-    body, result = family_response(plant, command, design_body, sensitivity_request=request.sensitivity, warnings=warnings)
+    body, result = family_response(
+        plant, command, design_body, sensitivity_request=request.sensitivity, warnings=warnings
+    )
     bounds = request.core_limits().by_order()
     measured = (result.peak_velocity, result.peak_acceleration, result.peak_jerk)
     for name, bound, peak in zip(("velocity", "acceleration", "jerk"), bounds, measured, strict=True):
@@ -288,7 +293,9 @@ def respond(request: SmootherRequest, settings: Settings) -> dict[str, Any]:
 def _horizon(request: SmootherRequest, plant: Plant, end_s: float) -> float:
     if request.horizon_s is not None:
         if request.horizon_s < end_s:
-            raise InvalidParameter("horizon_s", request.horizon_s, f"must be >= the filters' total duration ({end_s:.6g} s)")
+            raise InvalidParameter(
+                "horizon_s", request.horizon_s, f"must be >= the filters' total duration ({end_s:.6g} s)"
+            )
         return request.horizon_s
     modes = plant.modes()
     return end_s + (5.0 * modes[0].natural_period_s if modes else 0.0)
@@ -367,7 +374,11 @@ def identify_respond(request: IdentifyRequest, settings: Settings) -> dict[str, 
             "decay_rate_1_s": mode.decay_rate_1_s,
             "vibration_free_durations_s": vibration_free_durations_s("damped_harmonic", mode),
         },
-        "plant": {"kind": "mode", "natural_frequency_hz": mode.natural_frequency_hz, "damping_ratio": mode.damping_ratio},
+        "plant": {
+            "kind": "mode",
+            "natural_frequency_hz": mode.natural_frequency_hz,
+            "damping_ratio": mode.damping_ratio,
+        },
         "warnings": list(result.warnings),
     }
 

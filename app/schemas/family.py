@@ -36,7 +36,10 @@ class SensitivityIn(StrictModel):
     """Where to evaluate the residual vibration versus the true/estimated frequency ratio."""
 
     frequency_ratios: list[float] | None = Field(
-        None, min_length=1, max_length=MAX_SENSITIVITY_POINTS, description="Explicit ratios f_n/f_n,e (each in [0.01, 100])."
+        None,
+        min_length=1,
+        max_length=MAX_SENSITIVITY_POINTS,
+        description="Explicit ratios f_n/f_n,e (each in [0.01, 100]).",
     )
     min_ratio: float = Field(0.5, ge=0.01, le=100, description="Start of a uniform range of ratios (>= 0.01).")
     max_ratio: float = Field(1.5, ge=0.01, le=100, description="End of the range.")
@@ -75,7 +78,9 @@ class SensitivityOut(OutModel):
     residual_vibration: list[float] = Field(
         description="Residual amplitude as a fraction of the move (0.05 = 5 %), at the first damping ratio."
     )
-    quantity: str = Field(description="position (rest-to-rest: / displacement) or velocity (rest-to-velocity: / final speed).")
+    quantity: str = Field(
+        description="position (rest-to-rest: / displacement) or velocity (rest-to-velocity: / final speed)."
+    )
     damping_ratio: list[float] = Field(description="The true damping ratios evaluated.")
     residual_vibration_grid: list[list[float]] | None = Field(
         None, description="One residual curve per damping ratio, when several were asked."
@@ -96,7 +101,9 @@ class FamilyResponse(OutModel):
     warnings: list[str] = []
 
 
-def sample_count_check(duration_s: float, sample_period_s: float, max_samples: int, field: str = "sample_period_s") -> None:
+def sample_count_check(
+    duration_s: float, sample_period_s: float, max_samples: int, field: str = "sample_period_s"
+) -> None:
     """Refuse a sampling that would exceed the cap, before building anything."""
     count = int(duration_s / sample_period_s) + 1
     if count > max_samples:

@@ -71,7 +71,9 @@ class RigidFlexibleIn(StrictModel):
     load_mass_kg: Positive = Field(description="Driven mass m1, kg.")
     stiffness_n_per_m: Positive = Field(description="Spring stiffness k, N/m.")
     damping_ns_per_m: NonNegative = Field(description="Spring damping c, N s/m.")
-    drive_damping_ns_per_m: Positive = Field(description="Drive damping c0, N s/m (> 0: c0 k is eq. 3's constant term).")
+    drive_damping_ns_per_m: Positive = Field(
+        description="Drive damping c0, N s/m (> 0: c0 k is eq. 3's constant term)."
+    )
 
 
 class TransferFunctionIn(StrictModel):
@@ -136,14 +138,16 @@ class PlantAnalysis(OutModel):
     modes: list[ModeOut] = Field(description="Vibration modes (complex pole pairs), lowest first.")
     dc_gain: float = Field(description="G(0): load displacement per unit motor displacement (0 for velocity input).")
     transfer_function: TransferFunctionOut = Field(description="The kind's transfer function, from its command input.")
-    load_transfer_function: TransferFunctionOut = Field(description="G(s) from the motor position to the load position.")
+    load_transfer_function: TransferFunctionOut = Field(
+        description="G(s) from the motor position to the load position."
+    )
     state_space: StateSpaceOut = Field(description="A realisation of G(s): motor position in, load position out.")
     derived: dict[str, float] = Field(description="Kind-specific derived quantities (k_t, c_t, lambda, ...).")
     defines_energy: bool = Field(description="Whether the vibration energy (J) is defined for this kind.")
     defines_motor_torque: bool
 
 
-def mode_out(mode) -> ModeOut:  # noqa: ANN001 - models.plants.Mode
+def mode_out(mode) -> ModeOut:
     return ModeOut(
         natural_frequency_hz=mode.natural_frequency_hz,
         natural_frequency_rad_s=mode.natural_frequency_rad_s,
@@ -176,8 +180,12 @@ def analyse(plant: Plant) -> PlantAnalysis:
         parameters=params,
         modes=[mode_out(m) for m in plant.modes()],
         dc_gain=plant.dc_gain,
-        transfer_function=TransferFunctionOut(numerator=num.tolist(), denominator=den.tolist(), input=plant.command_input),
-        load_transfer_function=TransferFunctionOut(numerator=lnum.tolist(), denominator=lden.tolist(), input="position"),
+        transfer_function=TransferFunctionOut(
+            numerator=num.tolist(), denominator=den.tolist(), input=plant.command_input
+        ),
+        load_transfer_function=TransferFunctionOut(
+            numerator=lnum.tolist(), denominator=lden.tolist(), input="position"
+        ),
         state_space=StateSpaceOut(a=ss.a.tolist(), b=ss.b.tolist(), c=ss.c.tolist(), d=ss.d.tolist()),
         derived=derived,
         defines_energy=plant.energy_inertia is not None,

@@ -31,7 +31,9 @@ class PseudoPolynomialIn(StrictModel):
     plant: PlantIn
     displacement: float = Field(description="Phi: motor displacement, rad or m (15 rev = 30 pi rad in Table III).")
     duration_s: float = Field(gt=0, le=1e5, description="Motion time T, s.")
-    order: int = Field(2, ge=1, le=MAX_ORDER, description="n: derivatives up to n are null at both ends (n + 1 exponents).")
+    order: int = Field(
+        2, ge=1, le=MAX_ORDER, description="n: derivatives up to n are null at both ends (n + 1 exponents)."
+    )
     initial_exponents: list[float] | None = Field(
         None, description="Starting exponents; default n+1, ..., 2n+1, the classical polynomial ((3, 4, 5) for n = 2)."
     )
@@ -41,10 +43,13 @@ class PseudoPolynomialIn(StrictModel):
         None, gt=0, le=1e6, description="End of the returned samples, s (default: the move plus 5 periods of the mode)."
     )
     minimize_duration: bool = Field(
-        False, description="Search the shortest duration (from duration_s down) whose design meets the residual tolerance within the limits."
+        False,
+        description="Search the shortest duration (from duration_s down) whose design meets the residual tolerance within the limits.",
     )
     residual_tolerance: float | None = Field(
-        None, gt=0, description="Residual load amplitude accepted by minimize_duration (default 1e-6 of the load's displacement)."
+        None,
+        gt=0,
+        description="Residual load amplitude accepted by minimize_duration (default 1e-6 of the load's displacement).",
     )
     settling_tolerance: float = Field(1e-3, gt=0, le=1, description="Settling band as a fraction of the displacement.")
     sensitivity: SensitivityIn | None = None

@@ -115,12 +115,12 @@ class SimulateResponse(OutModel):
 
 def check_sample_count(field: str, count: int, max_samples: int) -> None:
     if count > max_samples:
-        raise InvalidParameter(field, f"{count} samples", f"at most {max_samples} samples are allowed (VIBFREE_MAX_SAMPLES)")
+        raise InvalidParameter(
+            field, f"{count} samples", f"at most {max_samples} samples are allowed (VIBFREE_MAX_SAMPLES)"
+        )
 
 
-def to_command(
-    profile: ProfileIn, options: SimulationOptions, max_samples: int
-) -> tuple[PiecewiseCommand, list[str]]:
+def to_command(profile: ProfileIn, options: SimulationOptions, max_samples: int) -> tuple[PiecewiseCommand, list[str]]:
     """The piecewise-polynomial command a sampled profile describes, and consistency warnings."""
     check_sample_count("profile.time_s", len(profile.time_s), max_samples)
     given = [name for name in DERIVATIVE_NAMES if getattr(profile, name) is not None]
@@ -128,19 +128,25 @@ def to_command(
         raise InvalidParameter("profile", "no samples", "give at least one of position, velocity, acceleration, jerk")
     cubic = options.hold == "cubic"
     if cubic and options.held_quantity is None and len(given) < 2:
-        raise InvalidParameter("hold", "cubic", "a cubic hold needs a quantity and its derivative (e.g. velocity and acceleration)")
+        raise InvalidParameter(
+            "hold", "cubic", "a cubic hold needs a quantity and its derivative (e.g. velocity and acceleration)"
+        )
     held = options.held_quantity or (given[-2] if cubic else given[-1])
     if held not in given:
         raise InvalidParameter("held_quantity", held, f"profile.{held} is not given")
     if cubic:
         slope_name = DERIVATIVE_NAMES[DERIVATIVE_NAMES.index(held) + 1] if held != "jerk" else None
         if slope_name is None or slope_name not in given:
-            raise InvalidParameter("hold", "cubic", f"a cubic hold of {held} needs profile.{slope_name or 'its derivative'}")
+            raise InvalidParameter(
+                "hold", "cubic", f"a cubic hold of {held} needs profile.{slope_name or 'its derivative'}"
+            )
     arrays = {name: np.asarray(getattr(profile, name), dtype=float) for name in given}
     for name, arr in arrays.items():
         if arr.size != len(profile.time_s):
             raise InvalidParameter(
-                f"profile.{name}", f"{arr.size} samples", f"must have as many samples as profile.time_s ({len(profile.time_s)})"
+                f"profile.{name}",
+                f"{arr.size} samples",
+                f"must have as many samples as profile.time_s ({len(profile.time_s)})",
             )
     order = DERIVATIVE_NAMES.index(held)
     initial = tuple(float(arrays[n][0]) if n in arrays else 0.0 for n in DERIVATIVE_NAMES[:order])

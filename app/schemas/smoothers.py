@@ -122,8 +122,10 @@ class DiscreteOut(OutModel):
         description="Eq. (17) is a rectangle-rule sum: each harmonic/damped harmonic stage runs half a sample ahead "
         "of the continuous filter (rectangular and exponential stages are exact at the samples)."
     )
-    max_deviation: float = Field(description="max_k |y[k] - q(k Ts + lead_s)|: how far the discrete output strays from "
-                                 "the continuous profile once the lead is allowed for (motor units).")
+    max_deviation: float = Field(
+        description="max_k |y[k] - q(k Ts + lead_s)|: how far the discrete output strays from "
+        "the continuous profile once the lead is allowed for (motor units)."
+    )
     percent_residual_vibration: float | None = Field(
         description="100 |D(e^(p Ts))| at the first mode's pole: the vibration left by rounding N (0 when N Ts = T)."
     )
@@ -171,7 +173,9 @@ class SmootherDesignOut(OutModel):
         "with feed-forward does: the cubic Hermite curve through position and velocity (C^1 profiles), velocity "
         "and acceleration (C^2) or acceleration and jerk (C^3 and smoother); linear position for C^0."
     )
-    predicted_peaks: PeaksOut = Field(description="Peak |velocity|, |acceleration|, |jerk| by the design's closed forms.")
+    predicted_peaks: PeaksOut = Field(
+        description="Peak |velocity|, |acceleration|, |jerk| by the design's closed forms."
+    )
     discrete: DiscreteOut | None = None
 
 

@@ -17,7 +17,7 @@ from tests.app import slow_solves
 TEST_SETTINGS = Settings(workers=2, max_samples=5000, max_body_bytes=2 * 1024 * 1024)
 
 
-def _add_test_routes(app) -> None:  # noqa: ANN001
+def _add_test_routes(app) -> None:
     async def slow(request: Request, seconds: float, deadline_s: float) -> dict:
         pid = await request.app.state.pool.run(slow_solves.sleep_for, seconds, deadline_s=deadline_s)
         return {"pid": pid}

@@ -21,7 +21,9 @@ def capped_ipopt(wall_time_s: float) -> SolverReport:
     n = 2000
     x = ca.MX.sym("x", n)
     objective = ca.sumsqr(1 - x[:-1]) + 100 * ca.sumsqr(x[1:] - x[:-1] ** 2)
-    solver = ca.nlpsol("slow", "ipopt", {"x": x, "f": objective}, ipopt_options(SolveCaps(10**6, wall_time_s), **{"ipopt.tol": 1e-14}))
+    solver = ca.nlpsol(
+        "slow", "ipopt", {"x": x, "f": objective}, ipopt_options(SolveCaps(10**6, wall_time_s), **{"ipopt.tol": 1e-14})
+    )
     start = time.perf_counter()
     solver(x0=-1.2)
     return report_of(solver, time.perf_counter() - start)

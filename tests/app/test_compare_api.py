@@ -10,7 +10,14 @@ from app.examples import CUSIMANO_8HZ, INCERTI_TABLE_III
 from tests.app.test_errors import assert_problem
 
 ALL = {"pseudo_polynomial", "stap", "smoother", "input_shaped"}
-METRICS = ("settling_time_s", "peak_velocity", "peak_acceleration", "peak_jerk", "peak_motor_torque_nm", "command_end_s")
+METRICS = (
+    "settling_time_s",
+    "peak_velocity",
+    "peak_acceleration",
+    "peak_jerk",
+    "peak_motor_torque_nm",
+    "command_end_s",
+)
 
 
 def assert_rows_match_endpoints(client, body):
@@ -22,7 +29,9 @@ def assert_rows_match_endpoints(client, body):
         assert row["settling_time_s"] == metrics["settling_time_s"], row["family"]
         for key in ("peak_velocity", "peak_acceleration", "peak_jerk", "peak_motor_torque_nm"):
             assert row[key] == metrics[key], (row["family"], key)
-        assert row["motion_time_s"] == pytest.approx(metrics["command_end_s"] - direct.json()["profile"]["time_s"][0], abs=0)
+        assert row["motion_time_s"] == pytest.approx(
+            metrics["command_end_s"] - direct.json()["profile"]["time_s"][0], abs=0
+        )
         assert row["residual_amplitude"] in (metrics["residual_amplitude"], metrics["residual_velocity_amplitude"])
         sensitivity = direct.json()["sensitivity"]
         assert row["band_5_percent"] == (sensitivity["band_5_percent"] if sensitivity else None)
@@ -70,8 +79,13 @@ def test_two_inertia_8hz_rest_to_rest_and_rest_to_velocity(client):
 def test_curves_for_the_page(client):
     body = client.post(
         "/v1/compare",
-        json={"plant": {"kind": "mode", "natural_frequency_hz": 5.0, "damping_ratio": 0.02}, "displacement": 1.0,
-              "limits": {"max_velocity": 4.0, "max_acceleration": 40.0}, "families": ["smoother"], "include_curves": True},
+        json={
+            "plant": {"kind": "mode", "natural_frequency_hz": 5.0, "damping_ratio": 0.02},
+            "displacement": 1.0,
+            "limits": {"max_velocity": 4.0, "max_acceleration": 40.0},
+            "families": ["smoother"],
+            "include_curves": True,
+        },
     ).json()
     (row,) = body["rows"]
     curves = row["curves"]
@@ -83,9 +97,13 @@ def test_a_family_that_cannot_meet_the_limits_gives_its_reason(client):
     # max_velocity 0.01 is below 0.2 rad / 1 s, the mean speed any 1 s move needs.
     body = client.post(
         "/v1/compare",
-        json={"plant": {"kind": "mode", "natural_frequency_hz": 0.5, "damping_ratio": 0.0}, "displacement": 0.2,
-              "limits": {"max_acceleration": 100.0, "max_velocity": 0.01}, "families": ["pseudo_polynomial"],
-              "duration_s": 1.0},
+        json={
+            "plant": {"kind": "mode", "natural_frequency_hz": 0.5, "damping_ratio": 0.0},
+            "displacement": 0.2,
+            "limits": {"max_acceleration": 100.0, "max_velocity": 0.01},
+            "families": ["pseudo_polynomial"],
+            "duration_s": 1.0,
+        },
     ).json()
     assert body["rows"] == []
     (item,) = body["unavailable"]
@@ -110,9 +128,26 @@ def test_invalid_compare_requests(client, request_body, field):
 @pytest.mark.parametrize(
     ("endpoint", "request_body"),
     [
-        ("/v1/profiles/smoother", {"plant": CUSIMANO_8HZ, "displacement": 2.0, "filters": [{"type": "damped_harmonic"}], "sample_period_s": 0.001}),
-        ("/v1/profiles/input-shaped", {"plant": CUSIMANO_8HZ, "shaper": "zvd", "target_velocity": 10.0, "acceleration_limit": 500.0,
-                                       "baseline": "modified", "sample_period_s": 0.001}),
+        (
+            "/v1/profiles/smoother",
+            {
+                "plant": CUSIMANO_8HZ,
+                "displacement": 2.0,
+                "filters": [{"type": "damped_harmonic"}],
+                "sample_period_s": 0.001,
+            },
+        ),
+        (
+            "/v1/profiles/input-shaped",
+            {
+                "plant": CUSIMANO_8HZ,
+                "shaper": "zvd",
+                "target_velocity": 10.0,
+                "acceleration_limit": 500.0,
+                "baseline": "modified",
+                "sample_period_s": 0.001,
+            },
+        ),
         ("/v1/profiles/stap", {"plant": CUSIMANO_8HZ, "target_velocity": 150.0, "max_torque_nm": 10.0}),
     ],
 )

@@ -42,7 +42,16 @@ def assert_problem(response, status: int, field: str | None = None, slug: str = 
         # derived frequency sqrt(k/J_L)/2pi = 1.6e11 Hz is out of range
         ({**CUSIMANO_8HZ, "stiffness_nm_per_rad": 1e12, "load_inertia_kgm2": 1e-12}, "plant.stiffness_nm_per_rad"),
         # c = 3 on k = J_L = 1 gives zeta = 1.5: no vibration mode
-        ({"kind": "two_inertia", "motor_inertia_kgm2": 1, "load_inertia_kgm2": 1, "stiffness_nm_per_rad": 1, "damping_nms_per_rad": 3}, "plant.stiffness_nm_per_rad"),
+        (
+            {
+                "kind": "two_inertia",
+                "motor_inertia_kgm2": 1,
+                "load_inertia_kgm2": 1,
+                "stiffness_nm_per_rad": 1,
+                "damping_nms_per_rad": 3,
+            },
+            "plant.stiffness_nm_per_rad",
+        ),
         ({"kind": "transfer_function", "numerator": [1], "denominator": [1, -1, 4]}, "plant.denominator"),
         ({"kind": "transfer_function", "numerator": [1], "denominator": [1, 0]}, "plant.denominator"),
         ({"kind": "transfer_function", "numerator": [1, 2, 3], "denominator": [1, 2]}, "plant.numerator"),
@@ -55,7 +64,7 @@ def test_invalid_plants(client, plant, field):
 
 @pytest.mark.parametrize("token", ["NaN", "Infinity", "-Infinity", "1e999"])
 def test_non_finite_numbers_are_refused(client, token):
-    body = '{"plant": {"kind": "mode", "natural_frequency_hz": %s}}' % token
+    body = f'{{"plant": {{"kind": "mode", "natural_frequency_hz": {token}}}}}'
     response = client.post("/v1/plants/analyze", content=body, headers={"content-type": "application/json"})
     problem = assert_problem(response, 422, "plant.natural_frequency_hz")
     assert "finite" in problem["errors"][0]["rule"]
@@ -88,7 +97,9 @@ def test_invalid_profiles(client, profile, field):
 def test_more_samples_than_the_cap(client):
     n = 5001  # the test app's cap is 5000
     profile = {"time_s": list(range(n)), "velocity": [0.0] * n}
-    problem = assert_problem(client.post("/v1/simulate", json={"plant": MODE, "profile": profile}), 422, "profile.time_s")
+    problem = assert_problem(
+        client.post("/v1/simulate", json={"plant": MODE, "profile": profile}), 422, "profile.time_s"
+    )
     assert "5000" in problem["errors"][0]["rule"]
 
 
@@ -98,7 +109,11 @@ def test_held_quantity_must_be_given(client):
 
 
 def test_oversized_body_is_413(client):
-    big = b'{"plant": {"kind": "mode", "natural_frequency_hz": 5}, "profile": {"time_s": [' + b"0," * (1_100_000) + b"1]}}"
+    big = (
+        b'{"plant": {"kind": "mode", "natural_frequency_hz": 5}, "profile": {"time_s": ['
+        + b"0," * (1_100_000)
+        + b"1]}}"
+    )
     response = client.post("/v1/simulate", content=big, headers={"content-type": "application/json"})
     problem = assert_problem(response, 413, slug="body-too-large")
     assert problem["limit_bytes"] == 2 * 1024 * 1024
@@ -128,7 +143,9 @@ def test_unknown_path_and_method_are_problems(client):
 def test_many_bad_samples_give_a_bounded_error_list(client):
     n = 4000
     body = json.dumps({"plant": MODE, "profile": {"time_s": ["x"] * n, "velocity": [0] * n}})
-    problem = assert_problem(client.post("/v1/simulate", content=body, headers={"content-type": "application/json"}), 422)
+    problem = assert_problem(
+        client.post("/v1/simulate", content=body, headers={"content-type": "application/json"}), 422
+    )
     assert len(problem["errors"]) <= 20
     assert f"and {n - 1} more" in problem["detail"]
 

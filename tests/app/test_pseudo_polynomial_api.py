@@ -45,7 +45,9 @@ def test_returned_samples_simulated_by_the_simulate_endpoint_agree(client):
         },
     ).json()
     assert again["metrics"]["residual_amplitude"] < 1e-6
-    assert again["metrics"]["residual_amplitude"] == pytest.approx(body["metrics"]["residual_amplitude"], rel=1e-6, abs=1e-12)
+    assert again["metrics"]["residual_amplitude"] == pytest.approx(
+        body["metrics"]["residual_amplitude"], rel=1e-6, abs=1e-12
+    )
 
 
 def test_acceleration_limit_holds_on_the_returned_samples(client):
@@ -84,7 +86,9 @@ def test_invalid_requests(client, change, field):
 
 
 def test_sensitivity_is_returned_when_asked(client):
-    body = client.post(PATH, json={**TABLE_III_MOVE, "sensitivity": {"min_ratio": 0.8, "max_ratio": 1.2, "count": 41}}).json()
+    body = client.post(
+        PATH, json={**TABLE_III_MOVE, "sensitivity": {"min_ratio": 0.8, "max_ratio": 1.2, "count": 41}}
+    ).json()
     curve = body["sensitivity"]
     assert len(curve["frequency_ratio"]) == 41
     assert curve["quantity"] == "position"

@@ -26,7 +26,12 @@ URL = "/v1/profiles/smoother"
 
 
 def request(**overrides):
-    body = {"plant": BIAGIOTTI_PLANT, "displacement": H, "filters": [{"type": "damped_harmonic"}], "sample_period_s": 5e-4}
+    body = {
+        "plant": BIAGIOTTI_PLANT,
+        "displacement": H,
+        "filters": [{"type": "damped_harmonic"}],
+        "sample_period_s": 5e-4,
+    }
     body.update(overrides)
     return body
 
@@ -40,7 +45,9 @@ def rebuilt_residual(body: dict, order: int, hold: str) -> float:
     t = np.array(profile["time_s"])
     initial = tuple(profile[names[m]][0] for m in range(order))
     slopes = np.array(profile[names[order + 1]]) if hold == "cubic" else None
-    command = PiecewiseCommand.from_samples(t, np.array(profile[names[order]]), order, hold=hold, slopes=slopes, initial=initial)
+    command = PiecewiseCommand.from_samples(
+        t, np.array(profile[names[order]]), order, hold=hold, slopes=slopes, initial=initial
+    )
     return metrics(simulate(make_plant(**BIAGIOTTI_PLANT), command)).residual_amplitude / H
 
 
@@ -123,7 +130,9 @@ def test_discrete_filter_block(client):
     assert d["percent_residual_vibration"] == pytest.approx(0.27, rel=0.01)
     assert d["exact_sample_period_s"] == pytest.approx(body["design"]["filters"][0]["duration_s"] / 154, rel=1e-12)
     assert any("makes N Ts = T" in w for w in body["warnings"])
-    exact = client.post(URL, json=request(discrete_sample_period_s=d["exact_sample_period_s"])).json()["design"]["discrete"]
+    exact = client.post(URL, json=request(discrete_sample_period_s=d["exact_sample_period_s"])).json()["design"][
+        "discrete"
+    ]
     assert exact["residual_fraction_of_move"] < 1e-9
     # Within half a sample: shifted by lead_s, the discrete output is O(Ts^2) = 1.08 (Ts/T)^2 h from the profile.
     assert exact["max_deviation"] <= 2 * (1 / 154) ** 2 * H
@@ -183,7 +192,7 @@ def test_profile_as_csv(client):
     assert [float(v) for v in lines[-1].split(",")][:2] == pytest.approx([body["profile"]["time_s"][-1], H])
 
 
-def _numpy(value):  # noqa: ANN001
+def _numpy(value):
     return value.tolist()
 
 
@@ -238,7 +247,7 @@ def test_identify_refuses_too_few_periods(client):
     [
         ({"time_s": [0, 1, 2], "signal": [0, 1, 0]}, "time_s"),  # too few samples for a fit
         ({"time_s": list(range(20)), "signal": [0.0] * 19}, "signal"),  # lengths differ
-        ({"time_s": [0, 1, 1] + list(range(3, 20)), "signal": [0.0] * 20}, "time_s[2]"),
+        ({"time_s": [0, 1, 1, *list(range(3, 20))], "signal": [0.0] * 20}, "time_s[2]"),
         ({"time_s": list(range(20)), "signal": [1.0] * 20}, "signal"),  # constant
         ({"time_s": list(range(20)), "signal": [0.0] * 20, "units": "N"}, "units"),
     ],
@@ -275,7 +284,10 @@ def test_identify_sample_cap(client):
         ({"limits": {"max_torque_nm": 3.0}}, "limits.max_torque_nm"),
         ({"limits": {"max_velocity": -1}}, "limits.max_velocity"),
         ({"plant": {"kind": "mode", "natural_frequency_hz": 20, "damping_ratio": 1.2}}, "plant.damping_ratio"),
-        ({"plant": {"kind": "transfer_function", "numerator": [1e6], "denominator": [1, 2500, 1e6]}}, "filters[0].duration_s"),
+        (
+            {"plant": {"kind": "transfer_function", "numerator": [1e6], "denominator": [1, 2500, 1e6]}},
+            "filters[0].duration_s",
+        ),
         ({"sensitivity": {"min_ratio": 2, "max_ratio": 1}}, "sensitivity"),
     ],
 )
@@ -298,12 +310,27 @@ def test_infeasible_limits_are_a_problem_of_their_own(client):
         {"filters": [{"type": "exponential", "duration_s": 1e-6}, {"type": "harmonic", "duration_s": 1e-6}]},
         {"filters": [{"type": "rectangular", "duration_s": 100.0}], "sample_period_s": 0.1, "displacement": 1e12},
         {"filters": [{"type": "harmonic"}] * 6, "sample_period_s": 0.01},
-        {"filters": [{"type": "damped_harmonic"}] * 6, "limits": {"max_velocity": 0.01, "max_acceleration": 0.1, "max_jerk": 1.0}},
-        {"filters": [{"type": "harmonic", "duration_s": 1e-6}, {"type": "rectangular", "duration_s": 1e3}], "discrete_sample_period_s": 1.0, "sample_period_s": 1.0},
+        {
+            "filters": [{"type": "damped_harmonic"}] * 6,
+            "limits": {"max_velocity": 0.01, "max_acceleration": 0.1, "max_jerk": 1.0},
+        },
+        {
+            "filters": [{"type": "harmonic", "duration_s": 1e-6}, {"type": "rectangular", "duration_s": 1e3}],
+            "discrete_sample_period_s": 1.0,
+            "sample_period_s": 1.0,
+        },
         {"limits": {"max_velocity": 1e-12, "max_acceleration": 1e12, "max_jerk": 1e15}, "filters": []},
         {"limits": {"max_jerk": 1e-9}, "sample_period_s": 100.0},
         {"discrete_sample_period_s": 1e-9},
-        {"plant": {"kind": "two_inertia", "motor_inertia_kgm2": 1, "load_inertia_kgm2": 1, "stiffness_nm_per_rad": 1e4}, "sensitivity": {"damping_ratios": [0, 0.5]}},
+        {
+            "plant": {
+                "kind": "two_inertia",
+                "motor_inertia_kgm2": 1,
+                "load_inertia_kgm2": 1,
+                "stiffness_nm_per_rad": 1e4,
+            },
+            "sensitivity": {"damping_ratios": [0, 0.5]},
+        },
     ],
 )
 def test_odd_requests_never_500(client, overrides):

@@ -53,7 +53,12 @@ def test_end_index_ignores_the_flat_tail():
 
 @pytest.mark.parametrize(
     ("times", "field"),
-    [([0.0], "time_s"), ([0.0, 1.0, 1.0], "time_s[2]"), ([0.0, 2.0, 1.0], "time_s[2]"), ([0.0, float("nan")], "time_s")],
+    [
+        ([0.0], "time_s"),
+        ([0.0, 1.0, 1.0], "time_s[2]"),
+        ([0.0, 2.0, 1.0], "time_s[2]"),
+        ([0.0, float("nan")], "time_s"),
+    ],
 )
 def test_bad_time_grids(times, field):
     with pytest.raises(InvalidParameter) as info:

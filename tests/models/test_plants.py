@@ -60,7 +60,7 @@ def test_two_inertia_follows_cusimano_eqs_1_to_3():
     assert np.max(np.abs(np.sort_complex(poles) - np.sort_complex([mode.pole, mode.pole.conjugate()]))) < 1e-10
 
 
-@pytest.mark.parametrize("name", sorted(PLANTS) + ["tf"])
+@pytest.mark.parametrize("name", [*sorted(PLANTS), "tf"])
 def test_mode_matches_the_poles_of_the_transfer_function(name):
     plant = PLANTS.get(name, TF_TWO_MODES)
     poles = np.roots(plant.load_transfer_function()[1])
@@ -82,7 +82,7 @@ def test_transfer_function_modes_are_its_complex_pairs():
     assert high.damping_ratio == pytest.approx(0.03, rel=1e-4)
 
 
-@pytest.mark.parametrize("name", sorted(PLANTS) + ["tf"])
+@pytest.mark.parametrize("name", [*sorted(PLANTS), "tf"])
 def test_state_space_realises_the_load_transfer_function(name):
     plant = PLANTS.get(name, TF_TWO_MODES)
     ss = plant.state_space()
@@ -95,7 +95,7 @@ def test_state_space_realises_the_load_transfer_function(name):
     assert np.max(np.abs(ours - theirs) / np.maximum(np.abs(ours), 1e-300)) < 1e-9
 
 
-@pytest.mark.parametrize("name", sorted(PLANTS) + ["tf"])
+@pytest.mark.parametrize("name", [*sorted(PLANTS), "tf"])
 def test_symbolic_form_evaluates_to_the_numeric_form(name):
     plant = PLANTS.get(name, TF_TWO_MODES)
     symbolic = plant.symbolic()
@@ -120,20 +120,64 @@ def test_symbolic_form_depends_only_on_the_kind_and_shape():
         ("mode", {"natural_frequency_hz": 1e7}, "natural_frequency_hz"),
         ("mode", {"natural_frequency_hz": 5.0, "damping_ratio": 1.0}, "damping_ratio"),
         ("mode", {"natural_frequency_hz": 5.0, "damping_ratio": -0.1}, "damping_ratio"),
-        ("two_inertia", {"motor_inertia_kgm2": -1.0, "load_inertia_kgm2": 1.0, "stiffness_nm_per_rad": 1.0}, "motor_inertia_kgm2"),
-        ("two_inertia", {"motor_inertia_kgm2": 1.0, "load_inertia_kgm2": 0.0, "stiffness_nm_per_rad": 1.0}, "load_inertia_kgm2"),
-        ("two_inertia", {"motor_inertia_kgm2": 1.0, "load_inertia_kgm2": 1.0, "stiffness_nm_per_rad": float("inf")}, "stiffness_nm_per_rad"),
+        (
+            "two_inertia",
+            {"motor_inertia_kgm2": -1.0, "load_inertia_kgm2": 1.0, "stiffness_nm_per_rad": 1.0},
+            "motor_inertia_kgm2",
+        ),
+        (
+            "two_inertia",
+            {"motor_inertia_kgm2": 1.0, "load_inertia_kgm2": 0.0, "stiffness_nm_per_rad": 1.0},
+            "load_inertia_kgm2",
+        ),
+        (
+            "two_inertia",
+            {"motor_inertia_kgm2": 1.0, "load_inertia_kgm2": 1.0, "stiffness_nm_per_rad": float("inf")},
+            "stiffness_nm_per_rad",
+        ),
         # zeta = c / (2 sqrt(k J_L)) = 3 / 2 >= 1: overdamped, no mode
-        ("two_inertia", {"motor_inertia_kgm2": 1.0, "load_inertia_kgm2": 1.0, "stiffness_nm_per_rad": 1.0, "damping_nms_per_rad": 3.0}, "stiffness_nm_per_rad"),
-        ("belt_platform", {"platform_inertia_kgm2": 6.0, "branch_stiffness_n_per_m": 9e4, "branch_damping_ns_per_m": -150.0,
-                           "motor_pulley_radius_m": 0.06, "platform_pulley_radius_m": 0.18, "gear_ratio": 0.1}, "branch_damping_ns_per_m"),
-        ("rigid_flexible", {"drive_mass_kg": 2.0, "load_mass_kg": 3.0, "stiffness_n_per_m": 1.0, "damping_ns_per_m": 0.1,
-                            "drive_damping_ns_per_m": 0.0}, "drive_damping_ns_per_m"),
+        (
+            "two_inertia",
+            {
+                "motor_inertia_kgm2": 1.0,
+                "load_inertia_kgm2": 1.0,
+                "stiffness_nm_per_rad": 1.0,
+                "damping_nms_per_rad": 3.0,
+            },
+            "stiffness_nm_per_rad",
+        ),
+        (
+            "belt_platform",
+            {
+                "platform_inertia_kgm2": 6.0,
+                "branch_stiffness_n_per_m": 9e4,
+                "branch_damping_ns_per_m": -150.0,
+                "motor_pulley_radius_m": 0.06,
+                "platform_pulley_radius_m": 0.18,
+                "gear_ratio": 0.1,
+            },
+            "branch_damping_ns_per_m",
+        ),
+        (
+            "rigid_flexible",
+            {
+                "drive_mass_kg": 2.0,
+                "load_mass_kg": 3.0,
+                "stiffness_n_per_m": 1.0,
+                "damping_ns_per_m": 0.1,
+                "drive_damping_ns_per_m": 0.0,
+            },
+            "drive_damping_ns_per_m",
+        ),
         ("transfer_function", {"numerator": (1.0,), "denominator": (1.0, 0.0)}, "denominator"),  # pole at 0
         ("transfer_function", {"numerator": (1.0,), "denominator": (1.0, -1.0, 4.0)}, "denominator"),  # RHP
         ("transfer_function", {"numerator": (1.0,), "denominator": (1.0, 2.0, 1.0)}, "denominator"),  # repeated
         ("transfer_function", {"numerator": (1.0, 2.0, 3.0), "denominator": (1.0, 2.0)}, "numerator"),  # improper
-        ("transfer_function", {"numerator": (1.0, 2.0), "denominator": (1.0, 2.0), "command_input": "velocity"}, "numerator"),
+        (
+            "transfer_function",
+            {"numerator": (1.0, 2.0), "denominator": (1.0, 2.0), "command_input": "velocity"},
+            "numerator",
+        ),
         ("transfer_function", {"numerator": (0.0,), "denominator": (1.0, 2.0)}, "numerator"),
         ("transfer_function", {"numerator": (1.0,), "denominator": (0.0, 2.0)}, "denominator"),
         ("pendulum", {}, "kind"),

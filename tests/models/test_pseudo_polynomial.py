@@ -75,7 +75,9 @@ def test_sampled_command_follows_the_law_and_leaves_its_residual():
     assert residuals[0] == pytest.approx(residuals[1], rel=1e-9)
 
 
-@pytest.mark.parametrize(("exponents", "order"), [((3, 4), 2), ((2, 3, 4), 2), ((3, 3, 4), 2), ((3, float("nan"), 5), 2)])
+@pytest.mark.parametrize(
+    ("exponents", "order"), [((3, 4), 2), ((2, 3, 4), 2), ((3, 3, 4), 2), ((3, float("nan"), 5), 2)]
+)
 def test_bad_exponents(exponents, order):
     with pytest.raises(InvalidParameter):
         check_exponents(exponents, order)

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from models.commands import PiecewiseCommand
+from models.errors import InvalidParameter
 from models.plants import ModePlant
 from models.pseudo_polynomial import PseudoPolynomial
-from models.errors import InvalidParameter
 from models.sensitivity import band_below, sensitivity
 from models.simulation import metrics, simulate
 

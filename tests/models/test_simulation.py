@@ -109,7 +109,9 @@ def incerti_quintic(phi: float, duration: float) -> PiecewiseCommand:
         at_start[power] = phi * coef * math.factorial(power) / duration**power
     at_end = np.zeros(6)
     at_end[0] = phi
-    return PiecewiseCommand.from_derivatives(np.array([0.0, duration, 2 * duration]), np.column_stack([at_start, at_end, at_end]))
+    return PiecewiseCommand.from_derivatives(
+        np.array([0.0, duration, 2 * duration]), np.column_stack([at_start, at_end, at_end])
+    )
 
 
 def test_incerti_residual_and_eq_31_energy():
@@ -129,8 +131,22 @@ def test_incerti_residual_and_eq_31_energy():
         s = tau / duration
         return phi / duration**2 * (60 * s - 180 * s**2 + 120 * s**3)
 
-    f_int = integrate.quad(lambda x: acc(x) * math.exp(-xi * wn * (duration - x)) * math.sin(wd * (duration - x)), 0, duration, epsabs=1e-11, epsrel=1e-11, limit=200)[0]
-    g_int = integrate.quad(lambda x: wn * acc(x) * math.exp(-xi * wn * (duration - x)) * math.cos(wd * (duration - x) + delta), 0, duration, epsabs=1e-11, epsrel=1e-11, limit=200)[0]
+    f_int = integrate.quad(
+        lambda x: acc(x) * math.exp(-xi * wn * (duration - x)) * math.sin(wd * (duration - x)),
+        0,
+        duration,
+        epsabs=1e-11,
+        epsrel=1e-11,
+        limit=200,
+    )[0]
+    g_int = integrate.quad(
+        lambda x: wn * acc(x) * math.exp(-xi * wn * (duration - x)) * math.cos(wd * (duration - x) + delta),
+        0,
+        duration,
+        epsabs=1e-11,
+        epsrel=1e-11,
+        limit=200,
+    )[0]
     lam = plant.transmission_ratio
     energy_eq31 = 0.5 * plant.platform_inertia_kgm2 * (lam / wd) ** 2 * (g_int**2 + wn**2 * f_int**2)
     assert m.final_energy_j == pytest.approx(energy_eq31, rel=1e-9)
@@ -141,7 +157,9 @@ def test_incerti_residual_and_eq_31_energy():
 def test_undamped_energy_equals_stiffness_times_amplitude_squared():
     plant = BeltPlatformPlant(6.0, 9e4, 0.0, 0.06, 0.18, 0.1)
     m = metrics(simulate(plant, incerti_quintic(30 * np.pi, 1.0)))
-    assert m.final_energy_j == pytest.approx(0.5 * plant.equivalent_stiffness_nm_per_rad * m.residual_amplitude**2, rel=1e-10)
+    assert m.final_energy_j == pytest.approx(
+        0.5 * plant.equivalent_stiffness_nm_per_rad * m.residual_amplitude**2, rel=1e-10
+    )
 
 
 def test_settling_time_is_the_envelope_crossing():
@@ -199,7 +217,9 @@ def test_uniform_and_general_scans_agree():
     rng = np.random.default_rng(7)
     drive = rng.normal(size=5000) + 1j * rng.normal(size=5000)
     decay = np.full(4999, np.exp((-0.3 + 40j) * 1e-3))
-    np.testing.assert_allclose(first_order_scan(decay, drive, True), first_order_scan(decay, drive, False), rtol=0, atol=1e-11)
+    np.testing.assert_allclose(
+        first_order_scan(decay, drive, True), first_order_scan(decay, drive, False), rtol=0, atol=1e-11
+    )
 
 
 def test_long_nonuniform_horizon_stays_finite_and_exact():

@@ -48,16 +48,29 @@ FILTERS = {
 def laplace_by_quadrature(f: Smoother, s: complex) -> complex:
     """int_0^T f(t) e^(-st) dt by adaptive quadrature of the closed-form impulse response."""
 
-    def part(g):  # noqa: ANN001
-        return integrate.quad(lambda t: g(f.impulse_response(np.array(t)) * np.exp(-s * t)), 0, f.duration_s, epsabs=1e-13, epsrel=1e-12, limit=200)[0]
+    def part(g):
+        return integrate.quad(
+            lambda t: g(f.impulse_response(np.array(t)) * np.exp(-s * t)),
+            0,
+            f.duration_s,
+            epsabs=1e-13,
+            epsrel=1e-12,
+            limit=200,
+        )[0]
 
     return part(np.real) + 1j * part(np.imag)
 
 
 def damped_harmonic_trajectory(t: np.ndarray, h: float, duration: float, sigma: float) -> np.ndarray:
     """Sec. V: q = h/(1 + e^(sigma T)) (1 + e^(sigma t)((sigma T/pi) sin(pi t/T) - cos(pi t/T))), h after T."""
-    q = h / (1 + math.exp(sigma * duration)) * (
-        1 + np.exp(sigma * t) * (sigma * duration / math.pi * np.sin(math.pi * t / duration) - np.cos(math.pi * t / duration))
+    q = (
+        h
+        / (1 + math.exp(sigma * duration))
+        * (
+            1
+            + np.exp(sigma * t)
+            * (sigma * duration / math.pi * np.sin(math.pi * t / duration) - np.cos(math.pi * t / duration))
+        )
     )
     return np.where(t >= duration, h, q)
 
@@ -161,7 +174,10 @@ def test_rectangular_chain_is_the_exact_piecewise_polynomial():
     for m in range(4):
         expected = truncated_power_chain(durations, 1.0, dense, m)
         if m == 3:  # right-continuous values; skip points that sit on a jump
-            keep = np.min(np.abs(dense[:, None] - np.array([0, 0.25, 0.5, 0.75, 1.0, 1.25, 1.5, 1.75])[None, :]), axis=1) > 1e-9
+            keep = (
+                np.min(np.abs(dense[:, None] - np.array([0, 0.25, 0.5, 0.75, 1.0, 1.25, 1.5, 1.75])[None, :]), axis=1)
+                > 1e-9
+            )
             np.testing.assert_allclose(command.evaluate(3, dense)[keep], expected[keep], rtol=0, atol=1e-12)
         else:
             np.testing.assert_allclose(command.evaluate(m, dense), expected, rtol=0, atol=1e-12)
@@ -182,7 +198,13 @@ def test_mixed_chain_equals_the_convolution_by_quadrature():
         lo, hi = max(0.0, t - f3.duration_s), min(t, f2.duration_s)
         if hi <= lo:
             return 0.0
-        return integrate.quad(lambda u: float(f2.impulse_response(np.array(u)) * f3.impulse_response(np.array(t - u))), lo, hi, epsabs=1e-14, epsrel=1e-12)[0]
+        return integrate.quad(
+            lambda u: float(f2.impulse_response(np.array(u)) * f3.impulse_response(np.array(t - u))),
+            lo,
+            hi,
+            epsabs=1e-14,
+            epsrel=1e-12,
+        )[0]
 
     for t in (0.05, 0.31, 0.52, 0.77, 0.93):
         # f1 is 1/T1 on [0, T1]: (f1 * f23)(t) = (1/T1) int_{t - T1}^{t} f23
@@ -198,14 +220,16 @@ def test_command_of_a_non_polynomial_chain_reproduces_the_trajectory_between_sam
     f = Smoother("damped_harmonic", T1, -SIGMA)
     command = step_response(Chain((f,)), H, 5e-4).command()
     dense = np.linspace(0, T1, 7777)
-    np.testing.assert_allclose(command.evaluate(0, dense), damped_harmonic_trajectory(dense, H, T1, SIGMA), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(
+        command.evaluate(0, dense), damped_harmonic_trajectory(dense, H, T1, SIGMA), rtol=0, atol=1e-15
+    )
     assert command.peak_abs(3) is None  # the acceleration jumps at 0 and T: the jerk is impulsive
 
 
 def test_damped_harmonic_smoother_cancels_the_papers_plant():
     # Acceptance: sigma = -15.6539, Omega = 122.7185, T1 = 3 pi/Omega = 0.0768 s (PAPER-NOTES), a 30 mm step.
     assert 2 * math.pi / OMEGA == pytest.approx(0.0512, abs=5e-5)  # T0, Sec. VI
-    assert T1 == pytest.approx(0.0768, abs=5e-5)
+    assert pytest.approx(0.0768, abs=5e-5) == T1
     chain = Chain((Smoother("damped_harmonic", T1, -SIGMA),))
     closed, unfiltered = mode_residuals(chain, PLANT, H)
     # Unfiltered: a step leaves 2|r/p| h = h omega_n/Omega of vibration (closed form of G at its pole).
@@ -265,8 +289,15 @@ def test_smooth_chains_simulate_to_their_closed_form(period, k):
     # must equal the closed form (1e-7: at |lambda| Ts <= 0.2 the Taylor remainder is ~1e-10 of the move).
     # Every Taylor order is continuous here, so the command must not declare them all so (that would drop
     # the high-order jumps that carry the motion between samples). 4 ms is refined by 3 (|lambda| = 101 1/s).
-    chain = Chain((Smoother("harmonic", 0.05), Smoother("damped_harmonic", 0.09, 5.0), Smoother("harmonic", 0.031),
-                   Smoother("exponential", 0.02, 7.0), Smoother("rectangular", 0.04)))
+    chain = Chain(
+        (
+            Smoother("harmonic", 0.05),
+            Smoother("damped_harmonic", 0.09, 5.0),
+            Smoother("harmonic", 0.031),
+            Smoother("exponential", 0.02, 7.0),
+            Smoother("rectangular", 0.04),
+        )
+    )
     assert chain.continuous_derivatives == 7  # 2 + 2 + 2 + 1 + 1 - 1
     assert refinement(chain, period) == k
     closed, _ = mode_residuals(chain, PLANT, H)
@@ -282,7 +313,7 @@ def test_load_response_matches_an_ode_driven_by_the_closed_form_trajectory():
     w, z = OMEGA_N, -SIGMA / OMEGA_N
     a = math.pi / f.duration_s
 
-    def rhs(t, x):  # noqa: ANN001
+    def rhs(t, x):
         acc = H / 2 * a * a * math.cos(a * t) if t < f.duration_s else 0.0
         return [x[1], -2 * z * w * x[1] - w * w * x[0] - acc]
 

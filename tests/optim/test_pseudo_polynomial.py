@@ -35,7 +35,9 @@ def test_free_state_quadrature_matches_adaptive_quadrature():
     def integrand(tau: float) -> float:
         return float(law.derivative(2, np.array([tau]))[0]) * math.exp(-xi * wn * (1 - tau)) * math.sin(wd * (1 - tau))
 
-    f_int = integrate.quad(integrand, 0, 1, points=np.linspace(0, 1, 41)[1:-1], limit=500, epsabs=1e-11, epsrel=1e-11)[0]
+    f_int = integrate.quad(integrand, 0, 1, points=np.linspace(0, 1, 41)[1:-1], limit=500, epsabs=1e-11, epsrel=1e-11)[
+        0
+    ]
     energy, residual = pp.evaluate(request, np.array([3.3, 4.8, 7.1]))
     lam = TABLE_III.transmission_ratio
     alpha_t = -lam / wd * f_int
@@ -131,7 +133,9 @@ def test_torque_limit_on_a_two_inertia_plant():
     assert float(np.max(np.abs(torque))) <= limit * (1 + 1e-3)
 
 
-@pytest.mark.parametrize("plant", [ModePlant(3.0, 0.02), RigidFlexiblePlant(2.0, 3.0, 1.0, 0.1, 30.0)], ids=["mode", "rigid_flexible"])
+@pytest.mark.parametrize(
+    "plant", [ModePlant(3.0, 0.02), RigidFlexiblePlant(2.0, 3.0, 1.0, 0.1, 30.0)], ids=["mode", "rigid_flexible"]
+)
 def test_plants_without_physical_energy(plant):
     # Order-2 zero-energy designs exist near whole numbers of periods (a scan of 1.5..8 periods on a
     # mode found them at 4, 5, 6, 7, 8 and not at the half periods), so the move lasts 5 periods.

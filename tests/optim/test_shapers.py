@@ -370,8 +370,16 @@ def test_catalogue_bands_are_computed_from_v():
     assert not missing
     by_name = {e.name: e for e in entries}
     # (impulse count, duration in damped periods): the conventional definitions (DESIGN.md).
-    expected = {"zv": (2, 0.5), "mzv": (3, 0.75), "zvd": (3, 1.0), "zvdd": (4, 1.5), "zvddd": (5, 2.0),
-                "ei": (3, 1.0), "2hump_ei": (4, 1.5), "3hump_ei": (5, 2.0)}
+    expected = {
+        "zv": (2, 0.5),
+        "mzv": (3, 0.75),
+        "zvd": (3, 1.0),
+        "zvdd": (4, 1.5),
+        "zvddd": (5, 2.0),
+        "ei": (3, 1.0),
+        "2hump_ei": (4, 1.5),
+        "3hump_ei": (5, 2.0),
+    }
     for name, (count, duration) in expected.items():
         assert by_name[name].impulse_count == count
         assert by_name[name].duration_periods == pytest.approx(duration, rel=1e-9)

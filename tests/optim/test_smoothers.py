@@ -119,7 +119,9 @@ def test_vibration_free_durations_are_odd_multiples():
     for k, free in ((3, True), (5, True), (6, False), (7, True), (2, False)):
         assert cancels(Smoother("damped_harmonic", k * math.pi / OMEGA, -SIGMA), MODE) is free
     # M_sigma: whole periods. The undamped filters cannot cancel a damped mode: nothing is offered.
-    assert vibration_free_durations_s("exponential", MODE, 2) == pytest.approx([2 * math.pi / OMEGA, 4 * math.pi / OMEGA], rel=1e-7)
+    assert vibration_free_durations_s("exponential", MODE, 2) == pytest.approx(
+        [2 * math.pi / OMEGA, 4 * math.pi / OMEGA], rel=1e-7
+    )
     assert vibration_free_durations_s("harmonic", MODE) == []
     assert vibration_free_durations_s("rectangular", MODE) == []
     undamped = ModePlant(3.0, 0.0).modes()[0]
@@ -205,7 +207,9 @@ def test_discrete_design_reports_rounding_and_the_exact_period():
 
 def test_commensurate_period_covers_every_tuned_filter():
     # Tuned durations are multiples of pi/Omega: S_sigma (3) and M_sigma (2) share Ts = (pi/Omega)/K.
-    chain = Chain((tuned_filter("damped_harmonic", MODE), tuned_filter("exponential", MODE), Smoother("rectangular", 0.1)))
+    chain = Chain(
+        (tuned_filter("damped_harmonic", MODE), tuned_filter("exponential", MODE), Smoother("rectangular", 0.1))
+    )
     ts = commensurate_sample_period_s(chain, MODE, 1e-3)
     for f in chain.filters[:2]:
         assert f.duration_s / ts == pytest.approx(round(f.duration_s / ts), abs=1e-9)

@@ -57,7 +57,7 @@ def test_fig_17_side_band():
     assert d.stap.jerk_time_s == pytest.approx(0.015, rel=1e-12)
     # Appendix C: f t_a,min = 6 is whole and 0.15 <= 0.165 < 0.175 (A21), so the limit is reached (A14).
     assert d.limit_reached
-    side = [c for c in d.candidates if (c.k_j, c.delta) == (0, 1)][0]
+    side = next(c for c in d.candidates if (c.k_j, c.delta) == (0, 1))
     assert side.kind == "side_band" and side.reaches_limit and "A21" in side.note
     assert residual(MODE_40, d) < 1e-9  # zero residual at f_n,e ...
     k1 = S.design(S.StapRequest(MODE_40, **SEC3, jerk_periods=1))
