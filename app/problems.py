@@ -17,9 +17,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.responses import Response
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from models.errors import Infeasible, InvalidParameter
-from optim.solver import SolverFailed, SolverTimedOut
-from optim.workers import PoolUnavailable, SolveTimeout
+from models.errors import DomainError, Infeasible, InvalidParameter, NotApplicable, PoolUnavailable, SolverFailed
 
 log = logging.getLogger(__name__)
 PROBLEM_MEDIA_TYPE = "application/problem+json"
@@ -28,6 +26,7 @@ PROBLEM_MEDIA_TYPE = "application/problem+json"
 PROBLEM_TYPES: dict[str, tuple[int, str, str]] = {
     "invalid-input": (422, "Invalid input", "A field breaks a rule: see errors[] for each field, value and rule."),
     "infeasible": (422, "Infeasible limits", "No design can meet the requested limits; detail says why."),
+    "not-applicable": (422, "Family not applicable", "The family cannot design this move; detail says why."),
     "solver-failed": (422, "Solver failed", "The optimiser stopped without a valid design; no profile is returned."),
     "solve-timeout": (504, "Solve timed out", "The solve overran its time limit; no profile is returned."),
     "not-ready": (503, "Service not ready", "The solver workers are starting or restarting; retry shortly."),
@@ -125,7 +124,9 @@ def _validation_errors(exc: RequestValidationError) -> list[dict[str, Any]]:
         field = field_path(tuple(err.get("loc", ())))
         if err.get("type") == "json_invalid":
             position = err.get("loc", ("body", "?"))[-1]
-            rule = f"the body is not valid JSON ({err.get('ctx', {}).get('error', 'parse error')} at character {position})"
+            rule = (
+                f"the body is not valid JSON ({err.get('ctx', {}).get('error', 'parse error')} at character {position})"
+            )
             field = "body"
         if rule.startswith("Value error, "):
             rule = rule[len("Value error, ") :]
@@ -143,6 +144,27 @@ def invalid_input(errors: list[dict[str, Any]], total: int | None = None) -> Res
     return problem_response("invalid-input", detail, field=first["field"], errors=errors)
 
 
+def domain_problem(exc: DomainError) -> Response:
+    """The problem+json of a core error: its type is the error's own ``problem_type``."""
+    slug = exc.problem_type
+    if isinstance(exc, InvalidParameter):
+        return invalid_input([{"field": exc.field, "value": summarise(exc.value), "rule": exc.rule}])
+    if isinstance(exc, Infeasible | NotApplicable):
+        return problem_response(slug, exc.reason, field=exc.field)
+    if isinstance(exc, SolverFailed):
+        extra: dict[str, Any] = {}
+        if exc.report is not None:
+            r = exc.report
+            extra["solver"] = {"status": r.status, "iterations": r.iterations, "solve_time_s": r.solve_time_s}
+        if hasattr(exc, "limit_s"):
+            extra["limit_s"] = exc.limit_s
+        return problem_response(slug, str(exc), **extra)
+    response = problem_response(slug, str(exc))
+    if isinstance(exc, PoolUnavailable):
+        response.headers["Retry-After"] = "5"
+    return response
+
+
 def install(app: FastAPI) -> None:
     """Register the handlers that turn every error into a problem."""
 
@@ -150,34 +172,13 @@ def install(app: FastAPI) -> None:
     async def _validation(_: Request, exc: RequestValidationError) -> Response:
         return invalid_input(_validation_errors(exc), total=len(exc.errors()))
 
-    @app.exception_handler(InvalidParameter)
-    async def _invalid(_: Request, exc: InvalidParameter) -> Response:
-        return invalid_input([{"field": exc.field, "value": summarise(exc.value), "rule": exc.rule}])
-
-    @app.exception_handler(Infeasible)
-    async def _infeasible(_: Request, exc: Infeasible) -> Response:
-        return problem_response("infeasible", exc.reason, field=exc.field)
+    @app.exception_handler(DomainError)
+    async def _domain(_: Request, exc: DomainError) -> Response:
+        return domain_problem(exc)
 
     @app.exception_handler(ProblemError)
     async def _problem(_: Request, exc: ProblemError) -> Response:
         return problem_response(exc.slug, exc.detail, field=exc.field, **exc.extra)
-
-    @app.exception_handler(SolveTimeout)
-    async def _timeout(_: Request, exc: SolveTimeout) -> Response:
-        return problem_response("solve-timeout", str(exc), limit_s=exc.limit_s)
-
-    @app.exception_handler(SolverFailed)
-    async def _solver_failed(_: Request, exc: SolverFailed) -> Response:
-        slug = "solve-timeout" if isinstance(exc, SolverTimedOut) else "solver-failed"
-        r = exc.report
-        solver = {"status": r.status, "iterations": r.iterations, "solve_time_s": r.solve_time_s}
-        return problem_response(slug, str(exc), solver=solver)
-
-    @app.exception_handler(PoolUnavailable)
-    async def _unavailable(_: Request, exc: PoolUnavailable) -> Response:
-        response = problem_response("not-ready", str(exc))
-        response.headers["Retry-After"] = "5"
-        return response
 
     @app.exception_handler(StarletteHTTPException)
     async def _http(_: Request, exc: StarletteHTTPException) -> Response:
@@ -187,7 +188,12 @@ def install(app: FastAPI) -> None:
         if slug is None:
             from app.responses import dumps
 
-            body = {"type": "about:blank", "title": str(exc.detail), "status": exc.status_code, "detail": str(exc.detail)}
+            body = {
+                "type": "about:blank",
+                "title": str(exc.detail),
+                "status": exc.status_code,
+                "detail": str(exc.detail),
+            }
             return Response(dumps(body), status_code=exc.status_code, media_type=PROBLEM_MEDIA_TYPE)
         return problem_response(slug, str(exc.detail))
 
@@ -254,7 +260,9 @@ class BodySizeLimit:
 
     async def _reject(self, scope: Scope, receive: Receive, send: Send) -> None:
         response = problem_response(
-            "body-too-large", f"the request body exceeds the limit of {self.max_bytes} bytes", limit_bytes=self.max_bytes
+            "body-too-large",
+            f"the request body exceeds the limit of {self.max_bytes} bytes",
+            limit_bytes=self.max_bytes,
         )
         await response(scope, receive, send)
 

@@ -1,16 +1,30 @@
-"""Errors raised by the physics core.
+"""The one error hierarchy of the service.
 
-They carry the offending field, its value and the rule it breaks, so that the HTTP layer can
-turn them into a problem+json without parsing messages.
+Every error the core raises is a ``DomainError`` that carries its problem type (a slug documented
+under ``/problems/{slug}``), so that the HTTP layer maps them to problem+json in one place without
+parsing messages. They are picklable across the worker-process boundary.
+
+Proven infeasibility (``Infeasible``) is distinct from a family that does not apply
+(``NotApplicable``), from a solver that stopped without an answer (``SolverFailed``), from a solve
+that ran out of time (``SolverTimedOut``) and from a pool that cannot take work (``PoolUnavailable``).
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, ClassVar
 
 
-class InvalidParameter(ValueError):
+class DomainError(Exception):
+    """Base of every error the core raises on purpose."""
+
+    problem_type: ClassVar[str] = "invalid-input"
+    field: str | None = None
+
+
+class InvalidParameter(DomainError, ValueError):
     """A value that breaks a physical or numerical rule (negative inertia, zeta >= 1, ...)."""
+
+    problem_type = "invalid-input"
 
     def __init__(self, field: str, value: Any, rule: str) -> None:
         self.field = field
@@ -18,7 +32,7 @@ class InvalidParameter(ValueError):
         self.rule = rule
         super().__init__(f"{field}={value!r}: {rule}")
 
-    def __reduce__(self) -> tuple:  # picklable across the worker-process boundary
+    def __reduce__(self) -> tuple[Any, ...]:
         return (type(self), (self.field, self.value, self.rule))
 
     def under(self, prefix: str) -> InvalidParameter:
@@ -26,13 +40,59 @@ class InvalidParameter(ValueError):
         return InvalidParameter(f"{prefix}.{self.field}" if prefix else self.field, self.value, self.rule)
 
 
-class Infeasible(ValueError):
-    """Limits that no design can meet; ``reason`` says why in the user's terms."""
+class Infeasible(DomainError, ValueError):
+    """Limits that no design can meet (proven); ``reason`` says why in the user's terms."""
+
+    problem_type = "infeasible"
 
     def __init__(self, reason: str, field: str | None = None) -> None:
         self.reason = reason
         self.field = field
         super().__init__(reason)
 
-    def __reduce__(self) -> tuple:
+    def __reduce__(self) -> tuple[Any, ...]:
         return (type(self), (self.reason, self.field))
+
+
+class NotApplicable(DomainError, ValueError):
+    """The family does not apply to this problem (a rest-to-velocity move for a rest-to-rest law, ...)."""
+
+    problem_type = "not-applicable"
+
+    def __init__(self, reason: str, field: str | None = None) -> None:
+        self.reason = reason
+        self.field = field
+        super().__init__(reason)
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (type(self), (self.reason, self.field))
+
+
+class SolverFailed(DomainError, RuntimeError):
+    """The solver stopped without a usable optimum (infeasible iterate, iteration cap, numerical trouble).
+
+    ``report`` is the solver's report (``optim.solver.SolverReport``) when there is one."""
+
+    problem_type = "solver-failed"
+
+    def __init__(self, report: Any, detail: str = "") -> None:
+        self.report = report
+        self.detail = detail
+        status = getattr(report, "status", "unknown")
+        iterations = getattr(report, "iterations", 0)
+        super().__init__(detail or f"IPOPT stopped with status {status} after {iterations} iterations")
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (type(self), (self.report, self.detail))
+
+
+class SolverTimedOut(SolverFailed):
+    """The solve reached its wall-time cap (IPOPT's own, or the pool's deadline)."""
+
+    problem_type = "solve-timeout"
+
+
+class PoolUnavailable(DomainError, RuntimeError):
+    """The solver pool is starting, restarting or broken: try again shortly."""
+
+    problem_type = "not-ready"

@@ -10,6 +10,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from models.errors import SolverFailed, SolverTimedOut
+
 # IPOPT return statuses that mean a usable optimum.
 CONVERGED = {"Solve_Succeeded", "Solved_To_Acceptable_Level"}
 TIMED_OUT = {"Maximum_WallTime_Exceeded", "Maximum_CpuTime_Exceeded"}
@@ -34,22 +36,6 @@ class SolverReport:
     @property
     def timed_out(self) -> bool:
         return self.status in TIMED_OUT
-
-
-class SolverFailed(RuntimeError):
-    """IPOPT stopped without a usable optimum (infeasible, iteration cap, numerical trouble)."""
-
-    def __init__(self, report: SolverReport, detail: str = "") -> None:
-        self.report = report
-        self.detail = detail
-        super().__init__(detail or f"IPOPT stopped with status {report.status} after {report.iterations} iterations")
-
-    def __reduce__(self) -> tuple:  # picklable across the worker boundary
-        return (type(self), (self.report, self.detail))
-
-
-class SolverTimedOut(SolverFailed):
-    """IPOPT reached its wall-time cap."""
 
 
 def parameter_layout(blocks: list[tuple[str, int]]) -> tuple[dict[str, slice], int]:

@@ -19,6 +19,8 @@ from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, TypeVar
 
+from models.errors import PoolUnavailable, SolverTimedOut
+
 log = logging.getLogger(__name__)
 T = TypeVar("T")
 
@@ -26,16 +28,15 @@ T = TypeVar("T")
 WARMUPS: list[Callable[[], None]] = []
 
 
-class PoolUnavailable(RuntimeError):
-    """The pool is starting, restarting or broken: try again shortly."""
-
-
-class SolveTimeout(RuntimeError):
+class SolveTimeout(SolverTimedOut):
     """A solve overran its deadline and its worker was killed."""
 
     def __init__(self, limit_s: float) -> None:
         self.limit_s = limit_s
-        super().__init__(f"the solve did not finish within {limit_s:g} s")
+        super().__init__(None, f"the solve did not finish within {limit_s:g} s")
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (type(self), (self.limit_s,))
 
 
 def _initialise_worker(warmups: list[Callable[[], None]]) -> None:
