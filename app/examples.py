@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 INCERTI_TABLE_III: dict[str, Any] = {
@@ -86,3 +87,14 @@ SIMULATE_EXAMPLES: dict[str, dict[str, Any]] = {
         },
     },
 }
+
+# Biagiotti Sec. VI: the identified plant
+SIGMA_1_S = -15.6539  # identified decay (the paper's sigma)
+OMEGA_RAD_S = 122.7185  # identified damped frequency
+_OMEGA_N = math.hypot(SIGMA_1_S, OMEGA_RAD_S)
+BIAGIOTTI_PLANT: dict[str, Any] = {
+    "kind": "mode",
+    "natural_frequency_hz": round(_OMEGA_N / (2 * math.pi), 10),  # 19.6895151859 Hz
+    "damping_ratio": round(-SIGMA_1_S / _OMEGA_N, 10),  # 0.1265341244
+}
+T0_S = 2 * math.pi / OMEGA_RAD_S  # 0.0512 s

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
@@ -9,8 +10,20 @@ from contextlib import asynccontextmanager
 from fastapi import FastAPI
 
 from app import problems
-from app.routers import compare, health, page, plants, pseudo_polynomial, shapers, simulate, smoothers, stap
+from app.routers import (
+    compare,
+    health,
+    identify,
+    page,
+    plants,
+    pseudo_polynomial,
+    shapers,
+    simulate,
+    smoothers,
+    stap,
+)
 from app.settings import Settings, get_settings
+from optim.family import warm_up_all
 from optim.workers import SolverPool
 
 DESCRIPTION = """
@@ -29,7 +42,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        pool = SolverPool(settings.workers, settings.worker_start_timeout_s)
+        pool = SolverPool(
+            settings.workers,
+            settings.worker_start_timeout_s,
+            warm_up=functools.partial(warm_up_all, settings.solve_caps),
+        )
         app.state.pool = pool
         pool.start_in_background()
         try:
@@ -42,12 +59,13 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         version="0.1.0",
         description=DESCRIPTION,
         lifespan=lifespan,
+        generate_unique_id_function=lambda route: route.name,  # operation ids: stap_profile, compare, ...
     )
     app.state.settings = settings
     app.dependency_overrides[get_settings] = lambda: settings
     problems.install(app)
     app.add_middleware(problems.BodySizeLimit, max_bytes=settings.max_body_bytes)
-    routers = (health, plants, simulate, pseudo_polynomial, stap, smoothers, shapers, compare, page)
+    routers = (health, plants, simulate, pseudo_polynomial, stap, smoothers, identify, shapers, compare, page)
     for router in (*(r.router for r in routers), problems.router):
         app.include_router(router)
     app.mount("/static", page.static, name="static")

@@ -8,6 +8,8 @@ from functools import lru_cache
 from pydantic import Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from optim.solver import SolveCaps
+
 
 def _default_workers() -> int:
     return max(1, min(2, os.cpu_count() or 1))
@@ -25,6 +27,16 @@ class Settings(BaseSettings):
     solve_grace_s: float = Field(5.0, ge=0, description="Extra time before a stuck worker is killed.")
     workers: int = Field(default_factory=_default_workers, ge=1, le=64, description="Solver worker processes.")
     worker_start_timeout_s: float = Field(120.0, gt=0, description="Time allowed for the workers to start.")
+
+    @property
+    def solve_caps(self) -> SolveCaps:
+        """The cap of every solve, requests' and warm-ups' alike."""
+        return SolveCaps(self.solve_max_iterations, self.solve_time_limit_s)
+
+    @property
+    def solve_deadline_s(self) -> float:
+        """How long a request waits for its worker (a design may run several capped solves)."""
+        return 4.0 * self.solve_time_limit_s + self.solve_grace_s
 
 
 @lru_cache

@@ -1,7 +1,8 @@
 """The solver worker pool.
 
 IPOPT with MUMPS is not thread-safe, so every CasADi solve runs in a worker process, never on the
-event loop or in a thread. Each worker builds its solvers once, when it starts (``WARMUPS``), and
+event loop or in a thread. Each worker builds its solvers once, when it starts (the
+families' warm-ups, ``optim.family.warm_up_all``), and
 keeps them in its module-level caches. Every call has a deadline: the solve's own cap (IPOPT's
 ``max_wall_time``) plus a grace period; a worker that overruns it is killed and the pool is
 restarted, so one stuck solve cannot hold a worker forever.
@@ -24,9 +25,6 @@ from models.errors import PoolUnavailable, SolverTimedOut
 log = logging.getLogger(__name__)
 T = TypeVar("T")
 
-# Functions run once in every new worker to build its solvers (problem families register here).
-WARMUPS: list[Callable[[], None]] = []
-
 
 class SolveTimeout(SolverTimedOut):
     """A solve overran its deadline and its worker was killed."""
@@ -39,9 +37,9 @@ class SolveTimeout(SolverTimedOut):
         return (type(self), (self.limit_s,))
 
 
-def _initialise_worker(warmups: list[Callable[[], None]]) -> None:
-    for warmup in warmups:
-        warmup()
+def _initialise_worker(warm_up: Callable[[], None] | None) -> None:
+    if warm_up is not None:
+        warm_up()
 
 
 def _worker_pid() -> int:
@@ -52,8 +50,9 @@ def _worker_pid() -> int:
 class SolverPool:
     """A process pool with readiness, deadlines and restart of stuck workers."""
 
-    def __init__(self, workers: int, start_timeout_s: float = 120.0) -> None:
+    def __init__(self, workers: int, start_timeout_s: float = 120.0, warm_up: Callable[[], None] | None = None) -> None:
         self.workers = workers
+        self.warm_up = warm_up  # run once in every new worker (a picklable callable: the families' warm-ups)
         self.start_timeout_s = start_timeout_s
         self._executor: ProcessPoolExecutor | None = None
         self._ready = asyncio.Event()
@@ -68,7 +67,7 @@ class SolverPool:
             max_workers=self.workers,
             mp_context=multiprocessing.get_context("spawn"),
             initializer=_initialise_worker,
-            initargs=(list(WARMUPS),),
+            initargs=(self.warm_up,),
         )
 
     async def start(self) -> None:

@@ -1,26 +1,27 @@
-"""What every profile family's endpoint shares: limits, sampling, sensitivity and the response.
+"""The request and response vocabulary every profile endpoint and compare share.
 
-A family endpoint designs a command (optim), samples it exactly (models.commands), simulates the
-plant (models.simulation) and answers with the same blocks: ``profile``, ``design``, ``load``,
-``metrics`` and, when asked, ``sensitivity``.
+A family endpoint parses its body into a ``Problem`` (plant, move, limits, sampling, settling,
+sensitivity) and the family's options, runs the one pipeline (``optim.synthesis``) and answers with
+the same blocks: ``profile``, ``design``, ``load``, ``metrics``, ``sensitivity``, ``solver``,
+``limit_violations`` and ``warnings``. Old field names stay accepted as deprecated aliases: each
+use adds a line to ``warnings``.
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
-from pydantic import Field, model_validator
+from pydantic import Field, PrivateAttr, model_validator
 
 from app.schemas.common import OutModel, StrictModel
-from app.schemas.simulate import LoadOut, MetricsOut, ProfileOut, check_sample_count, load_out, metrics_out, profile_out
-from models.commands import PiecewiseCommand
-from models.plants import Plant
-from models.sensitivity import band_below, sensitivity
-from models.simulation import Metrics, metrics, simulate
+from app.schemas.plants import PlantIn, to_plant
+from app.schemas.simulate import LoadOut, MetricsOut, ProfileOut
+from app.settings import Settings
+from models.errors import InvalidParameter
+from optim.problem import MAX_MOVE, Limits, Problem, SensitivityGrid, Settling
 
 MAX_SENSITIVITY_POINTS = 4001
-MAX_SENSITIVITY_WORK = 20_000_000  # frequency points x damping ratios x breakpoints: about a second
 
 
 class LimitsIn(StrictModel):
@@ -92,91 +93,189 @@ class SensitivityOut(OutModel):
     )
 
 
+class SettlingIn(StrictModel):
+    """When the load counts as settled."""
+
+    position_tolerance: float = Field(
+        1e-3,
+        gt=0,
+        le=1,
+        description="|load - target| as a fraction of the load's move (velocity for rest-to-velocity).",
+    )
+
+
+def _deprecated(old: str, new: str) -> str:
+    return f"{old} is deprecated: use {new} (same meaning)"
+
+
+class ProfileRequest(StrictModel):
+    """The uniform vocabulary: plant, move, limits, sampling, settling, sensitivity; then the family's own
+    options. Subclasses list their legacy fields in ``LEGACY_LIMITS`` (old name -> limits field)."""
+
+    LEGACY_LIMITS: ClassVar[dict[str, str]] = {}
+
+    plant: PlantIn
+    displacement: float | None = Field(
+        None, ge=-MAX_MOVE, le=MAX_MOVE, description="Rest-to-rest: the signed motor displacement (rad or m)."
+    )
+    target_velocity: float | None = Field(
+        None,
+        ge=-MAX_MOVE,
+        le=MAX_MOVE,
+        description="Rest-to-velocity: the signed final motor velocity (rad/s or m/s). Give this or displacement.",
+    )
+    limits: LimitsIn = Field(
+        default_factory=LimitsIn, description="max_velocity is also the cruise speed of a rest-to-rest move."
+    )
+    sample_period_s: float | None = Field(
+        None,
+        ge=1e-6,
+        le=10,
+        description="Period of the returned series, s (corners kept). Default: about 2000 samples over the horizon, "
+        "rounded to 1, 2 or 5 times a power of ten.",
+    )
+    horizon_s: float | None = Field(
+        None,
+        gt=0,
+        le=1e6,
+        description="End of the returned series, s (>= the command's end). Default: the command's end plus 5 natural "
+        "periods of the slowest mode.",
+    )
+    settling: SettlingIn = Field(default_factory=SettlingIn)
+    sensitivity: SensitivityIn | None = Field(None, description="Residual versus f_n/f_n,e, when asked.")
+    settling_tolerance: float | None = Field(
+        None, gt=0, le=1, deprecated=_deprecated("settling_tolerance", "settling.position_tolerance")
+    )
+
+    _deprecations: list[str] = PrivateAttr(default_factory=list)
+    _aliases: dict[str, str] = PrivateAttr(default_factory=dict)  # new field -> the legacy field the caller used
+
+    MOVE_FIELD: ClassVar[str] = "displacement"  # the field a missing move is reported under
+
+    def _resolved(self) -> tuple[LimitsIn, SettlingIn, float | None, float | None]:
+        """Legacy fields folded into the uniform ones (recording each use), and the move checked; a
+        break is an InvalidParameter naming the field."""
+        raw = self.__dict__  # reads deprecated fields without their access warning
+        notes: list[str] = []
+        aliases: dict[str, str] = {}
+        settling = self.settling
+        if raw.get("settling_tolerance") is not None:
+            if "settling" in self.model_fields_set:
+                raise InvalidParameter(
+                    "settling_tolerance", raw["settling_tolerance"], "give settling.position_tolerance only"
+                )
+            settling = SettlingIn(position_tolerance=raw["settling_tolerance"])
+            notes.append(_deprecated("settling_tolerance", "settling.position_tolerance"))
+            aliases["settling.position_tolerance"] = "settling_tolerance"
+        updates: dict[str, float] = {}
+        for old, new in self.LEGACY_LIMITS.items():
+            value = raw.get(old)
+            if value is None:
+                continue
+            current = getattr(self.limits, new)
+            if current is not None and current != value:
+                raise InvalidParameter(old, value, f"is deprecated and disagrees with limits.{new}: give that only")
+            updates[new] = value
+            notes.append(_deprecated(old, f"limits.{new}"))
+            aliases[f"limits.{new}"] = old
+        displacement, target = self._legacy_move(updates, notes, aliases)
+        if (displacement is None) == (target is None):
+            raise InvalidParameter(
+                self.MOVE_FIELD if target is None else "target_velocity",
+                target,
+                "give exactly one of displacement (rest-to-rest) or target_velocity (rest-to-velocity)",
+            )
+        self._deprecations, self._aliases = notes, aliases
+        return self.limits.model_copy(update=updates), settling, displacement, target
+
+    def _legacy_move(
+        self, updates: dict[str, float], notes: list[str], aliases: dict[str, str]
+    ) -> tuple[float | None, float | None]:
+        """(displacement, target_velocity); a family whose old body gave the cruise speed beside the
+        displacement folds it into ``updates`` here."""
+        return self.displacement, self.target_velocity
+
+    def options(self, problem: Problem) -> Any:
+        """The family's options from this request's own fields."""
+        raise NotImplementedError
+
+    @property
+    def deprecations(self) -> list[str]:
+        """One warning per deprecated field used (known once ``to_problem`` has run)."""
+        return list(self._deprecations)
+
+    def caller_field(self, field: str | None) -> str | None:
+        """The name the caller used for a field (the legacy alias where one was used)."""
+        return self._aliases.get(field, field) if field is not None else None
+
+    def to_problem(self, settings: Settings) -> Problem:
+        lim, settling, displacement, target = self._resolved()
+        grid = None
+        if self.sensitivity is not None:
+            s = self.sensitivity
+            grid = SensitivityGrid(
+                tuple(float(r) for r in s.ratios()),
+                tuple(s.damping_ratios) if s.damping_ratios else None,
+                explicit=s.frequency_ratios is not None,
+            )
+        return Problem(
+            plant=to_plant(self.plant),
+            displacement=displacement,
+            target_velocity=target,
+            limits=Limits(lim.max_velocity, lim.max_acceleration, lim.max_jerk, lim.max_torque_nm),
+            sample_period_s=self.sample_period_s,
+            horizon_s=self.horizon_s,
+            settling=Settling(settling.position_tolerance),
+            sensitivity=grid,
+            max_samples=settings.max_samples,
+            solver=settings.solve_caps,
+        )
+
+    def common_body(self) -> dict[str, Any]:
+        """The uniform part of this request in the new vocabulary (for compare's rows[].request)."""
+        limits, settling, displacement, target = self._resolved()
+        body: dict[str, Any] = {"plant": self.plant.model_dump()}
+        if displacement is not None:
+            body["displacement"] = displacement
+        else:
+            body["target_velocity"] = target
+        if limits.model_dump(exclude_none=True):
+            body["limits"] = limits.model_dump(exclude_none=True)
+        for name in ("sample_period_s", "horizon_s"):
+            if getattr(self, name) is not None:
+                body[name] = getattr(self, name)
+        body["settling"] = settling.model_dump()
+        if self.sensitivity is not None:
+            body["sensitivity"] = self.sensitivity.model_dump(exclude_none=True)
+        return body
+
+
+class SolverOut(OutModel):
+    status: str = Field(description="The solver's status of the solve that produced the design.")
+    iterations: int = Field(description="Iterations over all solves.")
+    solve_time_s: float = Field(description="Wall time of the solves, s.")
+    solves: int = Field(description="Solves run for this design (a duration search runs several).")
+
+
 class FamilyResponse(OutModel):
     profile: ProfileOut
     design: dict[str, Any]
     load: LoadOut
     metrics: MetricsOut
     sensitivity: SensitivityOut | None = None
-    warnings: list[str] = []
-
-
-def sample_count_check(
-    duration_s: float, sample_period_s: float, max_samples: int, field: str = "sample_period_s"
-) -> None:
-    """Refuse a sampling that would exceed the cap, before building anything."""
-    count = int(duration_s / sample_period_s) + 1
-    if count > max_samples:
-        from models.errors import InvalidParameter
-
-        raise InvalidParameter(
-            field,
-            sample_period_s,
-            f"{count} samples over {duration_s:.6g} s exceed the cap of {max_samples}; use a period >= "
-            f"{duration_s / (max_samples - 1):.3g} s",
-        )
-
-
-def sensitivity_out(command: PiecewiseCommand, plant: Plant, request: SensitivityIn) -> dict[str, Any]:
-    """Residual versus frequency ratio around the plant's first mode."""
-    modes = plant.modes()
-    if not modes:
-        from models.errors import InvalidParameter
-
-        raise InvalidParameter("sensitivity", "requested", "the plant has no vibration mode to evaluate it around")
-    mode = modes[0]
-    zetas = request.damping_ratios or [mode.damping_ratio]
-    work = request.points * len(zetas) * (command.end_index() + 1)
-    if work > MAX_SENSITIVITY_WORK:
-        from models.errors import InvalidParameter
-
-        raise InvalidParameter(
-            "sensitivity.count",
-            request.points,
-            f"{request.points} ratios x {len(zetas)} damping ratios x {command.end_index() + 1} breakpoints exceed "
-            f"{MAX_SENSITIVITY_WORK:.0e}: ask fewer ratios or a longer sample_period_s",
-        )
-    result = sensitivity(command, mode.natural_frequency_rad_s, request.ratios(), np.asarray(zetas))
-    band = band_below(result.frequency_ratio, result.residual[0], 0.05)
-    return {
-        "frequency_ratio": result.frequency_ratio,
-        "residual_vibration": result.residual[0],
-        "quantity": result.quantity,
-        "damping_ratio": result.damping_ratio,
-        "residual_vibration_grid": result.residual if len(zetas) > 1 else None,
-        "band_5_percent": list(band) if band else None,
-    }
-
-
-def family_response(
-    plant: Plant,
-    command: PiecewiseCommand,
-    design: dict[str, Any],
-    *,
-    sensitivity_request: SensitivityIn | None = None,
-    settling_tolerance: float = 1e-3,
-    warnings: list[str] | None = None,
-) -> tuple[dict[str, Any], Metrics]:
-    """The response body of a family endpoint, and the metrics (for limit checks and compare)."""
-    response = simulate(plant, command)
-    result = metrics(response, settling_tolerance)
-    body = {
-        "profile": profile_out(command),
-        "design": design,
-        "load": load_out(response),
-        "metrics": metrics_out(result),
-        "sensitivity": sensitivity_out(command, plant, sensitivity_request) if sensitivity_request else None,
-        "warnings": warnings or [],
-    }
-    return body, result
+    solver: SolverOut | None = Field(None, description="Where a solver ran: its status, iterations and time.")
+    limit_violations: list[str] = Field(
+        default_factory=list, description="Every requested limit the simulated command breaks (also in warnings)."
+    )
+    warnings: list[str] = Field(default_factory=list)
 
 
 __all__ = [
     "FamilyResponse",
     "LimitsIn",
+    "ProfileRequest",
     "SensitivityIn",
     "SensitivityOut",
-    "check_sample_count",
-    "family_response",
-    "sample_count_check",
+    "SettlingIn",
+    "SolverOut",
 ]

@@ -2,31 +2,39 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import ClassVar, Literal
 
 from pydantic import Field
 
-from app.schemas.common import OutModel, StrictModel
-from app.schemas.family import FamilyResponse, SensitivityIn
-from app.schemas.plants import PlantIn
+from app.schemas.common import OutModel
+from app.schemas.family import FamilyResponse, ProfileRequest
 from app.schemas.simulate import MetricsOut, ProfileOut
-from optim.shapers import CATALOGUE_NAMES, DEFAULT_VIBRATION_TOLERANCE, MAX_COMMAND_S, MAX_DERIVATIVE_ORDER
+from models.errors import InvalidParameter
+from optim.families.input_shaped import MAX_SHAPED_MODES, InputShapedOptions
+from optim.family import FAMILIES
+from optim.problem import MAX_MOVE, Problem
+from optim.shapers import CATALOGUE_NAMES, DEFAULT_VIBRATION_TOLERANCE, MAX_DERIVATIVE_ORDER
 
-MAX_MOVE = 1e9
-MAX_SHAPED_MODES = 3
+FAMILY = FAMILIES["input_shaped"]
 
 
-class InputShapedRequest(StrictModel):
+class InputShapedRequest(ProfileRequest):
     """A velocity step (``target_velocity``) or a rest-to-rest move (``displacement``), shaped for
     the plant's mode and kept within the drive's acceleration limit.
 
     The command is the motor velocity (steps and ramps); for position-input plants the motor
     position is its exact integral. The drive limits the slope of the velocity it receives to
-    ``acceleration_limit`` (Chatlatanagulchai Fig. 5): the load is simulated with that
-    rate-limited command.
+    ``limits.max_acceleration`` (Chatlatanagulchai Fig. 5; on a two_inertia plant also M/(J_M + J_L) from
+    ``limits.max_torque_nm``): the load is simulated with that rate-limited command. A rest-to-rest move
+    cruises at ``limits.max_velocity``; default: the speed that makes the modified move fastest,
+    sqrt(a |D| / max A_i), capped by the no-overlap condition at a min(t_(i+1) - t_i) / max A_i.
     """
 
-    plant: PlantIn
+    LEGACY_LIMITS: ClassVar[dict[str, str]] = {
+        "acceleration_limit": "max_acceleration",
+        "cruise_velocity": "max_velocity",
+    }
+
     shaper: str = Field(
         "zvd",
         description=f"One of {', '.join(CATALOGUE_NAMES)}, or zv followed by up to {MAX_DERIVATIVE_ORDER} letters d "
@@ -43,51 +51,33 @@ class InputShapedRequest(StrictModel):
         description="Shape the lowest mode, or every mode (one shaper per mode, convolved; at most "
         f"{MAX_SHAPED_MODES}).",
     )
-    target_velocity: float | None = Field(
-        None, ge=-MAX_MOVE, le=MAX_MOVE, description="Rest-to-velocity: the final motor velocity (the paper's a1 or V)."
-    )
-    displacement: float | None = Field(
-        None,
-        ge=-MAX_MOVE,
-        le=MAX_MOVE,
-        description="Rest-to-rest: the motor displacement (give this or target_velocity).",
-    )
-    cruise_velocity: float | None = Field(
-        None,
-        gt=0,
-        le=MAX_MOVE,
-        description="Rest-to-rest only: the baseline's velocity. Default: the one that makes the modified move "
-        "fastest, sqrt(a |D| / max A_i), capped by the no-overlap condition at a min(t_(i+1) - t_i) / max A_i.",
-    )
-    acceleration_limit: float | None = Field(
-        None,
-        gt=0,
-        le=1e12,
-        description="The drive's limit a on |dv/dt|. Required by the modified and multi-step baselines; without "
-        "it the drive follows the shaped command as it is.",
-    )
     baseline: Literal["step", "modified", "multi_step"] = Field(
         "modified",
         description="step: the plain velocity step (or pulse), which the drive's limiter distorts; modified: the "
         "paper's ramp-plus-step with Delta = a1 max|A_i| / a (Sec. 4); multi_step: steps at the first impulse "
-        "times (Fig. 10), by the paper's relations where they hold (ZV) and otherwise the fastest valid steps.",
+        "times (Fig. 10), by the paper's relations where they hold (ZV) and otherwise the fastest valid steps. "
+        "modified and multi_step need an acceleration limit.",
     )
     baseline_steps: int = Field(2, ge=1, le=32, description="multi_step only: the number of steps (<= impulse count).")
-    horizon_s: float | None = Field(
-        None,
-        gt=0,
-        le=MAX_COMMAND_S,
-        description="End of the returned time series, s (>= the command's end). Default: the end plus three "
-        "damped periods of the first mode.",
+    cruise_velocity: float | None = Field(
+        None, gt=0, le=MAX_MOVE, deprecated="cruise_velocity is deprecated: use limits.max_velocity (same meaning)"
     )
-    sample_period_s: float | None = Field(
-        None,
-        gt=0,
-        le=MAX_COMMAND_S,
-        description="Sampling of the returned series, s (kinks are kept). Default: horizon/2000.",
+    acceleration_limit: float | None = Field(
+        None, gt=0, le=1e12, deprecated="acceleration_limit is deprecated: use limits.max_acceleration (same meaning)"
     )
-    settling_tolerance: float = Field(1e-3, gt=0, le=1, description="Settling band as a fraction of the move.")
-    sensitivity: SensitivityIn | None = Field(None, description="Residual versus frequency ratio, when asked.")
+
+    def _legacy_move(
+        self, updates: dict[str, float], notes: list[str], aliases: dict[str, str]
+    ) -> tuple[float | None, float | None]:
+        cruise = self.__dict__.get("cruise_velocity")
+        if self.target_velocity is not None and cruise is not None:
+            raise InvalidParameter("cruise_velocity", cruise, "applies to a rest-to-rest move (displacement) only")
+        return self.displacement, self.target_velocity
+
+    def options(self, problem: Problem) -> InputShapedOptions:
+        return InputShapedOptions(
+            self.shaper, self.vibration_tolerance, self.shaped_modes, self.baseline, self.baseline_steps
+        )
 
 
 class ImpulsesOut(OutModel):

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Literal
 
 import numpy as np
 from pydantic import Field
@@ -11,7 +11,7 @@ from app.schemas.common import OutModel, StrictModel
 from app.schemas.plants import PlantIn
 from models.commands import DERIVATIVE_NAMES, PiecewiseCommand
 from models.errors import InvalidParameter
-from models.simulation import Metrics, Response
+from optim.synthesis import load_arrays, metrics_dict, profile_arrays
 
 Quantity = Literal["position", "velocity", "acceleration", "jerk"]
 _CONSISTENCY_TOLERANCE = 1e-6
@@ -86,6 +86,7 @@ class ModeResidualOut(OutModel):
 
 class MetricsOut(OutModel):
     command_end_s: float = Field(description="Time of the command's last change: where the residual is measured.")
+    motion_time_s: float = Field(description="The command's duration: from its start (t = 0) to its last change.")
     residual_amplitude: float = Field(
         description="Envelope of the load's free oscillation when the command ends, from the state (sum over modes)."
     )
@@ -173,40 +174,7 @@ def to_command(profile: ProfileIn, options: SimulationOptions, max_samples: int)
     return command, warnings
 
 
-def profile_out(command: PiecewiseCommand) -> dict[str, Any]:
-    return {
-        "time_s": command.time_s,
-        "position": command.derivative(0),
-        "velocity": command.derivative(1),
-        "acceleration": command.derivative(2),
-        "jerk": command.derivative(3),
-    }
-
-
-def load_out(response: Response) -> dict[str, Any]:
-    return {
-        "time_s": response.time_s,
-        "position": response.load_position,
-        "velocity": response.load_velocity,
-        "acceleration": response.load_acceleration,
-        "deflection": response.deflection,
-        "motor_torque_nm": response.motor_torque_nm,
-    }
-
-
-def metrics_out(m: Metrics) -> dict[str, Any]:
-    return {
-        "command_end_s": m.command_end_s,
-        "residual_amplitude": m.residual_amplitude,
-        "residual_velocity_amplitude": m.residual_velocity_amplitude,
-        "modes": [vars(mode) for mode in m.modes],
-        "final_energy_j": m.final_energy_j,
-        "settling_time_s": m.settling.time_s,
-        "settled": m.settling.time_s is not None,
-        "settling_quantity": m.settling.quantity,
-        "settling_window": float(m.settling.window),
-        "peak_velocity": m.peak_velocity,
-        "peak_acceleration": m.peak_acceleration,
-        "peak_jerk": m.peak_jerk,
-        "peak_motor_torque_nm": m.peak_motor_torque_nm,
-    }
+# The answer's blocks are the pipeline's (one definition for every endpoint).
+profile_out = profile_arrays
+load_out = load_arrays
+metrics_out = metrics_dict

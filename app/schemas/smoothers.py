@@ -4,14 +4,18 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from pydantic import Field, field_validator
+from pydantic import Field
 
 from app.schemas.common import OutModel, StrictModel
-from app.schemas.family import FamilyResponse, LimitsIn, SensitivityIn
-from app.schemas.plants import ModeOut, PlantIn
+from app.schemas.family import FamilyResponse, ProfileRequest
+from app.schemas.plants import ModeOut
 from models.commands import MIN_STEP_S
 from models.smoothers import MAX_DURATION_S, MAX_REQUESTED_FILTERS, MIN_DURATION_S
-from optim.smoothers import Limits
+from optim.families.smoother import FilterOption, SmootherOptions
+from optim.family import FAMILIES
+from optim.problem import Problem
+
+FAMILY = FAMILIES["smoother"]
 
 FilterType = Literal["rectangular", "harmonic", "damped_harmonic", "exponential"]
 
@@ -37,30 +41,17 @@ class FilterIn(StrictModel):
     )
 
 
-class SmootherRequest(StrictModel):
-    plant: PlantIn
-    displacement: float = Field(
-        ge=-1e12, le=1e12, description="Move h, in the motor's units (rad or m); negative moves back."
-    )
+class SmootherRequest(ProfileRequest):
+    """A rest-to-rest move: a step of ``displacement`` filtered by a chain of FIR smoothers. The limits are
+    designed for by rectangular filters (velocity, acceleration, jerk: eqs. 2, 3 and 6); a torque limit is
+    checked on the result, not designed for."""
+
     filters: list[FilterIn] = Field(
+        default_factory=lambda: [FilterIn(type="damped_harmonic")],
         max_length=MAX_REQUESTED_FILTERS,
         description="The vibration filters, in series. Rectangular filters that the limits need are added in "
-        "front of them. Empty: a time-optimal chain of rectangular filters for the limits (eqs. 2-3).",
-    )
-    limits: LimitsIn = Field(
-        default_factory=LimitsIn,
-        description="Velocity, acceleration and jerk bounds (eqs. 2, 3 and 6). max_torque_nm is not designed for "
-        "by this family: the torque is reported in metrics.",
-    )
-    sample_period_s: float = Field(
-        ge=MIN_STEP_S, le=MAX_DURATION_S, description="Period of the returned profile, s (breakpoints are added)."
-    )
-    horizon_s: float | None = Field(
-        None,
-        gt=0,
-        le=MAX_DURATION_S,
-        description="End of the returned samples, s (default: the filters' total duration plus 5 periods of the "
-        "plant's first mode, so the load's free motion after the move shows).",
+        "front of them. Empty: a time-optimal chain of rectangular filters for the limits (eqs. 2-3). Default: one "
+        "damped harmonic smoother tuned to the plant's first mode.",
     )
     discrete_sample_period_s: float | None = Field(
         None,
@@ -69,17 +60,11 @@ class SmootherRequest(StrictModel):
         description="A drive's sample period: also return the discrete filters (eq. 17) and what rounding "
         "N = T/Ts to an integer costs.",
     )
-    sensitivity: SensitivityIn | None = None
 
-    @field_validator("displacement")
-    @classmethod
-    def _non_zero(cls, value: float) -> float:
-        if value == 0.0:
-            raise ValueError("must not be 0")
-        return value
-
-    def core_limits(self) -> Limits:
-        return Limits(self.limits.max_velocity, self.limits.max_acceleration, self.limits.max_jerk)
+    def options(self, problem: Problem) -> SmootherOptions:
+        return SmootherOptions(
+            tuple(FilterOption(f.type, f.duration_s) for f in self.filters), self.discrete_sample_period_s
+        )
 
 
 # --- response ------------------------------------------------------------------------------
@@ -150,6 +135,7 @@ class PeaksOut(OutModel):
 class SmootherDesignOut(OutModel):
     filters: list[FilterOut] = Field(description="The chain, limit filters first (eq. 3 holds along it).")
     total_duration_s: float = Field(description="T_1 + ... + T_n: the motion's duration.")
+    duration_s: float = Field(description="The same: the motion's duration.")
     continuous_derivatives: int = Field(description="The profile is of class C^k (each M adds 1, each S adds 2).")
     mode: ModeOut | None = Field(description="The plant's first mode, to which untimed filters are tuned.")
     vibration_free: bool | None = Field(description="Whether the chain cancels the first mode.")

@@ -3,14 +3,16 @@
 from __future__ import annotations
 
 import math
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 from pydantic import Field, field_validator
 
 from app.schemas.common import OutModel, StrictModel
-from app.schemas.family import SensitivityIn, SensitivityOut
-from app.schemas.plants import PlantIn
-from app.schemas.simulate import LoadOut, MetricsOut, ProfileOut
+from app.schemas.family import FamilyResponse, ProfileRequest, SensitivityOut
+from models.errors import InvalidParameter
+from optim.families.stap import AUTO_RULE, StapOptimization, StapOptions
+from optim.family import FAMILIES
+from optim.problem import Problem
 from optim.stap import (
     DEFAULT_FREQUENCY_UNCERTAINTY,
     DEFAULT_RESIDUAL_TOLERANCE,
@@ -19,19 +21,8 @@ from optim.stap import (
     OBJECTIVES,
 )
 
-MAX_MOVE = 1e9
 MAX_JERK_PERIODS = 10_000
-
-AUTO_RULE = (
-    "auto follows the Fig. 25 flowchart (Sec. 4). A design 'meets' when its undamped sensitivity curve (Appendix B) "
-    "stays <= residual_tolerance for f_n/f_n,e in [1 - frequency_uncertainty, 1 + frequency_uncertainty]. Without "
-    "acceleration_time_s: k_j = 1 (t_j = 1/f_n,e, eq. 50) first; if f_n,e t_a,min >= 1 (eq. 74) it is the trapezoid "
-    "t_a = t_a,min + 1/f_n,e (eq. 61), and if it does not meet and int(f_n,e t_a,min) >= 2 (eqs. 63, 75) k_j = 2 is "
-    "tried; if f_n,e t_a,min < 1 (eq. 76) it is the triangle t_a = 2/f_n,e (eq. 66, peak by eq. 31), lengthened to "
-    "t_a = n/f_n,e, n = 3..10 with k_j = 1 until it meets. The first design that meets is returned, else the one with "
-    "the lowest worst case (with a warning). With acceleration_time_s: the delta = 0 zero-vibration jerk time "
-    "(eq. 49) with the lowest worst case (smallest k_j on ties); if none fits, the side band (0, 1) with a warning."
-)
+FAMILY = FAMILIES["stap"]
 
 
 class OptimizationIn(StrictModel):
@@ -61,33 +52,18 @@ class OptimizationIn(StrictModel):
         return value
 
 
-class StapIn(StrictModel):
+class StapIn(ProfileRequest):
     """A symmetric trapezoidal acceleration profile (Cusimano 2022): rest to ``target_velocity``, or a
-    rest-to-rest move of ``displacement`` made of an accelerating STAP, a cruise and a decelerating STAP.
+    rest-to-rest move of ``displacement`` made of an accelerating STAP, a cruise at ``limits.max_velocity``
+    (default: the fastest move, with no cruise; lowered if the displacement is too short) and a decelerating STAP.
 
-    The plant's first vibration mode is the estimate f_n,e the STAP is designed for (give a ``mode`` plant
-    with the estimated frequency, or the physical plant). The closed-form rules assume zeta = 0 (Sec. 2.3);
-    method 'optimized' accounts for damping and frequency uncertainty."""
+    The acceleration limit is ``limits.max_acceleration``; on a two_inertia plant ``limits.max_torque_nm`` gives
+    a_Max = M/(J_M + J_L) (eq. 19), lowered by the torque oscillation of eqs. (57)-(59) over the frequency band.
+    The plant's first vibration mode is the estimate f_n,e the STAP is designed for. The closed-form rules assume
+    zeta = 0 (Sec. 2.3); method 'optimized' accounts for damping and frequency uncertainty."""
 
-    plant: PlantIn
-    target_velocity: float | None = Field(
-        None,
-        ge=-MAX_MOVE,
-        le=MAX_MOVE,
-        description="v_max, the final motor velocity (rad/s or m/s). With a displacement: the cruise speed (same "
-        "sign), lowered if the displacement is too short; default then: the fastest move, with no cruise.",
-    )
-    displacement: float | None = Field(
-        None, ge=-MAX_MOVE, le=MAX_MOVE, description="Rest-to-rest: the motor displacement (rad or m)."
-    )
-    max_acceleration: float | None = Field(None, gt=0, le=1e12, description="a_Max, the motor acceleration limit.")
-    max_torque_nm: float | None = Field(
-        None,
-        gt=0,
-        le=1e12,
-        description="two_inertia only: the motor torque limit M_m,Max. It gives a_Max = M/(J_M + J_L) (eq. 19), lowered "
-        "by the torque oscillation of eqs. (57)-(59) over the frequency band (the paper's 0.94 example).",
-    )
+    LEGACY_LIMITS: ClassVar[dict[str, str]] = {"max_acceleration": "max_acceleration", "max_torque_nm": "max_torque_nm"}
+
     jerk_periods: int | Literal["auto"] = Field(
         "auto",
         description="k_j: t_j = (k_j + delta dec(f_n,e t_a))/f_n,e (eqs. 44, 49); 'auto' applies the flowchart "
@@ -119,20 +95,12 @@ class StapIn(StrictModel):
         description="Residual vibration accepted over the band, a fraction of the move ('a few hundredths', Sec. 3).",
     )
     optimization: OptimizationIn | None = Field(None, description="Options of method 'optimized'.")
-    sample_period_s: float | None = Field(
-        None,
-        ge=1e-6,
-        le=10,
-        description="Sample period of the returned series, s (corners kept); default horizon/2000.",
+    max_acceleration: float | None = Field(
+        None, gt=0, le=1e12, deprecated="max_acceleration is deprecated: use limits.max_acceleration (same meaning)"
     )
-    horizon_s: float | None = Field(
-        None,
-        gt=0,
-        le=1e6,
-        description="End of the returned series, s (default: the command's end plus 5 periods of the mode).",
+    max_torque_nm: float | None = Field(
+        None, gt=0, le=1e12, deprecated="max_torque_nm is deprecated: use limits.max_torque_nm (same meaning)"
     )
-    settling_tolerance: float = Field(1e-3, gt=0, le=1, description="Settling band as a fraction of the move.")
-    sensitivity: SensitivityIn | None = Field(None, description="Residual versus f_n/f_n,e, when asked.")
 
     @field_validator("jerk_periods", mode="before")
     @classmethod
@@ -141,7 +109,7 @@ class StapIn(StrictModel):
             return value
         if (
             isinstance(value, bool)
-            or not isinstance(value, (int, float))
+            or not isinstance(value, int | float)
             or not math.isfinite(value)
             or value != int(value)
         ):
@@ -149,6 +117,50 @@ class StapIn(StrictModel):
         if not 0 <= value <= MAX_JERK_PERIODS:
             raise ValueError(f"must lie in 0..{MAX_JERK_PERIODS} or be 'auto'")
         return int(value)
+
+    MOVE_FIELD: ClassVar[str] = "target_velocity"
+
+    def _legacy_move(
+        self, updates: dict[str, float], notes: list[str], aliases: dict[str, str]
+    ) -> tuple[float | None, float | None]:
+        """The old body gave the cruise speed as target_velocity beside the displacement."""
+        if self.displacement is None or self.target_velocity is None:
+            return self.displacement, self.target_velocity
+        if self.displacement * self.target_velocity < 0:
+            raise InvalidParameter(
+                "target_velocity", self.target_velocity, "the cruise speed must have the displacement's sign"
+            )
+        current = self.limits.max_velocity
+        if current is not None and current != abs(self.target_velocity):
+            raise InvalidParameter(
+                "target_velocity",
+                self.target_velocity,
+                "is the cruise speed here and disagrees with limits.max_velocity",
+            )
+        updates["max_velocity"] = abs(self.target_velocity)
+        notes.append(
+            "target_velocity beside a displacement is deprecated: give the cruise speed as limits.max_velocity"
+        )
+        aliases["limits.max_velocity"] = "target_velocity"
+        return self.displacement, None
+
+    def options(self, problem: Problem) -> StapOptions:
+        if self.optimization is not None and self.method != "optimized":
+            raise InvalidParameter("optimization", "given", "applies to method 'optimized' only")
+        opt = self.optimization
+        return StapOptions(
+            jerk_periods=self.jerk_periods,
+            delta=self.delta,
+            acceleration_time_s=self.acceleration_time_s,
+            method=self.method,
+            frequency_uncertainty=self.frequency_uncertainty,
+            residual_tolerance=self.residual_tolerance,
+            optimization=None
+            if opt is None
+            else StapOptimization(
+                opt.objective, tuple(opt.damping_ratios) if opt.damping_ratios else None, opt.frequency_points
+            ),
+        )
 
 
 class SolverOut(OutModel):
@@ -257,7 +269,8 @@ class StapDesignOut(OutModel):
     displacement: float | None = None
     cruise_velocity: float | None = None
     cruise_time_s: float | None = None
-    total_time_s: float = Field(description="t_a for rest-to-velocity; 2 t_a + t_cruise for rest-to-rest.")
+    duration_s: float = Field(description="t_a for rest-to-velocity; 2 t_a + t_cruise for rest-to-rest.")
+    total_time_s: float = Field(description="Deprecated: the same as duration_s.")
     requested_velocity: float | None = None
     velocity_lowered: bool | None = None
     residual_vibration: float = Field(
@@ -274,13 +287,9 @@ class StapSensitivityOut(SensitivityOut):
     )
 
 
-class StapOut(OutModel):
-    profile: ProfileOut
-    design: StapDesignOut
-    load: LoadOut
-    metrics: MetricsOut
+class StapOut(FamilyResponse):
+    design: StapDesignOut  # type: ignore[assignment]
     sensitivity: StapSensitivityOut | None = None
-    warnings: list[str]
 
 
 __all__ = ["AUTO_RULE", "OBJECTIVES", "OptimizationIn", "StapDesignOut", "StapIn", "StapOut"]

@@ -47,3 +47,14 @@ def client() -> Iterator[TestClient]:
     with TestClient(app, raise_server_exceptions=False) as test_client:
         wait_ready(test_client)
         yield test_client
+
+
+def direct_body(family, schema, payload: dict, settings: Settings) -> dict:
+    """A family endpoint's answer without HTTP: the same request through the pipeline in-process."""
+    from optim.synthesis import synthesize
+
+    body = schema.model_validate(payload)
+    problem = body.to_problem(settings)
+    answer = synthesize(family, problem, body.options(problem)).body()
+    answer["warnings"] = [*body.deprecations, *answer["warnings"]]
+    return answer

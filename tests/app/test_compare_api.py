@@ -114,9 +114,9 @@ def test_a_family_that_cannot_meet_the_limits_gives_its_reason(client):
 @pytest.mark.parametrize(
     ("request_body", "field"),
     [
-        ({"plant": CUSIMANO_8HZ}, "body"),
-        ({"plant": CUSIMANO_8HZ, "displacement": 1.0, "target_velocity": 1.0}, "body"),
-        ({"plant": CUSIMANO_8HZ, "displacement": 0.0}, "body"),
+        ({"plant": CUSIMANO_8HZ}, "displacement"),
+        ({"plant": CUSIMANO_8HZ, "displacement": 1.0, "target_velocity": 1.0}, "target_velocity"),
+        ({"plant": CUSIMANO_8HZ, "displacement": 0.0}, "displacement"),
         ({"plant": CUSIMANO_8HZ, "displacement": 1.0, "families": ["magic"]}, "families[0]"),
         ({"plant": {"kind": "mode", "natural_frequency_hz": -1}, "displacement": 1.0}, "plant.natural_frequency_hz"),
     ],

@@ -9,12 +9,11 @@ import numpy as np
 import pytest
 
 from app.examples import CHATLATANAGULCHAI_EQ3
-from app.routers.shapers import respond
-from app.schemas.shapers import InputShapedRequest, InputShapedResponse, ShaperCatalogue
+from app.schemas.shapers import FAMILY, InputShapedRequest, InputShapedResponse, ShaperCatalogue
 from models.commands import PiecewiseCommand
 from models.plants import make_plant
 from models.simulation import metrics, simulate
-from tests.app.conftest import TEST_SETTINGS
+from tests.app.conftest import TEST_SETTINGS, direct_body
 from tests.app.test_errors import assert_problem
 from tests.shaper_oracle import v_by_simulation
 
@@ -125,7 +124,7 @@ def test_rest_to_rest_reaches_the_displacement_at_rest(client):
 def test_respond_is_the_http_body_without_http(client):
     request = {**PAPER, "sensitivity": {"count": 11}}
     over_http = client.post(PATH, json=request).json()
-    direct = respond(InputShapedRequest.model_validate(request), TEST_SETTINGS)
+    direct = direct_body(FAMILY, InputShapedRequest, request, TEST_SETTINGS)
     assert direct["impulses"]["times_s"].tolist() == over_http["impulses"]["times_s"]
     assert np.asarray(direct["profile"]["velocity"]).tolist() == over_http["profile"]["velocity"]
     assert direct["sensitivity"]["band_5_percent"] == over_http["sensitivity"]["band_5_percent"]
@@ -187,7 +186,7 @@ def test_openapi_documents_the_paper_example(client):
     spec = client.get("/openapi.json").json()
     examples = spec["paths"][PATH]["post"]["requestBody"]["content"]["application/json"]["examples"]
     value = examples["paper_modified_zvd"]["value"]
-    assert value["acceleration_limit"] == 0.1 and value["target_velocity"] == 1.0
+    assert value["limits"]["max_acceleration"] == 0.1 and value["target_velocity"] == 1.0
     assert value["plant"] == CHATLATANAGULCHAI_EQ3
     assert "/v1/shapers" in spec["paths"]
 

@@ -9,14 +9,15 @@ import math
 import numpy as np
 import pytest
 
-from app.routers.smoothers import BIAGIOTTI_PLANT, SMOOTHER_EXAMPLES, respond
-from app.schemas.smoothers import SmootherRequest
+from app.examples import BIAGIOTTI_PLANT
+from app.routers.smoothers import SMOOTHER_EXAMPLES
+from app.schemas.smoothers import FAMILY, SmootherRequest
 from app.settings import Settings
 from models.commands import PiecewiseCommand
 from models.errors import InvalidParameter
 from models.plants import make_plant
 from models.simulation import metrics, simulate
-from tests.app.conftest import TEST_SETTINGS
+from tests.app.conftest import TEST_SETTINGS, direct_body
 from tests.app.test_errors import assert_problem
 
 SIGMA = -15.6539
@@ -178,7 +179,7 @@ def test_sensitivity_block_agrees_with_the_closed_form(client):
 def test_respond_is_the_http_body_without_http(client):
     payload = request(discrete_sample_period_s=1e-3)
     over_http = client.post(URL, json=payload).json()
-    direct = json.loads(json.dumps(respond(SmootherRequest.model_validate(payload), TEST_SETTINGS), default=_numpy))
+    direct = json.loads(json.dumps(direct_body(FAMILY, SmootherRequest, payload, TEST_SETTINGS), default=_numpy))
     assert direct == over_http
 
 
@@ -344,7 +345,7 @@ def test_odd_requests_never_500(client, overrides):
 def test_a_small_cap_bounds_the_profile():
     settings = Settings(max_samples=100)
     with pytest.raises(InvalidParameter) as info:
-        respond(SmootherRequest.model_validate(request(sample_period_s=5e-4)), settings)  # 155 samples > 100
+        direct_body(FAMILY, SmootherRequest, request(sample_period_s=5e-4), settings)  # 155 samples > 100
     assert info.value.field == "sample_period_s"
 
 

@@ -1,0 +1,49 @@
+"""The service layer between the routes and the pipeline: where a design runs, and its answer.
+
+A family whose options need a solver runs the whole pipeline in a worker process (IPOPT is not
+thread-safe); the others run it in a thread, off the event loop.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from starlette.concurrency import run_in_threadpool
+
+from app.schemas.family import ProfileRequest
+from app.settings import Settings
+from models.errors import DomainError, Infeasible, InvalidParameter, NotApplicable
+from optim.family import Family
+from optim.problem import Problem
+from optim.synthesis import Result, synthesize
+from optim.workers import SolverPool
+
+
+async def run(family: Family, problem: Problem, options: Any, settings: Settings, pool: SolverPool) -> Result:
+    if family.uses_solver(options):
+        return await pool.run(synthesize, family, problem, options, deadline_s=settings.solve_deadline_s)
+    return await run_in_threadpool(synthesize, family, problem, options)
+
+
+async def profile(family: Family, body: ProfileRequest, settings: Settings, pool: SolverPool) -> dict[str, Any]:
+    """The answer of a family endpoint: the pipeline's result, with a line per deprecated field used."""
+    try:
+        problem = await run_in_threadpool(body.to_problem, settings)
+        result = await run(family, problem, body.options(problem), settings, pool)
+    except (InvalidParameter, Infeasible, NotApplicable) as exc:
+        raise _as_sent(exc, body) from None
+    answer = result.body()
+    answer["warnings"] = [*body.deprecations, *answer["warnings"]]
+    return answer
+
+
+def _as_sent(exc: DomainError, body: ProfileRequest) -> DomainError:
+    """The error naming the field as the caller sent it (a deprecated alias where one was used)."""
+    field = body.caller_field(exc.field)
+    if field == exc.field:
+        return exc
+    if isinstance(exc, InvalidParameter):
+        return InvalidParameter(field or "", exc.value, exc.rule)
+    if isinstance(exc, Infeasible | NotApplicable):
+        return type(exc)(exc.reason, field)
+    return exc

@@ -1,0 +1,14 @@
+"""The registered families, one module each: the adapters between the pipeline and each family's synthesis."""
+
+from __future__ import annotations
+
+from optim.families.input_shaped import InputShapedFamily
+from optim.families.pseudo_polynomial import PseudoPolynomialFamily
+from optim.families.smoother import SmootherFamily
+from optim.families.stap import StapFamily
+
+REGISTRY = {
+    family.name: family for family in (PseudoPolynomialFamily(), StapFamily(), SmootherFamily(), InputShapedFamily())
+}
+
+__all__ = ["REGISTRY", "InputShapedFamily", "PseudoPolynomialFamily", "SmootherFamily", "StapFamily"]

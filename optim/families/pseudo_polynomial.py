@@ -1,0 +1,162 @@
+"""The pseudo-polynomial family (Incerti): exponents chosen by IPOPT for zero final energy.
+
+phi(t) = Phi [1 - sum C_i (1 - t/T)^gamma_i] (eq. 17); the exponents make the plant's vibration
+energy vanish when the move ends (eqs. 24-31), within the limits (see optim.pseudo_polynomial).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+from models.errors import InvalidParameter
+from models.simulation import metrics, simulate
+from optim import pseudo_polynomial as pp
+from optim.family import BaseFamily, Design, Grid, Profile, Run, SolverSummary
+from optim.problem import Problem
+from optim.solver import SolveCaps
+
+SELECTION_RULE = (
+    "Zero final energy is two equations per mode in order + 1 exponents, so for order >= 2 the zero-energy "
+    "designs form a curve (or a surface). The design returned is the zero-energy design closest to the "
+    "initial exponents that IPOPT reaches from them (selection 'closest_zero_energy'). If none meets the "
+    "limits, the energy is minimised from the initial exponents and six fixed spread starts and the "
+    "lowest-energy design within the limits is returned (selection 'minimum_energy', energy_ratio > 0)."
+)
+
+
+@dataclass(frozen=True)
+class PseudoPolynomialOptions:
+    duration_s: float
+    order: int = 2
+    initial_exponents: tuple[float, ...] | None = None
+    minimize_duration: bool = False
+    residual_tolerance: float | None = None
+
+
+def _design_block(design: pp.PseudoPolynomialDesign) -> dict[str, Any]:
+    law, initial = design.law, design.initial
+    return {
+        "order": law.order,
+        "duration_s": law.duration_s,
+        "displacement": law.displacement,
+        "exponents": list(law.exponents),
+        "coefficients": list(law.coefficients),
+        "initial_exponents": list(initial.exponents),
+        "initial_coefficients": list(initial.coefficients),
+        "final_energy_before": design.initial_energy,
+        "final_energy_after": design.final_energy,
+        "energy_ratio": design.energy_ratio,
+        "energy_units": "J" if design.energy_is_physical else "per unit load inertia",
+        "residual_amplitude": design.residual_amplitude,
+        "initial_residual_amplitude": design.initial_residual_amplitude,
+        "selection": design.selection,
+        "selection_rule": SELECTION_RULE,
+        "bounds": {
+            "min_exponent": pp.lower_bound(law.order),
+            "max_exponent": pp.MAX_EXPONENT,
+            "min_separation": pp.MIN_SEPARATION,
+        },
+        "solver": SolverSummary.of(design.solver, design.solves).as_dict(),
+        "duration_search": [{"duration_s": d, "feasible": ok} for d, ok in design.duration_search] or None,
+    }
+
+
+class PseudoPolynomialFamily(BaseFamily):
+    name: ClassVar[str] = "pseudo_polynomial"
+    endpoint: ClassVar[str] = "/v1/profiles/pseudo-polynomial"
+
+    def not_applicable(self, problem: Problem) -> str | None:
+        if not problem.rest_to_rest:
+            return "pseudo-polynomial commands are rest-to-rest moves; give a displacement"
+        return None
+
+    def default_options(self, problem: Problem) -> PseudoPolynomialOptions:
+        """Without limits, 5 periods of the slowest mode; with limits, the shortest duration, searched from
+        whole periods above twice the kinematic floor (order-2 zero-energy designs live near them)."""
+        period = problem.slowest_period_s
+        if not problem.limits.any:
+            return PseudoPolynomialOptions(duration_s=5 * period)
+        start = max(2 * problem.kinematic_floor_s(), 5 * period)
+        return PseudoPolynomialOptions(duration_s=period * math.ceil(start / period - 1e-9), minimize_duration=True)
+
+    def uses_solver(self, options: Any) -> bool:
+        return True
+
+    def warm_up(self, solver: SolveCaps) -> None:
+        pp.warm_up(solver)
+
+    def design(self, problem: Problem, options: PseudoPolynomialOptions) -> Design:
+        from optim.synthesis import grid_of
+
+        if problem.displacement is None:
+            raise InvalidParameter("displacement", None, "pseudo-polynomial commands are rest-to-rest moves")
+        lim = problem.limits
+        core = pp.PseudoPolynomialRequest(
+            plant=problem.plant,
+            displacement=problem.displacement,
+            duration_s=options.duration_s,
+            order=options.order,
+            initial_exponents=options.initial_exponents,
+            limits=pp.Limits(lim.max_velocity, lim.max_acceleration, lim.max_jerk, lim.max_torque_nm),
+            minimize_duration=options.minimize_duration,
+            residual_tolerance=options.residual_tolerance,
+            caps=problem.solver,
+        )
+        # Refuse a sampling above the cap before any solve (the design is no longer than duration_s).
+        grid_of(problem, Design(None, {}, end_s=options.duration_s))
+        result = pp.design(core)
+        warnings = []
+        if result.selection == "minimum_energy":
+            within = " within the limits" if lim.any else ""
+            warnings.append(
+                f"no zero-energy design was found{within}; this one leaves {100 * result.energy_ratio:.3g} % of "
+                "the initial design's vibration energy"
+            )
+        return Design(
+            command=None,
+            summary=_design_block(result),
+            warnings=tuple(warnings),
+            solver=SolverSummary.of(result.solver, result.solves),
+            end_s=result.law.duration_s,
+            detail=result,
+        )
+
+    def sample(self, problem: Problem, design: Design, period_s: float, horizon_s: float) -> Any:
+        law = design.detail.law
+        try:
+            return law.command(period_s, horizon_s)
+        except InvalidParameter as exc:  # a sample beyond 1e12: the move itself is out of range
+            raise InvalidParameter(
+                "duration_s", law.duration_s, f"the move is too fast to sample ({exc.rule})"
+            ) from None
+
+    def profile(self, design: Design, sampled: Any, grid: Grid) -> Profile:
+        """The law's exact values at the sample times, for the drive."""
+        return design.detail.law.samples(sampled.time_s)  # type: ignore[no-any-return]
+
+    def finish(self, problem: Problem, design: Design, run: Run) -> dict[str, Any]:
+        """The initial design's profile, load response and metrics on the same sampling."""
+        from optim.synthesis import horizon_of, load_arrays, metrics_dict
+
+        initial = design.detail.initial
+        command = initial.command(run.grid.period_s, horizon_of(problem, initial.duration_s))
+        response = simulate(problem.plant, command)
+        return {
+            "initial": {
+                "profile": initial.samples(command.time_s),
+                "load": load_arrays(response),
+                "metrics": metrics_dict(metrics(response, problem.settling.position_tolerance)),
+            }
+        }
+
+    def request_fields(self, options: Any) -> dict[str, Any]:
+        out = super().request_fields(options)
+        if not options.minimize_duration:
+            out.pop("minimize_duration", None)
+        if options.order == 2:
+            out.pop("order", None)
+        if "initial_exponents" in out:
+            out["initial_exponents"] = list(out["initial_exponents"])
+        return out

@@ -1,0 +1,232 @@
+"""The smoothers family (Biagiotti et al. 2020): a position step filtered by a chain of FIR smoothers.
+
+Filters without a duration are tuned to the plant's first mode (the damped harmonic smoother with
+T = 3 pi/Omega and sigma = -zeta omega_n cancels it, eqs. 10-11); rectangular filters are added in
+front for the kinematic limits (eqs. 2-3, 6); the eq. (17) discrete filters on request.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+from models.commands import PiecewiseCommand
+from models.errors import InvalidParameter
+from models.plants import Mode
+from models.simulation import metrics, simulate
+from models.smoothers import MAX_RATE_TIMES_PERIOD, Chain, refinement, step_response
+from optim.family import BaseFamily, Design, Run
+from optim.problem import Problem
+from optim.smoothers import (
+    ChainDesign,
+    DiscreteDesign,
+    FilterSpec,
+    Limits,
+    cancels,
+    chain_residual,
+    commensurate_sample_period_s,
+    design_chain,
+    design_discrete,
+    same_time_ratio,
+    vibration_free_durations_s,
+)
+
+
+@dataclass(frozen=True)
+class FilterOption:
+    type: str
+    duration_s: float | None = None
+
+
+@dataclass(frozen=True)
+class SmootherOptions:
+    filters: tuple[FilterOption, ...] = (FilterOption("damped_harmonic"),)
+    discrete_sample_period_s: float | None = None
+
+
+def mode_block(mode: Mode) -> dict[str, float]:
+    return {
+        "natural_frequency_hz": mode.natural_frequency_hz,
+        "natural_frequency_rad_s": mode.natural_frequency_rad_s,
+        "damping_ratio": mode.damping_ratio,
+        "damped_frequency_hz": mode.damped_frequency_hz,
+        "damped_frequency_rad_s": mode.damped_frequency_rad_s,
+        "natural_period_s": mode.natural_period_s,
+        "damped_period_s": mode.damped_period_s,
+        "decay_rate_1_s": mode.decay_rate_1_s,
+    }
+
+
+def _filters_block(design: ChainDesign) -> list[dict[str, Any]]:
+    out = []
+    mode = design.mode
+    for f, role in zip(design.chain.filters, design.roles, strict=True):
+        prv = None
+        if mode is not None:
+            ratio = same_time_ratio(Chain((f,)), mode)
+            prv = 100.0 * ratio if math.isfinite(ratio) else None
+        out.append(
+            {
+                "type": f.kind,
+                "duration_s": f.duration_s,
+                "decay_rate_1_s": f.decay_rate_1_s,
+                "role": role,
+                "vibration_free": None if mode is None else cancels(f, mode),
+                "percent_residual_vibration": prv,
+                "vibration_free_durations_s": [] if mode is None else vibration_free_durations_s(f.kind, mode),
+            }
+        )
+    return out
+
+
+def _discrete_block(d: DiscreteDesign) -> dict[str, Any]:
+    return {
+        "sample_period_s": d.sample_period_s,
+        "filters": [
+            {
+                "type": f.kind,
+                "samples": f.samples,
+                "duration_s": f.duration_s,
+                "numerator": f.numerator,
+                "denominator": f.denominator,
+                "gain": f.gain,
+            }
+            for f in d.filters
+        ],
+        "lead_s": d.lead_s,
+        "max_deviation": d.max_deviation,
+        "percent_residual_vibration": d.percent_residual_vibration,
+        "residual_amplitude": d.residual_amplitude,
+        "residual_fraction_of_move": d.residual_fraction_of_move,
+        "exact_sample_period_s": d.exact_sample_period_s,
+        "samples": d.samples,
+    }
+
+
+def hold_residual(chain: Chain, command: PiecewiseCommand, problem: Problem) -> float:
+    """Residual (fraction of the move) of the plant driven by the sampled profile alone, rebuilt the way a
+    cam table with feed-forward interpolates it: the cubic Hermite curve through a quantity and its
+    derivative, both continuous (position with velocity for a C^1 profile, velocity with acceleration for
+    C^2, acceleration with jerk above), or a linear hold on the position for a C^0 profile."""
+    smooth = chain.continuous_derivatives
+    order, hold = (0, "linear") if smooth == 0 else (min(smooth - 1, 2), "cubic")
+    initial = tuple(float(command.derivative(m)[0]) for m in range(order))
+    slopes = command.derivative(order + 1) if hold == "cubic" else None
+    held = PiecewiseCommand.from_samples(
+        command.time_s, command.derivative(order), order, hold=hold, slopes=slopes, initial=initial
+    )
+    return metrics(simulate(problem.plant, held)).residual_amplitude / problem.load_move
+
+
+class SmootherFamily(BaseFamily):
+    name: ClassVar[str] = "smoother"
+    endpoint: ClassVar[str] = "/v1/profiles/smoother"
+
+    def not_applicable(self, problem: Problem) -> str | None:
+        if not problem.rest_to_rest:
+            return "the smoother family shapes rest-to-rest moves (a filtered position step); give a displacement"
+        return None
+
+    def default_options(self, problem: Problem) -> SmootherOptions:
+        return SmootherOptions()  # one damped harmonic smoother tuned to the plant: 3 pi/Omega, sigma = -zeta omega_n
+
+    def design(self, problem: Problem, options: SmootherOptions) -> Design:
+        h = problem.move
+        lim = problem.limits
+        specs = [FilterSpec(f.type, f.duration_s) for f in options.filters]
+        design = design_chain(problem.plant, h, specs, Limits(lim.max_velocity, lim.max_acceleration, lim.max_jerk))
+        chain, mode = design.chain, design.mode
+        residual = chain_residual(chain, problem.plant, h, mode)
+        warnings = list(design.warnings)
+        if mode is not None and not residual.vibration_free:
+            free = vibration_free_durations_s("damped_harmonic", mode)
+            warnings.append(
+                f"the chain does not cancel the plant's first mode ({mode.natural_frequency_hz:.6g} Hz, zeta "
+                f"{mode.damping_ratio:.4g}): {100 * residual.fraction_of_move:.3g} % of the move is left; a "
+                f"damped_harmonic filter of {', '.join(f'{t:.6g}' for t in free)} s (or omit duration_s) cancels it"
+            )
+        discrete = None
+        if options.discrete_sample_period_s is not None:
+            discrete = design_discrete(
+                chain, problem.plant, h, mode, options.discrete_sample_period_s, problem.max_samples
+            )
+            prv = discrete.percent_residual_vibration
+            if prv is not None and prv > 1e-4 and discrete.exact_sample_period_s is not None:
+                warnings.append(
+                    f"at Ts = {discrete.sample_period_s:.6g} s the discrete filters round T/Ts, which leaves "
+                    f"{prv:.3g} % of the unfiltered vibration; Ts = {discrete.exact_sample_period_s:.9g} s makes "
+                    "N Ts = T exactly"
+                )
+        summary = {
+            "filters": _filters_block(design),
+            "total_duration_s": chain.total_duration_s,
+            "duration_s": chain.total_duration_s,
+            "continuous_derivatives": chain.continuous_derivatives,
+            "mode": None if mode is None else mode_block(mode),
+            "vibration_free": residual.vibration_free,
+            "percent_residual_vibration": residual.percent_residual_vibration,
+            "residual_amplitude_closed_form": residual.amplitude,
+            "residual_fraction_of_move": residual.fraction_of_move,
+            "predicted_peaks": dict(zip(("velocity", "acceleration", "jerk"), design.predicted_peaks, strict=True)),
+            "discrete": None if discrete is None else _discrete_block(discrete),
+        }
+        return Design(None, summary, tuple(warnings), end_s=chain.total_duration_s, detail=design)
+
+    def _period(self, chain: Chain, period_s: float) -> tuple[int, float]:
+        k = refinement(chain, period_s)
+        return k, period_s / k
+
+    def sample(self, problem: Problem, design: Design, period_s: float, horizon_s: float) -> PiecewiseCommand:
+        """The chain's exact step response at every period (divided by k where the filters are too fast for
+        it) and breakpoint, at rest at h until the horizon."""
+        chain: Chain = design.detail.chain
+        k, period = self._period(chain, period_s)
+        count = int(horizon_s / period) + 1
+        if count > problem.max_samples:
+            why = (
+                ""
+                if k == 1
+                else (
+                    f"the filters (|lambda| = {chain.fastest_rate_1_s:.6g} 1/s) need samples at most {period:.3g} s apart "
+                    "to be described exactly, and "
+                )
+            )
+            raise InvalidParameter(
+                "sample_period_s",
+                period_s,
+                f"{why}{count} samples over {horizon_s:.6g} s exceed the cap of {problem.max_samples}",
+            )
+        command = step_response(chain, problem.move, period).command()
+        if horizon_s > command.time_s[-1]:
+            command = command.resampled(period, end_s=horizon_s)  # the motor rests at h; the load rings, or not
+        return command
+
+    def finish(self, problem: Problem, design: Design, run: Run) -> dict[str, Any]:
+        chain: Chain = design.detail.chain
+        k, period = self._period(chain, run.grid.period_s)
+        warnings = []
+        if k > 1:
+            warnings.append(
+                f"sample_period_s {run.grid.period_s:.6g} s is divided by {k} (1 sample in {k} lies on the requested "
+                f"grid): between samples the profile is exact only for |lambda| Ts <= {MAX_RATE_TIMES_PERIOD:g} "
+                f"(|lambda| = {chain.fastest_rate_1_s:.6g} 1/s here)"
+            )
+        mode = design.detail.mode
+        more = {
+            "sample_period_s": period,
+            "commensurate_sample_period_s": commensurate_sample_period_s(chain, mode, run.grid.period_s),
+            "hold_residual_fraction_of_move": hold_residual(chain, run.command, problem),
+        }
+        return {"design": more, "warnings": warnings}
+
+    def request_fields(self, options: Any) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "filters": [
+                {"type": f.type, **({"duration_s": f.duration_s} if f.duration_s is not None else {})}
+                for f in options.filters
+            ]
+        }
+        if options.discrete_sample_period_s is not None:
+            out["discrete_sample_period_s"] = options.discrete_sample_period_s
+        return out

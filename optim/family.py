@@ -1,0 +1,176 @@
+"""The Family protocol and the FAMILIES registry.
+
+A family turns a ``Problem`` and its own options into a ``Design``: the exact command the drive
+receives, the family's ``design`` block and its notes. Everything after that (sampling to the
+horizon, simulation, metrics, sensitivity, the limit check) is the one pipeline in
+``optim.synthesis``, shared by every endpoint and by compare. ``design`` is pure and picklable, so
+it can run in a solver worker process.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, ClassVar, Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from models.commands import PiecewiseCommand
+from models.simulation import Metrics, Response
+from optim.problem import Problem
+from optim.solver import SolveCaps, SolverReport
+
+
+@dataclass(frozen=True)
+class SolverSummary:
+    """What the solver did for one design: the last converged solve's status, all solves' iterations and time."""
+
+    status: str
+    iterations: int
+    solve_time_s: float
+    solves: int = 1
+
+    @classmethod
+    def of(cls, report: SolverReport, solves: int = 1) -> SolverSummary:
+        return cls(report.status, report.iterations, report.solve_time_s, solves)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "status": self.status,
+            "iterations": self.iterations,
+            "solve_time_s": self.solve_time_s,
+            "solves": self.solves,
+        }
+
+
+@dataclass(frozen=True)
+class Design:
+    """A family's design: the exact command (a breakpoint at every kink) and what the family says of it.
+
+    ``command`` is what the drive does, and what the load is simulated with. ``end_s`` is where the
+    command stops changing for the horizon rule (default: its last breakpoint). ``detail`` is the
+    family's own payload for its sampling and extra blocks (picklable)."""
+
+    command: PiecewiseCommand | None
+    summary: Mapping[str, Any]
+    warnings: tuple[str, ...] = ()
+    solver: SolverSummary | None = None
+    end_s: float | None = None
+    detail: Any = None
+
+    @property
+    def command_end_s(self) -> float:
+        if self.end_s is not None:
+            return self.end_s
+        if self.command is None:
+            raise ValueError("a design without an exact command must give end_s")
+        return float(self.command.time_s[-1])
+
+
+Profile = dict[str, NDArray[np.float64] | None]
+
+
+@dataclass(frozen=True)
+class Grid:
+    """The returned series' sampling: period and horizon (s)."""
+
+    period_s: float
+    horizon_s: float
+
+
+@dataclass(frozen=True)
+class Run:
+    """A sampled command and what the plant does with it."""
+
+    grid: Grid
+    command: PiecewiseCommand
+    response: Response
+    metrics: Metrics
+
+
+@runtime_checkable
+class Family(Protocol):
+    name: ClassVar[str]
+    endpoint: ClassVar[str]
+
+    def not_applicable(self, problem: Problem) -> str | None: ...
+
+    def default_options(self, problem: Problem) -> Any: ...
+
+    def design(self, problem: Problem, options: Any) -> Design: ...
+
+    def warm_up(self, solver: SolveCaps) -> None: ...
+
+    def uses_solver(self, options: Any) -> bool: ...
+
+    def sample(self, problem: Problem, design: Design, period_s: float, horizon_s: float) -> PiecewiseCommand: ...
+
+    def profile(self, design: Design, sampled: PiecewiseCommand, grid: Grid) -> Profile | None: ...
+
+    def finish(self, problem: Problem, design: Design, run: Run) -> dict[str, Any]: ...
+
+    def sensitivity(
+        self, problem: Problem, design: Design, ratios: NDArray[np.float64], zetas: NDArray[np.float64]
+    ) -> dict[str, Any] | None: ...
+
+    def fallback(self, problem: Problem, options: Any) -> Any | None: ...
+
+    def request_fields(self, options: Any) -> dict[str, Any]: ...
+
+
+class BaseFamily:
+    """Defaults of the hooks a family may override; a family sets ``name`` and ``endpoint`` and
+    implements ``design``."""
+
+    name: ClassVar[str] = ""
+    endpoint: ClassVar[str] = ""
+
+    def not_applicable(self, problem: Problem) -> str | None:
+        return None
+
+    def warm_up(self, solver: SolveCaps) -> None:
+        return None
+
+    def uses_solver(self, options: Any) -> bool:
+        return False
+
+    def sample(self, problem: Problem, design: Design, period_s: float, horizon_s: float) -> PiecewiseCommand:
+        """The exact command on a uniform grid with its corners kept (the samples describe it exactly)."""
+        if design.command is None:
+            raise NotImplementedError(f"{self.name} designs no exact command: it must sample itself")
+        return design.command.resampled(period_s, end_s=horizon_s)
+
+    def profile(self, design: Design, sampled: PiecewiseCommand, grid: Grid) -> Profile | None:
+        """The returned profile when it is not the sampled command itself (default None: it is)."""
+        return None
+
+    def finish(self, problem: Problem, design: Design, run: Run) -> dict[str, Any]:
+        """Extra top-level blocks of the answer; the keys ``design`` (merged into the design block)
+        and ``warnings`` (appended) are the pipeline's."""
+        return {}
+
+    def sensitivity(
+        self, problem: Problem, design: Design, ratios: NDArray[np.float64], zetas: NDArray[np.float64]
+    ) -> dict[str, Any] | None:
+        return None
+
+    def fallback(self, problem: Problem, options: Any) -> Any | None:
+        return None
+
+    def request_fields(self, options: Any) -> dict[str, Any]:
+        """The family's own request fields that reproduce ``options`` (for compare's rows[].request)."""
+        from dataclasses import asdict
+
+        return {k: v for k, v in asdict(options).items() if v is not None}
+
+
+def warm_up_all(solver: SolveCaps) -> None:
+    """Build every family's solver problems (run once in each new worker process)."""
+    for family in FAMILIES.values():
+        family.warm_up(solver)
+
+
+from optim.families import REGISTRY as FAMILIES  # noqa: E402  (the families import this module's types)
+
+__all__ = ["FAMILIES", "BaseFamily", "Design", "Family", "Grid", "Profile", "Run", "SolverSummary", "warm_up_all"]

@@ -1,0 +1,159 @@
+"""The synthesis problem every family designs for: one plant, one move, one set of limits.
+
+The vocabulary is the service's (DESIGN.md): a rest-to-rest ``displacement`` xor a rest-to-velocity
+``target_velocity``, both signed, in the plant's motor coordinate; ``limits`` with Ruckig's
+``max_`` names (``max_velocity`` is also the cruise speed of a rest-to-rest move); the sampling and
+horizon of the returned series; the settling band; the sensitivity grid. Families read only this
+and their own options.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from models.errors import Infeasible, InvalidParameter
+from models.plants import Plant
+from optim.solver import SolveCaps
+
+MAX_MOVE = 1e9
+TAIL_PERIODS = 5.0  # the returned series run this many natural periods of the slowest mode past the command
+DEFAULT_SAMPLES = 2000  # about this many samples over the horizon when no sample period is given
+MIN_SAMPLE_PERIOD_S = 1e-6
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Bounds on the motor command along the whole motion; None: unbounded."""
+
+    max_velocity: float | None = None
+    max_acceleration: float | None = None
+    max_jerk: float | None = None
+    max_torque_nm: float | None = None
+
+    def items(self) -> tuple[tuple[str, float | None], ...]:
+        return (
+            ("max_velocity", self.max_velocity),
+            ("max_acceleration", self.max_acceleration),
+            ("max_jerk", self.max_jerk),
+            ("max_torque_nm", self.max_torque_nm),
+        )
+
+    @property
+    def any(self) -> bool:
+        return any(value is not None for _, value in self.items())
+
+    def as_dict(self) -> dict[str, float]:
+        """The limits that are set, by name (a request's ``limits`` object)."""
+        return {name: value for name, value in self.items() if value is not None}
+
+
+@dataclass(frozen=True)
+class Settling:
+    """The settling band: |load - target| <= position_tolerance x the load's move."""
+
+    position_tolerance: float = 1e-3
+
+
+@dataclass(frozen=True)
+class SensitivityGrid:
+    """Where to evaluate the residual versus f_n / f_n,e (and, optionally, other true damping ratios)."""
+
+    frequency_ratios: tuple[float, ...]
+    damping_ratios: tuple[float, ...] | None = None
+    explicit: bool = False  # the ratios were listed by the caller (for the name of the field at fault)
+
+
+@dataclass(frozen=True)
+class Problem:
+    plant: Plant
+    displacement: float | None = None
+    target_velocity: float | None = None
+    limits: Limits = field(default_factory=Limits)
+    sample_period_s: float | None = None
+    horizon_s: float | None = None
+    settling: Settling = field(default_factory=Settling)
+    sensitivity: SensitivityGrid | None = None
+    max_samples: int = 200_000
+    solver: SolveCaps = field(default_factory=SolveCaps)
+
+    def __post_init__(self) -> None:
+        if (self.displacement is None) == (self.target_velocity is None):
+            raise InvalidParameter(
+                "displacement",
+                self.displacement,
+                "give exactly one of displacement (rest-to-rest) or target_velocity (rest-to-velocity)",
+            )
+        name, move = self.move_field, self.move
+        if move == 0.0 or not math.isfinite(move) or abs(move) > MAX_MOVE:
+            raise InvalidParameter(name, move, f"must be non-zero and within +-{MAX_MOVE:g}")
+        if self.limits.max_torque_nm is not None and self.plant.torque_inertias() is None:
+            raise InvalidParameter(
+                "limits.max_torque_nm",
+                self.limits.max_torque_nm,
+                f"a {self.plant.kind} plant defines no motor torque (two_inertia does)",
+            )
+        top = self.limits.max_velocity
+        if self.target_velocity is not None and top is not None and abs(self.target_velocity) > top:
+            raise Infeasible(
+                f"the target velocity {abs(self.target_velocity):.6g} exceeds limits.max_velocity = {top:.6g}",
+                "target_velocity",
+            )
+
+    @property
+    def rest_to_rest(self) -> bool:
+        return self.displacement is not None
+
+    @property
+    def move_field(self) -> str:
+        return "displacement" if self.rest_to_rest else "target_velocity"
+
+    @property
+    def move(self) -> float:
+        """The signed move: displacement (rest-to-rest) or final velocity (rest-to-velocity)."""
+        value = self.displacement if self.displacement is not None else self.target_velocity
+        return float(value) if value is not None else 0.0
+
+    @property
+    def load_move(self) -> float:
+        """How far the load goes (or how fast it ends up moving): the scale of every relative residual."""
+        return self.plant.load_move(self.move)
+
+    @property
+    def slowest_period_s(self) -> float:
+        modes = self.plant.modes()
+        return max(m.natural_period_s for m in modes) if modes else 0.0
+
+    @property
+    def acceleration_limit(self) -> float | None:
+        """max_acceleration, lowered on a two-inertia plant by a torque limit to M / (J_M + J_L) (Cusimano eq. 19)."""
+        candidates = [self.limits.max_acceleration] if self.limits.max_acceleration is not None else []
+        inertias = self.plant.torque_inertias()
+        if self.limits.max_torque_nm is not None and inertias is not None:
+            candidates.append(self.limits.max_torque_nm / sum(inertias))
+        return min(candidates) if candidates else None
+
+    def kinematic_floor_s(self) -> float:
+        """The least duration any rest-to-rest move (or acceleration phase) can have within the limits."""
+        lim = self.limits
+        accel = self.acceleration_limit
+        d = abs(self.move)
+        if self.rest_to_rest:
+            floors = [d / lim.max_velocity] if lim.max_velocity else []
+            floors += [2 * math.sqrt(d / accel)] if accel else []
+            floors += [(32 * d / lim.max_jerk) ** (1 / 3)] if lim.max_jerk else []
+        else:
+            floors = [d / accel] if accel else []
+            floors += [2 * math.sqrt(d / lim.max_jerk)] if lim.max_jerk else []
+        return max(floors, default=0.0)
+
+
+def nice_period(span_s: float, samples: int = DEFAULT_SAMPLES) -> float:
+    """A round sample period (1, 2 or 5 times a power of ten) giving about ``samples`` over ``span_s``
+    (never more), and never below 1 microsecond."""
+    raw = max(span_s / samples, MIN_SAMPLE_PERIOD_S)
+    exponent = math.floor(math.log10(raw))
+    for mantissa in (1.0, 2.0, 5.0, 10.0):
+        if mantissa * 10.0**exponent >= raw * (1 - 1e-12):
+            return mantissa * 10.0**exponent
+    return 10.0 ** (exponent + 1)

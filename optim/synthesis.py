@@ -1,0 +1,280 @@
+"""The one synthesis pipeline every endpoint and compare use.
+
+``synthesize(family, problem, options)``: the family's design, its command sampled to the horizon,
+the simulated load, the metrics, the sensitivity, the limit check and the warnings, as a frozen
+``Result``. The rules written once here:
+
+- horizon: ``problem.horizon_s``, else the command's end plus 5 natural periods of the slowest mode;
+- sampling: ``problem.sample_period_s``, else about 2000 samples over the horizon, rounded to 1, 2 or
+  5 times a power of ten (coarser only where the sample cap demands it); corners are always kept;
+- limits: a peak above a limit by more than 1e-9 of it, or an impulsive quantity under a limit, is
+  a violation, reported as ``limits.<name>: ...`` in ``limit_violations`` and in ``warnings``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from models.commands import PiecewiseCommand
+from models.errors import InvalidParameter, NotApplicable
+from models.sensitivity import band_below, sensitivity
+from models.simulation import Metrics, Response, metrics, simulate
+from optim.family import Design, Family, Grid, Profile, Run, SolverSummary
+from optim.problem import TAIL_PERIODS, Limits, Problem, SensitivityGrid, nice_period
+
+LIMIT_RTOL = 1e-9  # a peak within this fraction above a limit counts as meeting it (round-off)
+BAND_LEVEL = 0.05
+MAX_SENSITIVITY_WORK = 20_000_000  # frequency points x damping ratios x breakpoints: about a second
+
+
+@dataclass(frozen=True)
+class Result:
+    family: str
+    design: Design
+    run: Run
+    profile: Profile
+    sensitivity: dict[str, Any] | None
+    limit_violations: tuple[str, ...]
+    warnings: tuple[str, ...]
+    solver: SolverSummary | None
+    extras: dict[str, Any]
+    summary: dict[str, Any]  # the design block, completed after sampling
+
+    @property
+    def metrics(self) -> Metrics:
+        return self.run.metrics
+
+    @property
+    def response(self) -> Response:
+        return self.run.response
+
+    @property
+    def command(self) -> PiecewiseCommand:
+        return self.run.command
+
+    def body(self) -> dict[str, Any]:
+        """The answer of a family endpoint (JSON-ready apart from numpy arrays)."""
+        return {
+            "profile": self.profile,
+            "design": self.summary,
+            "load": load_arrays(self.response),
+            "metrics": metrics_dict(self.metrics),
+            "sensitivity": self.sensitivity,
+            "solver": None if self.solver is None else self.solver.as_dict(),
+            "limit_violations": list(self.limit_violations),
+            "warnings": list(self.warnings),
+            **self.extras,
+        }
+
+
+def synthesize(family: Family, problem: Problem, options: Any) -> Result:
+    """Design, sample, simulate and evaluate one family's command for ``problem``."""
+    reason = family.not_applicable(problem)
+    if reason is not None:
+        raise NotApplicable(reason)
+    design = family.design(problem, options)
+    return evaluate(family, problem, design)
+
+
+def evaluate(family: Family, problem: Problem, design: Design) -> Result:
+    """Everything after the design: the shared half of the pipeline."""
+    grid = grid_of(problem, design)
+    sampled = family.sample(problem, design, grid.period_s, grid.horizon_s)
+    if sampled.time_s.size > problem.max_samples:
+        raise InvalidParameter(
+            "sample_period_s",
+            grid.period_s,
+            f"{sampled.time_s.size} samples (the grid and the command's corners) exceed the cap of "
+            f"{problem.max_samples}; use a longer period",
+        )
+    response = simulate(problem.plant, sampled)
+    run = Run(grid, sampled, response, metrics(response, problem.settling.position_tolerance))
+    profile = family.profile(design, sampled, grid) or profile_arrays(sampled)
+    _check_finite(problem, profile, load_arrays(response))
+    curve = None
+    if problem.sensitivity is not None:
+        zetas, ratios = _sensitivity_axes(problem, problem.sensitivity)
+        _check_sensitivity_work(problem.sensitivity, zetas.size, ratios.size, sampled, problem.max_samples)
+        curve = family.sensitivity(problem, design, ratios, zetas) or sensitivity_curve(problem, sampled, ratios, zetas)
+    extras = dict(family.finish(problem, design, run))
+    summary = {**design.summary, **extras.pop("design", {})}
+    violations = limit_violations(problem.limits, run.metrics)
+    warnings = (*design.warnings, *extras.pop("warnings", ()), *violations)
+    return Result(
+        family=family.name,
+        design=design,
+        run=run,
+        profile=profile,
+        sensitivity=curve,
+        limit_violations=violations,
+        warnings=warnings,
+        solver=design.solver,
+        extras=extras,
+        summary=summary,
+    )
+
+
+def replace_problem(problem: Problem, **changes: Any) -> Problem:
+    return replace(problem, **changes)
+
+
+# --- the shared rules ------------------------------------------------------------------------
+
+
+def horizon_of(problem: Problem, end_s: float) -> float:
+    """``problem.horizon_s`` (>= the command's end), else the end plus 5 periods of the slowest mode."""
+    if problem.horizon_s is None:
+        return end_s + TAIL_PERIODS * problem.slowest_period_s
+    if problem.horizon_s < end_s:
+        raise InvalidParameter("horizon_s", problem.horizon_s, f"must be >= the command's end ({end_s:.6g} s)")
+    return problem.horizon_s
+
+
+def grid_of(problem: Problem, design: Design, start_s: float = 0.0) -> Grid:
+    """The sampling of the returned series; refuses a count above the cap before building anything."""
+    horizon = horizon_of(problem, design.command_end_s)
+    corners = 0 if design.command is None else int(design.command.time_s.size)
+    span = max(horizon - start_s, 0.0)
+    room = problem.max_samples - corners - 2
+    if problem.sample_period_s is not None:
+        period = problem.sample_period_s
+        count = int(span / period) + 1
+        if count > room:
+            raise InvalidParameter(
+                "sample_period_s",
+                period,
+                f"{count} samples over {span:.6g} s (and {corners} corners) exceed the cap of {problem.max_samples}; "
+                f"use a period >= {span / max(room - 1, 1):.3g} s",
+            )
+        return Grid(period, horizon)
+    period = nice_period(span)
+    if int(span / period) + 1 > room:
+        period = nice_period(span, max(room - 1, 1))
+    return Grid(period, horizon)
+
+
+def limit_violations(limits: Limits, result: Metrics) -> tuple[str, ...]:
+    """Every requested limit the simulated command breaks, in one wording."""
+    peaks = {
+        "max_velocity": ("velocity", result.peak_velocity),
+        "max_acceleration": ("acceleration", result.peak_acceleration),
+        "max_jerk": ("jerk", result.peak_jerk),
+        "max_torque_nm": ("motor torque", result.peak_motor_torque_nm),
+    }
+    out = []
+    for name, limit in limits.items():
+        if limit is None:
+            continue
+        quantity, peak = peaks[name]
+        if peak is None:
+            what = "undefined for this plant (two_inertia only)" if name == "max_torque_nm" else "impulsive"
+            out.append(f"limits.{name}: the {quantity} is {what}")
+        elif peak > limit * (1.0 + LIMIT_RTOL):
+            out.append(f"limits.{name}: the {quantity} peaks at {peak:.9g} > {limit:.9g}")
+    return tuple(out)
+
+
+def _check_finite(problem: Problem, *blocks: dict[str, Any]) -> None:
+    for block in blocks:
+        for key, array in block.items():
+            if array is not None and not np.all(np.isfinite(np.asarray(array, dtype=float))):
+                raise InvalidParameter(problem.move_field, problem.move, f"the {key} overflows double precision")
+
+
+# --- sensitivity -------------------------------------------------------------------------------
+
+
+def _sensitivity_axes(problem: Problem, grid: SensitivityGrid) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    modes = problem.plant.modes()
+    if not modes:
+        raise InvalidParameter("sensitivity", "requested", "the plant has no vibration mode to evaluate it around")
+    zetas = np.asarray(grid.damping_ratios or [modes[0].damping_ratio], dtype=float)
+    return zetas, np.asarray(grid.frequency_ratios, dtype=float)
+
+
+def _check_sensitivity_work(
+    grid: SensitivityGrid, zetas: int, ratios: int, command: PiecewiseCommand, max_samples: int
+) -> None:
+    """Bound the curve's size (as every returned array) and its work."""
+    field = "sensitivity.frequency_ratios" if grid.explicit else "sensitivity.count"
+    if ratios * zetas > max_samples:
+        raise InvalidParameter(field, ratios * zetas, f"at most {max_samples} (frequency, damping) points")
+    breakpoints = command.end_index() + 1
+    if ratios * zetas * breakpoints > MAX_SENSITIVITY_WORK:
+        raise InvalidParameter(
+            field,
+            ratios,
+            f"{ratios} ratios x {zetas} damping ratios x {breakpoints} breakpoints exceed "
+            f"{MAX_SENSITIVITY_WORK:.0e}: ask fewer ratios or a longer sample_period_s",
+        )
+
+
+def sensitivity_curve(
+    problem: Problem,
+    command: PiecewiseCommand,
+    ratios: NDArray[np.float64],
+    zetas: NDArray[np.float64],
+    rows: NDArray[np.float64] | None = None,
+) -> dict[str, Any]:
+    """Residual / move versus f_n / f_n,e around the plant's first mode (exact free state, one dot
+    product per frequency; models.sensitivity), or the given ``rows`` (one per damping ratio)."""
+    if rows is None:
+        mode = problem.plant.modes()[0]
+        rows = sensitivity(command, mode.natural_frequency_rad_s, ratios, zetas).residual
+    grid = rows
+    band = band_below(ratios, grid[0], BAND_LEVEL)
+    return {
+        "frequency_ratio": ratios,
+        "residual_vibration": grid[0],
+        "quantity": "position" if problem.rest_to_rest else "velocity",
+        "damping_ratio": zetas,
+        "residual_vibration_grid": grid if zetas.size > 1 else None,
+        "band_5_percent": list(band) if band else None,
+    }
+
+
+# --- the answer's blocks -----------------------------------------------------------------------
+
+
+def profile_arrays(command: PiecewiseCommand) -> Profile:
+    return {
+        "time_s": command.time_s,
+        "position": command.derivative(0),
+        "velocity": command.derivative(1),
+        "acceleration": command.derivative(2),
+        "jerk": command.derivative(3),
+    }
+
+
+def load_arrays(response: Response) -> dict[str, NDArray[np.float64] | None]:
+    return {
+        "time_s": response.time_s,
+        "position": response.load_position,
+        "velocity": response.load_velocity,
+        "acceleration": response.load_acceleration,
+        "deflection": response.deflection,
+        "motor_torque_nm": response.motor_torque_nm,
+    }
+
+
+def metrics_dict(m: Metrics) -> dict[str, Any]:
+    return {
+        "command_end_s": m.command_end_s,
+        "motion_time_s": m.command_end_s,
+        "residual_amplitude": m.residual_amplitude,
+        "residual_velocity_amplitude": m.residual_velocity_amplitude,
+        "modes": [vars(mode) for mode in m.modes],
+        "final_energy_j": m.final_energy_j,
+        "settling_time_s": m.settling.time_s,
+        "settled": m.settling.time_s is not None,
+        "settling_quantity": m.settling.quantity,
+        "settling_window": float(m.settling.window),
+        "peak_velocity": m.peak_velocity,
+        "peak_acceleration": m.peak_acceleration,
+        "peak_jerk": m.peak_jerk,
+        "peak_motor_torque_nm": m.peak_motor_torque_nm,
+    }
