@@ -22,10 +22,12 @@ them and their step responses are in ``models.smoothers``.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 from scipy.signal import lfilter
 
 from models.errors import InvalidParameter
@@ -46,7 +48,7 @@ MAX_DECAY_TIMES_DURATION = 200.0
 # Continuous filters
 
 
-def _phi(z: np.ndarray) -> np.ndarray:
+def _phi(z: ArrayLike) -> NDArray[np.complex128]:
     """expm1(z)/z with its limit 1 at z = 0 (complex, vectorised)."""
     z = np.asarray(z, dtype=complex)
     out = np.ones_like(z)
@@ -56,7 +58,7 @@ def _phi(z: np.ndarray) -> np.ndarray:
     return out
 
 
-def _sinusoidal_kernel(u: np.ndarray, duration_s: float) -> np.ndarray:
+def _sinusoidal_kernel(u: NDArray[np.complex128], duration_s: float) -> NDArray[np.complex128]:
     """(1 + e^(-uT)) / (u^2 + a^2), a = pi/T: the transform of e^(...) sin(a t) on [0, T] up to a gain.
 
     Near its removable poles u = +-ja the direct form cancels; there it is written as
@@ -66,7 +68,7 @@ def _sinusoidal_kernel(u: np.ndarray, duration_s: float) -> np.ndarray:
     t = duration_s
     a = math.pi / t
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        direct = (1.0 + np.exp(-u * t)) / (u * u + a * a)
+        direct: NDArray[np.complex128] = (1.0 + np.exp(-u * t)) / (u * u + a * a)
     near = (np.abs(u - 1j * a) * t < 1.0) | (np.abs(u + 1j * a) * t < 1.0)
     if np.any(near):
         un = u[near]
@@ -137,7 +139,7 @@ class Smoother:
         k = (a * a + sigma * sigma) / (1.0 + math.exp(sigma * t))  # eq. (10)
         return k, k * math.exp(sigma * t)
 
-    def realisation(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def realisation(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         """(A, b, c) of R(s): 1/(s - sigma), or 1/((s - sigma)^2 + a^2) as [x, x']."""
         sigma = self.sigma_1_s if self.kind in DAMPED else 0.0
         if self.order == 1:
@@ -150,15 +152,15 @@ class Smoother:
         )
 
     # --- frequency domain ------------------------------------------------------------------
-    def frequency_response(self, s: np.ndarray) -> np.ndarray:
+    def frequency_response(self, s: ArrayLike) -> NDArray[np.complex128]:
         """F(s) at complex s: eqs. (1), (5), (10) and M_sigma(s) = phi((sigma - s)T)/phi(sigma T)."""
         return self._response(np.asarray(s, dtype=complex), shifted=False)
 
-    def end_response(self, s: np.ndarray) -> np.ndarray:
+    def end_response(self, s: ArrayLike) -> NDArray[np.complex128]:
         """F(s) e^(sT): bounded for Re s <= 0, so a residual exp(Re(p) t_end) |F(p)| never overflows."""
         return self._response(np.asarray(s, dtype=complex), shifted=True)
 
-    def _response(self, s: np.ndarray, shifted: bool) -> np.ndarray:
+    def _response(self, s: NDArray[np.complex128], shifted: bool) -> NDArray[np.complex128]:
         t, sigma = self.duration_s, self.sigma_1_s
         sign = 1.0 if shifted else -1.0
         if self.kind == "rectangular" or (self.kind == "exponential" and sigma == 0.0):
@@ -175,7 +177,7 @@ class Smoother:
             return gain * math.exp(sigma * t if self.kind == "damped_harmonic" else 0.0) * _sinusoidal_kernel(-u, t)
         return gain * _sinusoidal_kernel(u, t)
 
-    def impulse_response(self, t: np.ndarray) -> np.ndarray:
+    def impulse_response(self, t: ArrayLike) -> NDArray[np.float64]:
         """f(t) in closed form (eqs. 4 and 14; sigma e^(sigma t)/(e^(sigma T) - 1) for M_sigma)."""
         t = np.asarray(t, dtype=float)
         inside = (t >= 0.0) & (t <= self.duration_s)
@@ -190,7 +192,8 @@ class Smoother:
             else:
                 k = (a * a + sigma * sigma) / (1.0 + math.exp(sigma * self.duration_s))
                 value = k / a * np.exp(sigma * t) * np.sin(a * t)  # eq. (14)
-        return np.where(inside, value, 0.0)
+        response: NDArray[np.float64] = np.where(inside, value, 0.0)
+        return response
 
 
 # ------------------------------------------------------------------------------------------
@@ -204,22 +207,28 @@ class DiscreteFilter:
     kind: FilterKind
     samples: int  # N: the filter lasts N Ts
     sample_period_s: float
-    numerator: np.ndarray
-    denominator: np.ndarray
+    numerator: NDArray[np.float64]
+    denominator: NDArray[np.float64]
     gain: float
 
     @property
     def duration_s(self) -> float:
         return self.samples * self.sample_period_s
 
-    def transfer(self, z: np.ndarray) -> np.ndarray:
+    def transfer(self, z: ArrayLike) -> NDArray[np.complex128]:
         """H(z) at complex z (Horner in z^-1; scipy.signal.freqz only evaluates on the unit circle)."""
         w = 1.0 / np.asarray(z, dtype=complex)
-        return self.gain * np.polyval(self.numerator[::-1], w) / np.polyval(self.denominator[::-1], w)
+        h: NDArray[np.complex128] = (
+            self.gain * np.polyval(self.numerator[::-1], w) / np.polyval(self.denominator[::-1], w)
+        )
+        return h
 
-    def filter(self, values: np.ndarray) -> np.ndarray:
+    def filter(self, values: ArrayLike) -> NDArray[np.float64]:
         """The filter applied to a sampled signal (from rest), by scipy.signal.lfilter."""
-        return lfilter(self.gain * self.numerator, self.denominator, np.asarray(values, dtype=float))
+        filtered: NDArray[np.float64] = lfilter(
+            self.gain * self.numerator, self.denominator, np.asarray(values, dtype=float)
+        )
+        return filtered
 
 
 def discrete_filter(smoother: Smoother, sample_period_s: float, samples: int) -> DiscreteFilter:
@@ -259,9 +268,7 @@ def discrete_filter(smoother: Smoother, sample_period_s: float, samples: int) ->
     return DiscreteFilter(smoother.kind, n, ts, num, den, gain)
 
 
-def discrete_step_response(
-    filters: list[DiscreteFilter] | tuple[DiscreteFilter, ...], displacement: float, count: int
-) -> np.ndarray:
+def discrete_step_response(filters: Sequence[DiscreteFilter], displacement: float, count: int) -> NDArray[np.float64]:
     """y[k], k = 0..count-1, of the discrete chain fed with a step of ``displacement`` at k = 0."""
     y = np.full(count, float(displacement))
     for f in filters:  # a loop over filters

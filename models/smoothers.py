@@ -21,8 +21,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
+from typing import cast
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import expm
 
 from models.commands import MIN_STEP_S, PiecewiseCommand
@@ -118,7 +120,7 @@ class Chain:
         """Highest m with the step response of class C^m: each M raises continuity by 1, each S by 2."""
         return sum(f.order for f in self.filters) - 1
 
-    def frequency_response(self, s: np.ndarray) -> np.ndarray:
+    def frequency_response(self, s: ArrayLike) -> NDArray[np.complex128]:
         """prod_i F_i(s) at complex s (the chain's transfer function)."""
         s = np.asarray(s, dtype=complex)
         out = np.ones_like(s)
@@ -126,7 +128,7 @@ class Chain:
             out = out * f.frequency_response(s)
         return out
 
-    def end_response(self, s: np.ndarray) -> np.ndarray:
+    def end_response(self, s: ArrayLike) -> NDArray[np.complex128]:
         """prod_i F_i(s) e^(s T_tot), bounded for Re s <= 0."""
         s = np.asarray(s, dtype=complex)
         out = np.ones_like(s)
@@ -134,7 +136,7 @@ class Chain:
             out = out * f.end_response(s)
         return out
 
-    def impulses(self, displacement: float) -> tuple[np.ndarray, np.ndarray]:
+    def impulses(self, displacement: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Times and weights of the impulses that drive the cascade for a step of ``displacement``.
 
         One per subset of filters (at the sum of their durations), merged when closer than 1 ns.
@@ -149,21 +151,21 @@ class Chain:
         times, weights = times[order], weights[order]
         group = np.concatenate(([0], np.cumsum(np.diff(times) > MIN_STEP_S)))
         merged_t = times[np.concatenate(([True], np.diff(group) > 0))]
-        merged_w = np.bincount(group, weights=weights)
+        # numpy's stubs type bincount as integer, but with float weights it sums them as floats.
+        merged_w = cast("NDArray[np.float64]", np.bincount(group, weights=weights))
         return merged_t, merged_w
 
     @cached_property
-    def cascade(self) -> tuple[np.ndarray, np.ndarray]:
+    def cascade(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(A, c) of 1/s * prod R_i(s), the first state taking the impulses; y = c x."""
-        blocks = [(np.array([[0.0]]), np.array([1.0]), np.array([1.0]))] + [f.realisation() for f in self.filters]
-        size = sum(b[0].shape[0] for b in blocks)
-        a = np.zeros((size, size))
-        start, prev_c, prev_start = 0, None, 0
+        blocks = [f.realisation() for f in self.filters]
+        size = 1 + sum(b[0].shape[0] for b in blocks)
+        a = np.zeros((size, size))  # state 0 is the integrator 1/s: its row of A is zero
+        prev_c, prev_start, start = np.array([1.0]), 0, 1
         for block_a, block_b, block_c in blocks:  # a loop over filters
             k = block_a.shape[0]
             a[start : start + k, start : start + k] = block_a
-            if prev_c is not None:
-                a[start : start + k, prev_start : prev_start + prev_c.size] = np.outer(block_b, prev_c)
+            a[start : start + k, prev_start : prev_start + prev_c.size] = np.outer(block_b, prev_c)
             prev_c, prev_start = block_c, start
             start += k
         c = np.zeros(size)
@@ -181,16 +183,18 @@ class StepResponse:
 
     chain: Chain
     displacement: float
-    time_s: np.ndarray
-    derivatives: np.ndarray
-    breakpoints_s: np.ndarray  # where a derivative of order continuous_derivatives + 1 jumps
+    time_s: NDArray[np.float64]
+    derivatives: NDArray[np.float64]
+    breakpoints_s: NDArray[np.float64]  # where a derivative of order continuous_derivatives + 1 jumps
 
     @property
-    def position(self) -> np.ndarray:
-        return self.derivatives[0]
+    def position(self) -> NDArray[np.float64]:
+        row: NDArray[np.float64] = self.derivatives[0]
+        return row
 
-    def derivative(self, m: int) -> np.ndarray:
-        return self.derivatives[m] if m < self.derivatives.shape[0] else np.zeros_like(self.time_s)
+    def derivative(self, m: int) -> NDArray[np.float64]:
+        row: NDArray[np.float64] = self.derivatives[m] if m < self.derivatives.shape[0] else np.zeros_like(self.time_s)
+        return row
 
     def command(self) -> PiecewiseCommand:
         """The motor command: exact for rectangular chains, Taylor degree 7 from exact derivatives otherwise.
@@ -216,7 +220,9 @@ def refinement(chain: Chain, sample_period_s: float) -> int:
     return max(1, math.ceil(chain.fastest_rate_1_s * sample_period_s / MAX_RATE_TIMES_PERIOD - 1e-9))
 
 
-def sample_grid(breakpoints_s: np.ndarray, end_s: float, sample_period_s: float, offset_s: float = 0.0) -> np.ndarray:
+def sample_grid(
+    breakpoints_s: NDArray[np.float64], end_s: float, sample_period_s: float, offset_s: float = 0.0
+) -> NDArray[np.float64]:
     """offset + k Ts for k = 0, 1, ... up to ``end_s``, with the breakpoints added (as
     PiecewiseCommand.resampled): a grid point closer than 1 ns to a breakpoint is replaced by it."""
     count = max(0, math.floor((end_s - offset_s) / sample_period_s + 1e-9) + 1)
@@ -225,10 +231,11 @@ def sample_grid(breakpoints_s: np.ndarray, end_s: float, sample_period_s: float,
     before = breakpoints_s[np.clip(idx - 1, 0, breakpoints_s.size - 1)]
     after = breakpoints_s[np.clip(idx, 0, breakpoints_s.size - 1)]
     near = np.minimum(np.abs(grid - before), np.abs(grid - after)) < MIN_STEP_S
-    return np.union1d(grid[~near], breakpoints_s)
+    merged: NDArray[np.float64] = np.union1d(grid[~near], breakpoints_s)
+    return merged
 
 
-def _powers(phi: np.ndarray, count: int) -> list[np.ndarray]:
+def _powers(phi: NDArray[np.float64], count: int) -> list[NDArray[np.float64]]:
     """phi^(2^m) for 2^m < count, by repeated squaring."""
     out = [phi]
     while 2 ** len(out) < count:
@@ -236,9 +243,11 @@ def _powers(phi: np.ndarray, count: int) -> list[np.ndarray]:
     return out
 
 
-def _propagate(a: np.ndarray, x0: np.ndarray, offset_s: float, count: int, powers: list[np.ndarray]) -> np.ndarray:
+def _propagate(
+    a: NDArray[np.float64], x0: NDArray[np.float64], offset_s: float, count: int, powers: list[NDArray[np.float64]]
+) -> NDArray[np.float64]:
     """States at offset + k Ts for k < count from x(0) = x0: expm(offset A) x0, then doubling."""
-    x = (expm(offset_s * a) @ x0)[:, None]
+    x: NDArray[np.float64] = (expm(offset_s * a) @ x0)[:, None]
     level = 0
     while x.shape[1] < count:
         x = np.hstack([x, powers[level] @ x])
@@ -295,7 +304,7 @@ def step_response(
 # Residual vibration in closed form
 
 
-def mode_residuals(chain: Chain, plant: Plant, displacement: float) -> tuple[np.ndarray, np.ndarray]:
+def mode_residuals(chain: Chain, plant: Plant, displacement: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Residual amplitude of each complex mode when the chain's step response ends, in closed form,
     and the same for the unfiltered step (at t = 0).
 
