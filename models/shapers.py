@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -45,7 +46,7 @@ def _merge_times(times: ArrayLike) -> NDArray[np.float64]:
     return t[keep]
 
 
-def _snap(times: NDArray[np.float64], grid: NDArray[np.float64]) -> NDArray[np.intp]:
+def _snap(times: NDArray[np.floating[Any]], grid: NDArray[np.float64]) -> NDArray[np.intp]:
     """Index of the grid point nearest to each time (every time is within tolerance of one)."""
     idx = np.clip(np.searchsorted(grid, times), 1, max(grid.size - 1, 1))
     if grid.size == 1:
@@ -67,8 +68,9 @@ class ImpulseSequence:
     value; ``gain`` reports that sum for sequences built otherwise.
     """
 
-    amplitudes: NDArray[np.float64]
-    times_s: NDArray[np.float64]
+    # Any float array on input; float64 once __post_init__ has copied it.
+    amplitudes: NDArray[np.floating[Any]]
+    times_s: NDArray[np.floating[Any]]
 
     def __post_init__(self) -> None:
         a = np.array(self.amplitudes, dtype=float).ravel()
@@ -191,9 +193,10 @@ class RampTrain:
     rise by h_j over rise_s (Figs. 5, 7 and 10 of the paper), r_j(tau) = clip(tau / d_j, 0, 1).
     """
 
-    start_s: NDArray[np.float64]
-    rise_s: NDArray[np.float64]
-    height: NDArray[np.float64]
+    # Any float array on input; float64 once __post_init__ has copied it.
+    start_s: NDArray[np.floating[Any]]
+    rise_s: NDArray[np.floating[Any]]
+    height: NDArray[np.floating[Any]]
 
     def __post_init__(self) -> None:
         arrays = [np.array(x, dtype=float).ravel() for x in (self.start_s, self.rise_s, self.height)]
