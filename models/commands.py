@@ -19,6 +19,7 @@ from functools import cached_property
 from typing import Literal
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from models.errors import InvalidParameter
 
@@ -33,10 +34,12 @@ _IMPULSE_RELATIVE_TOLERANCE = 1e-9  # a jump below this fraction of its quantity
 MAX_ABS_VALUE = 1e12
 
 
-def _taylor_step(derivatives: np.ndarray, h: np.ndarray, m: int, degree: int, start: int | None = None) -> np.ndarray:
+def _taylor_step(
+    derivatives: NDArray[np.float64], h: NDArray[np.float64], m: int, degree: int, start: int | None = None
+) -> NDArray[np.float64]:
     """sum_{n=start..degree} D_n h^(n-m) / (n-m)!, by Horner's rule (start defaults to m)."""
     start = m if start is None else start
-    acc = derivatives[degree] / math.factorial(degree - m)
+    acc: NDArray[np.float64] = derivatives[degree] / math.factorial(degree - m)
     for n in range(degree - 1, start - 1, -1):
         acc = acc * h + derivatives[n] / math.factorial(n - m)
     for _ in range(start - m):
@@ -44,7 +47,7 @@ def _taylor_step(derivatives: np.ndarray, h: np.ndarray, m: int, degree: int, st
     return acc
 
 
-def _check_samples(values: np.ndarray, t: np.ndarray, field: str) -> np.ndarray:
+def _check_samples(values: ArrayLike, t: NDArray[np.float64], field: str) -> NDArray[np.float64]:
     u = np.asarray(values, dtype=float)
     if u.shape != t.shape:
         raise InvalidParameter(field, f"{u.size} samples", f"must have as many samples as time_s ({t.size})")
@@ -55,7 +58,7 @@ def _check_samples(values: np.ndarray, t: np.ndarray, field: str) -> np.ndarray:
     return u
 
 
-def check_time_grid(time_s: np.ndarray, field: str = "time_s") -> np.ndarray:
+def check_time_grid(time_s: ArrayLike, field: str = "time_s") -> NDArray[np.float64]:
     """A finite, strictly increasing grid of at least two samples."""
     t = np.asarray(time_s, dtype=float)
     if t.ndim != 1 or t.size < 2:
@@ -83,16 +86,16 @@ class PiecewiseCommand:
     ``derivatives[m, k]`` is p^(m)(t_k+), the right-hand m-th derivative at breakpoint k.
     """
 
-    time_s: np.ndarray
-    derivatives: np.ndarray
+    time_s: NDArray[np.float64]
+    derivatives: NDArray[np.float64]
     continuous_orders: int = 0  # p .. p^(continuous_orders - 1) are continuous after t_0
 
     @property
     def degree(self) -> int:
-        return self.derivatives.shape[0] - 1
+        return int(self.derivatives.shape[0]) - 1
 
     @property
-    def steps_s(self) -> np.ndarray:
+    def steps_s(self) -> NDArray[np.float64]:
         return np.diff(self.time_s)
 
     @cached_property
@@ -103,19 +106,20 @@ class PiecewiseCommand:
         ideal = np.linspace(t[0], t[-1], t.size)
         return bool(np.max(np.abs(t - ideal)) <= _UNIFORM_GRID_TOLERANCE * span)
 
-    def derivative(self, m: int) -> np.ndarray:
+    def derivative(self, m: int) -> NDArray[np.float64]:
         """p^(m) at the breakpoints (right-hand values); zero above the degree."""
         if m <= self.degree:
-            return self.derivatives[m]
+            row: NDArray[np.float64] = self.derivatives[m]
+            return row
         return np.zeros_like(self.time_s)
 
-    def left_limits(self) -> np.ndarray:
+    def left_limits(self) -> NDArray[np.float64]:
         """p^(m)(t_k-), from the piece before each breakpoint; rest at p(t_0) before t_0."""
         return np.array([self.left_limit(m) for m in range(self.degree + 1)])
 
-    def left_limit(self, m: int) -> np.ndarray:
+    def left_limit(self, m: int) -> NDArray[np.float64]:
         """p^(m)(t_k-) for one order m (computed once)."""
-        cache = self.__dict__.setdefault("_left_cache", {})
+        cache: dict[int, NDArray[np.float64]] = self.__dict__.setdefault("_left_cache", {})
         if m not in cache:
             d = self.degree
             left = np.empty_like(self.time_s)
@@ -126,7 +130,7 @@ class PiecewiseCommand:
         return cache[m]
 
     @cached_property
-    def _jumps(self) -> np.ndarray:
+    def _jumps(self) -> NDArray[np.float64]:
         d = self.degree
         jumps = np.zeros_like(self.derivatives)
         # Leaving rest at t_0; values at round-off level of their own row count as zero.
@@ -142,7 +146,7 @@ class PiecewiseCommand:
         jumps.setflags(write=False)
         return jumps
 
-    def jumps(self) -> np.ndarray:
+    def jumps(self) -> NDArray[np.float64]:
         """p^(m)(t_k+) - p^(m)(t_k-): the discontinuities that excite the plant's free response.
 
         Differences at round-off level are set to zero; so are the orders that are continuous
@@ -155,7 +159,7 @@ class PiecewiseCommand:
         changed = np.flatnonzero(np.any(self.jumps() != 0.0, axis=0))
         return int(changed[-1]) if changed.size else 0
 
-    def evaluate(self, m: int, t: np.ndarray) -> np.ndarray:
+    def evaluate(self, m: int, t: ArrayLike) -> NDArray[np.float64]:
         """p^(m)(t) at arbitrary times (right-continuous)."""
         t = np.asarray(t, dtype=float)
         k = np.clip(np.searchsorted(self.time_s, t, side="right") - 1, 0, self.time_s.size - 1)
@@ -187,7 +191,7 @@ class PiecewiseCommand:
         deg_inside = self.degree - m  # degree of p^(m) within a piece
         coeffs = [self.derivatives[m + 1 + i, :-1] / math.factorial(i) for i in range(deg_inside)]
         # Roots tau of p^(m+1)(t_k + tau) = sum_i coeffs[i] tau^i inside (0, h_k).
-        roots: list[np.ndarray] = []
+        roots: list[NDArray[np.float64]] = []
         if deg_inside == 2:
             with np.errstate(divide="ignore", invalid="ignore"):
                 roots.append(-coeffs[0] / coeffs[1])
@@ -213,12 +217,12 @@ class PiecewiseCommand:
     @classmethod
     def from_samples(
         cls,
-        time_s: np.ndarray,
-        values: np.ndarray,
+        time_s: ArrayLike,
+        values: ArrayLike,
         order: int,
         *,
         hold: Hold = "linear",
-        slopes: np.ndarray | None = None,
+        slopes: ArrayLike | None = None,
         initial: tuple[float, ...] = (),
         field: str = "profile",
     ) -> PiecewiseCommand:
@@ -282,6 +286,6 @@ class PiecewiseCommand:
         return PiecewiseCommand(t, derivatives, self.continuous_orders)
 
     @classmethod
-    def from_derivatives(cls, time_s: np.ndarray, derivatives: np.ndarray) -> PiecewiseCommand:
+    def from_derivatives(cls, time_s: ArrayLike, derivatives: ArrayLike) -> PiecewiseCommand:
         """A command given exactly by its right-hand derivatives at its breakpoints."""
         return cls(check_time_grid(time_s), np.atleast_2d(np.asarray(derivatives, dtype=float)))

@@ -1,10 +1,9 @@
 """Plant kinds: the elastic machines that the motor command drives.
 
-Every kind maps the motor command to the load motion through a linear transfer function, defined
-once by ``_command_tf`` with plain arithmetic so that the same formula serves the numeric form
-(floats -> numpy state space) and the symbolic form (CasADi SX -> symbolic state space for the
-optimisers). The convention of all four papers is that the drive executes the motor command
-exactly (an ideal, "kinematic" motor) and the load follows through the elastic element.
+The convention of all four papers is that the drive executes the motor command exactly (an ideal,
+"kinematic" motor) and the load follows through the elastic element. Each kind gives its transfer
+function once, in ``_command_tf`` (see ``models.plant_base``, which also holds ``Plant``, ``Mode``
+and the limits; they are re-exported here).
 
 Kinds and their sources:
 
@@ -21,293 +20,52 @@ Kinds and their sources:
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, fields
-from typing import Any, ClassVar, Literal
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, ClassVar
 
 import numpy as np
+from numpy.typing import NDArray
 
 from models.errors import InvalidParameter
+from models.plant_base import (
+    FREQUENCY_MAX_HZ,
+    FREQUENCY_MIN_HZ,
+    PARAMETER_MAX,
+    CommandInput,
+    Mode,
+    Plant,
+    StateSpace,
+    check_modes,
+    check_positive,
+)
+from models.plant_symbolic import SymbolicPlant
 
-# Ranges that keep every derived quantity finite in double precision; they are far outside
-# what a machine can have, so they only refuse nonsense.
-PARAMETER_MAX = 1e12
-FREQUENCY_MIN_HZ = 1e-3
-FREQUENCY_MAX_HZ = 1e5
+__all__ = [
+    "FREQUENCY_MAX_HZ",
+    "FREQUENCY_MIN_HZ",
+    "MAX_TRANSFER_FUNCTION_ORDER",
+    "PARAMETER_MAX",
+    "PLANT_KINDS",
+    "BeltPlatformPlant",
+    "CommandInput",
+    "Mode",
+    "ModePlant",
+    "Plant",
+    "RigidFlexiblePlant",
+    "StateSpace",
+    "SymbolicPlant",
+    "TransferFunctionPlant",
+    "TwoInertiaPlant",
+    "example_plants",
+    "make_plant",
+]
+
 MAX_TRANSFER_FUNCTION_ORDER = 20
 # Poles closer than this (relative) are repeated or nearly so: np.roots scatters a k-fold root by
 # about eps^(1/k), and partial fractions of near-repeated poles lose all accuracy.
 _REPEATED_POLE_RELATIVE_GAP = 1e-3
 _ROOT_TOLERANCE = 1e-9  # relative: roots of s^2 + w^2 come out with |Re| ~ 1e-16 |p|
-
-CommandInput = Literal["position", "velocity"]
-
-
-@dataclass(frozen=True)
-class Mode:
-    """A vibration mode: a pair of complex poles -zeta w +- j w sqrt(1 - zeta^2)."""
-
-    natural_frequency_rad_s: float
-    damping_ratio: float
-
-    @classmethod
-    def from_pole(cls, pole: complex) -> Mode:
-        """The mode of a pole in the upper half-plane: w = |p|, zeta = -Re(p)/|p|."""
-        omega = abs(pole)
-        return cls(omega, max(0.0, -pole.real / omega))
-
-    @property
-    def natural_frequency_hz(self) -> float:
-        return self.natural_frequency_rad_s / (2.0 * math.pi)
-
-    @property
-    def damped_frequency_rad_s(self) -> float:
-        return self.natural_frequency_rad_s * math.sqrt(1.0 - self.damping_ratio**2)
-
-    @property
-    def damped_frequency_hz(self) -> float:
-        return self.damped_frequency_rad_s / (2.0 * math.pi)
-
-    @property
-    def natural_period_s(self) -> float:
-        return 1.0 / self.natural_frequency_hz
-
-    @property
-    def damped_period_s(self) -> float:
-        return 1.0 / self.damped_frequency_hz
-
-    @property
-    def decay_rate_1_s(self) -> float:
-        """sigma = zeta w: the envelope decays as exp(-sigma t)."""
-        return self.damping_ratio * self.natural_frequency_rad_s
-
-    @property
-    def pole(self) -> complex:
-        return complex(-self.decay_rate_1_s, self.damped_frequency_rad_s)
-
-
-@dataclass(frozen=True)
-class StateSpace:
-    """x' = A x + B u, y = C x + D u, with u the motor position and y the load position."""
-
-    a: np.ndarray
-    b: np.ndarray
-    c: np.ndarray
-    d: np.ndarray
-
-
-@dataclass(frozen=True)
-class SymbolicPlant:
-    """The plant's state space as CasADi SX expressions of its parameter vector.
-
-    ``function`` maps the parameter values to (A, B, C, D); an optimiser builds its problem once
-    with ``parameters`` as CasADi parameters and sets the plant's values per solve.
-    """
-
-    parameter_names: tuple[str, ...]
-    parameters: Any  # casadi.SX column
-    a: Any
-    b: Any
-    c: Any
-    d: Any
-    numerator: tuple[Any, ...] = ()  # G(s) from the motor position, descending powers
-    denominator: tuple[Any, ...] = ()
-
-    def symbol(self, name: str) -> Any:
-        """The symbol of one scalar parameter."""
-        return self.parameters[self.parameter_names.index(name)]
-
-    def second_order_mode(self) -> tuple[Any, Any, Any, Any]:
-        """(sigma, omega_d, Re r, Im r) of G's upper pole -sigma + i omega_d and its residue r, for a
-        denominator a2 s^2 + a1 s + a0 (the mode of Incerti eq. 4, Cusimano eqs. 1-3), as expressions."""
-        import casadi as ca
-
-        if len(self.denominator) != 3:
-            raise ValueError("not a second-order plant")
-        a2, a1, a0 = self.denominator
-        num = [0.0] * (3 - len(self.numerator)) + list(self.numerator)
-        b2, b1, b0 = num
-        sigma = a1 / (2 * a2)
-        root = ca.sqrt(4 * a0 * a2 - a1 * a1)
-        omega_d = root / (2 * a2)
-        # r = N(p)/D'(p) with D'(p) = 2 a2 p + a1 = i root; G's constant b2/a2 has no residue.
-        n_re = b2 * (sigma * sigma - omega_d * omega_d) - b1 * sigma + b0
-        n_im = -2 * b2 * sigma * omega_d + b1 * omega_d
-        return sigma, omega_d, n_im / root, -n_re / root
-
-    def function(self) -> Any:
-        import casadi as ca
-
-        return ca.Function(
-            "state_space", [self.parameters], [self.a, self.b, self.c, self.d], ["p"], ["A", "B", "C", "D"]
-        )
-
-
-def _check_positive(name: str, value: float, *, allow_zero: bool = False) -> float:
-    value = float(value)
-    if not math.isfinite(value):
-        raise InvalidParameter(name, value, "must be a finite number")
-    if allow_zero and value < 0.0:
-        raise InvalidParameter(name, value, "must be >= 0")
-    if not allow_zero and value <= 0.0:
-        raise InvalidParameter(name, value, "must be > 0")
-    if value > PARAMETER_MAX:
-        raise InvalidParameter(name, value, f"must be <= {PARAMETER_MAX:g}")
-    return value
-
-
-def _check_modes(modes: Sequence[Mode], field: str) -> None:
-    for mode in modes:
-        f = mode.natural_frequency_hz
-        if not FREQUENCY_MIN_HZ <= f <= FREQUENCY_MAX_HZ:
-            raise InvalidParameter(
-                field,
-                f,
-                f"the derived natural frequency {f:.6g} Hz must lie in [{FREQUENCY_MIN_HZ:g}, {FREQUENCY_MAX_HZ:g}] Hz",
-            )
-        if mode.damping_ratio >= 1.0:
-            raise InvalidParameter(field, mode.damping_ratio, "the derived damping ratio must be < 1")
-
-
-def _realise(num: Sequence[Any], den: Sequence[Any]) -> tuple[list, list, list, list]:
-    """Controllable canonical realisation of num/den (descending powers, deg num <= deg den).
-
-    The same layout as ``scipy.signal.tf2ss``; written with plain arithmetic so it builds either
-    floats or CasADi expressions.
-    """
-    n = len(den) - 1
-    lead = den[0]
-    a_coef = [den[i] / lead for i in range(1, n + 1)]
-    padded = [0.0] * (n + 1 - len(num)) + list(num)
-    b_coef = [padded[i] / lead for i in range(n + 1)]
-    a = [[-a_coef[j] if i == 0 else (1.0 if j == i - 1 else 0.0) for j in range(n)] for i in range(n)]
-    b = [[1.0] if i == 0 else [0.0] for i in range(n)]
-    c = [[b_coef[j + 1] - a_coef[j] * b_coef[0] for j in range(n)]]
-    d = [[b_coef[0]]]
-    return a, b, c, d
-
-
-class Plant:
-    """Base of the plant kinds. Subclasses are frozen dataclasses whose fields are parameters."""
-
-    kind: ClassVar[str]
-
-    # --- defined by each kind -------------------------------------------------------------
-    @staticmethod
-    def _command_tf(p: Mapping[str, Any]) -> tuple[list[Any], list[Any]]:
-        """Numerator and denominator (descending powers) from the command input to the load."""
-        raise NotImplementedError
-
-    @property
-    def command_input(self) -> CommandInput:
-        """The motor quantity the transfer function takes: ``position`` or ``velocity``."""
-        return "position"
-
-    # Physical data for energy and torque, where the kind has them.
-    @property
-    def energy_inertia(self) -> float | None:
-        """Inertia (or mass) of the vibrating load, for the vibration energy."""
-        return None
-
-    @property
-    def energy_stiffness(self) -> float | None:
-        """Stiffness of the elastic element, in the load's coordinate."""
-        return None
-
-    def torque_inertias(self) -> tuple[float, float] | None:
-        """(J_M, J_L) where the kind defines the motor torque J_M th_M'' + J_L th_L''."""
-        return None
-
-    # --- shared ---------------------------------------------------------------------------
-    def parameter_values(self) -> dict[str, float]:
-        return {f.name: getattr(self, f.name) for f in fields(self)}  # type: ignore[arg-type]
-
-    def command_transfer_function(self) -> tuple[np.ndarray, np.ndarray]:
-        """The kind's own transfer function (from ``command_input`` to the load), as numbers."""
-        num, den = self._command_tf(self.parameter_values())
-        return np.asarray(num, dtype=float), np.asarray(den, dtype=float)
-
-    def load_transfer_function(self) -> tuple[np.ndarray, np.ndarray]:
-        """G(s) from the motor position to the load position (numerator, denominator)."""
-        num, den = self.command_transfer_function()
-        if self.command_input == "velocity":
-            num = np.append(num, 0.0)  # V(s) = s Theta_m(s)
-        num = np.trim_zeros(num, "f")
-        return num, den
-
-    def modes(self) -> tuple[Mode, ...]:
-        """The vibration modes: the complex pole pairs, lowest frequency first."""
-        _, den = self.command_transfer_function()
-        poles = np.roots(den)
-        upper = sorted((p for p in poles if p.imag > 0.0), key=abs)
-        return tuple(Mode.from_pole(complex(p)) for p in upper)
-
-    @property
-    def dc_gain(self) -> float:
-        """G(0): load displacement per unit motor displacement (0 for velocity-input kinds)."""
-        num, den = self.load_transfer_function()
-        return float(num[-1] / den[-1])
-
-    def load_move(self, motor_move: float) -> float:
-        """|G(0)| times a motor move: how far the load goes (or how fast it ends up moving). For
-        plants without a position gain (velocity input) the motor's own move is the reference."""
-        gain = abs(self.dc_gain) if self.command_input == "position" else 0.0
-        return abs(motor_move) * (gain if gain > 0.0 else 1.0)
-
-    def state_space(self) -> StateSpace:
-        """Numeric state space of G(s) (motor position in, load position out)."""
-        num, den = self.load_transfer_function()
-        a, b, c, d = _realise(list(num), den.tolist())
-        return StateSpace(*(np.array(m, dtype=float).reshape(len(m), -1) for m in (a, b, c, d)))
-
-    def symbolic(self) -> SymbolicPlant:
-        """The same state space with the parameters as CasADi symbols.
-
-        It depends only on the kind and its shape (``symbolic_key``), never on parameter values,
-        so an optimiser builds it once per key and passes ``symbolic_parameter_values()``.
-        """
-        import casadi as ca
-
-        sizes = self.symbolic_sizes()
-        names: list[str] = []
-        values: dict[str, Any] = {}
-        for f in fields(self):  # type: ignore[arg-type]
-            if f.name in _NON_NUMERIC_FIELDS:
-                continue
-            if f.name in sizes:
-                values[f.name] = [ca.SX.sym(f"{f.name}_{i}") for i in range(sizes[f.name])]
-                names += [f"{f.name}[{i}]" for i in range(sizes[f.name])]
-            else:
-                values[f.name] = ca.SX.sym(f.name)
-                names.append(f.name)
-        num, den = self._command_tf(values)
-        if self.command_input == "velocity":
-            num = [*list(num), 0.0]
-        a, b, c, d = (
-            ca.vertcat(*[ca.horzcat(*[ca.SX(e) if isinstance(e, float) else e for e in row]) for row in m])
-            for m in _realise(num, den)
-        )
-        flat = [s for v in values.values() for s in (v if isinstance(v, list) else [v])]
-        return SymbolicPlant(tuple(names), ca.vertcat(*flat), a, b, c, d, tuple(num), tuple(den))
-
-    def symbolic_key(self) -> tuple:
-        """What the symbolic form depends on: kind, vector sizes and command input."""
-        return (self.kind, tuple(sorted(self.symbolic_sizes().items())), self.command_input)
-
-    def symbolic_parameter_values(self) -> np.ndarray:
-        """The numeric parameter vector matching ``symbolic()``'s parameter order."""
-        out: list[float] = []
-        for name, value in self.parameter_values().items():
-            if name in _NON_NUMERIC_FIELDS:
-                continue
-            out += list(value) if isinstance(value, tuple) else [value]
-        return np.asarray(out, dtype=float)
-
-    def symbolic_sizes(self) -> dict[str, int]:
-        return {}
-
-
-_NON_NUMERIC_FIELDS = {"command_input"}
 
 
 @dataclass(frozen=True)
@@ -324,7 +82,7 @@ class ModePlant(Plant):
     damping_ratio: float = 0.0
 
     def __post_init__(self) -> None:
-        f = _check_positive("natural_frequency_hz", self.natural_frequency_hz)
+        f = check_positive("natural_frequency_hz", self.natural_frequency_hz)
         if not FREQUENCY_MIN_HZ <= f <= FREQUENCY_MAX_HZ:
             raise InvalidParameter(
                 "natural_frequency_hz", f, f"must lie in [{FREQUENCY_MIN_HZ:g}, {FREQUENCY_MAX_HZ:g}] Hz"
@@ -359,11 +117,11 @@ class TwoInertiaPlant(Plant):
     damping_nms_per_rad: float = 0.0
 
     def __post_init__(self) -> None:
-        _check_positive("motor_inertia_kgm2", self.motor_inertia_kgm2)
-        _check_positive("load_inertia_kgm2", self.load_inertia_kgm2)
-        _check_positive("stiffness_nm_per_rad", self.stiffness_nm_per_rad)
-        _check_positive("damping_nms_per_rad", self.damping_nms_per_rad, allow_zero=True)
-        _check_modes(self.modes(), "stiffness_nm_per_rad")
+        check_positive("motor_inertia_kgm2", self.motor_inertia_kgm2)
+        check_positive("load_inertia_kgm2", self.load_inertia_kgm2)
+        check_positive("stiffness_nm_per_rad", self.stiffness_nm_per_rad)
+        check_positive("damping_nms_per_rad", self.damping_nms_per_rad, allow_zero=True)
+        check_modes(self.modes(), "stiffness_nm_per_rad")
 
     @staticmethod
     def _command_tf(p: Mapping[str, Any]) -> tuple[list[Any], list[Any]]:
@@ -407,13 +165,13 @@ class BeltPlatformPlant(Plant):
     gear_ratio: float
 
     def __post_init__(self) -> None:
-        _check_positive("platform_inertia_kgm2", self.platform_inertia_kgm2)
-        _check_positive("branch_stiffness_n_per_m", self.branch_stiffness_n_per_m)
-        _check_positive("branch_damping_ns_per_m", self.branch_damping_ns_per_m, allow_zero=True)
-        _check_positive("motor_pulley_radius_m", self.motor_pulley_radius_m)
-        _check_positive("platform_pulley_radius_m", self.platform_pulley_radius_m)
-        _check_positive("gear_ratio", self.gear_ratio)
-        _check_modes(self.modes(), "branch_stiffness_n_per_m")
+        check_positive("platform_inertia_kgm2", self.platform_inertia_kgm2)
+        check_positive("branch_stiffness_n_per_m", self.branch_stiffness_n_per_m)
+        check_positive("branch_damping_ns_per_m", self.branch_damping_ns_per_m, allow_zero=True)
+        check_positive("motor_pulley_radius_m", self.motor_pulley_radius_m)
+        check_positive("platform_pulley_radius_m", self.platform_pulley_radius_m)
+        check_positive("gear_ratio", self.gear_ratio)
+        check_modes(self.modes(), "branch_stiffness_n_per_m")
 
     @staticmethod
     def _command_tf(p: Mapping[str, Any]) -> tuple[list[Any], list[Any]]:
@@ -476,16 +234,16 @@ class RigidFlexiblePlant(Plant):
     drive_damping_ns_per_m: float
 
     def __post_init__(self) -> None:
-        _check_positive("drive_mass_kg", self.drive_mass_kg)
-        _check_positive("load_mass_kg", self.load_mass_kg)
-        _check_positive("stiffness_n_per_m", self.stiffness_n_per_m)
-        _check_positive("damping_ns_per_m", self.damping_ns_per_m, allow_zero=True)
+        check_positive("drive_mass_kg", self.drive_mass_kg)
+        check_positive("load_mass_kg", self.load_mass_kg)
+        check_positive("stiffness_n_per_m", self.stiffness_n_per_m)
+        check_positive("damping_ns_per_m", self.damping_ns_per_m, allow_zero=True)
         # c0 k is the constant term of eq. (3): with c0 = 0 the transfer function has a pole at 0.
-        _check_positive("drive_damping_ns_per_m", self.drive_damping_ns_per_m)
+        check_positive("drive_damping_ns_per_m", self.drive_damping_ns_per_m)
         modes = self.modes()
         if not modes:
             raise InvalidParameter("stiffness_n_per_m", self.stiffness_n_per_m, "the plant has no oscillatory mode")
-        _check_modes(modes, "stiffness_n_per_m")
+        check_modes(modes, "stiffness_n_per_m")
 
     @property
     def command_input(self) -> CommandInput:
@@ -511,7 +269,7 @@ class TransferFunctionPlant(Plant):
     kind: ClassVar[str] = "transfer_function"
     numerator: tuple[float, ...]
     denominator: tuple[float, ...]
-    command_input: CommandInput = "position"  # type: ignore[assignment]
+    command_input: CommandInput = "position"
 
     def __post_init__(self) -> None:
         num = np.asarray(self.numerator, dtype=float)
@@ -564,7 +322,7 @@ class TransferFunctionPlant(Plant):
                 "denominator", den.tolist(), f"a pole of magnitude {scale:.3g} rad/s is out of range"
             )
         _check_partial_fractions(num, den, poles)
-        _check_modes(self.modes(), "denominator")
+        check_modes(self.modes(), "denominator")
         object.__setattr__(self, "numerator", tuple(float(x) for x in num))
         object.__setattr__(self, "denominator", tuple(float(x) for x in den))
 
@@ -572,14 +330,16 @@ class TransferFunctionPlant(Plant):
     def _command_tf(p: Mapping[str, Any]) -> tuple[list[Any], list[Any]]:
         return list(p["numerator"]), list(p["denominator"])
 
-    def command_transfer_function(self) -> tuple[np.ndarray, np.ndarray]:
+    def command_transfer_function(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         return np.asarray(self.numerator, dtype=float), np.asarray(self.denominator, dtype=float)
 
     def symbolic_sizes(self) -> dict[str, int]:
         return {"numerator": len(self.numerator), "denominator": len(self.denominator)}
 
 
-def _check_partial_fractions(num: np.ndarray, den: np.ndarray, poles: np.ndarray) -> None:
+def _check_partial_fractions(
+    num: NDArray[np.float64], den: NDArray[np.float64], poles: NDArray[np.inexact[Any]]
+) -> None:
     """The simulation writes G(s) = D + sum r_j/(s - p_j); refuse a plant whose poles are so
     clustered that this form does not reproduce G (checked at s = 0 and at points of the right
     half-plane, where no pole lies)."""

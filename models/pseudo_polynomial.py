@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from models.commands import PiecewiseCommand
 from models.errors import InvalidParameter
@@ -40,12 +41,13 @@ def boundary_matrix(exponents: Sequence[Any]) -> list[list[Any]]:
     return [[falling_factorial(g, k) for g in exponents] for k in range(n + 1)]
 
 
-def coefficients(exponents: Sequence[float]) -> np.ndarray:
+def coefficients(exponents: Sequence[float]) -> NDArray[np.float64]:
     """C solving Z c = (1, 0, ..., 0) (eq. 22)."""
     z = np.array(boundary_matrix([float(g) for g in exponents]), dtype=float)
     rhs = np.zeros(len(exponents))
     rhs[0] = 1.0
-    return np.linalg.solve(z, rhs)
+    c: NDArray[np.float64] = np.linalg.solve(z, rhs)
+    return c
 
 
 def coefficients_order_2(g0: float, g1: float, g2: float) -> tuple[float, float, float]:
@@ -98,7 +100,7 @@ class PseudoPolynomial:
     def order(self) -> int:
         return len(self.exponents) - 1
 
-    def derivative(self, k: int, time_s: np.ndarray, *, left_at_end: bool = False) -> np.ndarray:
+    def derivative(self, k: int, time_s: ArrayLike, *, left_at_end: bool = False) -> NDArray[np.float64]:
         """phi^(k)(t), k = 0..3, vectorised; rest at 0 before t = 0 and at Phi after t = T.
 
         At t = T the jerk may jump (to 0 after the move); ``left_at_end`` gives its value from
@@ -131,7 +133,7 @@ class PseudoPolynomial:
         move = PiecewiseCommand.from_samples(t, self.derivative(1, t), 1, hold="cubic", slopes=self.derivative(2, t))
         return move.resampled(h, end_s=max(horizon_s, T))
 
-    def samples(self, time_s: np.ndarray) -> dict[str, np.ndarray]:
+    def samples(self, time_s: ArrayLike) -> dict[str, NDArray[np.float64]]:
         """The law's exact values at the given times (jerk: right-hand value, 0 from T on)."""
         t = np.asarray(time_s, dtype=float)
         return {

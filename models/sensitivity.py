@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from models.commands import PiecewiseCommand
 from models.errors import InvalidParameter
@@ -22,15 +23,15 @@ RELIABLE_FRACTION = 1e-6  # a residual whose round-off could exceed this fractio
 
 @dataclass(frozen=True)
 class Sensitivity:
-    frequency_ratio: np.ndarray
-    damping_ratio: np.ndarray  # one per row of residual
-    residual: np.ndarray  # shape (damping ratios, frequency ratios), fraction of the move
+    frequency_ratio: NDArray[np.float64]
+    damping_ratio: NDArray[np.float64]  # one per row of residual
+    residual: NDArray[np.float64]  # shape (damping ratios, frequency ratios), fraction of the move
     quantity: str  # "position" (rest-to-rest) or "velocity" (rest-to-velocity)
 
 
 def mode_residuals(
-    command: PiecewiseCommand, natural_frequency_rad_s: np.ndarray, damping_ratio: np.ndarray, derivative: int
-) -> tuple[np.ndarray, np.ndarray]:
+    command: PiecewiseCommand, natural_frequency_rad_s: ArrayLike, damping_ratio: ArrayLike, derivative: int
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Amplitude of the load's free oscillation (position if derivative = 0, velocity if 1)
     when the command ends, for each (w, zeta) pair, on the mode plant; and a bound on its
     round-off error."""
@@ -74,8 +75,8 @@ def move_scale(command: PiecewiseCommand) -> tuple[str, float]:
 def sensitivity(
     command: PiecewiseCommand,
     natural_frequency_rad_s: float,
-    frequency_ratios: np.ndarray,
-    damping_ratios: np.ndarray,
+    frequency_ratios: ArrayLike,
+    damping_ratios: ArrayLike,
 ) -> Sensitivity:
     """Residual (fraction of the move) versus w/w_e for each damping ratio."""
     quantity, scale = move_scale(command)
@@ -99,7 +100,7 @@ def sensitivity(
 
 
 def band_below(
-    ratios: np.ndarray, residual: np.ndarray, threshold: float = 0.05, centre: float = 1.0
+    ratios: ArrayLike, residual: ArrayLike, threshold: float = 0.05, centre: float = 1.0
 ) -> tuple[float | None, float | None] | None:
     """The interval of frequency ratios around ``centre`` where the residual stays <= threshold,
     with linearly interpolated ends; an end is None where the band reaches the end of the

@@ -16,8 +16,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import brentq
 
 from models.commands import MIN_STEP_S, PiecewiseCommand, check_time_grid
@@ -30,12 +32,12 @@ _MERGE_ABS_S = 2.0 * MIN_STEP_S
 _MERGE_REL = 1e-12
 
 
-def _merge_tolerance(times: np.ndarray) -> float:
+def _merge_tolerance(times: NDArray[np.float64]) -> float:
     scale = float(np.max(np.abs(times))) if times.size else 0.0
     return max(_MERGE_ABS_S, _MERGE_REL * scale)
 
 
-def _merge_times(times: np.ndarray) -> np.ndarray:
+def _merge_times(times: ArrayLike) -> NDArray[np.float64]:
     """Sorted unique times, those within the merge tolerance of the previous kept one dropped."""
     t = np.sort(np.asarray(times, dtype=float))
     if t.size == 0:
@@ -44,7 +46,7 @@ def _merge_times(times: np.ndarray) -> np.ndarray:
     return t[keep]
 
 
-def _snap(times: np.ndarray, grid: np.ndarray) -> np.ndarray:
+def _snap(times: NDArray[np.floating[Any]], grid: NDArray[np.float64]) -> NDArray[np.intp]:
     """Index of the grid point nearest to each time (every time is within tolerance of one)."""
     idx = np.clip(np.searchsorted(grid, times), 1, max(grid.size - 1, 1))
     if grid.size == 1:
@@ -66,8 +68,9 @@ class ImpulseSequence:
     value; ``gain`` reports that sum for sequences built otherwise.
     """
 
-    amplitudes: np.ndarray
-    times_s: np.ndarray
+    # Any float array on input; float64 once __post_init__ has copied it.
+    amplitudes: NDArray[np.floating[Any]]
+    times_s: NDArray[np.floating[Any]]
 
     def __post_init__(self) -> None:
         a = np.array(self.amplitudes, dtype=float).ravel()
@@ -86,7 +89,7 @@ class ImpulseSequence:
         object.__setattr__(self, "times_s", t)
 
     @classmethod
-    def merged(cls, amplitudes: np.ndarray, times_s: np.ndarray) -> ImpulseSequence:
+    def merged(cls, amplitudes: ArrayLike, times_s: ArrayLike) -> ImpulseSequence:
         """The sequence with impulses at (numerically) coincident times added together, shifted so
         that the first impulse is at 0."""
         t = np.asarray(times_s, dtype=float).ravel()
@@ -110,8 +113,8 @@ class ImpulseSequence:
 
 
 def percentage_vibration(
-    shaper: ImpulseSequence, natural_frequency_rad_s: np.ndarray | float, damping_ratio: np.ndarray | float
-) -> np.ndarray:
+    shaper: ImpulseSequence, natural_frequency_rad_s: ArrayLike, damping_ratio: ArrayLike
+) -> NDArray[np.float64]:
     """V(omega_n, zeta) of Sec. 3.1 (the equation before eq. 4), vectorised over omega and zeta:
 
         V = exp(-zeta w t_n) sqrt(C^2 + S^2),
@@ -130,7 +133,8 @@ def percentage_vibration(
     phase = wd[..., None] * t
     c = np.sum(shaper.amplitudes * decay * np.cos(phase), axis=-1)
     s = np.sum(shaper.amplitudes * decay * np.sin(phase), axis=-1)
-    return np.hypot(c, s)
+    residual: NDArray[np.float64] = np.hypot(c, s)
+    return residual
 
 
 def convolve(first: ImpulseSequence, second: ImpulseSequence) -> ImpulseSequence:
@@ -161,7 +165,7 @@ def vibration_band(
     limit = threshold * (1.0 + slack)
     ratios = np.linspace(max_ratio / points, max_ratio, points)
 
-    def v(r: np.ndarray | float) -> np.ndarray:
+    def v(r: ArrayLike) -> NDArray[np.float64]:
         return percentage_vibration(shaper, np.asarray(r) * natural_frequency_rad_s, damping_ratio)
 
     values = v(ratios)
@@ -189,9 +193,10 @@ class RampTrain:
     rise by h_j over rise_s (Figs. 5, 7 and 10 of the paper), r_j(tau) = clip(tau / d_j, 0, 1).
     """
 
-    start_s: np.ndarray
-    rise_s: np.ndarray
-    height: np.ndarray
+    # Any float array on input; float64 once __post_init__ has copied it.
+    start_s: NDArray[np.floating[Any]]
+    rise_s: NDArray[np.floating[Any]]
+    height: NDArray[np.floating[Any]]
 
     def __post_init__(self) -> None:
         arrays = [np.array(x, dtype=float).ravel() for x in (self.start_s, self.rise_s, self.height)]
@@ -236,13 +241,14 @@ class RampTrain:
             (shaper.amplitudes[:, None] * self.height[None, :]).ravel(),
         )
 
-    def velocity(self, t: np.ndarray) -> np.ndarray:
+    def velocity(self, t: ArrayLike) -> NDArray[np.float64]:
         """v(t), right-continuous at steps."""
         t = np.asarray(t, dtype=float)
         tau = t[..., None] - self.start_s
         with np.errstate(divide="ignore", invalid="ignore"):
             frac = np.where(self.rise_s > 0.0, np.clip(tau / self.rise_s, 0.0, 1.0), (tau >= 0.0).astype(float))
-        return np.sum(frac * self.height, axis=-1)
+        velocity: NDArray[np.float64] = np.sum(frac * self.height, axis=-1)
+        return velocity
 
     def max_slope(self) -> float:
         """Largest |dv/dt| between steps: the slope is piecewise constant, so it is checked on
@@ -278,7 +284,11 @@ class RampTrain:
 
 
 def _integrated(
-    time_s: np.ndarray, velocity: np.ndarray, slope: np.ndarray, initial_position: float, continuous_orders: int
+    time_s: NDArray[np.float64],
+    velocity: NDArray[np.float64],
+    slope: NDArray[np.float64],
+    initial_position: float,
+    continuous_orders: int,
 ) -> PiecewiseCommand:
     """The degree-2 command with these right-hand velocities and slopes; position integrated exactly."""
     h = np.diff(time_s)
@@ -291,7 +301,9 @@ def _integrated(
 # Shaping any command
 
 
-def _evaluate_shifted(command: PiecewiseCommand, m: int, t: np.ndarray, shift_s: float, tol: float) -> np.ndarray:
+def _evaluate_shifted(
+    command: PiecewiseCommand, m: int, t: NDArray[np.float64], shift_s: float, tol: float
+) -> NDArray[np.float64]:
     """p^(m)(t - shift), right-continuous, treating breakpoints within ``tol`` of t as reached
     (so a merged breakpoint gets the values after the jump); rest at p(t_0) before t_0."""
     breaks = command.time_s + shift_s
@@ -318,7 +330,7 @@ def shape_command(command: PiecewiseCommand, shaper: ImpulseSequence) -> Piecewi
     return PiecewiseCommand(check_time_grid(grid), derivatives, command.continuous_orders)
 
 
-def shape_samples(time_s: np.ndarray, values: np.ndarray, shaper: ImpulseSequence) -> np.ndarray:
+def shape_samples(time_s: ArrayLike, values: ArrayLike, shaper: ImpulseSequence) -> NDArray[np.float64]:
     """A sampled command (position or velocity) shaped on its own grid: sum_i A_i u(t - t_i), with
     u interpolated linearly between samples, u(t_0) before and u(t_N) after. The samples of the
     shaped first-order-hold signal, exactly (its extra kinks fall between samples)."""

@@ -23,6 +23,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 from scipy.signal import lfilter
 
 from models.commands import PiecewiseCommand
@@ -40,17 +41,18 @@ class ModalForm:
     One entry per real pole or per complex pair (the pole with Im > 0, weight 2).
     """
 
-    taylor: np.ndarray
-    poles: np.ndarray
-    residues: np.ndarray
-    weights: np.ndarray
+    taylor: NDArray[np.float64]
+    poles: NDArray[np.complex128]
+    residues: NDArray[np.complex128]
+    weights: NDArray[np.float64]
 
     @property
-    def oscillatory(self) -> np.ndarray:
-        return self.weights == 2.0
+    def oscillatory(self) -> NDArray[np.bool_]:
+        pairs: NDArray[np.bool_] = self.weights == 2.0
+        return pairs
 
 
-def taylor_coefficients(num: np.ndarray, den: np.ndarray, count: int) -> np.ndarray:
+def taylor_coefficients(num: ArrayLike, den: ArrayLike, count: int) -> NDArray[np.float64]:
     """First ``count`` Taylor coefficients of num(s)/den(s) at s = 0 (series division)."""
     n_asc = np.zeros(count)
     tail = np.asarray(num, dtype=float)[::-1][:count]
@@ -65,7 +67,7 @@ def taylor_coefficients(num: np.ndarray, den: np.ndarray, count: int) -> np.ndar
     return g
 
 
-def modal_form(num: np.ndarray, den: np.ndarray, taylor_count: int) -> ModalForm:
+def modal_form(num: NDArray[np.float64], den: NDArray[np.float64], taylor_count: int) -> ModalForm:
     """Partial fractions of a proper transfer function with simple poles off the origin."""
     poles = np.roots(den).astype(complex)
     keep = poles.imag >= -_REAL_POLE_TOLERANCE * np.abs(poles)
@@ -74,13 +76,18 @@ def modal_form(num: np.ndarray, den: np.ndarray, taylor_count: int) -> ModalForm
     poles = np.where(real, poles.real + 0j, poles)
     # A pole on the imaginary axis may come out with a round-off real part of either sign.
     poles = np.where(poles.real > 0.0, 1j * poles.imag, poles)
-    residues = np.polyval(num, poles) / np.polyval(np.polyder(den), poles)
+    # numpy's stubs type polyval at complex points as real: the annotations say what they are.
+    at_num: NDArray[np.complex128] = np.polyval(num, poles)
+    at_derivative: NDArray[np.complex128] = np.polyval(np.polyder(den), poles)
+    residues = at_num / at_derivative
     residues = np.where(real, residues.real + 0j, residues)
     weights = np.where(real, 1.0, 2.0)
     return ModalForm(taylor_coefficients(num, den, taylor_count), poles, residues, weights)
 
 
-def first_order_scan(decay: np.ndarray, drive: np.ndarray, uniform: bool) -> np.ndarray:
+def first_order_scan(
+    decay: NDArray[np.complex128], drive: NDArray[np.complex128], uniform: bool
+) -> NDArray[np.complex128]:
     """h_0 = drive_0, h_k = decay_{k-1} h_{k-1} + drive_k, vectorised.
 
     ``decay`` has one entry per step (len(drive) - 1). On a uniform grid this is one
@@ -88,7 +95,8 @@ def first_order_scan(decay: np.ndarray, drive: np.ndarray, uniform: bool) -> np.
     |decay| <= 1, so the scan's products only shrink and cannot overflow.
     """
     if uniform:
-        return lfilter([1.0], [1.0, -decay[0]], drive)
+        filtered: NDArray[np.complex128] = lfilter([1.0], [1.0, -decay[0]], drive)
+        return filtered
     a = np.concatenate(([0.0 + 0j], decay))
     h = drive.astype(complex, copy=True)
     shift = 1
@@ -106,13 +114,13 @@ class Response:
     plant: Plant
     command: PiecewiseCommand
     modal: ModalForm
-    load_position: np.ndarray
-    load_velocity: np.ndarray
-    load_acceleration: np.ndarray
-    free_state: np.ndarray  # h_j at every breakpoint, shape (poles, samples)
+    load_position: NDArray[np.float64]
+    load_velocity: NDArray[np.float64]
+    load_acceleration: NDArray[np.float64]
+    free_state: NDArray[np.complex128]  # h_j at every breakpoint, shape (poles, samples)
 
     @property
-    def time_s(self) -> np.ndarray:
+    def time_s(self) -> NDArray[np.float64]:
         return self.command.time_s
 
     @property
@@ -120,20 +128,20 @@ class Response:
         return self.plant.command_input == "position"
 
     @property
-    def deflection(self) -> np.ndarray | None:
+    def deflection(self) -> NDArray[np.float64] | None:
         """Load position minus its rigid-transmission value G(0) p (Incerti's alpha)."""
         if not self.has_deflection:
             return None
         return self.load_position - self.plant.dc_gain * self.command.derivative(0)
 
     @property
-    def deflection_rate(self) -> np.ndarray | None:
+    def deflection_rate(self) -> NDArray[np.float64] | None:
         if not self.has_deflection:
             return None
         return self.load_velocity - self.plant.dc_gain * self.command.derivative(1)
 
     @property
-    def motor_torque_nm(self) -> np.ndarray | None:
+    def motor_torque_nm(self) -> NDArray[np.float64] | None:
         """J_M th_M'' + J_L th_L'' where the plant defines both inertias."""
         inertias = self.plant.torque_inertias()
         if inertias is None:
@@ -141,10 +149,13 @@ class Response:
         j_m, j_l = inertias
         return j_m * self.command.derivative(2) + j_l * self.load_acceleration
 
-    def free_amplitudes(self, index: int, derivative: int = 0) -> np.ndarray:
+    def free_amplitudes(self, index: int, derivative: int = 0) -> NDArray[np.float64]:
         """|w_j r_j lambda_j^d h_j|: amplitude of each pole's free response at a breakpoint."""
         m = self.modal
-        return np.abs(m.weights * m.residues * m.poles**derivative * self.free_state[:, index])
+        amplitudes: NDArray[np.float64] = np.abs(
+            m.weights * m.residues * m.poles**derivative * self.free_state[:, index]
+        )
+        return amplitudes
 
 
 def simulate(plant: Plant, command: PiecewiseCommand) -> Response:
@@ -181,7 +192,9 @@ def simulate(plant: Plant, command: PiecewiseCommand) -> Response:
     return Response(plant, command, modal, position, velocity, acceleration, free)
 
 
-def _check_conditioning(command: PiecewiseCommand, modal: ModalForm, free: np.ndarray, position: np.ndarray) -> None:
+def _check_conditioning(
+    command: PiecewiseCommand, modal: ModalForm, free: NDArray[np.complex128], position: NDArray[np.float64]
+) -> None:
     """Refuse a result that round-off could have spoilt.
 
     The load position is the sum of the quasi-static part sum_m g_m p^(m) and the free responses;
@@ -237,7 +250,7 @@ class Metrics:
     peak_motor_torque_nm: float | None
 
 
-def _steady_state(response: Response, end: int) -> tuple[np.ndarray, np.ndarray]:
+def _steady_state(response: Response, end: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Load position and velocity of the steady motion that follows the command's last piece.
 
     With the last piece p(t_e + tau) = sum_n D_n tau^n / n!, the quasi-static load motion
@@ -254,7 +267,9 @@ def _steady_state(response: Response, end: int) -> tuple[np.ndarray, np.ndarray]
     return position, velocity
 
 
-def _envelope_crossing_s(amplitudes: np.ndarray, decay_1_s: np.ndarray, window: float) -> float | None:
+def _envelope_crossing_s(
+    amplitudes: NDArray[np.float64], decay_1_s: NDArray[np.float64], window: float
+) -> float | None:
     """Smallest t >= 0 with sum_j A_j exp(-sigma_j t) <= window; None if never."""
     if np.sum(amplitudes) <= window:
         return 0.0
@@ -282,9 +297,9 @@ def settling(response: Response, tolerance: float = 1e-3, window: float | None =
 
     The band is ``window`` (absolute, load units) or ``tolerance`` times the move: the load's
     total displacement (or its largest excursion, if larger) when it ends at rest, its final
-    speed when it ends moving (then the load velocity is compared). During the command the error is checked at the samples; after
-    the command's end the envelope of the free response is used, exactly and without sampling,
-    so the answer does not depend on the horizon.
+    speed when it ends moving (then the load velocity is compared). During the command the error
+    is checked at the samples; after the command's end the envelope of the free response is used,
+    exactly and without sampling, so the answer does not depend on the horizon.
     """
     end = response.command.end_index()
     t = response.time_s
@@ -321,9 +336,16 @@ def metrics(response: Response, tolerance: float = 1e-3, window: float | None = 
     )
     energy = None
     plant = response.plant
-    if plant.energy_inertia is not None and plant.energy_stiffness is not None:
-        alpha = response.deflection[end]
-        rate = response.deflection_rate[end]
+    deflection, deflection_rate = response.deflection, response.deflection_rate
+    # Every kind with energy data takes the motor position, so it has a deflection.
+    if (
+        plant.energy_inertia is not None
+        and plant.energy_stiffness is not None
+        and deflection is not None
+        and deflection_rate is not None
+    ):
+        alpha = deflection[end]
+        rate = deflection_rate[end]
         energy = 0.5 * plant.energy_inertia * rate**2 + 0.5 * plant.energy_stiffness * alpha**2
     torque = response.motor_torque_nm
     cmd = response.command

@@ -1,26 +1,14 @@
-"""Trajectory smoothers: FIR filters that turn a step into a smooth move (Biagiotti, Melchiorri and
-Moriello 2020, "Damped harmonic smoother for trajectory planning and vibration suppression").
+"""Trajectory smoothers: chains of FIR filters that turn a step into a smooth move (Biagiotti,
+Melchiorri and Moriello 2020, "Damped harmonic smoother for trajectory planning and vibration
+suppression"). The filters, F(s) = (c0 + c1 e^(-sT)) R(s) each, are in ``models.smoother_filters``
+and re-exported here.
 
-Filters, each of duration T and unit static gain (impulse response on [0, T]):
-
-- ``rectangular`` M (eq. 1): 1/T.
-- ``harmonic`` S (eqs. 4-5): (pi/2T) sin(pi t/T).
-- ``damped_harmonic`` S_sigma (eqs. 10, 14): K (T/pi) e^(sigma t) sin(pi t/T), K = ((pi/T)^2 + sigma^2)/(1 + e^(sigma T)).
-- ``exponential`` M_sigma (the damped rectangular filter of the paper's ref. [20], Sec. V):
-  sigma e^(sigma t)/(e^(sigma T) - 1).
-
-Sign convention: the paper's sigma is the exponent of the impulse response (negative for a stable
-plant); the service's ``decay_rate_1_s`` is -sigma >= 0, as ``models.plants.Mode.decay_rate_1_s``.
-
-Time domain. Every filter is a delay polynomial times a rational part, F(s) = (c0 + c1 e^(-sT)) R(s):
-M = (1 - e^(-sT))/T * 1/s; M_sigma = c (1 - e^(sigma T) e^(-sT)) * 1/(s - sigma); S = (a^2/2)(1 + e^(-sT)) *
-1/(s^2 + a^2); S_sigma = K (1 + e^(sigma T) e^(-sT)) * 1/((s - sigma)^2 + a^2), with a = pi/T. A chain applied to
-a step of height h is therefore one real LTI cascade, 1/s * prod R_i(s), driven by 2^n impulses (one per
-subset of filters, at the sum of their durations). Between impulses the state evolves by the matrix
-exponential, so the output and all its derivatives are exact to round-off at any time. The cascade is
-propagated over a uniform grid by repeated squaring of expm(Ts A) (vectorised; the Python loop runs over
-the 2^n pieces between impulses, never over samples). scipy.signal has no continuous systems with
-delays, hence this construction; scipy.linalg.expm does the exponentials.
+Time domain. A chain applied to a step of height h is one real LTI cascade, 1/s * prod R_i(s), driven
+by 2^n impulses (one per subset of filters, at the sum of their durations). Between impulses the state
+evolves by the matrix exponential, so the output and all its derivatives are exact to round-off at any
+time. The cascade is propagated over a uniform grid by repeated squaring of expm(Ts A) (vectorised; the
+Python loop runs over the 2^n pieces between impulses, never over samples). scipy.signal has no
+continuous systems with delays, hence this construction; scipy.linalg.expm does the exponentials.
 
 A chain of rectangular filters gives an exact piecewise polynomial (degree n, sec. II). Other chains
 contain exponentials and sinusoids: their command is the piecewise Taylor polynomial of degree 7 built
@@ -33,27 +21,57 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Literal
+from typing import cast
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import expm
-from scipy.signal import lfilter
 
 from models.commands import MIN_STEP_S, PiecewiseCommand
 from models.errors import InvalidParameter
 from models.plants import Plant
 from models.simulation import modal_form
+from models.smoother_filters import (
+    DAMPED,
+    FILTER_KINDS,
+    MAX_DECAY_RATE_1_S,
+    MAX_DECAY_TIMES_DURATION,
+    MAX_DURATION_S,
+    MIN_DURATION_S,
+    SINUSOIDAL,
+    DiscreteFilter,
+    FilterKind,
+    Smoother,
+    discrete_filter,
+    discrete_step_response,
+)
 
-FilterKind = Literal["rectangular", "harmonic", "damped_harmonic", "exponential"]
-FILTER_KINDS: tuple[str, ...] = ("rectangular", "harmonic", "damped_harmonic", "exponential")
-SINUSOIDAL = ("harmonic", "damped_harmonic")
-DAMPED = ("damped_harmonic", "exponential")
+__all__ = [
+    "DAMPED",
+    "FILTER_KINDS",
+    "MAX_DECAY_RATE_1_S",
+    "MAX_DECAY_TIMES_DURATION",
+    "MAX_DURATION_S",
+    "MAX_FILTERS",
+    "MAX_RATE_TIMES_PERIOD",
+    "MAX_REQUESTED_FILTERS",
+    "MIN_DURATION_S",
+    "SINUSOIDAL",
+    "TAYLOR_DEGREE",
+    "Chain",
+    "DiscreteFilter",
+    "FilterKind",
+    "Smoother",
+    "StepResponse",
+    "discrete_filter",
+    "discrete_step_response",
+    "mode_residuals",
+    "refinement",
+    "residual_fraction",
+    "sample_grid",
+    "step_response",
+]
 
-MAX_DURATION_S = 1e5
-MIN_DURATION_S = 1e-6
-MAX_DECAY_RATE_1_S = 1e7
-# e^(sigma T) and e^(-sigma T) stay far from overflow; a plant with zeta < 0.99 tuned at 3 pi/Omega has 66.
-MAX_DECAY_TIMES_DURATION = 200.0
 MAX_REQUESTED_FILTERS = 6
 MAX_FILTERS = MAX_REQUESTED_FILTERS + 3  # with up to three rectangular filters for velocity, acceleration, jerk
 TAYLOR_DEGREE = 7  # degree of the sampled command of a non-polynomial chain
@@ -63,154 +81,7 @@ MAX_RATE_TIMES_PERIOD = 0.2
 
 
 # ------------------------------------------------------------------------------------------
-# Filters
-
-
-def _phi(z: np.ndarray) -> np.ndarray:
-    """expm1(z)/z with its limit 1 at z = 0 (complex, vectorised)."""
-    z = np.asarray(z, dtype=complex)
-    out = np.ones_like(z)
-    nz = z != 0
-    with np.errstate(over="ignore", invalid="ignore"):
-        out[nz] = np.expm1(z[nz]) / z[nz]
-    return out
-
-
-def _sinusoidal_kernel(u: np.ndarray, duration_s: float) -> np.ndarray:
-    """(1 + e^(-uT)) / (u^2 + a^2), a = pi/T: the transform of e^(...) sin(a t) on [0, T] up to a gain.
-
-    Near its removable poles u = +-ja the direct form cancels; there it is written as
-    T/(2ja) [phi(-(u - ja)T) - phi(-(u + ja)T)] (1 + e^(-uT) = 1 - e^(-(u -+ ja)T) since aT = pi).
-    """
-    u = np.asarray(u, dtype=complex)
-    t = duration_s
-    a = math.pi / t
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        direct = (1.0 + np.exp(-u * t)) / (u * u + a * a)
-    near = (np.abs(u - 1j * a) * t < 1.0) | (np.abs(u + 1j * a) * t < 1.0)
-    if np.any(near):
-        un = u[near]
-        direct[near] = t / (2j * a) * (_phi(-(un - 1j * a) * t) - _phi(-(un + 1j * a) * t))
-    return direct
-
-
-@dataclass(frozen=True)
-class Smoother:
-    """One filter of a chain: its kind, duration T (s) and decay rate -sigma (1/s, >= 0).
-
-    The decay rate applies to ``damped_harmonic`` and ``exponential`` (zero for the others).
-    """
-
-    kind: FilterKind
-    duration_s: float
-    decay_rate_1_s: float = 0.0
-
-    def __post_init__(self) -> None:
-        if self.kind not in FILTER_KINDS:
-            raise InvalidParameter("type", self.kind, f"must be one of {', '.join(FILTER_KINDS)}")
-        t = float(self.duration_s)
-        if not (math.isfinite(t) and MIN_DURATION_S <= t <= MAX_DURATION_S):
-            raise InvalidParameter("duration_s", t, f"must lie in [{MIN_DURATION_S:g}, {MAX_DURATION_S:g}] s")
-        d = float(self.decay_rate_1_s)
-        if not (math.isfinite(d) and 0.0 <= d <= MAX_DECAY_RATE_1_S):
-            raise InvalidParameter("decay_rate_1_s", d, f"must lie in [0, {MAX_DECAY_RATE_1_S:g}] 1/s")
-        if d != 0.0 and self.kind not in DAMPED:
-            raise InvalidParameter("decay_rate_1_s", d, f"a {self.kind} filter has no decay rate")
-        if d * t > MAX_DECAY_TIMES_DURATION:
-            raise InvalidParameter(
-                "decay_rate_1_s",
-                d,
-                f"decay_rate_1_s * duration_s = {d * t:.4g} exceeds {MAX_DECAY_TIMES_DURATION:g}: the filter would "
-                "be numerically meaningless (plant damping ratio too close to 1)",
-            )
-        object.__setattr__(self, "duration_s", t)
-        object.__setattr__(self, "decay_rate_1_s", d)
-
-    @property
-    def sigma_1_s(self) -> float:
-        """The paper's sigma_i (eqs. 10-14): the exponent of the impulse response, -decay_rate_1_s."""
-        return -self.decay_rate_1_s
-
-    @property
-    def half_angular_rate_rad_s(self) -> float:
-        """a = pi/T: the frequency of the sinusoidal filters' impulse response (eqs. 4, 14)."""
-        return math.pi / self.duration_s
-
-    @property
-    def order(self) -> int:
-        """Order of the rational part R(s); each filter raises the continuity of its input by it."""
-        return 2 if self.kind in SINUSOIDAL else 1
-
-    # --- the factorisation F(s) = (c0 + c1 e^(-sT)) R(s) -----------------------------------
-    @property
-    def delay_coefficients(self) -> tuple[float, float]:
-        """(c0, c1): weights of the delays 0 and T (see the module docstring)."""
-        t, sigma = self.duration_s, self.sigma_1_s
-        if self.kind == "rectangular" or (self.kind == "exponential" and sigma == 0.0):
-            return 1.0 / t, -1.0 / t
-        if self.kind == "exponential":
-            c = 1.0 / (t * float(_phi(np.array(sigma * t)).real))  # sigma/(e^(sigma T) - 1)
-            return c, -c * math.exp(sigma * t)
-        a = self.half_angular_rate_rad_s
-        if self.kind == "harmonic":
-            return 0.5 * a * a, 0.5 * a * a  # eq. (5)
-        k = (a * a + sigma * sigma) / (1.0 + math.exp(sigma * t))  # eq. (10)
-        return k, k * math.exp(sigma * t)
-
-    def realisation(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(A, b, c) of R(s): 1/(s - sigma), or 1/((s - sigma)^2 + a^2) as [x, x']."""
-        sigma = self.sigma_1_s if self.kind in DAMPED else 0.0
-        if self.order == 1:
-            return np.array([[sigma]]), np.array([1.0]), np.array([1.0])
-        a = self.half_angular_rate_rad_s
-        return (
-            np.array([[0.0, 1.0], [-(sigma * sigma + a * a), 2.0 * sigma]]),
-            np.array([0.0, 1.0]),
-            np.array([1.0, 0.0]),
-        )
-
-    # --- frequency domain ------------------------------------------------------------------
-    def frequency_response(self, s: np.ndarray) -> np.ndarray:
-        """F(s) at complex s: eqs. (1), (5), (10) and M_sigma(s) = phi((sigma - s)T)/phi(sigma T)."""
-        return self._response(np.asarray(s, dtype=complex), shifted=False)
-
-    def end_response(self, s: np.ndarray) -> np.ndarray:
-        """F(s) e^(sT): bounded for Re s <= 0, so a residual exp(Re(p) t_end) |F(p)| never overflows."""
-        return self._response(np.asarray(s, dtype=complex), shifted=True)
-
-    def _response(self, s: np.ndarray, shifted: bool) -> np.ndarray:
-        t, sigma = self.duration_s, self.sigma_1_s
-        sign = 1.0 if shifted else -1.0
-        if self.kind == "rectangular" or (self.kind == "exponential" and sigma == 0.0):
-            return _phi(sign * s * t)  # (1 - e^(-sT))/(sT), or (e^(sT) - 1)/(sT)
-        if self.kind == "exponential":
-            base = _phi(sign * (s - sigma) * t) / _phi(np.array(sigma * t))
-            return base * math.exp(sigma * t) if shifted else base
-        a = self.half_angular_rate_rad_s
-        if self.kind == "harmonic":
-            gain, u = 0.5 * a * a, s
-        else:
-            gain, u = (a * a + sigma * sigma) / (1.0 + math.exp(sigma * t)), s - sigma
-        if shifted:  # F(s) e^(sT) = gain e^(sigma T) (1 + e^(uT))/(u^2 + a^2)
-            return gain * math.exp(sigma * t if self.kind == "damped_harmonic" else 0.0) * _sinusoidal_kernel(-u, t)
-        return gain * _sinusoidal_kernel(u, t)
-
-    def impulse_response(self, t: np.ndarray) -> np.ndarray:
-        """f(t) in closed form (eqs. 4 and 14; sigma e^(sigma t)/(e^(sigma T) - 1) for M_sigma)."""
-        t = np.asarray(t, dtype=float)
-        inside = (t >= 0.0) & (t <= self.duration_s)
-        sigma = self.sigma_1_s
-        if self.kind in ("rectangular", "exponential"):
-            c0, _ = self.delay_coefficients
-            value = c0 * np.exp(sigma * t)
-        else:
-            a = self.half_angular_rate_rad_s
-            if self.kind == "harmonic":
-                value = 0.5 * a * np.sin(a * t)  # (pi/2T) sin(pi t/T), eq. (4)
-            else:
-                k = (a * a + sigma * sigma) / (1.0 + math.exp(sigma * self.duration_s))
-                value = k / a * np.exp(sigma * t) * np.sin(a * t)  # eq. (14)
-        return np.where(inside, value, 0.0)
+# Chains
 
 
 @dataclass(frozen=True)
@@ -249,7 +120,7 @@ class Chain:
         """Highest m with the step response of class C^m: each M raises continuity by 1, each S by 2."""
         return sum(f.order for f in self.filters) - 1
 
-    def frequency_response(self, s: np.ndarray) -> np.ndarray:
+    def frequency_response(self, s: ArrayLike) -> NDArray[np.complex128]:
         """prod_i F_i(s) at complex s (the chain's transfer function)."""
         s = np.asarray(s, dtype=complex)
         out = np.ones_like(s)
@@ -257,7 +128,7 @@ class Chain:
             out = out * f.frequency_response(s)
         return out
 
-    def end_response(self, s: np.ndarray) -> np.ndarray:
+    def end_response(self, s: ArrayLike) -> NDArray[np.complex128]:
         """prod_i F_i(s) e^(s T_tot), bounded for Re s <= 0."""
         s = np.asarray(s, dtype=complex)
         out = np.ones_like(s)
@@ -265,7 +136,7 @@ class Chain:
             out = out * f.end_response(s)
         return out
 
-    def impulses(self, displacement: float) -> tuple[np.ndarray, np.ndarray]:
+    def impulses(self, displacement: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Times and weights of the impulses that drive the cascade for a step of ``displacement``.
 
         One per subset of filters (at the sum of their durations), merged when closer than 1 ns.
@@ -280,21 +151,21 @@ class Chain:
         times, weights = times[order], weights[order]
         group = np.concatenate(([0], np.cumsum(np.diff(times) > MIN_STEP_S)))
         merged_t = times[np.concatenate(([True], np.diff(group) > 0))]
-        merged_w = np.bincount(group, weights=weights)
+        # numpy's stubs type bincount as integer, but with float weights it sums them as floats.
+        merged_w = cast("NDArray[np.float64]", np.bincount(group, weights=weights))
         return merged_t, merged_w
 
     @cached_property
-    def cascade(self) -> tuple[np.ndarray, np.ndarray]:
+    def cascade(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(A, c) of 1/s * prod R_i(s), the first state taking the impulses; y = c x."""
-        blocks = [(np.array([[0.0]]), np.array([1.0]), np.array([1.0]))] + [f.realisation() for f in self.filters]
-        size = sum(b[0].shape[0] for b in blocks)
-        a = np.zeros((size, size))
-        start, prev_c, prev_start = 0, None, 0
+        blocks = [f.realisation() for f in self.filters]
+        size = 1 + sum(b[0].shape[0] for b in blocks)
+        a = np.zeros((size, size))  # state 0 is the integrator 1/s: its row of A is zero
+        prev_c, prev_start, start = np.array([1.0]), 0, 1
         for block_a, block_b, block_c in blocks:  # a loop over filters
             k = block_a.shape[0]
             a[start : start + k, start : start + k] = block_a
-            if prev_c is not None:
-                a[start : start + k, prev_start : prev_start + prev_c.size] = np.outer(block_b, prev_c)
+            a[start : start + k, prev_start : prev_start + prev_c.size] = np.outer(block_b, prev_c)
             prev_c, prev_start = block_c, start
             start += k
         c = np.zeros(size)
@@ -312,16 +183,18 @@ class StepResponse:
 
     chain: Chain
     displacement: float
-    time_s: np.ndarray
-    derivatives: np.ndarray
-    breakpoints_s: np.ndarray  # where a derivative of order continuous_derivatives + 1 jumps
+    time_s: NDArray[np.float64]
+    derivatives: NDArray[np.float64]
+    breakpoints_s: NDArray[np.float64]  # where a derivative of order continuous_derivatives + 1 jumps
 
     @property
-    def position(self) -> np.ndarray:
-        return self.derivatives[0]
+    def position(self) -> NDArray[np.float64]:
+        row: NDArray[np.float64] = self.derivatives[0]
+        return row
 
-    def derivative(self, m: int) -> np.ndarray:
-        return self.derivatives[m] if m < self.derivatives.shape[0] else np.zeros_like(self.time_s)
+    def derivative(self, m: int) -> NDArray[np.float64]:
+        row: NDArray[np.float64] = self.derivatives[m] if m < self.derivatives.shape[0] else np.zeros_like(self.time_s)
+        return row
 
     def command(self) -> PiecewiseCommand:
         """The motor command: exact for rectangular chains, Taylor degree 7 from exact derivatives otherwise.
@@ -347,7 +220,9 @@ def refinement(chain: Chain, sample_period_s: float) -> int:
     return max(1, math.ceil(chain.fastest_rate_1_s * sample_period_s / MAX_RATE_TIMES_PERIOD - 1e-9))
 
 
-def sample_grid(breakpoints_s: np.ndarray, end_s: float, sample_period_s: float, offset_s: float = 0.0) -> np.ndarray:
+def sample_grid(
+    breakpoints_s: NDArray[np.float64], end_s: float, sample_period_s: float, offset_s: float = 0.0
+) -> NDArray[np.float64]:
     """offset + k Ts for k = 0, 1, ... up to ``end_s``, with the breakpoints added (as
     PiecewiseCommand.resampled): a grid point closer than 1 ns to a breakpoint is replaced by it."""
     count = max(0, math.floor((end_s - offset_s) / sample_period_s + 1e-9) + 1)
@@ -356,10 +231,11 @@ def sample_grid(breakpoints_s: np.ndarray, end_s: float, sample_period_s: float,
     before = breakpoints_s[np.clip(idx - 1, 0, breakpoints_s.size - 1)]
     after = breakpoints_s[np.clip(idx, 0, breakpoints_s.size - 1)]
     near = np.minimum(np.abs(grid - before), np.abs(grid - after)) < MIN_STEP_S
-    return np.union1d(grid[~near], breakpoints_s)
+    merged: NDArray[np.float64] = np.union1d(grid[~near], breakpoints_s)
+    return merged
 
 
-def _powers(phi: np.ndarray, count: int) -> list[np.ndarray]:
+def _powers(phi: NDArray[np.float64], count: int) -> list[NDArray[np.float64]]:
     """phi^(2^m) for 2^m < count, by repeated squaring."""
     out = [phi]
     while 2 ** len(out) < count:
@@ -367,9 +243,11 @@ def _powers(phi: np.ndarray, count: int) -> list[np.ndarray]:
     return out
 
 
-def _propagate(a: np.ndarray, x0: np.ndarray, offset_s: float, count: int, powers: list[np.ndarray]) -> np.ndarray:
+def _propagate(
+    a: NDArray[np.float64], x0: NDArray[np.float64], offset_s: float, count: int, powers: list[NDArray[np.float64]]
+) -> NDArray[np.float64]:
     """States at offset + k Ts for k < count from x(0) = x0: expm(offset A) x0, then doubling."""
-    x = (expm(offset_s * a) @ x0)[:, None]
+    x: NDArray[np.float64] = (expm(offset_s * a) @ x0)[:, None]
     level = 0
     while x.shape[1] < count:
         x = np.hstack([x, powers[level] @ x])
@@ -426,7 +304,7 @@ def step_response(
 # Residual vibration in closed form
 
 
-def mode_residuals(chain: Chain, plant: Plant, displacement: float) -> tuple[np.ndarray, np.ndarray]:
+def mode_residuals(chain: Chain, plant: Plant, displacement: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Residual amplitude of each complex mode when the chain's step response ends, in closed form,
     and the same for the unfiltered step (at t = 0).
 
@@ -445,79 +323,3 @@ def residual_fraction(chain: Chain, pole: complex) -> float:
     """|F(p) e^(p T_tot)|: the residual left on a mode with pole p as a fraction of the unfiltered step's
     (the percent residual vibration of Sec. IV, divided by 100)."""
     return float(np.abs(chain.end_response(np.array([pole]))[0]))
-
-
-# ------------------------------------------------------------------------------------------
-# Discrete-time filters for drives (eq. 17)
-
-
-@dataclass(frozen=True)
-class DiscreteFilter:
-    """H(z) = gain * sum_i numerator[i] z^-i / sum_i denominator[i] z^-i, at ``sample_period_s``."""
-
-    kind: FilterKind
-    samples: int  # N: the filter lasts N Ts
-    sample_period_s: float
-    numerator: np.ndarray
-    denominator: np.ndarray
-    gain: float
-
-    @property
-    def duration_s(self) -> float:
-        return self.samples * self.sample_period_s
-
-    def transfer(self, z: np.ndarray) -> np.ndarray:
-        """H(z) at complex z (Horner in z^-1; scipy.signal.freqz only evaluates on the unit circle)."""
-        w = 1.0 / np.asarray(z, dtype=complex)
-        return self.gain * np.polyval(self.numerator[::-1], w) / np.polyval(self.denominator[::-1], w)
-
-    def filter(self, values: np.ndarray) -> np.ndarray:
-        """The filter applied to a sampled signal (from rest), by scipy.signal.lfilter."""
-        return lfilter(self.gain * self.numerator, self.denominator, np.asarray(values, dtype=float))
-
-
-def discrete_filter(smoother: Smoother, sample_period_s: float, samples: int) -> DiscreteFilter:
-    """The Z-transform of the impulse response sampled at k Ts, k = 1..N, with unit static gain.
-
-    For S_sigma this is eq. (17): K (z^-1 + e^(sigma N Ts) z^-(N+1)) / (1 - 2 e^(sigma Ts) cos(pi/N) z^-1 +
-    e^(2 sigma Ts) z^-2), K = (1 - 2 e^(sigma Ts) cos(pi/N) + e^(2 sigma Ts))/(1 + e^(sigma N Ts)); sigma = 0
-    gives S. The same construction gives M_sigma: K (z^-1 - e^(sigma N Ts) z^-(N+1))/(1 - e^(sigma Ts) z^-1),
-    K = (1 - e^(sigma Ts))/(1 - e^(sigma N Ts)), and M: (1/N) sum_{k=1..N} z^-k (written as an FIR, which has
-    no pole on the unit circle). Being a rectangle-rule sum, each sinusoidal stage leads its continuous
-    filter by about half a sample (PAPER-NOTES); the rectangular and exponential ones are exact at the samples.
-    Its zeros lie at z = e^(sigma Ts) e^(j (2m+1) pi / N) (sinusoidal) or e^(sigma Ts) e^(j 2 m pi/N): they
-    cancel the plant's pole only when N Ts equals the tuned duration.
-    """
-    n = int(samples)
-    ts = float(sample_period_s)
-    minimum = 2 if smoother.kind in SINUSOIDAL else 1
-    if n < minimum:
-        raise InvalidParameter("samples", n, f"a {smoother.kind} filter needs at least {minimum} samples")
-    sigma = smoother.sigma_1_s
-    num = np.zeros(n + 2)
-    if smoother.kind == "rectangular" or (smoother.kind == "exponential" and sigma == 0.0):
-        num[1 : n + 1] = 1.0
-        return DiscreteFilter(smoother.kind, n, ts, num[: n + 1], np.array([1.0]), 1.0 / n)
-    if smoother.kind == "exponential":
-        r = math.exp(sigma * ts)
-        end = math.exp(sigma * n * ts)
-        num[1], num[n + 1] = 1.0, -end
-        gain = -math.expm1(sigma * ts) / -math.expm1(sigma * n * ts)
-        return DiscreteFilter(smoother.kind, n, ts, num, np.array([1.0, -r]), gain)
-    r = math.exp(sigma * ts)
-    end = math.exp(sigma * n * ts)
-    cos = math.cos(math.pi / n)
-    den = np.array([1.0, -2.0 * r * cos, r * r])
-    num[1], num[n + 1] = 1.0, end
-    gain = float(np.sum(den)) / (1.0 + end)
-    return DiscreteFilter(smoother.kind, n, ts, num, den, gain)
-
-
-def discrete_step_response(
-    filters: list[DiscreteFilter] | tuple[DiscreteFilter, ...], displacement: float, count: int
-) -> np.ndarray:
-    """y[k], k = 0..count-1, of the discrete chain fed with a step of ``displacement`` at k = 0."""
-    y = np.full(count, float(displacement))
-    for f in filters:  # a loop over filters
-        y = f.filter(y)
-    return y
