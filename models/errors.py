@@ -25,6 +25,7 @@ class InvalidParameter(DomainError, ValueError):
     """A value that breaks a physical or numerical rule (negative inertia, zeta >= 1, ...)."""
 
     problem_type = "invalid-input"
+    field: str
 
     def __init__(self, field: str, value: Any, rule: str) -> None:
         self.field = field
