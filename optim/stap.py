@@ -89,8 +89,15 @@ from models.stap import (
     Stap,
     decimal_part,
     load_acceleration_oscillation,
+    max_jerk_time,
+    min_acceleration_time,
+    nodal_acceleration_limit,
+    paper_delta_f,
+    paper_k_j_max,
     stap_sensitivity,
     torque_coefficient,
+    worst_torque_overshoot,
+    zero_vibration_jerk_time,
 )
 from optim.solver import SolveCaps, SolverReport, ipopt_options, parameter_layout, raise_for_status, report_of
 
@@ -235,44 +242,6 @@ def estimated_mode(plant: Plant) -> Mode:
     return modes[0]
 
 
-def min_acceleration_time(velocity: float, acceleration_limit: float) -> float:
-    """t_a,min = v / a_Max (eq. 21)."""
-    return abs(velocity) / acceleration_limit
-
-
-def nodal_acceleration_limit(max_torque_nm: float, motor_inertia: float, load_inertia: float) -> float:
-    """a_Max = M_m,Max / (J_M + J_L) (eq. 19): the acceleration of the nodal section."""
-    return max_torque_nm / (motor_inertia + load_inertia)
-
-
-def worst_torque_overshoot(k_j: float, inertia_ratio: float, uncertainty: float) -> tuple[float, float, float]:
-    """(eq. 57, eq. 59, rho) at the rho in [1 - u, 1 + u] where eq. (59) is largest.
-
-    Eq. (57) is |sin(pi x)| / (pi x), x = rho k_j: its maxima on an interval are at the ends or at
-    the roots of tan(pi x) = pi x (x_m in (m, m + 1/2)), found by a few Newton steps each.
-    """
-    lo, hi = 1.0 - uncertainty, 1.0 + uncertainty
-    rhos = [lo, hi]
-    if k_j > 0.0:
-        for m in range(math.floor(lo * k_j), math.ceil(hi * k_j) + 1):  # a handful of lobes
-            if m < 1:
-                continue
-            x = m + 0.45
-            for _ in range(50):
-                g = math.tan(math.pi * x) - math.pi * x
-                dg = math.pi / math.cos(math.pi * x) ** 2 - math.pi
-                x_new = min(max(x - g / dg, m + 1e-9), m + 0.5 - 1e-9)
-                if abs(x_new - x) < 1e-15:
-                    break
-                x = x_new
-            rho = x / k_j
-            if lo <= rho <= hi:
-                rhos.append(rho)
-    values = [float(load_acceleration_oscillation(r, k_j)) for r in rhos]
-    i = int(np.argmax(values))
-    return values[i], torque_coefficient(inertia_ratio) * values[i], rhos[i]
-
-
 def torque_limit(request: StapRequest, k_j: float) -> TorqueLimit | None:
     """The lowered acceleration limit of the module docstring, for a design with k_j = f_n,e t_j."""
     if request.max_torque_nm is None:
@@ -316,23 +285,13 @@ def band_worst(stap: Stap, frequency_hz: float, uncertainty: float) -> float:
     return float(np.max(stap_sensitivity(stap, frequency_hz, band_ratios(uncertainty))))
 
 
-def paper_k_j_max(t_hat_j_max: float, r_na: float) -> int:
-    """k_j,max = int[t^_j,max int(r_n,a)] (eq. 45), as printed."""
-    return math.floor(t_hat_j_max * math.floor(r_na))
-
-
-def paper_delta_f(t_hat_j_max: float, r_na: float) -> int:
-    """delta_f = round(t^_j,max r_n,a - k_j,max) (eq. 46), as printed (halves round up)."""
-    return math.floor(t_hat_j_max * r_na - paper_k_j_max(t_hat_j_max, r_na) + 0.5)
-
-
 # ------------------------------------------------------------------------------------------
 # Closed-form designs
 
 
 def _periods_rule(request: StapRequest, velocity: float, frequency_hz: float, k_j: int) -> StapDesign:
     """t_j = k_j / f_n,e with t_a from eq. (61) or (66)."""
-    t_j = k_j / frequency_hz
+    t_j = zero_vibration_jerk_time(frequency_hz, k_j)
     a_max, torque = acceleration_limit(request, float(k_j))
     assert a_max is not None
     t_a_min = min_acceleration_time(velocity, a_max)
@@ -406,7 +365,7 @@ def zero_vibration_candidates(
     order = [(0, 1)] + [(k, d) for k in range(1, MAX_LISTED_CANDIDATES + 1) for d in (0, 1) if d == 0 or dec > 0.0]
     a_max: float | None = None
     for k, delta in order[:MAX_LISTED_CANDIDATES]:  # at most MAX_LISTED_CANDIDATES zeros
-        t_j = (k + delta * dec) / frequency_hz
+        t_j = zero_vibration_jerk_time(frequency_hz, k, delta, t_a)
         if t_j > 0.5 * t_a * (1.0 + 1e-12):
             return out, False, (last[0] if last else None), (last[1] if last else None)
         a_max, _ = acceleration_limit(request, frequency_hz * t_j)
@@ -421,7 +380,7 @@ def zero_vibration_candidates(
         out.append(Candidate(k, delta, t_j, kind, peak, a_max, reaches, note))
     # More zeros fit than are listed: the last one in closed form, with the last listed a_Max
     # (the torque-lowered limit changes by less than 1 % past k_j = 32).
-    reach = 0.5 * t_a if a_max is None else min(0.5 * t_a, t_a - velocity / a_max)
+    reach = max_jerk_time(t_a, velocity, a_max)
     n = math.floor(frequency_hz * reach * (1.0 + 1e-12))
     side = dec > 0.0 and (n + dec) / frequency_hz <= reach * (1.0 + 1e-12)
     final = (n, 1 if side else 0)
@@ -459,7 +418,7 @@ def _fixed_time_design(request: StapRequest, velocity: float, frequency_hz: floa
     steps: list[AutoStep] = []
     if request.jerk_periods is not None:
         k, delta = request.jerk_periods, request.delta
-        t_j = (k + delta * float(decimal_part(r))) / frequency_hz
+        t_j = zero_vibration_jerk_time(frequency_hz, k, delta, t_a)
         if t_j > 0.5 * t_a * (1.0 + 1e-12):
             raise Infeasible(
                 f"(k_j, delta) = ({k}, {delta}) gives t_j = {t_j:.6g} s (eq. 49), above t_a/2 = {0.5 * t_a:.6g} s (eq. 9): "
@@ -1144,13 +1103,9 @@ def _starts(
                 candidates = ()
         out += [(s0.acceleration_time_s, c.jerk_time_s) for c in candidates]
         # The largest jerk time the acceleration limit allows at this t_a.
-        a = request.max_acceleration
-        t_j_max = (
-            0.5 * s0.acceleration_time_s
-            if a is None
-            else min(0.5 * s0.acceleration_time_s, s0.acceleration_time_s - abs(s0.velocity) / a)
+        out.append(
+            (s0.acceleration_time_s, max_jerk_time(s0.acceleration_time_s, s0.velocity, request.max_acceleration))
         )
-        out.append((s0.acceleration_time_s, t_j_max))
     else:
         for k in (1, 2, 3):
             try:
