@@ -80,7 +80,7 @@ from typing import Any
 
 import numpy as np
 
-from models.errors import Infeasible, InvalidParameter
+from models.errors import Infeasible, InvalidParameter, NotApplicable
 from models.plants import Mode, Plant, TwoInertiaPlant
 from models.simulation import ModalForm, modal_form
 from models.stap import (
@@ -242,12 +242,32 @@ def estimated_mode(plant: Plant) -> Mode:
     return modes[0]
 
 
+def torque_plant(request: StapRequest) -> TwoInertiaPlant:
+    """The plant whose motor torque ``max_torque_nm`` limits: only a two_inertia plant defines it (eq. 58)."""
+    plant = request.plant
+    if not isinstance(plant, TwoInertiaPlant):
+        raise InvalidParameter(
+            "max_torque_nm",
+            request.max_torque_nm,
+            f"a {plant.kind} plant does not define the motor torque (two_inertia does)",
+        )
+    return plant
+
+
+def no_acceleration_limit_error() -> InvalidParameter:
+    """The error of a rule that needs a_Max (eq. 21) when the request gives none."""
+    return InvalidParameter(
+        "max_acceleration",
+        None,
+        "give max_acceleration and/or max_torque_nm (a_Max of eq. 21), or acceleration_time_s",
+    )
+
+
 def torque_limit(request: StapRequest, k_j: float) -> TorqueLimit | None:
     """The lowered acceleration limit of the module docstring, for a design with k_j = f_n,e t_j."""
     if request.max_torque_nm is None:
         return None
-    plant = request.plant
-    assert isinstance(plant, TwoInertiaPlant)
+    plant = torque_plant(request)
     j_m, j_l = plant.motor_inertia_kgm2, plant.load_inertia_kgm2
     nodal = nodal_acceleration_limit(request.max_torque_nm, j_m, j_l)
     load, overshoot, rho = worst_torque_overshoot(k_j, j_l / j_m, request.frequency_uncertainty)
@@ -293,7 +313,8 @@ def _periods_rule(request: StapRequest, velocity: float, frequency_hz: float, k_
     """t_j = k_j / f_n,e with t_a from eq. (61) or (66)."""
     t_j = zero_vibration_jerk_time(frequency_hz, k_j)
     a_max, torque = acceleration_limit(request, float(k_j))
-    assert a_max is not None
+    if a_max is None:
+        raise no_acceleration_limit_error()
     t_a_min = min_acceleration_time(velocity, a_max)
     if t_j <= t_a_min * (1.0 + 1e-12):
         t_a, rule = t_a_min + t_j, "eq. 61: t_a = t_a,min + k_j/f_n,e (k_j/f_n,e <= t_a,min, eq. 60)"
@@ -391,8 +412,8 @@ def _no_acceleration_limit(request: StapRequest) -> bool:
     return request.max_acceleration is None and request.max_torque_nm is None
 
 
-def _fixed_time_design(request: StapRequest, velocity: float, frequency_hz: float) -> StapDesign:
-    t_a = float(request.acceleration_time_s)  # type: ignore[arg-type]
+def _fixed_time_design(request: StapRequest, velocity: float, frequency_hz: float, t_a: float) -> StapDesign:
+    """The design at the caller's t_a (``request.acceleration_time_s``)."""
     if t_a < 1.0 / frequency_hz * (1.0 - 1e-12):
         raise Infeasible(
             f"acceleration_time_s = {t_a:.6g} s is below 1/f_n,e = {1 / frequency_hz:.6g} s: no STAP reaches the velocity "
@@ -402,8 +423,7 @@ def _fixed_time_design(request: StapRequest, velocity: float, frequency_hz: floa
     a_one, _ = acceleration_limit(request, 1.0)
     a_best = request.max_acceleration
     if request.max_torque_nm is not None:
-        plant = request.plant
-        assert isinstance(plant, TwoInertiaPlant)
+        plant = torque_plant(request)
         nodal = nodal_acceleration_limit(request.max_torque_nm, plant.motor_inertia_kgm2, plant.load_inertia_kgm2)
         a_best = nodal if a_best is None else min(a_best, nodal)
     if a_best is not None and t_a < velocity / a_best * (1.0 - 1e-12):
@@ -567,7 +587,7 @@ def _rest_to_velocity(request: StapRequest, speed: float) -> StapDesign:
     mode = estimated_mode(request.plant)
     f = mode.natural_frequency_hz
     if request.acceleration_time_s is not None:
-        return _fixed_time_design(request, speed, f)
+        return _fixed_time_design(request, speed, f, float(request.acceleration_time_s))
     if request.delta == 1:
         raise InvalidParameter(
             "delta",
@@ -575,11 +595,7 @@ def _rest_to_velocity(request: StapRequest, speed: float) -> StapDesign:
             "a side-band jerk time (delta = 1) depends on t_a (eq. 49): give acceleration_time_s (Appendix C)",
         )
     if _no_acceleration_limit(request):
-        raise InvalidParameter(
-            "max_acceleration",
-            None,
-            "give max_acceleration and/or max_torque_nm (a_Max of eq. 21), or acceleration_time_s",
-        )
+        raise no_acceleration_limit_error()
     if request.jerk_periods is None:
         return _auto_design(request, speed, f)
     return _periods_rule(request, speed, f, request.jerk_periods)
@@ -610,7 +626,8 @@ def _fitting_speed(request: StapRequest, design: StapDesign, distance: float) ->
     if design.keeps_acceleration_time:
         return distance / t_a
     a_max = design.acceleration_limit
-    assert a_max is not None
+    if a_max is None:
+        raise no_acceleration_limit_error()
     if distance >= 2.0 * a_max * t_j * t_j:  # eq. 61 regime: D = v^2/a + v t_j
         return 2.0 * distance / (t_j + math.sqrt(t_j * t_j + 4.0 * distance / a_max))
     return distance / (2.0 * t_j)  # triangle: D = 2 v t_j
@@ -619,7 +636,11 @@ def _fitting_speed(request: StapRequest, design: StapDesign, distance: float) ->
 def closed_form(request: StapRequest) -> StapDesign:
     """The closed-form design of a request (rest-to-velocity, or rest-to-rest with a displacement)."""
     if request.displacement is None:
-        v = float(request.target_velocity)  # type: ignore[arg-type]
+        if request.target_velocity is None:
+            raise InvalidParameter(
+                "target_velocity", None, "give target_velocity (rest-to-velocity) or displacement (rest-to-rest)"
+            )
+        v = float(request.target_velocity)
         return _signed(_rest_to_velocity(request, abs(v)), math.copysign(1.0, v))
     distance = abs(request.displacement)
     sign = math.copysign(1.0, request.displacement)
@@ -696,12 +717,8 @@ def check_request(request: StapRequest) -> StapRequest:
         raise InvalidParameter(
             "target_velocity", v, "with a displacement it is the cruise speed: give it the displacement's sign"
         )
-    if request.max_torque_nm is not None and not isinstance(request.plant, TwoInertiaPlant):
-        raise InvalidParameter(
-            "max_torque_nm",
-            request.max_torque_nm,
-            f"a {request.plant.kind} plant does not define the motor torque (two_inertia does)",
-        )
+    if request.max_torque_nm is not None:
+        torque_plant(request)
     if request.jerk_periods is not None and request.jerk_periods < 0:
         raise InvalidParameter("jerk_periods", request.jerk_periods, "must be a whole number >= 0, or 'auto'")
     if request.delta not in (0, 1):
@@ -956,7 +973,7 @@ def optimize(request: StapRequest, start: StapDesign) -> OptimizedDesign:
     torque_modes: list[tuple[complex, complex]] = []
     jj = np.zeros(3)
     if request.max_torque_nm is not None:
-        assert isinstance(plant, TwoInertiaPlant)
+        two = torque_plant(request)
         torque_modes = [(p, r) for p, r in zip(modal.poles, modal.residues, strict=True)]
         if band is not None and kind != "sum" and request.frequency_uncertainty > 0.0:
             own = np.full(TORQUE_BAND_POINTS, mode.damping_ratio)
@@ -966,7 +983,7 @@ def optimize(request: StapRequest, start: StapDesign) -> OptimizedDesign:
             poles_b, res_b = _mode_form(mode.natural_frequency_rad_s * ratios, own)
             torque_modes += list(zip(poles_b, res_b, strict=True))
         jj = np.array(
-            [plant.motor_inertia_kgm2 + plant.load_inertia_kgm2, plant.load_inertia_kgm2, 1.0 / request.max_torque_nm]
+            [two.motor_inertia_kgm2 + two.load_inertia_kgm2, two.load_inertia_kgm2, 1.0 / request.max_torque_nm]
         )
     top_hz = max((abs(p) / (2 * math.pi) for p, _ in torque_modes), default=0.0)
     torque_grid = _torque_grid(top_hz * ta_hi) if torque_modes else 0
@@ -1044,7 +1061,13 @@ def optimize(request: StapRequest, start: StapDesign) -> OptimizedDesign:
             continue
         if best is None or fx < best[0] * (1.0 - 1e-9):
             best, improved = (fx, xs), True
-    assert last is not None
+    if last is None:  # no start with t_j > 0 (the closed form is the rectangle): nothing was solved
+        raise NotApplicable(
+            "method 'optimized' starts from designs with a jerk time t_j > 0: the closed-form design is the rectangle "
+            f"(t_j = 0) and no other zero-vibration design fits t_a in [{ta_lo:.6g}, {ta_hi:.6g}] s within the limits; "
+            "use method 'closed_form' or lengthen acceleration_time_s",
+            field="method",
+        )
     if best is None or not (improved or converged_any):
         if last.timed_out or not converged_any:
             raise_for_status(SolverReport(last.status, iterations, elapsed))
