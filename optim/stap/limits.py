@@ -16,7 +16,14 @@ import numpy as np
 
 from models.errors import InvalidParameter
 from models.plants import Mode, Plant, TwoInertiaPlant
-from models.stap import Stap, nodal_acceleration_limit, stap_sensitivity, torque_coefficient, worst_torque_overshoot
+from models.stap import (
+    FloatArray,
+    Stap,
+    nodal_acceleration_limit,
+    stap_sensitivity,
+    torque_coefficient,
+    worst_torque_overshoot,
+)
 from optim.stap.types import StapRequest, TorqueLimit
 
 BAND_POINTS = 401  # SC samples over the band for auto and the reported worst case
@@ -86,7 +93,7 @@ def acceleration_limit(request: StapRequest, k_j: float) -> tuple[float | None, 
     return (min(limits) if limits else None), torque
 
 
-def band_ratios(uncertainty: float, points: int = BAND_POINTS) -> np.ndarray:
+def band_ratios(uncertainty: float, points: int = BAND_POINTS) -> FloatArray:
     """f_n / f_n,e over [1 - u, 1 + u] (1 included), or just 1 when u = 0."""
     if uncertainty <= 0.0:
         return np.array([1.0])

@@ -25,7 +25,7 @@ from dataclasses import replace
 import numpy as np
 
 from models.errors import Infeasible, InvalidParameter, NotApplicable
-from models.stap import RestToRest, Stap, max_jerk_time
+from models.stap import FloatArray, RestToRest, Stap, max_jerk_time
 from optim.solver import SolverReport, raise_for_status, report_of
 from optim.stap.limits import estimated_mode, has_no_acceleration_limit, torque_plant
 from optim.stap.moves import check_request
@@ -109,7 +109,7 @@ def optimize(request: StapRequest, start: StapDesign) -> OptimizedDesign:
         p[lay["tq"]] = tq.ravel()
         p[lay["jj"]] = jj
 
-    def x_of(t_a: float, t_j: float, z: float = 1.0) -> np.ndarray:
+    def x_of(t_a: float, t_j: float, z: float = 1.0) -> FloatArray:
         head = [t_a / t_a0, min(max(t_j / t_a, t_hat_lo), 0.5)]
         return np.array(head + ([z] if compiled.variables == 3 else []))
 
@@ -129,7 +129,7 @@ def optimize(request: StapRequest, start: StapDesign) -> OptimizedDesign:
     ubx = np.array([ta_hi / t_a0, 0.5] + ([np.inf] if compiled.variables == 3 else []))
     starts = _starts(request, start, f_e, ta_lo, ta_hi)
 
-    def breach(xs: np.ndarray) -> tuple[float, float]:
+    def breach(xs: FloatArray) -> tuple[float, float]:
         fx, gx, _ = (np.asarray(a).ravel() for a in compiled.evaluate(xs, p))
         return float(fx[0]), float(np.max(np.concatenate([compiled.lbg - gx, gx - compiled.ubg])))
 
@@ -139,7 +139,7 @@ def optimize(request: StapRequest, start: StapDesign) -> OptimizedDesign:
     if compiled.variables == 3:
         x_start[2] = float(np.max(np.asarray(compiled.evaluate(x_start, p)[2]).ravel()))
     f_start, breach_start = breach(x_start)
-    best: tuple[float, np.ndarray] | None = (f_start, x_start) if breach_start <= FEASIBLE else None
+    best: tuple[float, FloatArray] | None = (f_start, x_start) if breach_start <= FEASIBLE else None
     improved = False
     iterations, elapsed, solves = 0, 0.0, 0
     last: SolverReport | None = None

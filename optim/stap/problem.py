@@ -23,19 +23,19 @@ per shape in the worker (``warm_up`` builds the common ones).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from models.errors import InvalidParameter
 from models.plants import Mode, Plant
 from models.simulation import ModalForm, modal_form
-from models.stap import Stap
+from models.stap import ComplexArray, FloatArray, Stap
 from optim.solver import SolveCaps, ipopt_options, parameter_layout
 from optim.stap.types import StapRequest
 
 if TYPE_CHECKING:
-    pass
+    import casadi as ca
 
 TORQUE_POINTS_PER_PERIOD = 16
 TORQUE_MARGIN = 1e-4  # the torque limit is imposed 0.01 % tighter, absorbing the time grid
@@ -45,19 +45,24 @@ OPTIONS = {"ipopt.tol": 1e-10, "ipopt.acceptable_tol": 1e-8, "ipopt.hessian_appr
 
 @dataclass
 class CompiledProblem:
-    solver: Any
-    evaluate: Any  # Function (x, p) -> (f, g, residual squares per point)
-    lbg: np.ndarray
-    ubg: np.ndarray
+    """One problem shape: its nlpsol, an evaluator and the bounds of g; ``layout`` names the blocks of p."""
+
+    solver: ca.Function  # nlpsol (x0, p, lbx, ubx, lbg, ubg) -> x, f, g, ...
+    evaluate: ca.Function  # (x, p) -> (f, g, residual squares per point)
+    lbg: FloatArray
+    ubg: FloatArray
     layout: dict[str, slice]
     parameter_count: int
     variables: int
 
 
-_CACHE: dict[tuple, CompiledProblem] = {}
+ProblemKey = tuple[str, int, int, int, SolveCaps]  # kind, points, torque modes, torque grid, caps
+_CACHE: dict[ProblemKey, CompiledProblem] = {}
 
 
 def build_problem(kind: str, points: int, torque_modes: int, torque_grid: int, caps: SolveCaps) -> CompiledProblem:
+    """The problem for ``kind`` (sum, max or time) over ``points`` poles with ``torque_modes`` torque
+    modes checked at ``torque_grid`` instants (none when 0)."""
     import casadi as ca
 
     # One point: (residual / move)^2 = pre j^2 |exp(lambda (t_a - t_j)) - 1|^2 |exp(lambda t_j) - 1|^2.
@@ -69,7 +74,7 @@ def build_problem(kind: str, points: int, torque_modes: int, torque_grid: int, c
     t_r = t_a - t_j
     jerk = v / (t_j * t_r)  # eq. (16)
 
-    def gap2(sigma: Any, omega: Any, t: Any) -> Any:
+    def gap2(sigma: ca.SX, omega: ca.SX, t: ca.SX) -> ca.SX:
         """|exp((sigma + i omega) t) - 1|^2 without cancellation."""
         es = ca.exp(sigma * t)
         return (1.0 - es) ** 2 + 4.0 * es * ca.sin(0.5 * omega * t) ** 2
@@ -106,11 +111,12 @@ def build_problem(kind: str, points: int, torque_modes: int, torque_grid: int, c
         jj = ca.SX.sym("jj", 3)  # J_M + J_L, J_L, 1 / M
         tau = s * t_a
 
-        def ramp(t: Any) -> Any:
+        def ramp(t: ca.SX) -> ca.SX:
             return ca.fmax(t, 0.0)
 
         a_m = jerk * (ramp(tau) - ramp(tau - t_j) - ramp(tau - t_r))
-        s_re, s_im = 0, 0
+        s_re: ca.SX | int = 0
+        s_im: ca.SX | int = 0
         for sign, t_k in ((1.0, 0.0), (-1.0, t_j), (-1.0, t_r), (1.0, t_a)):  # the four jerk jumps
             age = ca.fmax(tau - t_k, 0.0)
             on = ca.if_else(tau - t_k >= 0.0, sign, 0.0)
@@ -145,7 +151,8 @@ def build_problem(kind: str, points: int, torque_modes: int, torque_grid: int, c
 
 
 def compiled_problem(kind: str, points: int, torque_modes: int, torque_grid: int, caps: SolveCaps) -> CompiledProblem:
-    key = (kind, points, torque_modes, torque_grid, caps)
+    """The cached problem of this shape, built on first use."""
+    key: ProblemKey = (kind, points, torque_modes, torque_grid, caps)
     if key not in _CACHE:
         _CACHE[key] = build_problem(kind, points, torque_modes, torque_grid, caps)
     return _CACHE[key]
@@ -160,13 +167,14 @@ def warm_up(caps: SolveCaps | None = None) -> None:
 
 
 def oscillatory_modes(plant: Plant) -> ModalForm:
+    """The oscillatory poles and residues of the plant's load response (models.simulation)."""
     num, den = plant.load_transfer_function()
     modal = modal_form(num, den, 1)
     keep = modal.oscillatory
     return ModalForm(modal.taylor, modal.poles[keep], modal.residues[keep], modal.weights[keep])
 
 
-def mode_form(omega: np.ndarray, zeta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def mode_form(omega: FloatArray, zeta: FloatArray) -> tuple[ComplexArray, ComplexArray]:
     """Upper poles and residues of (2 zeta w s + w^2)/(s^2 + 2 zeta w s + w^2) (as models.sensitivity)."""
     poles = omega * (-zeta + 1j * np.sqrt(1.0 - zeta * zeta))
     return poles, (2 * zeta * omega * poles + omega * omega) / (2 * poles + 2 * zeta * omega)
@@ -174,11 +182,15 @@ def mode_form(omega: np.ndarray, zeta: np.ndarray) -> tuple[np.ndarray, np.ndarr
 
 @dataclass(frozen=True)
 class ResidualPoints:
-    poles: np.ndarray
-    factor: np.ndarray  # |residual / move| = factor * |h(t_a)|, h the ramp's free state (models.stap)
+    """The poles where the residual is measured, with their factors."""
+
+    poles: ComplexArray
+    factor: FloatArray  # |residual / move| = factor * |h(t_a)|, h the ramp's free state (models.stap)
 
 
-def residual_points(poles: np.ndarray, residues: np.ndarray, speed: float, distance: float | None) -> ResidualPoints:
+def residual_points(
+    poles: ComplexArray, residues: ComplexArray, speed: float, distance: float | None
+) -> ResidualPoints:
     """Each pole's factor: |2 r lambda^m (exp(lambda D/v) - 1)| / move, m = 1 for
     rest-to-velocity (the velocity residual over v), 0 for rest-to-rest (position over D)."""
     if distance is None:
@@ -188,12 +200,12 @@ def residual_points(poles: np.ndarray, residues: np.ndarray, speed: float, dista
     return ResidualPoints(poles, factor)
 
 
-def amplitudes(points: ResidualPoints, speed: float, t_a: float, t_j: float) -> np.ndarray:
+def amplitudes(points: ResidualPoints, speed: float, t_a: float, t_j: float) -> FloatArray:
     """|residual / move| at each point for the STAP (t_a, t_j) (models.stap.Stap.free_state)."""
     return points.factor * np.abs(Stap(speed, t_a, t_j).free_state(points.poles))
 
 
-def band_poles(request: StapRequest, mode: Mode) -> tuple[np.ndarray, np.ndarray] | None:
+def band_poles(request: StapRequest, mode: Mode) -> tuple[ComplexArray, ComplexArray] | None:
     """The (poles, residues) of the robust grid (mode form, f_n/f_n,e x damping ratios), or None when
     it is the plant's own mode (u = 0 and no damping ratios given)."""
     u = request.frequency_uncertainty
@@ -206,6 +218,7 @@ def band_poles(request: StapRequest, mode: Mode) -> tuple[np.ndarray, np.ndarray
 
 
 def torque_grid_size(periods: float) -> int:
+    """The torque grid over [0, t_a]: the smallest size with 16 points per period of the fastest mode."""
     for size in TORQUE_GRID_SIZES:
         if size >= TORQUE_POINTS_PER_PERIOD * periods + 16:
             return size
