@@ -60,6 +60,7 @@ def no_acceleration_limit_error() -> InvalidParameter:
 
 
 def has_no_acceleration_limit(request: StapRequest) -> bool:
+    """Neither max_acceleration nor max_torque_nm: no a_Max (eqs. 19, 21)."""
     return request.max_acceleration is None and request.max_torque_nm is None
 
 

@@ -28,6 +28,7 @@ from optim.stap.types import (
 
 
 def _signed(design: StapDesign, sign: float) -> StapDesign:
+    """The design with its ramp's velocity given ``sign``."""
     if sign > 0:
         return design
     s = design.stap
