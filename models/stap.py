@@ -25,6 +25,10 @@ The sensitivity curve (SC) of Appendix B (A5-A12) is |lambda h| / v for lambda =
 equals 4 D |sin(pi rho k_j) sin(pi rho (r - k_j))| with rho = f_n/f_n,e, r = f_n,e t_a,
 k_j = f_n,e t_j and D of (A9), for any real k_j (checked in tests/models/test_stap.py).
 
+The design formulas are small pure functions here too: the limits (eqs. 19, 21, 27-28), the
+zero-vibration jerk times (eqs. 44, 48-50), eqs. (45)-(46) as printed and the worst torque
+overshoot over a frequency band (eqs. 57-59); ``optim.stap`` composes them into designs.
+
 A rest-to-rest move (``RestToRest``, beyond the paper) is an accelerating STAP to the cruise
 velocity, a cruise phase and the mirrored decelerating STAP. The decelerating ramp leaves minus
 the free state of the accelerating one, so the move leaves h(t_a) (exp(lambda D/v) - 1): no
@@ -35,13 +39,18 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
+from numpy.typing import NDArray
 
 from models.commands import MIN_STEP_S, PiecewiseCommand, check_time_grid
 from models.errors import InvalidParameter
 
 MAX_TIME_S = 1e6  # longest acceleration or cruise time accepted (keeps positions and grids finite)
+
+FloatArray = NDArray[np.float64]
+ComplexArray = NDArray[np.complex128]
 
 
 @dataclass(frozen=True)
@@ -121,11 +130,11 @@ class Stap:
         return 0.5 * self.velocity * self.acceleration_time_s
 
     # --- the exact command ----------------------------------------------------------------
-    def pieces(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def pieces(self) -> tuple[FloatArray, FloatArray, FloatArray]:
         """(durations, acceleration at each piece's start, jerk on each piece), corners only."""
         t_j, t_c = self.jerk_time_s, self.constant_acceleration_time_s
         a, j = self.peak_acceleration, self.jerk
-        if self.shape == "rectangle":
+        if j is None:  # the rectangle
             return np.array([t_c]), np.array([a]), np.array([0.0])
         if self.shape == "triangle":
             return np.array([t_j, t_j]), np.array([0.0, a]), np.array([j, -j])
@@ -135,22 +144,23 @@ class Stap:
         """The exact rest-to-velocity command: breakpoints at the corners, then velocity v held."""
         return command_from_pieces(*self.pieces(), final_position=self.displacement, final_velocity=self.velocity)
 
-    def free_state(self, poles: np.ndarray) -> np.ndarray:
+    def free_state(self, poles: ComplexArray) -> ComplexArray:
         """h(t_a) for each pole (see the module docstring): the free state left when the ramp ends.
 
         The rectangle's limit is (v / (t_a lambda^3)) (exp(lambda t_a) - 1).
         """
         lam = np.asarray(poles, dtype=complex)
         t_a, t_j, v = self.acceleration_time_s, self.jerk_time_s, self.velocity
-        if t_j == 0.0:
-            return v / (t_a * lam**3) * np.expm1(lam * t_a)
-        return self.jerk / lam**4 * np.expm1(lam * (t_a - t_j)) * np.expm1(lam * t_j)
+        j = self.jerk
+        if j is None:  # the rectangle (t_j = 0)
+            return cast(ComplexArray, v / (t_a * lam**3) * np.expm1(lam * t_a))
+        return cast(ComplexArray, j / lam**4 * np.expm1(lam * (t_a - t_j)) * np.expm1(lam * t_j))
 
 
 def command_from_pieces(
-    durations: np.ndarray,
-    accelerations: np.ndarray,
-    jerks: np.ndarray,
+    durations: FloatArray,
+    accelerations: FloatArray,
+    jerks: FloatArray,
     *,
     final_position: float,
     final_velocity: float,
@@ -223,10 +233,45 @@ class RestToRest:
 
 
 # ------------------------------------------------------------------------------------------
+# Limits and zero-vibration jerk times (Secs. 2.1-2.3, eqs. 19-28, 44-50)
+
+
+def nodal_acceleration_limit(max_torque_nm: float, motor_inertia: float, load_inertia: float) -> float:
+    """a_Max = M_m,Max / (J_M + J_L) (eq. 19): the acceleration of the nodal section."""
+    return max_torque_nm / (motor_inertia + load_inertia)
+
+
+def min_acceleration_time(velocity: float, acceleration_limit: float) -> float:
+    """t_a,min = v / a_Max (eq. 21)."""
+    return abs(velocity) / acceleration_limit
+
+
+def max_jerk_time(acceleration_time_s: float, velocity: float, acceleration_limit: float | None) -> float:
+    """t_j,max = min(t_a/2, t_a - t_a,min) (eqs. 9, 27, 28); t_a/2 without an acceleration limit."""
+    if acceleration_limit is None:
+        return 0.5 * acceleration_time_s
+    return min(0.5 * acceleration_time_s, acceleration_time_s - min_acceleration_time(velocity, acceleration_limit))
+
+
+def zero_vibration_jerk_time(
+    frequency_hz: float, k_j: int, delta: int = 0, acceleration_time_s: float | None = None
+) -> float:
+    """t_j,0 = (k_j + delta dec(f_n,e t_a)) / f_n,e (eqs. 44, 49): a zero of the residual at f_n,e.
+
+    With delta = 0 it is k_j / f_n,e (eq. 48; eq. 50 for k_j = 1) and needs no t_a; a side band
+    (delta = 1) depends on t_a through dec (eq. 43)."""
+    if delta == 0:
+        return k_j / frequency_hz
+    if acceleration_time_s is None:
+        raise InvalidParameter("acceleration_time_s", None, "a side-band jerk time (delta = 1) depends on t_a (eq. 49)")
+    return (k_j + delta * float(decimal_part(frequency_hz * acceleration_time_s))) / frequency_hz
+
+
+# ------------------------------------------------------------------------------------------
 # Zeros and sensitivity (Secs. 2.3-2.4, Appendices A-B)
 
 
-def decimal_part(x: np.ndarray | float) -> np.ndarray | float:
+def decimal_part(x: FloatArray | float) -> FloatArray | float:
     """dec(x) = x - int(x) (eq. 43), with values within 1e-9 of an integer taken as that integer,
     so that f_n t_a computed in floating point (40 * 0.15 = 6.000000000000001) reads as a whole
     number of periods."""
@@ -237,15 +282,25 @@ def decimal_part(x: np.ndarray | float) -> np.ndarray | float:
     return float(out) if out.ndim == 0 else out
 
 
-def exciting_term_u(r_na: np.ndarray | float, t_hat_j: np.ndarray | float) -> np.ndarray:
+def paper_k_j_max(t_hat_j_max: float, r_na: float) -> int:
+    """k_j,max = int[t^_j,max int(r_n,a)] (eq. 45), as printed."""
+    return math.floor(t_hat_j_max * math.floor(r_na))
+
+
+def paper_delta_f(t_hat_j_max: float, r_na: float) -> int:
+    """delta_f = round(t^_j,max r_n,a - k_j,max) (eq. 46), as printed (halves round up)."""
+    return math.floor(t_hat_j_max * r_na - paper_k_j_max(t_hat_j_max, r_na) + 0.5)
+
+
+def exciting_term_u(r_na: FloatArray | float, t_hat_j: FloatArray | float) -> ComplexArray:
     """u = 1 - exp(-i 2 pi r t^_j) - exp(-i 2 pi r (1 - t^_j)) + exp(-i 2 pi r) (eq. 41), r = f_n t_a."""
     r = np.asarray(r_na, dtype=float)
     t = np.asarray(t_hat_j, dtype=float)
     phase = -2j * np.pi * r
-    return 1.0 - np.exp(phase * t) - np.exp(phase * (1.0 - t)) + np.exp(phase)
+    return cast(ComplexArray, 1.0 - np.exp(phase * t) - np.exp(phase * (1.0 - t)) + np.exp(phase))
 
 
-def sensitivity_appendix_b(frequency_ratio: np.ndarray, r_na: float, k_j: float) -> np.ndarray:
+def sensitivity_appendix_b(frequency_ratio: FloatArray, r_na: float, k_j: float) -> FloatArray:
     """|residual load velocity| / v versus rho = f_n / f_n,e for zeta = 0: eqs. (A5)-(A12).
 
     ``r_na`` = f_n,e t_a and ``k_j`` = f_n,e t_j (> 0; any real value, not only the integers of
@@ -265,13 +320,13 @@ def sensitivity_appendix_b(frequency_ratio: np.ndarray, r_na: float, k_j: float)
     return d * np.hypot(a, b)  # (A12)
 
 
-def rectangle_sensitivity(frequency_ratio: np.ndarray, r_na: float) -> np.ndarray:
+def rectangle_sensitivity(frequency_ratio: FloatArray, r_na: float) -> FloatArray:
     """The t_j -> 0 limit of Appendix B: |sin(pi rho r)| / (pi rho r) (the rectangle's SC)."""
     z = np.pi * np.asarray(frequency_ratio, dtype=float) * r_na
     return np.abs(np.sinc(z / np.pi))
 
 
-def stap_sensitivity(stap: Stap, estimated_frequency_hz: float, frequency_ratio: np.ndarray) -> np.ndarray:
+def stap_sensitivity(stap: Stap, estimated_frequency_hz: float, frequency_ratio: FloatArray) -> FloatArray:
     """The undamped SC of a STAP designed for f_n,e: Appendix B, or its rectangle limit."""
     r = estimated_frequency_hz * stap.acceleration_time_s
     k = estimated_frequency_hz * stap.jerk_time_s
@@ -284,7 +339,7 @@ def stap_sensitivity(stap: Stap, estimated_frequency_hz: float, frequency_ratio:
 # Load acceleration and motor torque during t_c (Sec. 3, eqs. 57-59)
 
 
-def load_acceleration_oscillation(frequency_ratio: np.ndarray | float, k_j: float) -> np.ndarray:
+def load_acceleration_oscillation(frequency_ratio: FloatArray | float, k_j: float) -> FloatArray:
     """|a_l,c| / a_max = sqrt(2) sqrt(1 - cos(2 pi rho k_j)) / (2 pi rho k_j) (eq. 57).
 
     The amplitude of the load's acceleration oscillation about the motor's during t_c (zeta = 0,
@@ -305,6 +360,34 @@ def motor_torque_scale(motor_inertia: float, load_inertia: float, peak_accelerat
     return (motor_inertia + load_inertia) * peak_acceleration
 
 
-def motor_torque_oscillation(frequency_ratio: np.ndarray | float, k_j: float, inertia_ratio: float) -> np.ndarray:
+def motor_torque_oscillation(frequency_ratio: FloatArray | float, k_j: float, inertia_ratio: float) -> FloatArray:
     """|M_m,c| / M_m,max = (J_L/J_M)/(1 + J_L/J_M) * |a_l,c| / a_max (eq. 59, read with PAPER-NOTES)."""
     return torque_coefficient(inertia_ratio) * load_acceleration_oscillation(frequency_ratio, k_j)
+
+
+def worst_torque_overshoot(k_j: float, inertia_ratio: float, uncertainty: float) -> tuple[float, float, float]:
+    """(eq. 57, eq. 59, rho) at the rho in [1 - u, 1 + u] where eq. (59) is largest.
+
+    Eq. (57) is |sin(pi x)| / (pi x), x = rho k_j: its maxima on an interval are at the ends or at
+    the roots of tan(pi x) = pi x (x_m in (m, m + 1/2)), found by a few Newton steps each.
+    """
+    lo, hi = 1.0 - uncertainty, 1.0 + uncertainty
+    rhos = [lo, hi]
+    if k_j > 0.0:
+        for m in range(math.floor(lo * k_j), math.ceil(hi * k_j) + 1):  # a handful of lobes
+            if m < 1:
+                continue
+            x = m + 0.45
+            for _ in range(50):
+                g = math.tan(math.pi * x) - math.pi * x
+                dg = math.pi / math.cos(math.pi * x) ** 2 - math.pi
+                x_new = min(max(x - g / dg, m + 1e-9), m + 0.5 - 1e-9)
+                if abs(x_new - x) < 1e-15:
+                    break
+                x = x_new
+            rho = x / k_j
+            if lo <= rho <= hi:
+                rhos.append(rho)
+    values = [float(load_acceleration_oscillation(r, k_j)) for r in rhos]
+    i = int(np.argmax(values))
+    return values[i], torque_coefficient(inertia_ratio) * values[i], rhos[i]

@@ -1,0 +1,255 @@
+"""The optimised STAP: multistart over the CasADi problem and selection (Cusimano 2022, eqs. 61-72).
+
+Objectives: ``residual`` at fixed t_a (the caller's or the closed-form one); ``worst_case`` over a
+grid of f_n / f_n,e in [1 - u, 1 + u] and damping ratios, at fixed t_a; ``residual_and_time``:
+the shortest t_a in [1 / f_n,e (eq. 72), 4 x the closed-form t_a] with residual / move <= tol on
+that grid (at the nominal plant when u = 0). a_Max comes from max_acceleration only: the torque is
+constrained directly, at the nominal plant and (worst_case, residual_and_time) at five frequencies
+spread over the band (its ends and quartiles), with the plant's damping.
+
+Starts are the closed-form design and the other zero-vibration jerk times at its t_a (or the
+eq. 61/66 designs for k_j = 1..3 when t_a is free). The best converged design that meets the
+constraints is returned, and the closed-form design competes too: when no solve improves on it,
+it is returned with selection ``closed_form_kept`` (an interior-point run can leave the start's
+basin). The acceleration constraint is met exactly: the solution is projected onto it (IPOPT meets
+constraints to ~1e-8). If no solve converges, the solver's status is raised: a failed solve is
+never a design.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from models.errors import Infeasible, InvalidParameter, NotApplicable
+from models.stap import FloatArray, RestToRest, Stap, max_jerk_time
+from optim.solver import SolverReport, raise_for_status, report_of
+from optim.stap.limits import estimated_mode, has_no_acceleration_limit, torque_plant
+from optim.stap.moves import check_request
+from optim.stap.problem import (
+    amplitudes,
+    band_poles,
+    compiled_problem,
+    mode_form,
+    oscillatory_modes,
+    residual_points,
+    torque_grid_size,
+)
+from optim.stap.ramp import periods_rule, zero_vibration_candidates
+from optim.stap.types import OptimizedDesign, StapDesign, StapRequest
+
+TORQUE_BAND_POINTS = 5  # band frequencies where the torque is constrained (ends and quartiles)
+JERK_PERIODS_FLOOR = 1e-3  # the optimiser keeps t_j >= 0.001 / f_n,e
+TIME_RANGE = 4.0  # residual_and_time searches t_a up to this times the closed-form t_a
+MAX_STARTS = 8
+FEASIBLE = 1e-6  # largest constraint breach accepted from IPOPT (scaled constraints)
+
+
+def optimize(request: StapRequest, start: StapDesign) -> OptimizedDesign:
+    """The optimised STAP (runs in a worker process); ``start`` is the closed-form design."""
+    request = check_request(request)
+    plant = request.plant
+    mode = estimated_mode(plant)
+    f_e = mode.natural_frequency_hz
+    s0 = start.stap
+    speed = abs(s0.velocity)
+    distance = None if start.move is None else abs(start.move.displacement)
+    t_a0 = s0.acceleration_time_s
+
+    modal = oscillatory_modes(plant)
+    nominal = residual_points(modal.poles, modal.residues, speed, distance)
+    band = band_poles(request, mode)
+    grid = None if band is None else residual_points(band[0], band[1], speed, distance)
+    kind = {"residual": "sum", "worst_case": "max", "residual_and_time": "time"}[request.objective]
+    used = nominal if kind == "sum" or grid is None else grid
+
+    if kind == "time":
+        ta_lo = 1.0 / f_e  # eq. (72)
+        ta_hi = TIME_RANGE * t_a0
+        if distance is not None:
+            ta_hi = min(ta_hi, distance / speed)  # the ramps must fit the displacement
+        ta_lo = min(ta_lo, t_a0)
+    else:
+        ta_lo = ta_hi = t_a0
+    t_hat_lo = JERK_PERIODS_FLOOR / (f_e * ta_hi)
+
+    torque_modes: list[tuple[complex, complex]] = []
+    jj = np.zeros(3)
+    if request.max_torque_nm is not None:
+        two = torque_plant(request)
+        torque_modes = [(p, r) for p, r in zip(modal.poles, modal.residues, strict=True)]
+        if band is not None and kind != "sum" and request.frequency_uncertainty > 0.0:
+            own = np.full(TORQUE_BAND_POINTS, mode.damping_ratio)
+            ratios = np.linspace(
+                1.0 - request.frequency_uncertainty, 1.0 + request.frequency_uncertainty, TORQUE_BAND_POINTS
+            )
+            poles_b, res_b = mode_form(mode.natural_frequency_rad_s * ratios, own)
+            torque_modes += list(zip(poles_b, res_b, strict=True))
+        jj = np.array(
+            [two.motor_inertia_kgm2 + two.load_inertia_kgm2, two.load_inertia_kgm2, 1.0 / request.max_torque_nm]
+        )
+    top_hz = max((abs(p) / (2 * math.pi) for p, _ in torque_modes), default=0.0)
+    torque_grid = torque_grid_size(top_hz * ta_hi) if torque_modes else 0
+    compiled = compiled_problem(kind, used.poles.size, len(torque_modes), torque_grid, request.caps)
+
+    lay = compiled.layout
+    p = np.zeros(compiled.parameter_count)
+    p[lay["ta0"]] = t_a0
+    p[lay["v"]] = speed
+    p[lay["inv_a"]] = 0.0 if request.max_acceleration is None else 1.0 / request.max_acceleration
+    pre = (used.factor / np.abs(used.poles) ** 4) ** 2  # pre j^2 |..|^2 |..|^2 = (residual / move)^2
+    base = np.column_stack([pre, used.poles.real, used.poles.imag])
+    if torque_modes:
+        tq = np.array(
+            [[pole.real, pole.imag, (2 * r / pole**2).real, (2 * r / pole**2).imag] for pole, r in torque_modes]
+        )
+        p[lay["tq"]] = tq.ravel()
+        p[lay["jj"]] = jj
+
+    def x_of(t_a: float, t_j: float, z: float = 1.0) -> FloatArray:
+        head = [t_a / t_a0, min(max(t_j / t_a, t_hat_lo), 0.5)]
+        return np.array(head + ([z] if compiled.variables == 3 else []))
+
+    # Normalise the squares: by the start's value (floor 1e-14, a residual of 1e-7) for the
+    # residual objectives, by the tolerance squared for residual_and_time.
+    p[lay["pts"]] = base.ravel()
+    _, _, sq0 = (np.asarray(a).ravel() for a in compiled.evaluate(x_of(t_a0, s0.jerk_time_s), p))
+    if kind == "time":
+        norm = request.residual_tolerance**2
+    else:
+        norm = max(float(np.sum(sq0) if kind == "sum" else np.max(sq0)), 1e-14)
+    scaled = base.copy()
+    scaled[:, 0] /= norm
+    p[lay["pts"]] = scaled.ravel()
+
+    lbx = np.array([ta_lo / t_a0, t_hat_lo] + ([0.0] if compiled.variables == 3 else []))
+    ubx = np.array([ta_hi / t_a0, 0.5] + ([np.inf] if compiled.variables == 3 else []))
+    starts = _starts(request, start, f_e, ta_lo, ta_hi)
+
+    def breach(xs: FloatArray) -> tuple[float, float]:
+        fx, gx, _ = (np.asarray(a).ravel() for a in compiled.evaluate(xs, p))
+        return float(fx[0]), float(np.max(np.concatenate([compiled.lbg - gx, gx - compiled.ubg])))
+
+    # The closed-form design competes too: an interior-point run may leave its basin and stop at
+    # a worse local optimum, and the answer must never be worse than the start.
+    x_start = x_of(t_a0, s0.jerk_time_s)
+    if compiled.variables == 3:
+        x_start[2] = float(np.max(np.asarray(compiled.evaluate(x_start, p)[2]).ravel()))
+    f_start, breach_start = breach(x_start)
+    best: tuple[float, FloatArray] | None = (f_start, x_start) if breach_start <= FEASIBLE else None
+    improved = False
+    iterations, elapsed, solves = 0, 0.0, 0
+    last: SolverReport | None = None
+    converged_any, converged_status = False, ""
+    for t_a_s, t_j_s in starts:  # a handful of starts
+        if elapsed > 2.0 * request.caps.max_wall_time_s:
+            break
+        x0 = x_of(t_a_s, t_j_s)
+        if compiled.variables == 3:
+            _, _, sq = (np.asarray(a).ravel() for a in compiled.evaluate(x0, p))
+            x0[2] = float(np.max(sq))
+        started = time.perf_counter()
+        solution = compiled.solver(x0=np.clip(x0, lbx, ubx), p=p, lbx=lbx, ubx=ubx, lbg=compiled.lbg, ubg=compiled.ubg)
+        report = report_of(compiled.solver, time.perf_counter() - started)
+        iterations, elapsed, solves = iterations + report.iterations, elapsed + report.solve_time_s, solves + 1
+        last = report
+        if report.timed_out:
+            break
+        if not report.converged:
+            continue
+        converged_any, converged_status = True, report.status
+        xs = np.clip(np.asarray(solution["x"]).ravel(), lbx, ubx)
+        fx, worst = breach(xs)
+        if worst > FEASIBLE:
+            continue
+        if best is None or fx < best[0] * (1.0 - 1e-9):
+            best, improved = (fx, xs), True
+    if last is None:  # no start with t_j > 0 (the closed form is the rectangle): nothing was solved
+        raise NotApplicable(
+            "method 'optimized' starts from designs with a jerk time t_j > 0: the closed-form design is the rectangle "
+            f"(t_j = 0) and no other zero-vibration design fits t_a in [{ta_lo:.6g}, {ta_hi:.6g}] s within the limits; "
+            "use method 'closed_form' or lengthen acceleration_time_s",
+            field="method",
+        )
+    if best is None or not (improved or converged_any):
+        if last.timed_out or not converged_any:
+            raise_for_status(SolverReport(last.status, iterations, elapsed))
+        raise Infeasible(
+            "no STAP found that meets the limits"
+            + (f" with a residual below {request.residual_tolerance:.3g} over the band" if kind == "time" else "")
+            + f" for t_a in [{ta_lo:.6g}, {ta_hi:.6g}] s; raise the limits or the tolerance, "
+            "or use method 'closed_form'",
+            field="max_torque_nm" if request.max_torque_nm is not None else "residual_tolerance",
+        )
+    xs = best[1]
+    t_a = float(xs[0] * t_a0)
+    t_hat = float(xs[1])
+    if request.max_acceleration is not None:  # project onto v <= a_Max (t_a - t_j) exactly
+        if ta_lo == ta_hi:
+            t_hat = max(min(t_hat, 1.0 - speed / (request.max_acceleration * t_a)), 0.0)
+        else:
+            t_a = max(t_a, speed / (request.max_acceleration * (1.0 - t_hat)))
+    t_j = t_hat * t_a
+    stap = Stap(math.copysign(speed, s0.velocity), t_a, t_j)
+    move = None
+    if distance is not None:
+        move = RestToRest(stap, max(0.0, distance / speed - t_a))
+    return OptimizedDesign(
+        stap=stap,
+        objective=request.objective,
+        start=s0,
+        nominal_residual=float(np.sum(amplitudes(nominal, speed, t_a, stap.jerk_time_s))),
+        start_nominal_residual=float(np.sum(amplitudes(nominal, speed, t_a0, s0.jerk_time_s))),
+        grid_worst_residual=None if grid is None else float(np.max(amplitudes(grid, speed, t_a, stap.jerk_time_s))),
+        start_grid_worst_residual=None
+        if grid is None
+        else float(np.max(amplitudes(grid, speed, t_a0, s0.jerk_time_s))),
+        solver=SolverReport(converged_status, iterations, elapsed),
+        solves=solves,
+        selection="optimized" if improved else "closed_form_kept",
+        acceleration_time_bounds_s=(ta_lo, ta_hi),
+        jerk_time_floor_s=t_hat_lo * ta_lo,
+        move=move,
+    )
+
+
+def _starts(
+    request: StapRequest, start: StapDesign, f_e: float, ta_lo: float, ta_hi: float
+) -> list[tuple[float, float]]:
+    """The closed-form design first, then the other zero-vibration jerk times at its t_a (fixed t_a),
+    or the eq. (61)/(66) designs for k_j = 1..3 within [ta_lo, ta_hi] (residual_and_time)."""
+    s0 = start.stap
+    out = [(s0.acceleration_time_s, s0.jerk_time_s)]
+    if ta_lo == ta_hi:
+        candidates = start.candidates
+        if not candidates:
+            probe = replace(request, acceleration_time_s=s0.acceleration_time_s, jerk_periods=None, delta=0)
+            try:
+                candidates = tuple(zero_vibration_candidates(probe, abs(s0.velocity), f_e, s0.acceleration_time_s)[0])
+            except (Infeasible, InvalidParameter):
+                candidates = ()
+        out += [(s0.acceleration_time_s, c.jerk_time_s) for c in candidates]
+        # The largest jerk time the acceleration limit allows at this t_a.
+        out.append(
+            (s0.acceleration_time_s, max_jerk_time(s0.acceleration_time_s, s0.velocity, request.max_acceleration))
+        )
+    else:
+        for k in (1, 2, 3):
+            try:
+                d = (
+                    periods_rule(replace(request, jerk_periods=k), abs(s0.velocity), f_e, k)
+                    if not has_no_acceleration_limit(request)
+                    else None
+                )
+            except (Infeasible, InvalidParameter):
+                d = None
+            if d is not None and ta_lo <= d.stap.acceleration_time_s <= ta_hi:
+                out.append((d.stap.acceleration_time_s, d.stap.jerk_time_s))
+    seen: list[tuple[float, float]] = []
+    for t_a, t_j in out:
+        if t_j > 0.0 and all(abs(t_a - a) > 1e-12 * t_a or abs(t_j - b) > 1e-9 * t_a for a, b in seen):
+            seen.append((t_a, t_j))
+    return seen[:MAX_STARTS]
