@@ -147,9 +147,8 @@ def identify(time_s: np.ndarray, signal: np.ndarray) -> Identification:
         coef, *_ = np.linalg.lstsq(basis, yn, rcond=None)
         return basis @ coef - yn
 
-    best = None
-    for omega_start in (omega0, 0.97 * omega0, 1.03 * omega0):  # a few starts: the cost ripples in Omega
-        fit = least_squares(
+    fits = [
+        least_squares(
             residual,
             x0=np.array([-decay0, omega_start]),
             x_scale=np.array([max(decay0, 0.01 * omega0), omega0]),
@@ -160,9 +159,9 @@ def identify(time_s: np.ndarray, signal: np.ndarray) -> Identification:
             gtol=1e-14,
             max_nfev=400,
         )
-        if best is None or fit.cost < best.cost:
-            best = fit
-    assert best is not None
+        for omega_start in (omega0, 0.97 * omega0, 1.03 * omega0)  # a few starts: the cost ripples in Omega
+    ]
+    best = min(fits, key=lambda fit: fit.cost)  # the first of the lowest cost, as a strict < scan keeps
     sigma, omega = float(best.x[0]), float(best.x[1])
     basis = _basis(t, sigma, omega)
     (a, b, c), *_ = np.linalg.lstsq(basis, yn, rcond=None)
