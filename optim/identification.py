@@ -13,9 +13,11 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import NDArray
 from scipy.optimize import least_squares
 from scipy.signal import find_peaks
 
+from models.commands import check_time_grid
 from models.errors import InvalidParameter
 from models.plants import Mode
 
@@ -66,7 +68,7 @@ def _refuse(reason: str, field_name: str = "signal", value: object = None) -> In
     return InvalidParameter(field_name, value, reason)
 
 
-def _initial_frequency(t: np.ndarray, y: np.ndarray) -> float:
+def _initial_frequency(t: NDArray[np.float64], y: NDArray[np.float64]) -> float:
     """The spectral peak of the record resampled on a uniform grid (Hann window, zero-padded FFT,
     parabolic interpolation of the peak)."""
     n = int(min(max(t.size, 64), 1 << 16))
@@ -76,16 +78,17 @@ def _initial_frequency(t: np.ndarray, y: np.ndarray) -> float:
     size = 8 * (1 << math.ceil(math.log2(n)))
     spectrum = np.abs(np.fft.rfft(u, size))
     spectrum[0] = 0.0
-    k = int(np.argmax(spectrum))
-    if 0 < k < spectrum.size - 1:
-        a, b, c = spectrum[k - 1], spectrum[k], spectrum[k + 1]
+    peak = int(np.argmax(spectrum))
+    k: float = peak  # the peak's bin, interpolated between bins
+    if 0 < peak < spectrum.size - 1:
+        a, b, c = spectrum[peak - 1], spectrum[peak], spectrum[peak + 1]
         denom = a - 2 * b + c
-        k = k + (0.5 * (a - c) / denom if denom != 0 else 0.0)
+        k = peak + (0.5 * (a - c) / denom if denom != 0 else 0.0)
     dt = (grid[-1] - grid[0]) / (n - 1)
-    return 2.0 * math.pi * k / (size * dt)
+    return float(2.0 * math.pi * k / (size * dt))
 
 
-def two_peak_estimate(t: np.ndarray, y: np.ndarray, omega_guess: float) -> tuple[float, float] | None:
+def two_peak_estimate(t: NDArray[np.float64], y: NDArray[np.float64], omega_guess: float) -> tuple[float, float] | None:
     """Eq. (16): T0 = t2 - t1 and sigma = ln(p2/p1)/T0 from the first two successive maxima of the
     record (offset removed by its median); returns (Omega, -sigma) or None when there are no two."""
     dt = float(np.median(np.diff(t)))
@@ -103,12 +106,15 @@ def two_peak_estimate(t: np.ndarray, y: np.ndarray, omega_guess: float) -> tuple
     return 2 * math.pi / period, -math.log(p2 / p1) / period
 
 
-def _basis(t: np.ndarray, sigma: float, omega: float) -> np.ndarray:
+def _basis(t: NDArray[np.float64], sigma: float, omega: float) -> NDArray[np.float64]:
     envelope = np.exp(np.clip(sigma * t, -700.0, 700.0))
-    return np.column_stack([envelope * np.cos(omega * t), envelope * np.sin(omega * t), np.ones_like(t)])
+    basis: NDArray[np.float64] = np.column_stack(
+        [envelope * np.cos(omega * t), envelope * np.sin(omega * t), np.ones_like(t)]
+    )
+    return basis
 
 
-def identify(time_s: np.ndarray, signal: np.ndarray) -> Identification:
+def identify(time_s: NDArray[np.float64], signal: NDArray[np.float64]) -> Identification:
     """Omega and sigma of a free vibration (eq. 16's quantities) by least squares.
 
     The model y = e^(sigma t) (a cos Omega t + b sin Omega t) + c is linear in (a, b, c): for each
@@ -118,8 +124,6 @@ def identify(time_s: np.ndarray, signal: np.ndarray) -> Identification:
     sampled with fewer than 4 samples per period, or holds no oscillation clearly above its noise
     (R^2 < 0.5 or amplitude < 3 times the residual rms).
     """
-    from models.commands import check_time_grid
-
     t_abs = check_time_grid(np.asarray(time_s, dtype=float), "time_s")
     y = np.asarray(signal, dtype=float)
     if y.shape != t_abs.shape:
@@ -142,10 +146,11 @@ def identify(time_s: np.ndarray, signal: np.ndarray) -> Identification:
     peaks = two_peak_estimate(t, yn, omega0)
     decay0 = peaks[1] if peaks is not None and 0.0 <= peaks[1] < 10 * omega0 else 0.1 * omega0 / (2 * math.pi)
 
-    def residual(params: np.ndarray) -> np.ndarray:
+    def residual(params: NDArray[np.float64]) -> NDArray[np.float64]:
         basis = _basis(t, params[0], params[1])
         coef, *_ = np.linalg.lstsq(basis, yn, rcond=None)
-        return basis @ coef - yn
+        misfit: NDArray[np.float64] = basis @ coef - yn
+        return misfit
 
     fits = [
         least_squares(

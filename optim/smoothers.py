@@ -15,12 +15,13 @@ from a free vibration (eq. 16) in ``optim.identification``; both are re-exported
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import brentq
 
-from models.commands import PiecewiseCommand
+from models.commands import Hold, PiecewiseCommand
 from models.errors import Infeasible, InvalidParameter
 from models.plants import Mode, Plant
 from models.simulation import metrics, simulate
@@ -99,7 +100,7 @@ class Limits:
         return max(orders) if orders else 0
 
 
-def _bracket_root(g, start: float) -> tuple[float, float]:
+def _bracket_root(g: Callable[[float], float], start: float) -> tuple[float, float]:
     """(lo, hi) with g(lo) > 0 >= g(hi), by factors of 4 from ``start`` (bounded search)."""
     hi = start
     for _ in range(400):
@@ -211,7 +212,8 @@ def fixed_chain_peaks(filters: tuple[Smoother, ...]) -> tuple[float, float, floa
     response = step_response(chain, 1.0, period)
     command = response.command()
     peaks = [command.peak_abs(q + 1) for q in range(3)]
-    return tuple(math.inf if p is None else p * (1.0 + 1e-9) for p in peaks)  # type: ignore[return-value]
+    velocity, acceleration, jerk = (math.inf if p is None else p * (1.0 + 1e-9) for p in peaks)
+    return velocity, acceleration, jerk
 
 
 def _prefix_for(
@@ -228,9 +230,10 @@ def _prefix_for(
     caps: list[float] = [b if b is not None else math.inf for b in bounds[:m]]
     ceiling = math.inf
     for k in range(m + 1, 4):  # derivatives carried by the fixed filters
-        if bounds[k - 1] is not None:
+        bound = bounds[k - 1]
+        if bound is not None:
             c = peaks[k - m - 1]
-            ceiling = min(ceiling, bounds[k - 1] / c if c > 0 else math.inf)
+            ceiling = min(ceiling, bound / c if c > 0 else math.inf)
     if m == 0:
         if ceiling < h:
             return None
@@ -267,14 +270,17 @@ def design_chain(plant: Plant, displacement: float, specs: list[FilterSpec], lim
     warnings: list[str] = []
     for i, spec in enumerate(specs):
         try:
-            if mode is None and (spec.duration_s is None or spec.kind in DAMPED):
+            if mode is not None:
+                fixed.append(tuned_filter(spec.kind, mode, spec.duration_s))
+            elif spec.duration_s is not None and spec.kind not in DAMPED:
+                fixed.append(Smoother(spec.kind, spec.duration_s))  # what tuned_filter gives: no decay rate
+            else:
                 what = "duration" if spec.duration_s is None else "decay rate"
                 raise InvalidParameter(
                     "duration_s" if spec.duration_s is None else "type",
                     spec.duration_s if spec.duration_s is not None else spec.kind,
                     f"the plant has no vibration mode to take the {what} from",
                 )
-            fixed.append(tuned_filter(spec.kind, mode, spec.duration_s))  # type: ignore[arg-type]
         except InvalidParameter as exc:
             if exc.field == "decay_rate_1_s":  # the decay rate comes from the plant, not from the request
                 exc = InvalidParameter(
@@ -316,7 +322,9 @@ def design_chain(plant: Plant, displacement: float, specs: list[FilterSpec], lim
             t = MIN_DURATION_S
         prefix.append(Smoother("rectangular", t))
     chain = Chain((*prefix, *fixed))
-    return ChainDesign(chain, ("limits",) * len(prefix) + tuple(roles), mode, tuple(predicted), tuple(warnings))  # type: ignore[arg-type]
+    velocity, acceleration, jerk = predicted  # one per derivative 1..3 (``_prefix_for``)
+    roles_all = ("limits",) * len(prefix) + tuple(roles)
+    return ChainDesign(chain, roles_all, mode, (velocity, acceleration, jerk), tuple(warnings))
 
 
 @dataclass(frozen=True)
@@ -354,7 +362,8 @@ def hold_residual(step: StepResponse, plant: Plant) -> float:
     between samples and leaves far more (figures in tests/models/test_smoothers.py).
     """
     smooth = step.chain.continuous_derivatives
-    order, hold = (0, "linear") if smooth == 0 else (min(smooth - 1, 2), "cubic")
+    hold: Hold = "linear" if smooth == 0 else "cubic"
+    order = 0 if smooth == 0 else min(smooth - 1, 2)
     initial = tuple(float(step.derivative(m)[0]) for m in range(order))
     slopes = step.derivative(order + 1) if hold == "cubic" else None
     command = PiecewiseCommand.from_samples(
