@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
+from numpy.typing import NDArray
 from scipy.optimize import linprog
 
 from models.errors import Infeasible, InvalidParameter
@@ -41,6 +42,7 @@ __all__ = [
     "step_baseline",
 ]
 
+FloatArray = NDArray[np.float64]
 BaselineKind = Literal["step", "modified", "multi_step"]
 
 
@@ -50,8 +52,8 @@ class Baseline:
     ``ramp_time_s`` (0 for the plain step baseline)."""
 
     kind: BaselineKind
-    step_times_s: np.ndarray
-    step_heights: np.ndarray
+    step_times_s: FloatArray
+    step_heights: FloatArray
     ramp_time_s: float
     method: str
 
@@ -119,7 +121,7 @@ def paper_two_step(velocity: float, shaper: ImpulseSequence, acceleration_limit:
     )
 
 
-def _distinct(values: np.ndarray) -> np.ndarray:
+def _distinct(values: FloatArray) -> FloatArray:
     """Sorted values with those within round-off (1e-12 relative, 2e-9 s) of the previous dropped."""
     v = np.sort(np.asarray(values, dtype=float))
     if v.size == 0:
@@ -129,8 +131,8 @@ def _distinct(values: np.ndarray) -> np.ndarray:
 
 
 def fastest_steps(
-    velocity: float, shaper: ImpulseSequence, acceleration_limit: float, step_times_s: np.ndarray
-) -> tuple[np.ndarray, float]:
+    velocity: float, shaper: ImpulseSequence, acceleration_limit: float, step_times_s: FloatArray
+) -> tuple[FloatArray, float]:
     """Non-negative step heights b_j (sum V) at the given times and the smallest ramp time Delta
     such that the shaped command sum_ij A_i b_j r_Delta(t - t_i - tau_j) has slope <= a.
 
@@ -162,7 +164,7 @@ def fastest_steps(
     cost[-1] = 1.0
     equality = np.concatenate([np.ones(m), [0.0]])[None, :]
 
-    def active(delta: float) -> np.ndarray:
+    def active(delta: float) -> FloatArray:
         """Row k: the ramps active just after s_k (s_k - Delta < s_l <= s_k)."""
         return ((s[None, :] <= s[:, None]) & (s[None, :] > s[:, None] - delta)).astype(float) @ weights
 

@@ -36,6 +36,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
+from numpy.typing import NDArray
 from scipy.optimize import root
 
 from models.errors import Infeasible, InvalidParameter
@@ -80,6 +81,8 @@ __all__ = [
     "step_baseline",
     "zv_family",
 ]
+
+FloatArray = NDArray[np.float64]
 
 DEFAULT_VIBRATION_TOLERANCE = 0.05
 MAX_DERIVATIVE_ORDER = 8  # zv followed by up to 8 letters d
@@ -157,7 +160,7 @@ def mzv(mode: Mode) -> ImpulseSequence:
     return ImpulseSequence(amplitudes / amplitudes.sum(), times)
 
 
-def ei_undamped(humps: int, tolerance: float) -> np.ndarray:
+def ei_undamped(humps: int, tolerance: float) -> FloatArray:
     """The exact undamped m-hump EI amplitudes (impulses T/2 apart), Singhose et al.:
     EI ((1+V)/4, (1-V)/2, (1+V)/4); 2-hump A1 = (3X^2 + 2X + 3V^2)/(16X),
     X = (V^2 (sqrt(1-V^2) + 1))^(1/3); 3-hump A1 = (1 + 3V + 2 sqrt(2V(V+1)))/16, A2 = (1-V)/4."""
@@ -177,7 +180,7 @@ def ei_undamped(humps: int, tolerance: float) -> np.ndarray:
 # The EI family by root-finding on its defining conditions
 
 
-def _z_and_derivative(a: np.ndarray, t: np.ndarray, r: float, zeta: float) -> tuple[complex, complex]:
+def _z_and_derivative(a: FloatArray, t: FloatArray, r: float, zeta: float) -> tuple[complex, complex]:
     """sum_i A_i exp(-zeta r (t_n - t_i)) exp(j r sqrt(1-zeta^2) t_i) and its r-derivative, with
     times in units of 1/omega_n and r = omega/omega_n: |.| is V of Sec. 3.1."""
     wd = math.sqrt(1.0 - zeta * zeta)
@@ -185,7 +188,7 @@ def _z_and_derivative(a: np.ndarray, t: np.ndarray, r: float, zeta: float) -> tu
     return complex(terms.sum()), complex((terms * (-zeta * (t[-1] - t) + 1j * wd * t)).sum())
 
 
-def _extrema(a: np.ndarray, t: np.ndarray, humps: int) -> tuple[np.ndarray, np.ndarray]:
+def _extrema(a: FloatArray, t: FloatArray, humps: int) -> tuple[FloatArray, FloatArray]:
     """Zeros and humps of the undamped V(r) around r = 1 (the starting point of the solve)."""
     r = np.linspace(0.2, 1.8, 16001)
     v = np.abs(np.exp(1j * np.outer(r, t)) @ a)
@@ -206,7 +209,7 @@ class _EIConditions:
         self.tolerance = tolerance
         self.even = humps % 2 == 0  # the middle zero (m even) or hump (m odd) is at r = 1
 
-    def unpack(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def unpack(self, x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         n, m = self.n, self.humps
         a = x[:n]
         t = np.concatenate(([0.0], x[n : 2 * n - 1]))
@@ -219,12 +222,12 @@ class _EIConditions:
             tops = np.sort(np.append(tops, 1.0))
         return a, t, zeros, tops
 
-    def pack(self, a: np.ndarray, t: np.ndarray, zeros: np.ndarray, tops: np.ndarray) -> np.ndarray:
-        zeros = [z for z in zeros if abs(z - 1.0) > 1e-6] if self.even else list(zeros)
-        tops = list(tops) if self.even else [h for h in tops if abs(h - 1.0) > 1e-6]
-        return np.concatenate([a, t[1:], zeros, tops])
+    def pack(self, a: FloatArray, t: FloatArray, zeros: FloatArray, tops: FloatArray) -> FloatArray:
+        free_zeros = [z for z in zeros if abs(z - 1.0) > 1e-6] if self.even else list(zeros)
+        free_tops = list(tops) if self.even else [h for h in tops if abs(h - 1.0) > 1e-6]
+        return np.concatenate([a, t[1:], free_zeros, free_tops])
 
-    def residual(self, x: np.ndarray, zeta: float) -> np.ndarray:
+    def residual(self, x: FloatArray, zeta: float) -> FloatArray:
         a, t, zeros, tops = self.unpack(x)
         equations = [a.sum() - 1.0]  # eq. (6)
         for r in zeros:  # V = 0: both parts of C + jS vanish
@@ -235,7 +238,7 @@ class _EIConditions:
             equations += [abs(z) ** 2 - self.tolerance**2, 2.0 * (z.conjugate() * dz).real]
         return np.array(equations)
 
-    def well_formed(self, x: np.ndarray) -> bool:
+    def well_formed(self, x: FloatArray) -> bool:
         a, t, zeros, tops = self.unpack(x)
         ordered = np.sort(np.concatenate([zeros, tops]))
         alternating = np.all(np.isin(ordered[::2], zeros)) and ordered.size == 2 * self.humps + 1
@@ -248,7 +251,7 @@ def _ei_normalised(humps: int, zeta: float, tolerance: float) -> tuple[tuple[flo
     of its defining conditions. Solved from the exact undamped solution, continued in zeta."""
     conditions = _EIConditions(humps, tolerance)
     a0 = ei_undamped(humps, tolerance)
-    t0 = math.pi * np.arange(a0.size)
+    t0 = math.pi * np.arange(a0.size, dtype=np.float64)
     zeros, tops = _extrema(a0, t0, humps)
     x = conditions.pack(a0, t0, zeros, tops)
     reached, step = None, _ZETA_STEP
@@ -340,7 +343,7 @@ class CatalogueEntry:
     name: str
     impulse_count: int
     duration_periods: float
-    band: tuple[float, float] | None
+    band: tuple[float | None, float | None] | None  # an end is None past the scanned ratios
     amplitudes: tuple[float, ...]
     times_periods: tuple[float, ...]
     method: str
