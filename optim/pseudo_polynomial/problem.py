@@ -1,4 +1,4 @@
-"""Exponents of a pseudo-polynomial command chosen by CasADi/IPOPT (Incerti, Secs. IV-V).
+"""The CasADi problem of the pseudo-polynomial family, built once per shape (Incerti, Secs. IV-V).
 
 The vibration left when the move ends is, for every oscillatory pole lambda_j of the load's
 transfer function, the free state (see models.simulation)
@@ -6,22 +6,13 @@ transfer function, the free state (see models.simulation)
     h_j(T) = 1/lambda_j^2 int_0^T exp(lambda_j (T - tau)) phi''(tau) dtau
            = -Phi / (T lambda_j^2) sum_i gamma_i (gamma_i - 1) C_i int_0^1 u^(gamma_i - 2) exp(lambda_j T u) du,
 
-the modal form of Incerti's F and G (eqs. 27-30). The integrals are computed by Gauss-Legendre
-quadrature after u = v^2, which makes the integrand smooth at u = 0 (error below 1e-12 for the
-node counts used; see ``quadrature_nodes``). The deflection alpha_j = Re(w r h) and its rate
-alpha_j' = Re(w r lambda h) give the energy E = sum_j m_j/2 (alpha_j'^2 + w_j^2 alpha_j^2), which is
-eq. (26) for the belt platform (m = J) and the two-inertia plant (m = J_L), and the same quantity
-per unit inertia for plants without physical parameters.
-
-"Final energy = 0" is two equations per mode in n + 1 exponents: for n >= 2 the zero-energy
-designs form a curve (PAPER-NOTES). The design is made well-posed by choosing, among them, the one
-closest to the initial exponents that IPOPT reaches from them (stage "closest_zero_energy":
-minimise |gamma - gamma_0|^2 subject to h_j(T) = 0 and the limits). If none is reached, the energy
-is minimised within the limits from the initial exponents and a few fixed spread starts; a
-zero-energy result is moved to the closest zero-energy design near it, otherwise the
-lowest-energy design is returned (stage "minimum_energy") with its energy ratio. Zero-energy
-designs do not exist at every duration: for order 2 they appear near whole numbers of periods of
-the mode (from about three), which is why ``minimize_duration`` scans durations before bisecting.
+the modal form of Incerti's F and G (eqs. 27-30), with the coefficients C_i of eq. (22). The integrals
+are computed by Gauss-Legendre quadrature after u = v^2, which makes the integrand smooth at u = 0
+(error below 1e-12 for the node counts used; see ``quadrature_nodes``). The deflection
+alpha_j = Re(w r h) and its rate alpha_j' = Re(w r lambda h) give the energy
+E = sum_j m_j/2 (alpha_j'^2 + w_j^2 alpha_j^2), which is eq. (26) for the belt platform (m = J) and the
+two-inertia plant (m = J_L), and the same quantity per unit inertia for plants without physical
+parameters.
 
 Bounds: every exponent in [max(3, n + 0.05), 80] (above n for the end conditions, at least 3 so
 the jerk stays bounded at T) and consecutive exponents at least 0.05 apart (eq. 22 stays well
@@ -29,97 +20,56 @@ conditioned). Limits are imposed on a grid of T/200 plus points clustered near T
 than asked.
 
 Each problem is built once per (order, plant kind, quadrature size, active limits, caps) with the
-plant's parameters, displacement, duration, initial exponents and limits as CasADi parameters,
-and kept in this process's cache: the service builds them in its worker processes. The plant
-enters through its symbolic form (models.plants.Plant.symbolic) for the second-order kinds
-(mode, two_inertia, belt_platform), whose mode is a closed-form expression of the parameters;
-for higher-order plants (rigid_flexible, transfer functions), whose poles have no closed form,
-the poles and residues computed from the same transfer function are the parameters.
+plant's parameters, displacement, duration, initial exponents and limits as named CasADi parameters
+(``_parameters``), and kept in this process's cache: the service builds them in its worker processes
+(``warm_up``). The plant enters through its symbolic form (models.plants.Plant.symbolic) for the
+second-order kinds (mode, two_inertia, belt_platform), whose mode is a closed-form expression of the
+parameters; for higher-order plants (rigid_flexible, transfer functions), whose poles have no closed
+form, the poles and residues computed from the same transfer function are the parameters.
 """
 
 from __future__ import annotations
 
-import itertools
 import math
-import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
-from models.errors import Infeasible, InvalidParameter
+from models.errors import InvalidParameter
 from models.plants import Plant, TwoInertiaPlant
-from models.pseudo_polynomial import PseudoPolynomial, boundary_matrix, check_exponents, derivative_terms
+from models.pseudo_polynomial import boundary_matrix, derivative_terms
 from models.simulation import ModalForm, modal_form
-from optim.solver import (
-    SolveCaps,
-    SolverFailed,
-    SolverReport,
-    ipopt_options,
-    parameter_layout,
-    raise_for_status,
-    report_of,
-)
+from optim.pseudo_polynomial.types import Limits, PseudoPolynomialRequest
+from optim.solver import SolveCaps, ipopt_options, parameter_layout
+
+__all__ = [
+    "CONSTRAINT_INTERVALS",
+    "LIMIT_MARGIN",
+    "MAX_EXPONENT",
+    "MAX_MODES",
+    "MIN_SEPARATION",
+    "PROBE_ITERATIONS",
+    "QUADRATURE_SIZES",
+    "QUICK_ITERATIONS",
+    "SEARCH_ITERATIONS",
+    "SYMBOLIC_KINDS",
+    "evaluate",
+    "limit_grid_u",
+    "lower_bound",
+    "quadrature_nodes",
+    "warm_up",
+]
 
 QUADRATURE_SIZES = (64, 128, 256, 512)
 MAX_MODES = 3  # oscillatory modes handled; the problem's size grows with modes x nodes x exponents
 CONSTRAINT_INTERVALS = 200  # limits are imposed at T/200 spacing, then checked on the samples
 MIN_SEPARATION = 0.05  # consecutive exponents at least this far apart: Z stays invertible, C finite
 MAX_EXPONENT = 80.0
-SPREAD_STARTS = 6  # extra starting points when the closest zero-energy design is not reached
 QUICK_ITERATIONS = 150  # the first try: a reachable closest zero converges in tens of iterations
 PROBE_ITERATIONS = 40  # a duration probe in the shortest-duration search (warm-started from a neighbour)
 SEARCH_ITERATIONS = 250  # each minimum-energy start; its best feasible iterate is kept
-ZERO_ENERGY = 1e-16  # energy ratio below which a design counts as zero-energy (amplitude ratio 1e-8)
 LIMIT_MARGIN = 1e-4  # limits are imposed 0.01 % tighter than asked, absorbing the grid
-MAX_ORDER = 6
-
-
-@dataclass(frozen=True)
-class Limits:
-    max_velocity: float | None = None
-    max_acceleration: float | None = None
-    max_jerk: float | None = None
-    max_torque_nm: float | None = None
-
-
-@dataclass(frozen=True)
-class PseudoPolynomialRequest:
-    plant: Plant
-    displacement: float
-    duration_s: float
-    order: int = 2
-    initial_exponents: tuple[float, ...] | None = None
-    limits: Limits = field(default_factory=Limits)
-    minimize_duration: bool = False
-    residual_tolerance: float | None = None  # load units; default 1e-6 of the load displacement
-    caps: SolveCaps = field(default_factory=SolveCaps)
-
-
-@dataclass(frozen=True)
-class PseudoPolynomialDesign:
-    law: PseudoPolynomial
-    initial: PseudoPolynomial
-    initial_energy: float
-    final_energy: float
-    residual_amplitude: float  # sum over modes of the free-oscillation envelope of the load at T
-    initial_residual_amplitude: float
-    selection: str
-    solver: SolverReport
-    solves: int
-    energy_is_physical: bool
-    duration_search: tuple[tuple[float, bool], ...] = ()
-
-    @property
-    def energy_ratio(self) -> float:
-        return self.final_energy / self.initial_energy if self.initial_energy > 0 else 0.0
-
-
-def default_exponents(order: int) -> tuple[float, ...]:
-    """n+1, ..., 2n+1: the classical polynomial with n null derivatives at both ends ((3, 4, 5)
-    for n = 2); from 3 up for n = 1, where the lower bound is 3."""
-    first = max(order + 1, 3)
-    return tuple(float(first + i) for i in range(order + 1))
 
 
 def quadrature_nodes(phase_rad: float) -> int:
@@ -137,10 +87,6 @@ def quadrature_nodes(phase_rad: float) -> int:
         f"the move lasts {phase_rad / (2 * math.pi):.0f} periods of the plant's mode; pseudo-polynomial design "
         f"supports up to {(QUADRATURE_SIZES[-1] - 32) / (2 * math.pi):.0f}",
     )
-
-
-# ------------------------------------------------------------------------------------------
-# The CasADi problem, built once per shape
 
 
 @dataclass
@@ -390,7 +336,7 @@ def warm_up(caps: SolveCaps | None = None) -> None:
 
 
 # ------------------------------------------------------------------------------------------
-# Solving
+# The parameters of a request
 
 
 def _oscillatory(plant: Plant) -> ModalForm:
@@ -441,32 +387,6 @@ def _parameters(
     return p
 
 
-def check_limits_possible(request: PseudoPolynomialRequest) -> None:
-    """Refuse limits that no motion of this duration can meet, whatever its shape.
-
-    Bang-bang bounds for a rest-to-rest move of Phi in T: the mean speed Phi/T, the least peak
-    acceleration 4 Phi/T^2 and the least peak jerk 32 Phi/T^3.
-    """
-    phi, T, lim = abs(request.displacement), request.duration_s, request.limits
-    checks = (
-        ("max_velocity", lim.max_velocity, phi / T, "the mean speed displacement/duration"),
-        (
-            "max_acceleration",
-            lim.max_acceleration,
-            4 * phi / T**2,
-            "4 displacement/duration^2, the least any move needs",
-        ),
-        ("max_jerk", lim.max_jerk, 32 * phi / T**3, "32 displacement/duration^3, the least any move needs"),
-    )
-    for name, limit, least, what in checks:
-        if limit is not None and limit < least:
-            raise Infeasible(
-                f"limits.{name} = {limit:.6g} is below {least:.6g}, {what}: no command moves {phi:.6g} in "
-                f"{T:.6g} s within it (lengthen duration_s or raise the limit)",
-                field=f"limits.{name}",
-            )
-
-
 def _prepare(request: PseudoPolynomialRequest) -> tuple[_Compiled, np.ndarray, np.ndarray]:
     """The compiled problem for a request, its parameter vector (scaled at the initial design)
     and the initial exponents."""
@@ -484,247 +404,8 @@ def _prepare(request: PseudoPolynomialRequest) -> tuple[_Compiled, np.ndarray, n
     return compiled, p, gamma0
 
 
-def spread_starts(order: int, count: int = SPREAD_STARTS) -> list[np.ndarray]:
-    """Fixed, well-separated starting exponents spread log-uniformly over [lower bound, 40]."""
-    rng = np.random.default_rng(1000 + order)
-    low = lower_bound(order)
-    starts = []
-    while len(starts) < count:
-        g = np.sort(low * np.exp(rng.uniform(0.0, np.log(40.0 / low), order + 1)))
-        if np.min(np.diff(g)) >= 4 * MIN_SEPARATION:
-            starts.append(g)
-    return starts
-
-
-@dataclass(frozen=True)
-class _Attempt:
-    gamma: np.ndarray
-    stage: str
-    report: SolverReport
-    energy: float
-    residual: float
-    solves: int
-
-
-def _solve_at(request: PseudoPolynomialRequest, start: np.ndarray, effort: str = "thorough") -> _Attempt:
-    """The design at a fixed duration (see the module docstring for the rule):
-
-    1. the zero-energy design closest to the initial exponents, solved from ``start``;
-    2. if IPOPT does not reach one (and ``effort`` is not "probe"): minimise the energy from the
-       initial exponents and (``effort`` "thorough") from fixed spread starts, keeping the
-       lowest-energy design that meets the limits; if its energy is zero to round-off, move it
-       to the closest zero-energy design.
-
-    Raises Infeasible when no start yields a design within the limits.
-    """
-    compiled, p, gamma0 = _prepare(request)
-    lbg_c, ubg_c, lbg_m, ubg_m = compiled.g_bounds
-    lbx, ubx = np.full(gamma0.size, lower_bound(request.order)), np.full(gamma0.size, MAX_EXPONENT)
-    iterations, elapsed, solves = 0, 0.0, 0
-
-    def run(solver: Any, x0: np.ndarray, lbg: np.ndarray, ubg: np.ndarray) -> tuple[np.ndarray, SolverReport]:
-        nonlocal iterations, elapsed, solves
-        started = time.perf_counter()
-        solution = solver(x0=np.clip(x0, lbx, ubx), p=p, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
-        report = report_of(solver, time.perf_counter() - started)
-        iterations, elapsed, solves = iterations + report.iterations, elapsed + report.solve_time_s, solves + 1
-        return np.asarray(solution["x"]).ravel(), report
-
-    def attempt(gamma: np.ndarray, stage: str, report: SolverReport) -> _Attempt:
-        gamma = np.clip(gamma, lbx, ubx)  # IPOPT may end a hair outside a bound
-        energy, residual, _ = compiled.evaluate(gamma, p)
-        return _Attempt(
-            gamma, stage, SolverReport(report.status, iterations, elapsed), float(energy), float(residual), solves
-        )
-
-    def feasible(gamma: np.ndarray) -> bool:
-        return float(compiled.violation(gamma, p)) <= 1e-9
-
-    gamma, report = run(compiled.probe if effort == "probe" else compiled.quick, start, lbg_c, ubg_c)
-    if report.timed_out or (report.converged and feasible(gamma)):
-        return attempt(gamma, "closest_zero_energy", report)
-    if effort == "probe":
-        raise Infeasible("no zero-energy design reached from the start", field="limits")
-    energy_ref = float(p[compiled.layout["energy_ref"]][0])
-    best: tuple[float, np.ndarray, SolverReport] | None = None
-    last: SolverReport | None = None
-    reached_limits = False
-    for x0 in [gamma0, *(spread_starts(request.order) if effort == "thorough" else [])]:
-        if elapsed > 2.0 * request.caps.max_wall_time_s:
-            break  # the starts so far have used the time a design may take
-        candidate, rep = run(compiled.minimum, x0, lbg_m, ubg_m)
-        if rep.timed_out:
-            report = rep
-            break
-        last = rep
-        reached_limits = reached_limits or feasible(candidate)
-        if rep.converged and feasible(candidate):  # a capped iterate is never a design
-            energy = float(compiled.evaluate(candidate, p)[0])
-            if best is None or energy < best[0]:
-                best = (energy, candidate, rep)
-            if energy <= ZERO_ENERGY * energy_ref:
-                break
-    if best is None:
-        if report.timed_out:
-            return attempt(gamma, "minimum_energy", report)
-        if reached_limits and last is not None:  # designs within the limits exist, but no solve converged
-            raise SolverFailed(SolverReport(last.status, iterations, elapsed), "no minimum-energy solve converged")
-        raise Infeasible(
-            f"no pseudo-polynomial command of order {request.order} found that moves {request.displacement:.6g} in "
-            f"{request.duration_s:.6g} s within the limits; lengthen duration_s, raise the limits or try another order",
-            field="limits",
-        )
-    energy, candidate, rep = best
-    if energy <= ZERO_ENERGY * energy_ref:
-        closer, rep_c = run(compiled.closest, candidate, lbg_c, ubg_c)
-        if rep_c.converged and feasible(closer):
-            return attempt(closer, "closest_zero_energy", rep_c)
-    return attempt(candidate, "minimum_energy", rep)
-
-
 def evaluate(request: PseudoPolynomialRequest, exponents: np.ndarray) -> tuple[float, float]:
     """Final energy and residual amplitude of given exponents (the optimiser's own model)."""
     compiled, p, _ = _prepare(replace(request, initial_exponents=tuple(exponents)))
     energy, residual, _ = compiled.evaluate(np.asarray(exponents, dtype=float), p)
     return float(energy), float(residual)
-
-
-def _default_tolerance(request: PseudoPolynomialRequest) -> float:
-    """1e-6 of the load's displacement (of the motor's for plants with no position gain)."""
-    return 1e-6 * abs(request.displacement) * (abs(request.plant.dc_gain) or 1.0)
-
-
-def _checked(request: PseudoPolynomialRequest) -> PseudoPolynomialRequest:
-    if not 1 <= request.order <= MAX_ORDER:
-        raise InvalidParameter("order", request.order, f"must lie in 1..{MAX_ORDER}")
-    initial = check_exponents(request.initial_exponents or default_exponents(request.order), request.order)
-    ordered = sorted(initial)
-    if min(b - a for a, b in itertools.pairwise(ordered)) < MIN_SEPARATION:
-        raise InvalidParameter(
-            "initial_exponents",
-            list(initial),
-            f"exponents must be at least {MIN_SEPARATION:g} apart (eq. 22 stays well conditioned)",
-        )
-    if min(initial) < lower_bound(request.order):
-        raise InvalidParameter(
-            "initial_exponents",
-            list(initial),
-            f"every exponent must be >= {lower_bound(request.order):g} for order {request.order} (above the order, "
-            "and at least 3 so the jerk stays bounded)",
-        )
-    if request.limits.max_torque_nm is not None and not isinstance(request.plant, TwoInertiaPlant):
-        raise InvalidParameter(
-            "limits.max_torque_nm",
-            request.limits.max_torque_nm,
-            f"a {request.plant.kind} plant does not define the motor torque",
-        )
-    if request.minimize_duration and not any(_active(request.limits)):
-        raise InvalidParameter(
-            "minimize_duration", True, "needs at least one limit (without limits any duration works)"
-        )
-    check_limits_possible(request)
-    return replace(request, initial_exponents=tuple(sorted(initial)))
-
-
-def design(request: PseudoPolynomialRequest) -> PseudoPolynomialDesign:
-    """The design for a request (runs in a worker process)."""
-    request = _checked(request)
-    energy0, residual0 = evaluate(request, np.asarray(request.initial_exponents))
-    started = time.perf_counter()
-    if request.minimize_duration:
-        duration, attempt, tried = _shortest(request)
-    else:
-        duration, attempt, tried = request.duration_s, _solve_at(request, np.asarray(request.initial_exponents)), ()
-        _raise_unless_design(attempt)
-    return PseudoPolynomialDesign(
-        law=PseudoPolynomial(request.displacement, duration, tuple(attempt.gamma)),
-        initial=PseudoPolynomial(request.displacement, request.duration_s, request.initial_exponents),
-        initial_energy=energy0,
-        final_energy=attempt.energy,
-        residual_amplitude=attempt.residual,
-        initial_residual_amplitude=residual0,
-        selection=attempt.stage,
-        solver=replace(attempt.report, solve_time_s=time.perf_counter() - started),
-        solves=attempt.solves,
-        energy_is_physical=request.plant.energy_inertia is not None and _oscillatory(request.plant).poles.size == 1,
-        duration_search=tried,
-    )
-
-
-def _raise_unless_design(attempt: _Attempt) -> None:
-    """A timed-out or failed closest-zero solve is never a design; a minimum-energy design is
-    only returned when it was checked to meet the limits (``_solve_at``)."""
-    if attempt.report.timed_out or attempt.stage == "closest_zero_energy":
-        raise_for_status(attempt.report)
-
-
-def _shortest(request: PseudoPolynomialRequest) -> tuple[float, _Attempt, tuple[tuple[float, bool], ...]]:
-    """The shortest duration whose design meets the residual tolerance within the limits.
-
-    Zero-energy designs exist only in windows of duration (for order 2 roughly around whole
-    numbers of periods of the mode), so feasibility is not monotone in T: the search steps down
-    from the first duration that works, by an eighth of the mode's period (or T/24), to the
-    kinematic lower bound, then bisects between the shortest feasible step and the step below it.
-    """
-    tolerance = request.residual_tolerance or _default_tolerance(request)
-    started = time.perf_counter()
-    budget = 3.0 * request.caps.max_wall_time_s
-    tried: list[tuple[float, bool]] = []
-
-    def attempt(duration: float, start: np.ndarray) -> _Attempt | None:
-        trial = replace(request, duration_s=duration)
-        try:
-            check_limits_possible(trial)
-            result = _solve_at(trial, start, effort="probe")
-        except Infeasible:
-            tried.append((duration, False))
-            return None
-        ok = result.residual <= tolerance and not result.report.timed_out
-        tried.append((duration, ok))
-        return result if ok else None
-
-    def out_of_time() -> bool:
-        return time.perf_counter() - started > budget
-
-    high = request.duration_s
-    first = _solve_at(request, np.asarray(request.initial_exponents), effort="thorough")
-    ok = first.residual <= tolerance and not first.report.timed_out
-    tried.append((high, ok))
-    best = first if ok else None
-    while best is None:
-        if len(tried) > 8 or out_of_time():
-            raise Infeasible(
-                f"no pseudo-polynomial command of order {request.order} meets the limits with a residual below "
-                f"{tolerance:.3g} for durations up to {high:.6g} s",
-                field="duration_s",
-            )
-        high *= 1.25
-        best = attempt(high, np.asarray(request.initial_exponents))
-    lim, phi = request.limits, abs(request.displacement)
-    floor = max(
-        [0.0]
-        + ([phi / lim.max_velocity] if lim.max_velocity else [])
-        + ([2.0 * math.sqrt(phi / lim.max_acceleration)] if lim.max_acceleration else [])
-        + ([(32.0 * phi / lim.max_jerk) ** (1 / 3)] if lim.max_jerk else [])
-    )
-    period = float(np.min(2 * np.pi / np.abs(_oscillatory(request.plant).poles)))
-    step = min(period / 8.0, high / 24.0)
-    low = floor
-    trial = high - step
-    while trial > floor and not out_of_time():  # a loop over durations, not samples
-        found = attempt(trial, best.gamma)
-        if found is not None:
-            high, best = trial, found
-        elif trial < high - 2.5 * period:
-            low = trial
-            break  # two and a half periods without a feasible duration: the windows have closed
-        trial -= step
-    low = max(low, high - step)
-    while high - low > 1e-3 * high and not out_of_time():
-        mid = 0.5 * (low + high)
-        found = attempt(mid, best.gamma)
-        if found is not None:
-            high, best = mid, found
-        else:
-            low = mid
-    return high, best, tuple(tried)
