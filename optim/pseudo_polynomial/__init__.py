@@ -99,7 +99,8 @@ def default_exponents(order: int) -> tuple[float, ...]:
     return tuple(float(first + i) for i in range(order + 1))
 
 
-def _checked(request: PseudoPolynomialRequest) -> PseudoPolynomialRequest:
+def _checked(request: PseudoPolynomialRequest) -> tuple[PseudoPolynomialRequest, tuple[float, ...]]:
+    """The request with its initial exponents set and sorted, and those exponents; raises on a bad request."""
     if not 1 <= request.order <= MAX_ORDER:
         raise InvalidParameter("order", request.order, f"must lie in 1..{MAX_ORDER}")
     initial = check_exponents(request.initial_exponents or default_exponents(request.order), request.order)
@@ -128,22 +129,23 @@ def _checked(request: PseudoPolynomialRequest) -> PseudoPolynomialRequest:
             "minimize_duration", True, "needs at least one limit (without limits any duration works)"
         )
     check_limits_possible(request)
-    return replace(request, initial_exponents=tuple(sorted(initial)))
+    initial_exponents = tuple(sorted(initial))
+    return replace(request, initial_exponents=initial_exponents), initial_exponents
 
 
 def design(request: PseudoPolynomialRequest) -> PseudoPolynomialDesign:
     """The design for a request (runs in a worker process)."""
-    request = _checked(request)
-    energy0, residual0 = evaluate(request, np.asarray(request.initial_exponents))
+    request, initial = _checked(request)
+    energy0, residual0 = evaluate(request, np.asarray(initial))
     started = time.perf_counter()
     if request.minimize_duration:
         duration, attempt, tried = _shortest(request)
     else:
-        duration, attempt, tried = request.duration_s, _solve_at(request, np.asarray(request.initial_exponents)), ()
+        duration, attempt, tried = request.duration_s, _solve_at(request, np.asarray(initial)), ()
         _raise_unless_design(attempt)
     return PseudoPolynomialDesign(
         law=PseudoPolynomial(request.displacement, duration, tuple(attempt.gamma)),
-        initial=PseudoPolynomial(request.displacement, request.duration_s, request.initial_exponents),
+        initial=PseudoPolynomial(request.displacement, request.duration_s, initial),
         initial_energy=energy0,
         final_energy=attempt.energy,
         residual_amplitude=attempt.residual,

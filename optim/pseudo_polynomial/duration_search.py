@@ -16,7 +16,7 @@ import numpy as np
 from models.errors import Infeasible
 from optim.pseudo_polynomial.problem import _oscillatory
 from optim.pseudo_polynomial.solve import _Attempt, _solve_at, check_limits_possible
-from optim.pseudo_polynomial.types import PseudoPolynomialRequest
+from optim.pseudo_polynomial.types import FloatArray, PseudoPolynomialRequest
 
 
 def _default_tolerance(request: PseudoPolynomialRequest) -> float:
@@ -37,7 +37,7 @@ def _shortest(request: PseudoPolynomialRequest) -> tuple[float, _Attempt, tuple[
     budget = 3.0 * request.caps.max_wall_time_s
     tried: list[tuple[float, bool]] = []
 
-    def attempt(duration: float, start: np.ndarray) -> _Attempt | None:
+    def attempt(duration: float, start: FloatArray) -> _Attempt | None:
         trial = replace(request, duration_s=duration)
         try:
             check_limits_possible(trial)

@@ -40,7 +40,7 @@ from models.errors import InvalidParameter
 from models.plants import Plant, TwoInertiaPlant
 from models.pseudo_polynomial import boundary_matrix, derivative_terms
 from models.simulation import ModalForm, modal_form
-from optim.pseudo_polynomial.types import Limits, PseudoPolynomialRequest
+from optim.pseudo_polynomial.types import FloatArray, Limits, PseudoPolynomialRequest
 from optim.solver import SolveCaps, ipopt_options, parameter_layout
 
 __all__ = [
@@ -97,19 +97,19 @@ class _Compiled:
     minimum: Any  # nlpsol: minimum-energy design, few iterations per start
     evaluate: Any  # Function (gamma, p) -> (energy, residual amplitude, free states)
     violation: Any  # Function (gamma, p) -> largest breach of the limits and separation (<= 0: feasible)
-    g_bounds: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]  # lbg/ubg closest, lbg/ubg minimum
+    g_bounds: tuple[FloatArray, FloatArray, FloatArray, FloatArray]  # lbg/ubg closest, lbg/ubg minimum
     layout: dict[str, slice]
     parameter_count: int
 
 
-_CACHE: dict[tuple, _Compiled] = {}
+_CACHE: dict[tuple[object, ...], _Compiled] = {}
 
 
 def _complex_mul(a: tuple[Any, Any], b: tuple[Any, Any]) -> tuple[Any, Any]:
     return a[0] * b[0] - a[1] * b[1], a[0] * b[1] + a[1] * b[0]
 
 
-def limit_grid_u() -> np.ndarray:
+def limit_grid_u() -> FloatArray:
     """u = 1 - t/T where the limits are imposed: a uniform grid and a geometric cluster near T."""
     uniform = 1.0 - np.arange(CONSTRAINT_INTERVALS) / CONSTRAINT_INTERVALS
     near_end = (1.0 / CONSTRAINT_INTERVALS) * 10.0 ** (-np.arange(1, 21) / 2.0)  # down to 1e-12
@@ -319,9 +319,12 @@ def _compiled(
 
 
 def _active(limits: Limits) -> tuple[bool, bool, bool, bool]:
-    return tuple(
-        x is not None for x in (limits.max_velocity, limits.max_acceleration, limits.max_jerk, limits.max_torque_nm)
-    )  # type: ignore[return-value]
+    return (
+        limits.max_velocity is not None,
+        limits.max_acceleration is not None,
+        limits.max_jerk is not None,
+        limits.max_torque_nm is not None,
+    )
 
 
 def warm_up(caps: SolveCaps | None = None) -> None:
@@ -355,8 +358,8 @@ def _oscillatory(plant: Plant) -> ModalForm:
 
 
 def _parameters(
-    request: PseudoPolynomialRequest, modal: ModalForm, compiled: _Compiled, gamma0: np.ndarray
-) -> np.ndarray:
+    request: PseudoPolynomialRequest, modal: ModalForm, compiled: _Compiled, gamma0: FloatArray
+) -> FloatArray:
     lay = compiled.layout
     p = np.zeros(compiled.parameter_count)
     p[lay["phi"]] = request.displacement
@@ -387,7 +390,7 @@ def _parameters(
     return p
 
 
-def _prepare(request: PseudoPolynomialRequest) -> tuple[_Compiled, np.ndarray, np.ndarray]:
+def _prepare(request: PseudoPolynomialRequest) -> tuple[_Compiled, FloatArray, FloatArray]:
     """The compiled problem for a request, its parameter vector (scaled at the initial design)
     and the initial exponents."""
     modal = _oscillatory(request.plant)
@@ -404,7 +407,7 @@ def _prepare(request: PseudoPolynomialRequest) -> tuple[_Compiled, np.ndarray, n
     return compiled, p, gamma0
 
 
-def evaluate(request: PseudoPolynomialRequest, exponents: np.ndarray) -> tuple[float, float]:
+def evaluate(request: PseudoPolynomialRequest, exponents: FloatArray) -> tuple[float, float]:
     """Final energy and residual amplitude of given exponents (the optimiser's own model)."""
     compiled, p, _ = _prepare(replace(request, initial_exponents=tuple(exponents)))
     energy, residual, _ = compiled.evaluate(np.asarray(exponents, dtype=float), p)

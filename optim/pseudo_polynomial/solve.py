@@ -17,10 +17,10 @@ from typing import Any
 
 import numpy as np
 
-from models.errors import Infeasible
+from models.errors import Infeasible, SolverFailed
 from optim.pseudo_polynomial.problem import MAX_EXPONENT, MIN_SEPARATION, _prepare, lower_bound
-from optim.pseudo_polynomial.types import PseudoPolynomialRequest
-from optim.solver import SolverFailed, SolverReport, raise_for_status, report_of
+from optim.pseudo_polynomial.types import FloatArray, PseudoPolynomialRequest
+from optim.solver import SolverReport, raise_for_status, report_of
 
 __all__ = ["SPREAD_STARTS", "ZERO_ENERGY", "check_limits_possible", "spread_starts"]
 
@@ -54,11 +54,11 @@ def check_limits_possible(request: PseudoPolynomialRequest) -> None:
             )
 
 
-def spread_starts(order: int, count: int = SPREAD_STARTS) -> list[np.ndarray]:
+def spread_starts(order: int, count: int = SPREAD_STARTS) -> list[FloatArray]:
     """Fixed, well-separated starting exponents spread log-uniformly over [lower bound, 40]."""
     rng = np.random.default_rng(1000 + order)
     low = lower_bound(order)
-    starts = []
+    starts: list[FloatArray] = []
     while len(starts) < count:
         g = np.sort(low * np.exp(rng.uniform(0.0, np.log(40.0 / low), order + 1)))
         if np.min(np.diff(g)) >= 4 * MIN_SEPARATION:
@@ -68,7 +68,7 @@ def spread_starts(order: int, count: int = SPREAD_STARTS) -> list[np.ndarray]:
 
 @dataclass(frozen=True)
 class _Attempt:
-    gamma: np.ndarray
+    gamma: FloatArray
     stage: str
     report: SolverReport
     energy: float
@@ -76,7 +76,7 @@ class _Attempt:
     solves: int
 
 
-def _solve_at(request: PseudoPolynomialRequest, start: np.ndarray, effort: str = "thorough") -> _Attempt:
+def _solve_at(request: PseudoPolynomialRequest, start: FloatArray, effort: str = "thorough") -> _Attempt:
     """The design at a fixed duration (see the module docstring for the rule):
 
     1. the zero-energy design closest to the initial exponents, solved from ``start``;
@@ -92,7 +92,7 @@ def _solve_at(request: PseudoPolynomialRequest, start: np.ndarray, effort: str =
     lbx, ubx = np.full(gamma0.size, lower_bound(request.order)), np.full(gamma0.size, MAX_EXPONENT)
     iterations, elapsed, solves = 0, 0.0, 0
 
-    def run(solver: Any, x0: np.ndarray, lbg: np.ndarray, ubg: np.ndarray) -> tuple[np.ndarray, SolverReport]:
+    def run(solver: Any, x0: FloatArray, lbg: FloatArray, ubg: FloatArray) -> tuple[FloatArray, SolverReport]:
         nonlocal iterations, elapsed, solves
         started = time.perf_counter()
         solution = solver(x0=np.clip(x0, lbx, ubx), p=p, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
@@ -100,14 +100,14 @@ def _solve_at(request: PseudoPolynomialRequest, start: np.ndarray, effort: str =
         iterations, elapsed, solves = iterations + report.iterations, elapsed + report.solve_time_s, solves + 1
         return np.asarray(solution["x"]).ravel(), report
 
-    def attempt(gamma: np.ndarray, stage: str, report: SolverReport) -> _Attempt:
+    def attempt(gamma: FloatArray, stage: str, report: SolverReport) -> _Attempt:
         gamma = np.clip(gamma, lbx, ubx)  # IPOPT may end a hair outside a bound
         energy, residual, _ = compiled.evaluate(gamma, p)
         return _Attempt(
             gamma, stage, SolverReport(report.status, iterations, elapsed), float(energy), float(residual), solves
         )
 
-    def feasible(gamma: np.ndarray) -> bool:
+    def feasible(gamma: FloatArray) -> bool:
         return float(compiled.violation(gamma, p)) <= 1e-9
 
     gamma, report = run(compiled.probe if effort == "probe" else compiled.quick, start, lbg_c, ubg_c)
@@ -116,7 +116,7 @@ def _solve_at(request: PseudoPolynomialRequest, start: np.ndarray, effort: str =
     if effort == "probe":
         raise Infeasible("no zero-energy design reached from the start", field="limits")
     energy_ref = float(p[compiled.layout["energy_ref"]][0])
-    best: tuple[float, np.ndarray, SolverReport] | None = None
+    best: tuple[float, FloatArray, SolverReport] | None = None
     last: SolverReport | None = None
     reached_limits = False
     for x0 in [gamma0, *(spread_starts(request.order) if effort == "thorough" else [])]:

@@ -10,11 +10,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numpy as np
+from numpy.typing import NDArray
+
 from models.plants import Plant
 from models.pseudo_polynomial import PseudoPolynomial
 from optim.solver import SolveCaps, SolverReport
 
-__all__ = ["Limits", "PseudoPolynomialDesign", "PseudoPolynomialRequest"]
+__all__ = ["FloatArray", "Limits", "PseudoPolynomialDesign", "PseudoPolynomialRequest"]
+
+FloatArray = NDArray[np.float64]  # exponents, parameter vectors, bounds
 
 
 @dataclass(frozen=True)
