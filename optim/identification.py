@@ -1,7 +1,7 @@
 """A vibration mode identified from a recorded free vibration (Biagiotti, Melchiorri and Moriello 2020, Sec. V-A).
 
 Eq. (16) reads the damped period T0 = t2 - t1 and the decay sigma = ln(p2/p1)/T0 off two successive
-peaks (``two_peak_estimate``); eq. (15) then tunes S_sigma with T = 3/2 T0. ``identify`` fits instead a
+peaks (``two_peak_estimate``), which tune S_sigma with T = 3/2 T0 (eq. 15). ``identify`` fits instead a
 damped sinusoid A e^(sigma t) cos(Omega t + phi) + offset to the whole record by least squares
 (scipy.optimize.least_squares), which is far less sensitive to noise than two peaks, and refuses records
 that hold no clear free vibration.

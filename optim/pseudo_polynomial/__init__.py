@@ -1,8 +1,8 @@
 """Exponents of a pseudo-polynomial command chosen by CasADi/IPOPT (Incerti, Secs. IV-V).
 
-The law phi(t) = Phi (1 + sum_i C_i (1 - t/T)^gamma_i) (eqs. 17-22) is chosen so that the final
-energy of the load's vibration (eq. 26, through the modal form of eqs. 27-30) vanishes, within the
-limits. The package holds:
+The exponents gamma_i of phi(t) = Phi [1 - sum_i C_i (1 - t/T)^gamma_i] (eq. 17, C_i by eq. 22) are
+chosen so that the final energy of the load's vibration (eq. 26, through the modal form of eqs. 27-30)
+vanishes, within the limits. The package holds:
 
 - ``types``: the request and the design;
 - ``problem``: the CasADi problem, built once per shape with named parameters, cached, warmed up;

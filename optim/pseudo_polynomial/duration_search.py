@@ -2,7 +2,7 @@
 
 Zero-energy designs do not exist at every duration: for order 2 they appear near whole numbers of
 periods of the mode (from about three), so feasibility is not monotone in T and the search scans
-durations before bisecting (Incerti, Sec. V, designs at a fixed T; the search is this service's).
+durations before bisecting. Incerti designs at a fixed T (Sec. V); this search is the service's own.
 """
 
 from __future__ import annotations

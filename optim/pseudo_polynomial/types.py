@@ -1,9 +1,9 @@
 """The request and the design of the pseudo-polynomial family (Incerti, Secs. IV-V).
 
-A request asks for a rest-to-rest move of ``displacement`` in ``duration_s`` by the law
-phi(t) = Phi (1 + sum_i C_i (1 - t/T)^gamma_i) of order n (eq. 17), from initial exponents (default
-n+1, ..., 2n+1), within optional limits; the design carries the exponents chosen, the final energy
-(eq. 26) and how they were selected.
+A request asks for a rest-to-rest move of ``displacement`` in ``duration_s`` by the law of order n
+phi(t) = Phi [1 - sum_i C_i (1 - t/T)^gamma_i] (eq. 17, C_i by eq. 22) from initial exponents, within
+optional limits; the design carries the exponents chosen, the final energy (eq. 26) before and after,
+and how the exponents were selected.
 """
 
 from __future__ import annotations
