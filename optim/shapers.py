@@ -1,4 +1,4 @@
-"""Input-shaper design from a vibration mode, and baselines that respect an acceleration limit.
+"""Input-shaper design from a vibration mode, and the catalogue of shapers.
 
 Shapers (all damping-aware; the conventional definitions of Singhose's papers and of Klipper's
 ``klippy/extras/shaper_defs.py``, which users compare with):
@@ -24,36 +24,65 @@ Shapers (all damping-aware; the conventional definitions of Singhose's papers an
   damping (5 %: EI about 0.68, 2-hump 0.44, 3-hump 0.28) the last impulses merge and no solution
   exists; that is reported as infeasible.
 
-Baselines under the acceleration limit a (Sec. 4 of Chatlatanagulchai & Pongpanich):
-
-- ``modified``: a ramp-plus-step of rise time Delta = a1 max|A_i| / a, so every shaped ramp has a
-  slope a1 |A_i| / Delta <= a, provided the no-overlap condition t_{i+1} - t_i >= Delta holds
-  (PAPER-NOTES: every shaped ramp lasts Delta). When it fails the closed form is not valid: that
-  is reported as infeasible, with the limits that would make it hold.
-- ``multi_step``: steps at the first m impulse times, each a ramp of rise Delta (Fig. 10). The
-  paper's two-step relations (a1 + a2 = V, a1 A1/Delta = (a1 A2 + a2 A1)/Delta = a) are used
-  where they hold: two impulses with A1 >= A2 (ZV) and no overlap. Otherwise (ZVD has A2 > A1, and
-  the relations give a2 < 0 and a slope of 2a), the fastest such baseline is found exactly: the
-  smallest Delta with non-negative step heights summing to V such that the shaped command's
-  slope, with overlapping ramps added, never exceeds a. It is a linear programme on each interval
-  of Delta where the overlaps do not change (scipy ``linprog``, HiGHS).
+The baselines under the acceleration limit (Sec. 4 of Chatlatanagulchai & Pongpanich) are in
+``optim.shaper_baselines``; they are re-exported here.
 """
 
 from __future__ import annotations
 
-import itertools
 import math
 import re
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Literal
 
 import numpy as np
-from scipy.optimize import linprog, root
+from numpy.typing import NDArray
+from scipy.optimize import root
 
 from models.errors import Infeasible, InvalidParameter
 from models.plants import Mode
-from models.shapers import ImpulseSequence, RampTrain, convolve, vibration_band
+from models.shapers import ImpulseSequence, convolve, vibration_band
+from optim.shaper_baselines import (
+    Baseline,
+    BaselineKind,
+    design_baseline,
+    fastest_cruise_velocity,
+    fastest_steps,
+    modified_baseline,
+    modified_ramp_time_s,
+    multi_step_baseline,
+    paper_two_step,
+    step_baseline,
+)
+
+__all__ = [
+    "CATALOGUE_NAMES",
+    "DEFAULT_VIBRATION_TOLERANCE",
+    "EI_HUMPS",
+    "MAX_COMMAND_S",
+    "MAX_DERIVATIVE_ORDER",
+    "Baseline",
+    "BaselineKind",
+    "CatalogueEntry",
+    "ShaperDesign",
+    "catalogue",
+    "design_baseline",
+    "design_for_modes",
+    "design_shaper",
+    "ei_family",
+    "ei_undamped",
+    "fastest_cruise_velocity",
+    "fastest_steps",
+    "modified_baseline",
+    "modified_ramp_time_s",
+    "multi_step_baseline",
+    "mzv",
+    "paper_two_step",
+    "step_baseline",
+    "zv_family",
+]
+
+FloatArray = NDArray[np.float64]
 
 DEFAULT_VIBRATION_TOLERANCE = 0.05
 MAX_DERIVATIVE_ORDER = 8  # zv followed by up to 8 letters d
@@ -64,9 +93,7 @@ _ZV_PATTERN = re.compile(r"^zv(d*)$")
 _CONDITIONS_TOLERANCE = 1e-10  # defining conditions are O(1) numbers: round-off is ~1e-15
 _ZETA_STEP = 0.05  # continuation step in the damping ratio for the EI family
 _ZETA_STEP_MIN = 1e-3
-MAX_COMMAND_S = 1e6
-
-BaselineKind = Literal["step", "modified", "multi_step"]
+MAX_COMMAND_S = 1e6  # the longest shaped command the service simulates
 
 
 @dataclass(frozen=True)
@@ -133,7 +160,7 @@ def mzv(mode: Mode) -> ImpulseSequence:
     return ImpulseSequence(amplitudes / amplitudes.sum(), times)
 
 
-def ei_undamped(humps: int, tolerance: float) -> np.ndarray:
+def ei_undamped(humps: int, tolerance: float) -> FloatArray:
     """The exact undamped m-hump EI amplitudes (impulses T/2 apart), Singhose et al.:
     EI ((1+V)/4, (1-V)/2, (1+V)/4); 2-hump A1 = (3X^2 + 2X + 3V^2)/(16X),
     X = (V^2 (sqrt(1-V^2) + 1))^(1/3); 3-hump A1 = (1 + 3V + 2 sqrt(2V(V+1)))/16, A2 = (1-V)/4."""
@@ -153,7 +180,7 @@ def ei_undamped(humps: int, tolerance: float) -> np.ndarray:
 # The EI family by root-finding on its defining conditions
 
 
-def _z_and_derivative(a: np.ndarray, t: np.ndarray, r: float, zeta: float) -> tuple[complex, complex]:
+def _z_and_derivative(a: FloatArray, t: FloatArray, r: float, zeta: float) -> tuple[complex, complex]:
     """sum_i A_i exp(-zeta r (t_n - t_i)) exp(j r sqrt(1-zeta^2) t_i) and its r-derivative, with
     times in units of 1/omega_n and r = omega/omega_n: |.| is V of Sec. 3.1."""
     wd = math.sqrt(1.0 - zeta * zeta)
@@ -161,7 +188,7 @@ def _z_and_derivative(a: np.ndarray, t: np.ndarray, r: float, zeta: float) -> tu
     return complex(terms.sum()), complex((terms * (-zeta * (t[-1] - t) + 1j * wd * t)).sum())
 
 
-def _extrema(a: np.ndarray, t: np.ndarray, humps: int) -> tuple[np.ndarray, np.ndarray]:
+def _extrema(a: FloatArray, t: FloatArray, humps: int) -> tuple[FloatArray, FloatArray]:
     """Zeros and humps of the undamped V(r) around r = 1 (the starting point of the solve)."""
     r = np.linspace(0.2, 1.8, 16001)
     v = np.abs(np.exp(1j * np.outer(r, t)) @ a)
@@ -182,7 +209,7 @@ class _EIConditions:
         self.tolerance = tolerance
         self.even = humps % 2 == 0  # the middle zero (m even) or hump (m odd) is at r = 1
 
-    def unpack(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def unpack(self, x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         n, m = self.n, self.humps
         a = x[:n]
         t = np.concatenate(([0.0], x[n : 2 * n - 1]))
@@ -195,12 +222,12 @@ class _EIConditions:
             tops = np.sort(np.append(tops, 1.0))
         return a, t, zeros, tops
 
-    def pack(self, a: np.ndarray, t: np.ndarray, zeros: np.ndarray, tops: np.ndarray) -> np.ndarray:
-        zeros = [z for z in zeros if abs(z - 1.0) > 1e-6] if self.even else list(zeros)
-        tops = list(tops) if self.even else [h for h in tops if abs(h - 1.0) > 1e-6]
-        return np.concatenate([a, t[1:], zeros, tops])
+    def pack(self, a: FloatArray, t: FloatArray, zeros: FloatArray, tops: FloatArray) -> FloatArray:
+        free_zeros = [z for z in zeros if abs(z - 1.0) > 1e-6] if self.even else list(zeros)
+        free_tops = list(tops) if self.even else [h for h in tops if abs(h - 1.0) > 1e-6]
+        return np.concatenate([a, t[1:], free_zeros, free_tops])
 
-    def residual(self, x: np.ndarray, zeta: float) -> np.ndarray:
+    def residual(self, x: FloatArray, zeta: float) -> FloatArray:
         a, t, zeros, tops = self.unpack(x)
         equations = [a.sum() - 1.0]  # eq. (6)
         for r in zeros:  # V = 0: both parts of C + jS vanish
@@ -211,7 +238,7 @@ class _EIConditions:
             equations += [abs(z) ** 2 - self.tolerance**2, 2.0 * (z.conjugate() * dz).real]
         return np.array(equations)
 
-    def well_formed(self, x: np.ndarray) -> bool:
+    def well_formed(self, x: FloatArray) -> bool:
         a, t, zeros, tops = self.unpack(x)
         ordered = np.sort(np.concatenate([zeros, tops]))
         alternating = np.all(np.isin(ordered[::2], zeros)) and ordered.size == 2 * self.humps + 1
@@ -224,7 +251,7 @@ def _ei_normalised(humps: int, zeta: float, tolerance: float) -> tuple[tuple[flo
     of its defining conditions. Solved from the exact undamped solution, continued in zeta."""
     conditions = _EIConditions(humps, tolerance)
     a0 = ei_undamped(humps, tolerance)
-    t0 = math.pi * np.arange(a0.size)
+    t0 = math.pi * np.arange(a0.size, dtype=np.float64)
     zeros, tops = _extrema(a0, t0, humps)
     x = conditions.pack(a0, t0, zeros, tops)
     reached, step = None, _ZETA_STEP
@@ -308,201 +335,6 @@ def design_for_modes(
 
 
 # ------------------------------------------------------------------------------------------
-# Baselines (Sec. 4)
-
-
-@dataclass(frozen=True)
-class Baseline:
-    """Velocity steps of ``step_heights`` at ``step_times_s``, each spread over a ramp of
-    ``ramp_time_s`` (0 for the plain step baseline)."""
-
-    kind: BaselineKind
-    step_times_s: np.ndarray
-    step_heights: np.ndarray
-    ramp_time_s: float
-    method: str
-
-    def train(self) -> RampTrain:
-        return RampTrain(self.step_times_s, np.full(self.step_times_s.size, self.ramp_time_s), self.step_heights)
-
-
-def step_baseline(velocity: float) -> Baseline:
-    """The original baseline: a velocity step of height V at t = 0 (Sec. 3.2)."""
-    return Baseline("step", np.array([0.0]), np.array([velocity]), 0.0, "velocity step")
-
-
-def modified_ramp_time_s(velocity: float, shaper: ImpulseSequence, acceleration_limit: float) -> float:
-    """Delta = a1 max|A_i| / a (Sec. 4): the shortest ramp whose shaped copies have slopes <= a."""
-    return abs(velocity) * float(np.max(np.abs(shaper.amplitudes))) / acceleration_limit
-
-
-def modified_baseline(velocity: float, shaper: ImpulseSequence, acceleration_limit: float) -> Baseline:
-    """The paper's ramp-plus-step (Fig. 7), valid when t_{i+1} - t_i >= Delta for every i."""
-    delta = modified_ramp_time_s(velocity, shaper, acceleration_limit)
-    if shaper.count > 1:
-        gaps = np.diff(shaper.times_s)
-        shortest = float(np.min(gaps))
-        if shortest < delta * (1.0 - 1e-12):
-            biggest = float(np.max(np.abs(shaper.amplitudes)))
-            train = RampTrain.single(0.0, delta, velocity).shaped(shaper)
-            raise Infeasible(
-                f"the modified baseline's ramp would last Delta = a1 max|A_i| / a = {delta:.6g} s, longer than "
-                f"the shortest gap between the shaper's impulses ({shortest:.6g} s): the shaped ramps would "
-                f"overlap and the command's slope would reach {train.max_slope():.6g} > acceleration_limit = "
-                f"{acceleration_limit:.6g} (the no-overlap condition t_(i+1) - t_i >= Delta of Sec. 4 fails). It "
-                f"holds for acceleration_limit >= {abs(velocity) * biggest / shortest:.6g} or a velocity of at most "
-                f"{acceleration_limit * shortest / biggest:.6g}; baseline 'multi_step' (with baseline_steps = 1 "
-                f"for a single ramp) lengthens the ramps until the overlapping slopes respect the limit",
-                "acceleration_limit",
-            )
-    method = "closed form: Delta = a1 max|A_i| / a (Sec. 4)"
-    return Baseline("modified", np.array([0.0]), np.array([velocity]), delta, method)
-
-
-def paper_two_step(velocity: float, shaper: ImpulseSequence, acceleration_limit: float) -> Baseline | None:
-    """Fig. 10's relations a1 + a2 = V, a1 A1 / Delta = (a1 A2 + a2 A1) / Delta = a, i.e.
-    a1 = V A1/(2A1 - A2), a2 = V (A1 - A2)/(2A1 - A2), Delta = V A1^2 / (a (2A1 - A2)).
-
-    They describe the shaped command only for two impulses with A1 >= A2 (ZV) and
-    Delta <= t_2 (PAPER-NOTES); None otherwise.
-    """
-    if shaper.count != 2:
-        return None
-    a1_amp, a2_amp = (float(x) for x in shaper.amplitudes)
-    if not (a2_amp > 0.0 and a1_amp >= a2_amp):
-        return None
-    v = abs(velocity)
-    denominator = 2.0 * a1_amp - a2_amp
-    heights = np.array([v * a1_amp / denominator, v * (a1_amp - a2_amp) / denominator])
-    delta = v * a1_amp * a1_amp / (acceleration_limit * denominator)
-    if delta > float(shaper.times_s[1]) * (1.0 + 1e-12):
-        return None
-    return Baseline(
-        "multi_step",
-        shaper.times_s.copy(),
-        math.copysign(1.0, velocity) * heights,
-        delta,
-        "closed form: the paper's two-step relations (Sec. 4, Fig. 10; two impulses with A1 >= A2)",
-    )
-
-
-def _distinct(values: np.ndarray) -> np.ndarray:
-    """Sorted values with those within round-off (1e-12 relative, 2e-9 s) of the previous dropped."""
-    v = np.sort(np.asarray(values, dtype=float))
-    if v.size == 0:
-        return v
-    tolerance = max(2e-9, 1e-12 * float(np.max(np.abs(v))))
-    return v[np.concatenate(([True], np.diff(v) > tolerance))]
-
-
-def fastest_steps(
-    velocity: float, shaper: ImpulseSequence, acceleration_limit: float, step_times_s: np.ndarray
-) -> tuple[np.ndarray, float]:
-    """Non-negative step heights b_j (sum V) at the given times and the smallest ramp time Delta
-    such that the shaped command sum_ij A_i b_j r_Delta(t - t_i - tau_j) has slope <= a.
-
-    The shaped ramps start at the distinct sums s_l = t_i + tau_j, with heights G_l(b) linear in b.
-    Ramp l is active on [s_l, s_l + Delta), so the slope at t = s_k is sum over
-    s_k - Delta < s_l <= s_k of G_l / Delta, and with G >= 0 these are the largest. Which ramps
-    overlap changes only where Delta crosses a difference s_k - s_l: on each interval between
-    those differences the problem is a linear programme in (b, Delta); the first feasible interval
-    gives the answer. Delta = V/a is always feasible (the slope is then at most V/Delta sum A_i), so
-    only differences below V/a matter.
-    """
-    if np.any(shaper.amplitudes < 0.0):
-        raise InvalidParameter("shaper", "negative impulses", "the multi-step baseline needs non-negative amplitudes")
-    v = abs(velocity)
-    m = step_times_s.size
-    sums = (shaper.times_s[:, None] + step_times_s[None, :]).ravel()  # impulse i, step j
-    starts = _distinct(sums)
-    group = np.argmin(np.abs(sums[:, None] - starts[None, :]), axis=1)
-    weights = np.zeros((starts.size, m))  # G_l(b) = weights[l] @ b, for V = 1
-    np.add.at(weights, (group, np.tile(np.arange(m), shaper.count)), np.repeat(shaper.amplitudes, m))
-    # Solve for V = 1 with times in units of V/a, the longest ramp ever needed (then every
-    # coefficient of the LP is O(1) and HiGHS' tolerances are relative).
-    unit_s = v / acceleration_limit
-    s = starts / unit_s
-    differences = _distinct((s[None, :] - s[:, None])[np.triu_indices(s.size, 1)])
-    # Delta = 1 (V/a) is feasible, so the intervals past the first difference >= 1 never matter.
-    edges = np.concatenate(([0.0], differences[differences < 1.0], differences[differences >= 1.0][:1], [math.inf]))
-    cost = np.zeros(m + 1)
-    cost[-1] = 1.0
-    equality = np.concatenate([np.ones(m), [0.0]])[None, :]
-
-    def active(delta: float) -> np.ndarray:
-        """Row k: the ramps active just after s_k (s_k - Delta < s_l <= s_k)."""
-        return ((s[None, :] <= s[:, None]) & (s[None, :] > s[:, None] - delta)).astype(float) @ weights
-
-    for low, high in itertools.pairwise(edges):  # a loop over overlap patterns (a few dozen)
-        rows = active(low + 1.0 if math.isinf(high) else 0.5 * (low + high))
-        result = linprog(
-            cost,
-            A_ub=np.hstack([rows, np.full((s.size, 1), -1.0)]),
-            b_ub=np.zeros(s.size),
-            A_eq=equality,
-            b_eq=[1.0],
-            bounds=[(0.0, None)] * m + [(low, None if math.isinf(high) else high)],
-            method="highs",
-        )
-        if result.status != 0:
-            continue
-        heights = np.clip(result.x[:m], 0.0, None)
-        heights /= heights.sum()
-        delta = float(result.x[-1])
-        # The exact slope at the solution decides (the LP's tolerances are ~1e-9).
-        slope = float(np.max(active(delta) @ heights)) / delta
-        if slope > 1.0:
-            delta *= slope
-        return math.copysign(v, velocity) * heights, delta * unit_s
-    # Unreachable in exact arithmetic (the last interval is feasible); valid in any case: one step
-    # at t = 0 ramped over V/a has shaped slope V/a sum(window A_i)/(V/a) <= a.
-    return math.copysign(v, velocity) * np.eye(m)[0], unit_s
-
-
-def multi_step_baseline(
-    velocity: float, shaper: ImpulseSequence, acceleration_limit: float, steps: int = 2
-) -> Baseline:
-    """Fig. 10's baseline with ``steps`` steps at the first impulse times: the paper's relations
-    where they hold, the fastest valid heights and ramp time otherwise (``fastest_steps``)."""
-    if not 1 <= steps <= shaper.count:
-        raise InvalidParameter("baseline_steps", steps, f"must lie in [1, {shaper.count}] (the shaper's impulse count)")
-    if steps == 2:
-        closed = paper_two_step(velocity, shaper, acceleration_limit)
-        if closed is not None:
-            return closed
-    step_times = shaper.times_s[:steps].copy()
-    heights, delta = fastest_steps(velocity, shaper, acceleration_limit, step_times)
-    why = "" if steps != 2 else " (the paper's two-step relations assume two impulses with A1 >= A2 and no overlap)"
-    return Baseline("multi_step", step_times, heights, delta, "fastest non-negative steps by linear programming" + why)
-
-
-def design_baseline(
-    kind: BaselineKind, velocity: float, shaper: ImpulseSequence, acceleration_limit: float | None, steps: int = 2
-) -> Baseline:
-    if kind == "step":
-        return step_baseline(velocity)
-    if acceleration_limit is None:
-        raise InvalidParameter("acceleration_limit", None, f"is required for baseline '{kind}'")
-    if kind == "modified":
-        return modified_baseline(velocity, shaper, acceleration_limit)
-    return multi_step_baseline(velocity, shaper, acceleration_limit, steps)
-
-
-def fastest_cruise_velocity(displacement: float, shaper: ImpulseSequence, acceleration_limit: float) -> float:
-    """The cruise velocity of the fastest rest-to-rest move with the modified baseline.
-
-    The move lasts D/V + V max|A_i|/a + t_n, convex in V with its minimum at
-    V = sqrt(a D / max|A_i|) (the baseline is then a triangle: cruise = Delta); the no-overlap
-    condition Delta <= min(t_(i+1) - t_i) caps V at a min gap / max|A_i|.
-    """
-    biggest = float(np.max(np.abs(shaper.amplitudes)))
-    best = math.sqrt(acceleration_limit * abs(displacement) / biggest)
-    if shaper.count > 1:
-        best = min(best, acceleration_limit * float(np.min(np.diff(shaper.times_s))) / biggest)
-    return best
-
-
-# ------------------------------------------------------------------------------------------
 # The catalogue
 
 
@@ -511,7 +343,7 @@ class CatalogueEntry:
     name: str
     impulse_count: int
     duration_periods: float
-    band: tuple[float, float] | None
+    band: tuple[float | None, float | None] | None  # an end is None past the scanned ratios
     amplitudes: tuple[float, ...]
     times_periods: tuple[float, ...]
     method: str

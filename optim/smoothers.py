@@ -1,31 +1,27 @@
-"""Design rules for trajectory smoothers (Biagiotti, Melchiorri and Moriello 2020).
+"""Chains of trajectory smoothers under kinematic limits (Biagiotti, Melchiorri and Moriello 2020).
 
 - Kinematic limits: T_1 = |h|/v, T_i = q_max^(i-1)/q_max^(i) (eq. 2) under the ordering T_k >= sum_{i>k} T_i
   (eq. 3); where eq. 3 fails a bound is not reached and the level's peak is lowered until eq. 3 holds
   with equality (the time-optimal multi-segment law of the paper's ref. [8]). The harmonic filter's
   duration under limits is eq. (6).
-- Vibration: a filter cancels a mode with pole sigma_p + j Omega when its zeros reach it. S and S_sigma
-  have zeros at sigma +- j (2m+1) pi/T for m >= 1 (the first pair is cancelled by the filter's own poles),
-  so T = (2m+1) pi/Omega, m >= 1, with sigma = -zeta omega_n for S_sigma (eqs. 11, 13, 15 as corrected in
-  PAPER-NOTES: eqs. 13 and 15 allow T = 3 k pi/Omega, which is wrong for even k). M and M_sigma have zeros
-  at sigma +- j 2 k pi/T: T = 2 k pi/Omega. The undamped filters cancel a damped mode only approximately.
+- Vibration: the filters tuned to the plant's mode (eqs. 11, 13, 15 corrected; ``optim.filter_tuning``).
 - Both: the vibration filters are kept and rectangular filters are put in front of them, with eq. (3)
   extended to the whole chain, so every peak has a closed form (see ``design_chain``).
-- Drives: eq. (17) at N = round(T/Ts), the residual caused by the rounding and the exact alternatives.
-- Identification: the mode from a free vibration record (eq. 16), by a least-squares fit of a damped
-  sinusoid (scipy.optimize.least_squares) rather than two peaks.
+
+The eq. (17) discrete filters of a drive are in ``optim.discrete_filters`` and the identification of the mode
+from a free vibration (eq. 16) in ``optim.identification``; both are re-exported here.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import brentq, least_squares
-from scipy.signal import find_peaks
+from scipy.optimize import brentq
 
-from models.commands import PiecewiseCommand
+from models.commands import Hold, PiecewiseCommand
 from models.errors import Infeasible, InvalidParameter
 from models.plants import Mode, Plant
 from models.simulation import metrics, simulate
@@ -33,21 +29,51 @@ from models.smoothers import (
     DAMPED,
     MAX_DURATION_S,
     MIN_DURATION_S,
-    SINUSOIDAL,
     Chain,
-    DiscreteFilter,
     FilterKind,
     Smoother,
     StepResponse,
-    discrete_filter,
-    discrete_step_response,
     mode_residuals,
     refinement,
-    residual_fraction,
     step_response,
 )
+from optim.discrete_filters import DiscreteDesign, commensurate_sample_period_s, design_discrete
+from optim.filter_tuning import (
+    VIBRATION_FREE_TOLERANCE,
+    cancels,
+    same_time_ratio,
+    tuned_duration_s,
+    tuned_filter,
+    vibration_free_durations_s,
+)
+from optim.identification import Identification, identify, two_peak_estimate
 
-VIBRATION_FREE_TOLERANCE = 1e-6  # |F(p)| below this: the filter's zero sits on the mode
+__all__ = [
+    "VIBRATION_FREE_TOLERANCE",
+    "ChainDesign",
+    "ChainResidual",
+    "DiscreteDesign",
+    "FilterSpec",
+    "Identification",
+    "Limits",
+    "cancels",
+    "chain_residual",
+    "commensurate_sample_period_s",
+    "design_chain",
+    "design_discrete",
+    "fixed_chain_peaks",
+    "harmonic_duration_s",
+    "hold_residual",
+    "identify",
+    "limited_durations_s",
+    "rectangular_durations_s",
+    "same_time_ratio",
+    "tuned_duration_s",
+    "tuned_filter",
+    "two_peak_estimate",
+    "vibration_free_durations_s",
+]
+
 _PEAK_SAMPLES = 4096  # samples of a fixed chain's step response when its peaks are measured
 _MAX_PEAK_SAMPLES = 1 << 17  # bounds that work for chains mixing very different time scales
 
@@ -74,7 +100,7 @@ class Limits:
         return max(orders) if orders else 0
 
 
-def _bracket_root(g, start: float) -> tuple[float, float]:
+def _bracket_root(g: Callable[[float], float], start: float) -> tuple[float, float]:
     """(lo, hi) with g(lo) > 0 >= g(hi), by factors of 4 from ``start`` (bounded search)."""
     hi = start
     for _ in range(400):
@@ -148,55 +174,6 @@ def harmonic_duration_s(peak_n: float, limit_n1: float | None, limit_n2: float |
 
 
 # ------------------------------------------------------------------------------------------
-# Vibration tuning
-
-
-def tuned_duration_s(kind: FilterKind, mode: Mode, multiple: int = 1) -> float:
-    """The shortest duration (multiple = 1) whose zeros reach the mode's damped frequency Omega:
-    (2m+1) pi/Omega with m = multiple for S and S_sigma (eqs. 11, 13 corrected), 2 k pi/Omega with
-    k = multiple for M and M_sigma."""
-    if multiple < 1:
-        raise InvalidParameter("multiple", multiple, "must be >= 1")
-    omega = mode.damped_frequency_rad_s
-    if kind in SINUSOIDAL:
-        return (2 * multiple + 1) * math.pi / omega
-    return 2 * multiple * math.pi / omega
-
-
-def tuned_filter(kind: FilterKind, mode: Mode, duration_s: float | None = None) -> Smoother:
-    """A filter tuned to the mode: its duration (unless given) and, for S_sigma and M_sigma, the decay
-    rate sigma = -zeta omega_n (eq. 11)."""
-    duration = tuned_duration_s(kind, mode) if duration_s is None else duration_s
-    decay = mode.decay_rate_1_s if kind in DAMPED else 0.0
-    return Smoother(kind, duration, decay)
-
-
-def cancels(smoother: Smoother, mode: Mode, tolerance: float = VIBRATION_FREE_TOLERANCE) -> bool:
-    """Whether a zero of the filter sits on the mode's pole: |F(p)| <= tolerance (the residual as a
-    fraction of the unfiltered one, at the same time after the end)."""
-    return same_time_ratio(Chain((smoother,)), mode) <= tolerance
-
-
-def same_time_ratio(chain: Chain, mode: Mode) -> float:
-    """|F(p)|: the residual envelope with the chain over the unfiltered one at the same time after the
-    end (the percent residual vibration of Sec. IV, / 100); inf where it overflows (very long chains)."""
-    with np.errstate(over="ignore", invalid="ignore"):
-        value = residual_fraction(chain, mode.pole) * np.exp(-mode.pole.real * chain.total_duration_s)
-    return float(value) if np.isfinite(value) else math.inf
-
-
-def vibration_free_durations_s(kind: FilterKind, mode: Mode, count: int = 3) -> list[float]:
-    """The ``count`` shortest durations of a filter of this kind that cancel the mode exactly.
-
-    S_sigma: 3, 5, 7, ... pi/Omega (never an even multiple); M_sigma: 2, 4, 6, ... pi/Omega. The
-    undamped S and M cancel only an undamped mode: none are offered when zeta > 0.
-    """
-    if kind not in DAMPED and mode.damping_ratio > 0.0:
-        return []
-    return [tuned_duration_s(kind, mode, k) for k in range(1, count + 1)]
-
-
-# ------------------------------------------------------------------------------------------
 # Chains meeting limits and suppression
 
 
@@ -235,7 +212,8 @@ def fixed_chain_peaks(filters: tuple[Smoother, ...]) -> tuple[float, float, floa
     response = step_response(chain, 1.0, period)
     command = response.command()
     peaks = [command.peak_abs(q + 1) for q in range(3)]
-    return tuple(math.inf if p is None else p * (1.0 + 1e-9) for p in peaks)  # type: ignore[return-value]
+    velocity, acceleration, jerk = (math.inf if p is None else p * (1.0 + 1e-9) for p in peaks)
+    return velocity, acceleration, jerk
 
 
 def _prefix_for(
@@ -252,9 +230,10 @@ def _prefix_for(
     caps: list[float] = [b if b is not None else math.inf for b in bounds[:m]]
     ceiling = math.inf
     for k in range(m + 1, 4):  # derivatives carried by the fixed filters
-        if bounds[k - 1] is not None:
+        bound = bounds[k - 1]
+        if bound is not None:
             c = peaks[k - m - 1]
-            ceiling = min(ceiling, bounds[k - 1] / c if c > 0 else math.inf)
+            ceiling = min(ceiling, bound / c if c > 0 else math.inf)
     if m == 0:
         if ceiling < h:
             return None
@@ -291,14 +270,17 @@ def design_chain(plant: Plant, displacement: float, specs: list[FilterSpec], lim
     warnings: list[str] = []
     for i, spec in enumerate(specs):
         try:
-            if mode is None and (spec.duration_s is None or spec.kind in DAMPED):
+            if mode is not None:
+                fixed.append(tuned_filter(spec.kind, mode, spec.duration_s))
+            elif spec.duration_s is not None and spec.kind not in DAMPED:
+                fixed.append(Smoother(spec.kind, spec.duration_s))  # what tuned_filter gives: no decay rate
+            else:
                 what = "duration" if spec.duration_s is None else "decay rate"
                 raise InvalidParameter(
                     "duration_s" if spec.duration_s is None else "type",
                     spec.duration_s if spec.duration_s is not None else spec.kind,
                     f"the plant has no vibration mode to take the {what} from",
                 )
-            fixed.append(tuned_filter(spec.kind, mode, spec.duration_s))  # type: ignore[arg-type]
         except InvalidParameter as exc:
             if exc.field == "decay_rate_1_s":  # the decay rate comes from the plant, not from the request
                 exc = InvalidParameter(
@@ -340,7 +322,9 @@ def design_chain(plant: Plant, displacement: float, specs: list[FilterSpec], lim
             t = MIN_DURATION_S
         prefix.append(Smoother("rectangular", t))
     chain = Chain((*prefix, *fixed))
-    return ChainDesign(chain, ("limits",) * len(prefix) + tuple(roles), mode, tuple(predicted), tuple(warnings))  # type: ignore[arg-type]
+    velocity, acceleration, jerk = predicted  # one per derivative 1..3 (``_prefix_for``)
+    roles_all = ("limits",) * len(prefix) + tuple(roles)
+    return ChainDesign(chain, roles_all, mode, (velocity, acceleration, jerk), tuple(warnings))
 
 
 @dataclass(frozen=True)
@@ -378,324 +362,11 @@ def hold_residual(step: StepResponse, plant: Plant) -> float:
     between samples and leaves far more (figures in tests/models/test_smoothers.py).
     """
     smooth = step.chain.continuous_derivatives
-    order, hold = (0, "linear") if smooth == 0 else (min(smooth - 1, 2), "cubic")
+    hold: Hold = "linear" if smooth == 0 else "cubic"
+    order = 0 if smooth == 0 else min(smooth - 1, 2)
     initial = tuple(float(step.derivative(m)[0]) for m in range(order))
     slopes = step.derivative(order + 1) if hold == "cubic" else None
     command = PiecewiseCommand.from_samples(
         step.time_s, step.derivative(order), order, hold=hold, slopes=slopes, initial=initial
     )
     return metrics(simulate(plant, command)).residual_amplitude / plant.load_move(step.displacement)
-
-
-# ------------------------------------------------------------------------------------------
-# Discrete filters for drives
-
-
-@dataclass(frozen=True)
-class DiscreteDesign:
-    sample_period_s: float
-    filters: tuple[DiscreteFilter, ...]
-    lead_s: float  # half a sample per sinusoidal stage (eq. 17 is a rectangle-rule sum)
-    percent_residual_vibration: float | None  # 100 |D(e^(p Ts))| on the tuning mode
-    residual_amplitude: float  # of the plant driven by the discrete output (first-order hold), simulated
-    residual_fraction_of_move: float
-    exact_sample_period_s: float | None  # a Ts with N Ts = T for every vibration-tuned filter
-    max_deviation: float  # max_k |y_d[k] - q(k Ts + lead)|, motor units
-    samples: int  # length of the discrete step response until it rests
-
-
-def commensurate_sample_period_s(chain: Chain, mode: Mode | None, sample_period_s: float) -> float | None:
-    """The sample period nearest ``sample_period_s`` with N Ts = T for every filter that cancels the
-    mode (candidates: T_i/round(T_i/Ts) and (pi/Omega)/round(pi/(Omega Ts)), since tuned durations are
-    multiples of pi/Omega); None when no filter cancels it.
-
-    At such a period the discrete filters (eq. 17) cancel the mode, and so does a linear hold on the
-    sampled velocity of the continuous profile: the hold's transform is the sampled impulse response's,
-    whose aliases p + j 2 pi n/Ts all fall on zeros sigma + j (2m+1) pi/T of the tuned filter.
-    """
-    if mode is None:
-        return None
-    tuned = [f.duration_s for f in chain.filters if cancels(f, mode)]
-    if not tuned:
-        return None
-    base = math.pi / mode.damped_frequency_rad_s
-    candidates = [t / max(1, round(t / sample_period_s)) for t in (*tuned, base)]
-
-    def exact(ts: float) -> bool:
-        return all(abs(t / ts - round(t / ts)) <= 1e-9 * (t / ts) for t in tuned)
-
-    good = [ts for ts in candidates if exact(ts)]
-    return min(good, key=lambda ts: abs(ts - sample_period_s)) if good else None
-
-
-def design_discrete(
-    chain: Chain,
-    plant: Plant,
-    displacement: float,
-    mode: Mode | None,
-    sample_period_s: float,
-    max_samples: int,
-    field_name: str = "discrete_sample_period_s",
-) -> DiscreteDesign:
-    """Each filter at N = round(T/Ts) samples (eq. 17 and its analogues), the residual that rounding
-    leaves, the half-sample lead, and the exact sample period."""
-    ts = float(sample_period_s)
-    counts = [max(1, round(f.duration_s / ts)) for f in chain.filters]
-    for f, n in zip(chain.filters, counts, strict=True):
-        if f.kind in SINUSOIDAL and n < 2:
-            raise InvalidParameter(
-                field_name, ts, f"must be at most half the {f.kind} filter's duration ({f.duration_s / 2:.6g} s)"
-            )
-    if sum(counts) + 2 > max_samples:
-        raise InvalidParameter(
-            field_name,
-            ts,
-            f"the discrete filters would span {sum(counts) + 2} samples; at most {max_samples} are allowed "
-            f"(use a period >= {chain.total_duration_s / (max_samples - 2):.3g} s)",
-        )
-    filters = tuple(discrete_filter(f, ts, n) for f, n in zip(chain.filters, counts, strict=True))
-    # The step response changes until sample sum(N_i): each stage's last tap is at N_i (zero for S, S_sigma).
-    last = sum(counts)
-    y = discrete_step_response(filters, displacement, last + 1)
-    y[-1] = displacement  # the FIR chain has reached its static gain exactly; drop the IIR round-off
-    t = ts * np.arange(last + 1)
-    command = PiecewiseCommand.from_samples(t, y, 0, field="discrete")
-    result = metrics(simulate(plant, command))
-    lead = 0.5 * ts * sum(1 for f in chain.filters if f.kind in SINUSOIDAL)
-    # The continuous profile, exact at k Ts + lead (the engine's samples, no interpolation).
-    shifted = step_response(chain, displacement, ts, degree=0, offset_s=lead)
-    on_grid = np.abs((shifted.time_s - lead) / ts - np.round((shifted.time_s - lead) / ts)) < 1e-6
-    reference = np.full(t.size, float(displacement))
-    k = np.round((shifted.time_s[on_grid] - lead) / ts).astype(int)
-    inside = k < t.size
-    reference[k[inside]] = shifted.position[on_grid][inside]
-    prv = None
-    if mode is not None:
-        with np.errstate(over="ignore", invalid="ignore"):
-            z = np.exp(np.array([mode.pole]) * ts)
-            value = abs(np.prod([f.transfer(z)[0] for f in filters]))
-        prv = 100.0 * float(value) if np.isfinite(value) else None
-    return DiscreteDesign(
-        sample_period_s=ts,
-        filters=filters,
-        lead_s=lead,
-        percent_residual_vibration=prv,
-        residual_amplitude=result.residual_amplitude,
-        residual_fraction_of_move=result.residual_amplitude / plant.load_move(displacement),
-        exact_sample_period_s=commensurate_sample_period_s(chain, mode, ts),
-        max_deviation=float(np.max(np.abs(y - reference))),
-        samples=last + 1,
-    )
-
-
-# ------------------------------------------------------------------------------------------
-# Identification (Sec. V-A)
-
-MIN_RECORD_SAMPLES = 16
-MIN_PERIODS = 2.0
-MIN_R_SQUARED = 0.5
-MIN_SIGNAL_TO_NOISE = 3.0
-MIN_SAMPLES_PER_PERIOD = 4.0
-
-
-@dataclass(frozen=True)
-class Identification:
-    """A damped sinusoid A e^(sigma t) cos(Omega t + phi) + offset fitted to a free vibration."""
-
-    damped_angular_frequency_rad_s: float  # Omega
-    decay_rate_1_s: float  # -sigma >= 0
-    amplitude: float
-    offset: float
-    r_squared: float
-    rms_residual: float
-    periods: float
-    signal_to_noise: float
-    frequency_std_rad_s: float
-    decay_rate_std_1_s: float
-    samples: int
-    two_peak: tuple[float, float] | None  # (Omega, -sigma) by eq. (16), for comparison
-    warnings: tuple[str, ...] = field(default=())
-
-    @property
-    def mode(self) -> Mode:
-        omega_n = math.hypot(self.decay_rate_1_s, self.damped_angular_frequency_rad_s)
-        return Mode(omega_n, self.decay_rate_1_s / omega_n)
-
-
-def _refuse(reason: str, field_name: str = "signal", value: object = None) -> InvalidParameter:
-    return InvalidParameter(field_name, value, reason)
-
-
-def _initial_frequency(t: np.ndarray, y: np.ndarray) -> float:
-    """The spectral peak of the record resampled on a uniform grid (Hann window, zero-padded FFT,
-    parabolic interpolation of the peak)."""
-    n = int(min(max(t.size, 64), 1 << 16))
-    grid = np.linspace(t[0], t[-1], n)
-    u = np.interp(grid, t, y)
-    u = (u - np.mean(u)) * np.hanning(n)
-    size = 8 * (1 << math.ceil(math.log2(n)))
-    spectrum = np.abs(np.fft.rfft(u, size))
-    spectrum[0] = 0.0
-    k = int(np.argmax(spectrum))
-    if 0 < k < spectrum.size - 1:
-        a, b, c = spectrum[k - 1], spectrum[k], spectrum[k + 1]
-        denom = a - 2 * b + c
-        k = k + (0.5 * (a - c) / denom if denom != 0 else 0.0)
-    dt = (grid[-1] - grid[0]) / (n - 1)
-    return 2.0 * math.pi * k / (size * dt)
-
-
-def two_peak_estimate(t: np.ndarray, y: np.ndarray, omega_guess: float) -> tuple[float, float] | None:
-    """Eq. (16): T0 = t2 - t1 and sigma = ln(p2/p1)/T0 from the first two successive maxima of the
-    record (offset removed by its median); returns (Omega, -sigma) or None when there are no two."""
-    dt = float(np.median(np.diff(t)))
-    distance = max(1, int(0.6 * (2 * math.pi / omega_guess) / dt))
-    centred = y - np.median(y)
-    peaks, _ = find_peaks(centred, distance=distance)
-    peaks = peaks[centred[peaks] > 0]
-    if peaks.size < 2:
-        return None
-    t1, t2 = t[peaks[0]], t[peaks[1]]
-    p1, p2 = centred[peaks[0]], centred[peaks[1]]
-    if t2 <= t1 or p2 <= 0:
-        return None
-    period = t2 - t1
-    return 2 * math.pi / period, -math.log(p2 / p1) / period
-
-
-def _basis(t: np.ndarray, sigma: float, omega: float) -> np.ndarray:
-    envelope = np.exp(np.clip(sigma * t, -700.0, 700.0))
-    return np.column_stack([envelope * np.cos(omega * t), envelope * np.sin(omega * t), np.ones_like(t)])
-
-
-def identify(time_s: np.ndarray, signal: np.ndarray) -> Identification:
-    """Omega and sigma of a free vibration (eq. 16's quantities) by least squares.
-
-    The model y = e^(sigma t) (a cos Omega t + b sin Omega t) + c is linear in (a, b, c): for each
-    (sigma, Omega) they are solved exactly (variable projection) and scipy.optimize.least_squares fits
-    (sigma, Omega), started from the spectral peak and eq. (16)'s two-peak decay. Standard errors come
-    from the full Jacobian at the optimum. A record is refused when it spans fewer than 2 periods, is
-    sampled with fewer than 4 samples per period, or holds no oscillation clearly above its noise
-    (R^2 < 0.5 or amplitude < 3 times the residual rms).
-    """
-    from models.commands import check_time_grid
-
-    t_abs = check_time_grid(np.asarray(time_s, dtype=float), "time_s")
-    y = np.asarray(signal, dtype=float)
-    if y.shape != t_abs.shape:
-        raise InvalidParameter("signal", f"{y.size} samples", f"must have as many samples as time_s ({t_abs.size})")
-    if not np.all(np.isfinite(y)) or np.max(np.abs(y)) > 1e12:
-        k = int(np.argmax(~np.isfinite(y) | (np.abs(y) > 1e12)))
-        raise InvalidParameter(f"signal[{k}]", str(y[k]), "must be finite and within +-1e12")
-    if t_abs.size < MIN_RECORD_SAMPLES:
-        raise InvalidParameter("time_s", f"{t_abs.size} samples", f"needs at least {MIN_RECORD_SAMPLES} samples")
-    t = t_abs - t_abs[0]
-    spread = float(np.max(y) - np.min(y))
-    if spread == 0.0:
-        raise _refuse("the signal is constant: it holds no oscillation", value="constant")
-    scale = spread / 2.0
-    yn = (y - np.median(y)) / scale
-    duration = float(t[-1])
-    omega0 = _initial_frequency(t, yn)
-    if not omega0 > 0.0:
-        raise _refuse("the record holds no oscillation (no spectral peak)", value="no peak")
-    peaks = two_peak_estimate(t, yn, omega0)
-    decay0 = peaks[1] if peaks is not None and 0.0 <= peaks[1] < 10 * omega0 else 0.1 * omega0 / (2 * math.pi)
-
-    def residual(params: np.ndarray) -> np.ndarray:
-        basis = _basis(t, params[0], params[1])
-        coef, *_ = np.linalg.lstsq(basis, yn, rcond=None)
-        return basis @ coef - yn
-
-    best = None
-    for omega_start in (omega0, 0.97 * omega0, 1.03 * omega0):  # a few starts: the cost ripples in Omega
-        fit = least_squares(
-            residual,
-            x0=np.array([-decay0, omega_start]),
-            x_scale=np.array([max(decay0, 0.01 * omega0), omega0]),
-            bounds=([-50.0 * omega0, 1e-3 * omega0], [10.0 * omega0 / max(duration * omega0, 1.0), 1e3 * omega0]),
-            method="trf",
-            xtol=1e-14,
-            ftol=1e-14,
-            gtol=1e-14,
-            max_nfev=400,
-        )
-        if best is None or fit.cost < best.cost:
-            best = fit
-    assert best is not None
-    sigma, omega = float(best.x[0]), float(best.x[1])
-    basis = _basis(t, sigma, omega)
-    (a, b, c), *_ = np.linalg.lstsq(basis, yn, rcond=None)
-    fitted = basis @ np.array([a, b, c])
-    res = yn - fitted
-    ss_res = float(np.sum(res**2))
-    ss_tot = float(np.sum((yn - np.mean(yn)) ** 2))
-    r2 = 1.0 - ss_res / ss_tot if ss_tot > 0 else 0.0
-    rms = math.sqrt(ss_res / t.size)
-    amplitude = math.hypot(a, b)
-    snr = amplitude / rms if rms > 0 else math.inf
-    periods = omega * duration / (2 * math.pi)
-    samples_per_period = 2 * math.pi / (omega * float(np.median(np.diff(t))))
-    # Standard errors from the Jacobian of the full model in (sigma, Omega, a, b, c).
-    env = np.exp(np.clip(sigma * t, -700.0, 700.0))
-    cos, sin = np.cos(omega * t), np.sin(omega * t)
-    osc = a * cos + b * sin
-    jac = np.column_stack([t * env * osc, t * env * (-a * sin + b * cos), env * cos, env * sin, np.ones_like(t)])
-    dof = max(1, t.size - 5)
-    try:
-        cov = np.linalg.inv(jac.T @ jac) * ss_res / dof
-        sigma_std, omega_std = math.sqrt(max(cov[0, 0], 0.0)), math.sqrt(max(cov[1, 1], 0.0))
-    except np.linalg.LinAlgError:
-        sigma_std = omega_std = math.inf
-    if r2 < MIN_R_SQUARED or snr < MIN_SIGNAL_TO_NOISE:
-        raise _refuse(
-            f"the record holds no damped oscillation clearly above its noise: the best damped sinusoid "
-            f"explains {100 * max(r2, 0.0):.3g} % of its variance (at least {100 * MIN_R_SQUARED:g} % needed) "
-            f"with an amplitude {snr:.3g} times the residual rms (at least {MIN_SIGNAL_TO_NOISE:g} needed)",
-            value=f"{t.size} samples",
-        )
-    if samples_per_period < MIN_SAMPLES_PER_PERIOD:
-        raise _refuse(
-            f"the fitted oscillation ({omega:.6g} rad/s) has only {samples_per_period:.2g} samples per period; "
-            f"at least {MIN_SAMPLES_PER_PERIOD:g} are needed (sample faster)",
-            "time_s",
-            f"{t.size} samples",
-        )
-    if periods < MIN_PERIODS:
-        raise _refuse(
-            f"the record spans {periods:.3g} periods of the fitted oscillation ({omega:.6g} rad/s); at least "
-            f"{MIN_PERIODS:g} are needed",
-            "time_s",
-            f"{duration:.6g} s",
-        )
-    warnings: list[str] = []
-    decay = -sigma
-    if decay < 0.0:
-        if -decay <= 3.0 * sigma_std:
-            warnings.append(
-                f"the fitted decay rate {decay:.3g} 1/s is negative but within 3 standard errors of 0: set to 0"
-            )
-            decay = 0.0
-        else:
-            raise _refuse(
-                f"the oscillation grows (decay rate {decay:.4g} 1/s): not the free vibration of a stable plant",
-                value=f"{t.size} samples",
-            )
-    two_peak = None
-    if peaks is not None:
-        two_peak = (float(peaks[0]), float(peaks[1]))
-    return Identification(
-        damped_angular_frequency_rad_s=omega,
-        decay_rate_1_s=decay,
-        amplitude=amplitude * scale,
-        offset=float(c * scale + np.median(y)),
-        r_squared=r2,
-        rms_residual=rms * scale,
-        periods=periods,
-        signal_to_noise=snr,
-        frequency_std_rad_s=omega_std,
-        decay_rate_std_1_s=sigma_std,
-        samples=int(t.size),
-        two_peak=two_peak,
-        warnings=tuple(warnings),
-    )

@@ -1,0 +1,158 @@
+"""Exponents of a pseudo-polynomial command chosen by CasADi/IPOPT (Incerti, Secs. IV-V).
+
+The exponents gamma_i of phi(t) = Phi [1 - sum_i C_i (1 - t/T)^gamma_i] (eq. 17, C_i by eq. 22) are
+chosen so that the final energy of the load's vibration (eq. 26, through the modal form of eqs. 27-30)
+vanishes, within the limits. The package holds:
+
+- ``types``: the request and the design;
+- ``problem``: the CasADi problem, built once per shape with named parameters, cached, warmed up;
+- ``solve``: one design at a fixed duration from a start, and the rule that selects it;
+- ``duration_search``: the shortest duration (``minimize_duration``);
+- here: the checks of a request and ``design``, the entry point run in a worker process.
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from models.errors import InvalidParameter
+from models.plants import TwoInertiaPlant
+from models.pseudo_polynomial import PseudoPolynomial, check_exponents
+from optim.pseudo_polynomial.duration_search import _shortest
+from optim.pseudo_polynomial.problem import (
+    _CACHE,
+    CONSTRAINT_INTERVALS,
+    LIMIT_MARGIN,
+    MAX_EXPONENT,
+    MAX_MODES,
+    MIN_SEPARATION,
+    PROBE_ITERATIONS,
+    QUADRATURE_SIZES,
+    QUICK_ITERATIONS,
+    SEARCH_ITERATIONS,
+    SYMBOLIC_KINDS,
+    _active,
+    _build,
+    _oscillatory,
+    _parameters,
+    _prepare,
+    evaluate,
+    limit_grid_u,
+    lower_bound,
+    quadrature_nodes,
+    warm_up,
+)
+from optim.pseudo_polynomial.solve import (
+    SPREAD_STARTS,
+    ZERO_ENERGY,
+    _raise_unless_design,
+    _solve_at,
+    check_limits_possible,
+    spread_starts,
+)
+from optim.pseudo_polynomial.types import Limits, PseudoPolynomialDesign, PseudoPolynomialRequest
+
+__all__ = [
+    "CONSTRAINT_INTERVALS",
+    "LIMIT_MARGIN",
+    "MAX_EXPONENT",
+    "MAX_MODES",
+    "MAX_ORDER",
+    "MIN_SEPARATION",
+    "PROBE_ITERATIONS",
+    "QUADRATURE_SIZES",
+    "QUICK_ITERATIONS",
+    "SEARCH_ITERATIONS",
+    "SPREAD_STARTS",
+    "SYMBOLIC_KINDS",
+    "ZERO_ENERGY",
+    "_CACHE",
+    "Limits",
+    "PseudoPolynomialDesign",
+    "PseudoPolynomialRequest",
+    "_build",
+    "_oscillatory",
+    "_parameters",
+    "_prepare",
+    "check_limits_possible",
+    "default_exponents",
+    "design",
+    "evaluate",
+    "limit_grid_u",
+    "lower_bound",
+    "quadrature_nodes",
+    "spread_starts",
+    "warm_up",
+]
+
+MAX_ORDER = 6
+
+
+def default_exponents(order: int) -> tuple[float, ...]:
+    """n+1, ..., 2n+1: the classical polynomial with n null derivatives at both ends ((3, 4, 5)
+    for n = 2); from 3 up for n = 1, where the lower bound is 3."""
+    first = max(order + 1, 3)
+    return tuple(float(first + i) for i in range(order + 1))
+
+
+def _checked(request: PseudoPolynomialRequest) -> tuple[PseudoPolynomialRequest, tuple[float, ...]]:
+    """The request with its initial exponents set and sorted, and those exponents; raises on a bad request."""
+    if not 1 <= request.order <= MAX_ORDER:
+        raise InvalidParameter("order", request.order, f"must lie in 1..{MAX_ORDER}")
+    initial = check_exponents(request.initial_exponents or default_exponents(request.order), request.order)
+    ordered = sorted(initial)
+    if min(b - a for a, b in itertools.pairwise(ordered)) < MIN_SEPARATION:
+        raise InvalidParameter(
+            "initial_exponents",
+            list(initial),
+            f"exponents must be at least {MIN_SEPARATION:g} apart (eq. 22 stays well conditioned)",
+        )
+    if min(initial) < lower_bound(request.order):
+        raise InvalidParameter(
+            "initial_exponents",
+            list(initial),
+            f"every exponent must be >= {lower_bound(request.order):g} for order {request.order} (above the order, "
+            "and at least 3 so the jerk stays bounded)",
+        )
+    if request.limits.max_torque_nm is not None and not isinstance(request.plant, TwoInertiaPlant):
+        raise InvalidParameter(
+            "limits.max_torque_nm",
+            request.limits.max_torque_nm,
+            f"a {request.plant.kind} plant does not define the motor torque",
+        )
+    if request.minimize_duration and not any(_active(request.limits)):
+        raise InvalidParameter(
+            "minimize_duration", True, "needs at least one limit (without limits any duration works)"
+        )
+    check_limits_possible(request)
+    initial_exponents = tuple(sorted(initial))
+    return replace(request, initial_exponents=initial_exponents), initial_exponents
+
+
+def design(request: PseudoPolynomialRequest) -> PseudoPolynomialDesign:
+    """The design for a request (runs in a worker process)."""
+    request, initial = _checked(request)
+    energy0, residual0 = evaluate(request, np.asarray(initial))
+    started = time.perf_counter()
+    if request.minimize_duration:
+        duration, attempt, tried = _shortest(request)
+    else:
+        duration, attempt, tried = request.duration_s, _solve_at(request, np.asarray(initial)), ()
+        _raise_unless_design(attempt)
+    return PseudoPolynomialDesign(
+        law=PseudoPolynomial(request.displacement, duration, tuple(attempt.gamma)),
+        initial=PseudoPolynomial(request.displacement, request.duration_s, initial),
+        initial_energy=energy0,
+        final_energy=attempt.energy,
+        residual_amplitude=attempt.residual,
+        initial_residual_amplitude=residual0,
+        selection=attempt.stage,
+        solver=replace(attempt.report, solve_time_s=time.perf_counter() - started),
+        solves=attempt.solves,
+        energy_is_physical=request.plant.energy_inertia is not None and _oscillatory(request.plant).poles.size == 1,
+        duration_search=tried,
+    )
