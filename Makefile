@@ -21,7 +21,11 @@ $(VENV)/.installed-test: pyproject.toml | $(BIN)/python
 serve: $(VENV)/.installed-serve  ## run the service on http://$(HOST):$(PORT) (docs at /docs)
 	$(BIN)/uvicorn app.main:app --host $(HOST) --port $(PORT)
 
-test: $(VENV)/.installed-test  ## run the whole test suite (installs Debian's chromium for the browser tests)
+test: $(VENV)/.installed-test  ## lint, format and type gates, then the whole test suite (installs Debian's chromium)
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
+	$(BIN)/mypy --strict models optim
+	$(BIN)/mypy app
 	bash scripts/ensure-chromium.sh
 	$(BIN)/python -m pytest
 

@@ -40,7 +40,8 @@ def core() -> None:
         design = pp.design(request)
         times.append(time.perf_counter() - start)
     print(
-        f"build of the warm-up problems: orders 2-4 for each second-order plant kind (one-off, per worker): {1e3 * build_s:.0f} ms"
+        "build of the warm-up problems: orders 2-4 for each second-order plant kind (one-off, per worker): "
+        f"{1e3 * build_s:.0f} ms"
     )
     print(
         f"design, problem built, median of 50: {1e3 * statistics.median(times):.2f} ms "

@@ -114,7 +114,7 @@ def paper_two_step(velocity: float, shaper: ImpulseSequence, acceleration_limit:
         return None
     return Baseline(
         "multi_step",
-        shaper.times_s.copy(),
+        np.array(shaper.times_s, dtype=np.float64),
         math.copysign(1.0, velocity) * heights,
         delta,
         "closed form: the paper's two-step relations (Sec. 4, Fig. 10; two impulses with A1 >= A2)",
@@ -205,7 +205,7 @@ def multi_step_baseline(
         closed = paper_two_step(velocity, shaper, acceleration_limit)
         if closed is not None:
             return closed
-    step_times = shaper.times_s[:steps].copy()
+    step_times = np.array(shaper.times_s[:steps], dtype=np.float64)
     heights, delta = fastest_steps(velocity, shaper, acceleration_limit, step_times)
     why = "" if steps != 2 else " (the paper's two-step relations assume two impulses with A1 >= A2 and no overlap)"
     return Baseline("multi_step", step_times, heights, delta, "fastest non-negative steps by linear programming" + why)

@@ -87,6 +87,13 @@ async def input_shaped_profile(
 # The catalogue
 
 
+def _width(band: tuple[float | None, float | None] | None) -> float | None:
+    """high - low of a band closed at both ends."""
+    if band is None or band[0] is None or band[1] is None:
+        return None
+    return band[1] - band[0]
+
+
 @router.get(
     "/shapers",
     summary="The shaper family: impulse counts, durations and computed 5 % bands",
@@ -108,7 +115,7 @@ def list_shapers(
             "impulse_count": e.impulse_count,
             "duration_periods": e.duration_periods,
             "band_5_percent": list(e.band) if e.band else None,
-            "band_width": e.band[1] - e.band[0] if e.band and None not in e.band else None,
+            "band_width": _width(e.band),
             "amplitudes": list(e.amplitudes),
             "times_periods": list(e.times_periods),
             "method": e.method,

@@ -26,7 +26,8 @@ _SEC3 = {"plant": CUSIMANO_40HZ, "target_velocity": 150.0, "limits": {"max_accel
 EXAMPLES: dict[str, dict[str, Any]] = {
     "section_3_k1": {
         "summary": "Sec. 3 (Fig. 14): 150 rad/s on a 40 Hz mode, a_Max = 1000 rad/s^2, k_j = 1",
-        "description": "t_a,min = 0.15 s (eq. 21), t_j = 1/f_n,e = 0.025 s (eq. 50), t_a = 0.175 s (eq. 61): no residual.",
+        "description": "t_a,min = 0.15 s (eq. 21), t_j = 1/f_n,e = 0.025 s (eq. 50), t_a = 0.175 s (eq. 61): "
+        "no residual.",
         "value": {**_SEC3, "jerk_periods": 1, "sensitivity": {"min_ratio": 0.5, "max_ratio": 1.5, "count": 201}},
     },
     "section_3_k3": {
@@ -34,15 +35,16 @@ EXAMPLES: dict[str, dict[str, Any]] = {
         "value": {**_SEC3, "jerk_periods": 3},
     },
     "fig_17_side_band": {
-        "summary": "Fig. 17: t_a = 0.165 s with the side band (k_j, delta) = (0, 1): t_j = dec(f_n,e t_a)/f_n,e = 0.015 s",
+        "summary": "Fig. 17: t_a = 0.165 s with the side band (k_j, delta) = (0, 1): "
+        "t_j = dec(f_n,e t_a)/f_n,e = 0.015 s",
         "description": "Zero residual at f_n,e, but the load acceleration oscillates during t_c and the SC is poor "
         "(Appendix C: f_n,e t_a,min = 6 is whole and 0.15 <= t_a < 0.175).",
         "value": {**_SEC3, "acceleration_time_s": 0.165, "jerk_periods": 0, "delta": 1},
     },
     "table_2_torque_limit": {
         "summary": "Sec. 3: Table 2 motor (10 N m) with J_L = J_M at 8 Hz; the limit lowered for 0.9 f_n,e",
-        "description": "a_Max = 10/(J_M + J_L) = 1000 rad/s^2 (eq. 19), t_a,min = 0.15 s; the torque oscillates by about "
-        "0.055 M at 0.9 f_n,e (eqs. 57-59), so the limit is lowered to 0.948 of it (the paper's 0.94).",
+        "description": "a_Max = 10/(J_M + J_L) = 1000 rad/s^2 (eq. 19), t_a,min = 0.15 s; the torque oscillates "
+        "by about 0.055 M at 0.9 f_n,e (eqs. 57-59), so the limit is lowered to 0.948 of it (the paper's 0.94).",
         "value": {
             "plant": CUSIMANO_8HZ,
             "target_velocity": 150.0,

@@ -156,7 +156,7 @@ def to_command(profile: ProfileIn, options: SimulationOptions, max_samples: int)
         arrays[held],
         order,
         hold=options.hold,
-        slopes=arrays[slope_name] if cubic else None,
+        slopes=arrays[slope_name] if cubic and slope_name is not None else None,
         initial=initial,
     )
     warnings = []

@@ -2,12 +2,17 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from optim.families.input_shaped import InputShapedFamily
 from optim.families.pseudo_polynomial import PseudoPolynomialFamily
 from optim.families.smoother import SmootherFamily
 from optim.families.stap import StapFamily
 
-REGISTRY = {
+if TYPE_CHECKING:
+    from optim.family import Family
+
+REGISTRY: dict[str, Family] = {
     family.name: family for family in (PseudoPolynomialFamily(), StapFamily(), SmootherFamily(), InputShapedFamily())
 }
 

@@ -75,7 +75,8 @@ def _move(problem: Problem, shaper: ImpulseSequence, limit: float | None) -> tup
             )
         velocity = fastest_cruise_velocity(displacement, shaper, limit)
         notes.append(
-            f"cruise velocity {velocity:.6g}: the fastest modified rest-to-rest move that keeps the no-overlap condition"
+            f"cruise velocity {velocity:.6g}: the fastest modified rest-to-rest move that keeps the no-overlap "
+            "condition"
         )
     return math.copysign(velocity, displacement), abs(displacement) / velocity, notes
 

@@ -9,12 +9,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Literal
 
 from models.commands import PiecewiseCommand
 from models.errors import InvalidParameter
 from models.plants import Mode
 from models.simulation import metrics, simulate
+from models.smoother_filters import FilterKind
 from models.smoothers import MAX_RATE_TIMES_PERIOD, Chain, refinement, step_response
 from optim.family import BaseFamily, Design, Run
 from optim.problem import Problem
@@ -35,7 +36,7 @@ from optim.smoothers import (
 
 @dataclass(frozen=True)
 class FilterOption:
-    type: str
+    type: FilterKind
     duration_s: float | None = None
 
 
@@ -110,7 +111,8 @@ def hold_residual(chain: Chain, command: PiecewiseCommand, problem: Problem) -> 
     derivative, both continuous (position with velocity for a C^1 profile, velocity with acceleration for
     C^2, acceleration with jerk above), or a linear hold on the position for a C^0 profile."""
     smooth = chain.continuous_derivatives
-    order, hold = (0, "linear") if smooth == 0 else (min(smooth - 1, 2), "cubic")
+    order = 0 if smooth == 0 else min(smooth - 1, 2)
+    hold: Literal["linear", "cubic"] = "linear" if smooth == 0 else "cubic"
     initial = tuple(float(command.derivative(m)[0]) for m in range(order))
     slopes = command.derivative(order + 1) if hold == "cubic" else None
     held = PiecewiseCommand.from_samples(
@@ -188,7 +190,8 @@ class SmootherFamily(BaseFamily):
                 ""
                 if k == 1
                 else (
-                    f"the filters (|lambda| = {chain.fastest_rate_1_s:.6g} 1/s) need samples at most {period:.3g} s apart "
+                    f"the filters (|lambda| = {chain.fastest_rate_1_s:.6g} 1/s) need samples at most {period:.3g} s "
+                    "apart "
                     "to be described exactly, and "
                 )
             )

@@ -71,7 +71,10 @@ def test_non_finite_numbers_are_refused(client, token):
 
 
 def test_non_finite_sample_is_refused(client):
-    body = '{"plant": {"kind": "mode", "natural_frequency_hz": 5}, "profile": {"time_s": [0, 1, 2], "velocity": [0, NaN, 1]}}'
+    body = (
+        '{"plant": {"kind": "mode", "natural_frequency_hz": 5}, '
+        '"profile": {"time_s": [0, 1, 2], "velocity": [0, NaN, 1]}}'
+    )
     response = client.post("/v1/simulate", content=body, headers={"content-type": "application/json"})
     assert_problem(response, 422, "profile.velocity[1]")
 

@@ -128,7 +128,8 @@ def test_table_2_light_load_triangle(client):
         PATH, json={"plant": two_inertia(0.00125), "target_velocity": 150.0, "max_torque_nm": 10.0, "jerk_periods": 1}
     ).json()
     design = body["design"]
-    # J_L = J_M/4: t_a,min = 150/1600 = 0.09375 s (eqs. 19, 21); t_j = 0.125 s > t_a,min: triangle, 1200 rad/s^2 (eq. 31).
+    # J_L = J_M/4: t_a,min = 150/1600 = 0.09375 s (eqs. 19, 21); t_j = 0.125 s > t_a,min: triangle,
+    # 1200 rad/s^2 (eq. 31).
     assert design["torque_limit"]["nodal_min_acceleration_time_s"] == pytest.approx(0.09375, rel=1e-12)
     assert design["shape"] == "triangle" and design["acceleration_time_s"] == pytest.approx(0.25, rel=1e-12)
     assert design["peak_acceleration"] == pytest.approx(1200.0, rel=1e-12)

@@ -84,7 +84,9 @@ def test_every_example_has_a_legacy_form_that_differs():
     assert any(legacy(p, b) != b for p, _, b in EXAMPLES if p.endswith("/input-shaped"))
 
 
-@pytest.mark.parametrize(("path", "name", "body"), EXAMPLES, ids=[f"{p.rsplit('/', 1)[-1]}:{n}" for p, n, _ in EXAMPLES])
+@pytest.mark.parametrize(
+    ("path", "name", "body"), EXAMPLES, ids=[f"{p.rsplit('/', 1)[-1]}:{n}" for p, n, _ in EXAMPLES]
+)
 def test_legacy_and_new_forms_give_identical_numbers(client, path, name, body):
     new_body = with_settling(body)
     new = client.post(path, json=new_body)
