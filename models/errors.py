@@ -41,32 +41,28 @@ class InvalidParameter(DomainError, ValueError):
         return InvalidParameter(f"{prefix}.{self.field}" if prefix else self.field, self.value, self.rule)
 
 
-class Infeasible(DomainError, ValueError):
+class _Reasoned(DomainError, ValueError):
+    """An error told by a reason in the user's terms, optionally about one field."""
+
+    def __init__(self, reason: str, field: str | None = None) -> None:
+        self.reason = reason
+        self.field = field
+        super().__init__(reason)
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (type(self), (self.reason, self.field))
+
+
+class Infeasible(_Reasoned):
     """Limits that no design can meet (proven); ``reason`` says why in the user's terms."""
 
     problem_type = "infeasible"
 
-    def __init__(self, reason: str, field: str | None = None) -> None:
-        self.reason = reason
-        self.field = field
-        super().__init__(reason)
 
-    def __reduce__(self) -> tuple[Any, ...]:
-        return (type(self), (self.reason, self.field))
-
-
-class NotApplicable(DomainError, ValueError):
+class NotApplicable(_Reasoned):
     """The family does not apply to this problem (a rest-to-velocity move for a rest-to-rest law, ...)."""
 
     problem_type = "not-applicable"
-
-    def __init__(self, reason: str, field: str | None = None) -> None:
-        self.reason = reason
-        self.field = field
-        super().__init__(reason)
-
-    def __reduce__(self) -> tuple[Any, ...]:
-        return (type(self), (self.reason, self.field))
 
 
 class SolverFailed(DomainError, RuntimeError):

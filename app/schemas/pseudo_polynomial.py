@@ -7,7 +7,7 @@ from typing import Any
 from pydantic import Field
 
 from app.schemas.common import OutModel
-from app.schemas.family import FamilyResponse, ProfileRequest
+from app.schemas.family import FamilyResponse, ProfileRequest, SolverOut
 from app.schemas.simulate import LoadOut, MetricsOut, ProfileOut
 from optim.families.pseudo_polynomial import PseudoPolynomialOptions
 from optim.family import FAMILIES
@@ -64,13 +64,6 @@ class BoundsOut(OutModel):
     min_separation: float = MIN_SEPARATION
 
 
-class DesignSolverOut(OutModel):
-    status: str
-    iterations: int
-    solve_time_s: float
-    solves: int
-
-
 class PseudoPolynomialDesignOut(OutModel):
     order: int
     duration_s: float
@@ -88,7 +81,7 @@ class PseudoPolynomialDesignOut(OutModel):
     selection: str = Field(description="closest_zero_energy or minimum_energy (see selection_rule).")
     selection_rule: str
     bounds: BoundsOut
-    solver: DesignSolverOut = Field(description="Deprecated here: the same as the top-level solver.")
+    solver: SolverOut = Field(description="Deprecated here: the same as the top-level solver.")
     duration_search: list[dict[str, Any]] | None = Field(None, description="Durations tried by minimize_duration.")
 
 

@@ -8,7 +8,7 @@ from typing import Any, ClassVar, Literal
 from pydantic import Field, field_validator
 
 from app.schemas.common import OutModel, StrictModel
-from app.schemas.family import FamilyResponse, ProfileRequest, SensitivityOut
+from app.schemas.family import FamilyResponse, ProfileRequest, SensitivityOut, SolverOut
 from models.errors import InvalidParameter
 from optim.families.stap import AUTO_RULE, StapOptimization, StapOptions
 from optim.family import FAMILIES
@@ -161,13 +161,6 @@ class StapIn(ProfileRequest):
                 opt.objective, tuple(opt.damping_ratios) if opt.damping_ratios else None, opt.frequency_points
             ),
         )
-
-
-class SolverOut(OutModel):
-    status: str = Field(description="IPOPT's status of the converged solve(s).")
-    iterations: int
-    solve_time_s: float
-    solves: int
 
 
 class TorqueLimitOut(OutModel):
