@@ -104,6 +104,15 @@ class SettlingIn(StrictModel):
     )
 
 
+# Fields the family cores still name in their own (older) words, and the request's name for them.
+CORE_FIELD_NAMES = {
+    "max_acceleration": "limits.max_acceleration",
+    "max_torque_nm": "limits.max_torque_nm",
+    "acceleration_limit": "limits.max_acceleration",
+    "cruise_velocity": "limits.max_velocity",
+}
+
+
 def _deprecated(old: str, new: str) -> str:
     return f"{old} is deprecated: use {new} (same meaning)"
 
@@ -174,10 +183,13 @@ class ProfileRequest(StrictModel):
                 continue
             current = getattr(self.limits, new)
             if current is not None and current != value:
-                raise InvalidParameter(old, value, f"is deprecated and disagrees with limits.{new}: give that only")
+                raise InvalidParameter(
+                    f"limits.{new}", current, f"disagrees with the deprecated {old} = {value:g}: give limits.{new} only"
+                )
             updates[new] = value
             notes.append(_deprecated(old, f"limits.{new}"))
             aliases[f"limits.{new}"] = old
+        self._aliases = aliases  # so that an error about a legacy move field is named as sent
         displacement, target = self._legacy_move(updates, notes, aliases)
         if (displacement is None) == (target is None):
             raise InvalidParameter(
@@ -205,8 +217,12 @@ class ProfileRequest(StrictModel):
         return list(self._deprecations)
 
     def caller_field(self, field: str | None) -> str | None:
-        """The name the caller used for a field (the legacy alias where one was used)."""
-        return self._aliases.get(field, field) if field is not None else None
+        """The name the caller used for a field: the uniform name of a core field, or the legacy alias
+        where the caller used one."""
+        if field is None:
+            return None
+        uniform = CORE_FIELD_NAMES.get(field, field)
+        return self._aliases.get(uniform, uniform)
 
     def to_problem(self, settings: Settings) -> Problem:
         lim, settling, displacement, target = self._resolved()

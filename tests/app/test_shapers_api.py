@@ -222,7 +222,8 @@ def test_missing_move_and_missing_limit(client):
     request = {k: v for k, v in PAPER.items() if k != "target_velocity"}
     assert_problem(client.post(PATH, json=request), 422, "displacement")
     request = {k: v for k, v in PAPER.items() if k != "acceleration_limit"}
-    body = assert_problem(client.post(PATH, json={**request, "baseline": "modified"}), 422, "acceleration_limit")
+    # Neither name was sent: the error names the uniform field.
+    body = assert_problem(client.post(PATH, json={**request, "baseline": "modified"}), 422, "limits.max_acceleration")
     assert "required" in body["errors"][0]["rule"]
 
 

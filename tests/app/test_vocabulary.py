@@ -13,6 +13,7 @@ from typing import Any
 
 import pytest
 
+from app.examples import CHATLATANAGULCHAI_EQ3
 from app.main import create_app
 from tests.app.conftest import TEST_SETTINGS
 
@@ -128,7 +129,8 @@ def test_a_legacy_field_that_contradicts_the_new_one_is_refused(client):
     response = client.post(
         "/v1/profiles/stap", json={**body, "max_acceleration": 10.0, "limits": {"max_acceleration": 20.0}}
     )
-    assert response.status_code == 422 and response.json()["field"] == "max_acceleration"
+    assert response.status_code == 422 and response.json()["field"] == "limits.max_acceleration"
+    assert "deprecated max_acceleration" in response.json()["detail"]
 
 
 def test_errors_name_the_field_the_caller_sent(client):
@@ -140,3 +142,13 @@ def test_errors_name_the_field_the_caller_sent(client):
     ).json()
     old = client.post("/v1/profiles/stap", json={"plant": plant, "target_velocity": 1.0, "max_torque_nm": 1.0}).json()
     assert new["field"] == "limits.max_torque_nm" and old["field"] == "max_torque_nm"
+
+
+def test_a_core_error_is_named_in_the_callers_words(client):
+    # The no-overlap condition fails at a = 0.05 (Chatlatanagulchai Sec. 4: Delta = 9.9 s > t2 - t1 = 5.45 s);
+    # the shaping core names its acceleration limit, reported as the caller sent it.
+    body = {"plant": CHATLATANAGULCHAI_EQ3, "shaper": "zvd", "target_velocity": 1.0}
+    new = client.post("/v1/profiles/input-shaped", json={**body, "limits": {"max_acceleration": 0.05}}).json()
+    old = client.post("/v1/profiles/input-shaped", json={**body, "acceleration_limit": 0.05}).json()
+    assert new["type"] == old["type"] == "/problems/infeasible"
+    assert (new["field"], old["field"]) == ("limits.max_acceleration", "acceleration_limit")
