@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
 from app.examples import CUSIMANO_8HZ, INCERTI_TABLE_III
@@ -160,3 +161,29 @@ def test_every_profile_endpoint_answers_csv(client, endpoint, request_body):
     first = [float(x) for x in lines[2].split(",")]
     assert first == [json_profile[k][0] for k in ("time_s", "position", "velocity", "acceleration", "jerk")]
     assert len(lines) - 2 == len(json_profile["time_s"])
+
+
+def test_compare_forwards_sampling_settling_and_sensitivity_to_every_family(client):
+    # The same problem reaches every family: the rows' requests carry the caller's sample period, settling
+    # band and sensitivity grid, each family's answer uses them, and each request reproduces its row.
+    body = client.post(
+        "/v1/compare",
+        json={
+            "plant": {"kind": "mode", "natural_frequency_hz": 5.0, "damping_ratio": 0.05},
+            "displacement": 1.0,
+            "limits": {"max_velocity": 2.0, "max_acceleration": 20.0},
+            "sample_period_s": 2e-3,
+            "settling": {"position_tolerance": 0.01},
+            "sensitivity": {"min_ratio": 0.8, "max_ratio": 1.2, "count": 41},
+            "include_curves": True,
+        },
+    ).json()
+    assert {row["family"] for row in body["rows"]} == {"pseudo_polynomial", "stap", "smoother", "input_shaped"}
+    for row in body["rows"]:
+        request = row["request"]
+        assert request["sample_period_s"] == 2e-3 and request["settling"] == {"position_tolerance": 0.01}
+        assert request["sensitivity"]["count"] == 41
+        assert len(row["curves"]["sensitivity"]["frequency_ratio"]) == 41
+        steps = np.diff(row["curves"]["load"]["time_s"])
+        assert max(steps) == pytest.approx(2e-3, rel=1e-9)  # corners only ever shorten a step
+    assert_rows_match_endpoints(client, body)
