@@ -21,10 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import brentq
 
-from models.commands import Hold, PiecewiseCommand
 from models.errors import Infeasible, InvalidParameter
 from models.plants import Mode, Plant
-from models.simulation import metrics, simulate
 from models.smoothers import (
     DAMPED,
     MAX_DURATION_S,
@@ -32,7 +30,6 @@ from models.smoothers import (
     Chain,
     FilterKind,
     Smoother,
-    StepResponse,
     mode_residuals,
     refinement,
     step_response,
@@ -63,7 +60,6 @@ __all__ = [
     "design_discrete",
     "fixed_chain_peaks",
     "harmonic_duration_s",
-    "hold_residual",
     "identify",
     "limited_durations_s",
     "rectangular_durations_s",
@@ -350,23 +346,3 @@ def chain_residual(chain: Chain, plant: Plant, displacement: float, mode: Mode |
         100.0 * prv if finite else None,
         bool(finite and prv <= VIBRATION_FREE_TOLERANCE),
     )
-
-
-def hold_residual(step: StepResponse, plant: Plant) -> float:
-    """Residual (fraction of the move) of the plant driven by the sampled profile alone, rebuilt the way a
-    cam table with feed-forward interpolates it: the cubic Hermite curve through a quantity and its
-    derivative, both continuous (position with velocity for a C^1 profile, velocity with acceleration for
-    C^2, acceleration with jerk above), or a linear hold on the position for a C^0 profile.
-
-    A hold on a quantity whose derivative jumps (the acceleration of S_sigma at T) cannot follow the jump
-    between samples and leaves far more (figures in tests/models/test_smoothers.py).
-    """
-    smooth = step.chain.continuous_derivatives
-    hold: Hold = "linear" if smooth == 0 else "cubic"
-    order = 0 if smooth == 0 else min(smooth - 1, 2)
-    initial = tuple(float(step.derivative(m)[0]) for m in range(order))
-    slopes = step.derivative(order + 1) if hold == "cubic" else None
-    command = PiecewiseCommand.from_samples(
-        step.time_s, step.derivative(order), order, hold=hold, slopes=slopes, initial=initial
-    )
-    return metrics(simulate(plant, command)).residual_amplitude / plant.load_move(step.displacement)

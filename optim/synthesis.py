@@ -13,7 +13,7 @@ the simulated load, the metrics, the sensitivity, the limit check and the warnin
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -116,10 +116,6 @@ def evaluate(family: Family, problem: Problem, design: Design) -> Result:
         extras=extras,
         summary=summary,
     )
-
-
-def replace_problem(problem: Problem, **changes: Any) -> Problem:
-    return replace(problem, **changes)
 
 
 # --- the shared rules ------------------------------------------------------------------------
