@@ -65,6 +65,19 @@ class Mode:
     def damped_period_s(self) -> float:
         return 1.0 / self.damped_frequency_hz
 
+    def as_dict(self) -> dict[str, float]:
+        """Every derived quantity of the mode, by name (the API's mode object)."""
+        return {
+            "natural_frequency_hz": self.natural_frequency_hz,
+            "natural_frequency_rad_s": self.natural_frequency_rad_s,
+            "damping_ratio": self.damping_ratio,
+            "damped_frequency_hz": self.damped_frequency_hz,
+            "damped_frequency_rad_s": self.damped_frequency_rad_s,
+            "natural_period_s": self.natural_period_s,
+            "damped_period_s": self.damped_period_s,
+            "decay_rate_1_s": self.decay_rate_1_s,
+        }
+
     @property
     def decay_rate_1_s(self) -> float:
         """sigma = zeta w: the envelope decays as exp(-sigma t)."""

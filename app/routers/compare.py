@@ -95,7 +95,7 @@ class CompareOut(OutModel):
     unavailable: list[Unavailable]
 
 
-def _row(request: CompareIn, row: ComparedRow, load_move: float) -> dict[str, Any]:
+def _row(request: CompareIn, common: dict[str, Any], row: ComparedRow, load_move: float) -> dict[str, Any]:
     result: Result = row.result
     family: Family = row.family
     m = result.metrics
@@ -103,7 +103,7 @@ def _row(request: CompareIn, row: ComparedRow, load_move: float) -> dict[str, An
     out: dict[str, Any] = {
         "family": family.name,
         "endpoint": family.endpoint,
-        "request": {**request.common_body(), **family.request_fields(row.options)},
+        "request": {**common, **family.request_fields(row.options)},
         "motion_time_s": m.command_end_s - float(result.command.time_s[0]),
         "settling_time_s": m.settling.time_s,
         "residual_vibration": amplitude / load_move,
@@ -168,7 +168,8 @@ async def compare(
         return await services.run(family, p, options, settings, pool)
 
     rows, unavailable = await compare_families(problem, run, body.families, body.options(problem))
-    answer_rows = [_row(body, row, problem.load_move) for row in rows]
+    common = body.common_body()
+    answer_rows = [_row(body, common, row, problem.load_move) for row in rows]
     return NumpyJSONResponse(
         {
             "move": "rest_to_rest" if problem.rest_to_rest else "rest_to_velocity",

@@ -15,6 +15,7 @@ from models.plants import (
     MAX_TRANSFER_FUNCTION_ORDER,
     PARAMETER_MAX,
     BeltPlatformPlant,
+    Mode,
     Plant,
     make_plant,
 )
@@ -147,17 +148,8 @@ class PlantAnalysis(OutModel):
     defines_motor_torque: bool
 
 
-def mode_out(mode) -> ModeOut:
-    return ModeOut(
-        natural_frequency_hz=mode.natural_frequency_hz,
-        natural_frequency_rad_s=mode.natural_frequency_rad_s,
-        damping_ratio=mode.damping_ratio,
-        damped_frequency_hz=mode.damped_frequency_hz,
-        damped_frequency_rad_s=mode.damped_frequency_rad_s,
-        natural_period_s=mode.natural_period_s,
-        damped_period_s=mode.damped_period_s,
-        decay_rate_1_s=mode.decay_rate_1_s,
-    )
+def mode_out(mode: Mode) -> ModeOut:
+    return ModeOut(**mode.as_dict())
 
 
 def analyse(plant: Plant) -> PlantAnalysis:

@@ -11,9 +11,10 @@ from app.schemas.family import FamilyResponse, ProfileRequest
 from app.schemas.plants import ModeOut
 from models.commands import MIN_STEP_S
 from models.smoothers import MAX_DURATION_S, MAX_REQUESTED_FILTERS, MIN_DURATION_S
-from optim.families.smoother import FilterOption, SmootherOptions
+from optim.families.smoother import SmootherOptions
 from optim.family import FAMILIES
 from optim.problem import Problem
+from optim.smoothers import FilterSpec
 
 FAMILY = FAMILIES["smoother"]
 
@@ -63,7 +64,7 @@ class SmootherRequest(ProfileRequest):
 
     def options(self, problem: Problem) -> SmootherOptions:
         return SmootherOptions(
-            tuple(FilterOption(f.type, f.duration_s) for f in self.filters), self.discrete_sample_period_s
+            tuple(FilterSpec(f.type, f.duration_s) for f in self.filters), self.discrete_sample_period_s
         )
 
 

@@ -13,9 +13,7 @@ from typing import Any, ClassVar, Literal
 
 from models.commands import PiecewiseCommand
 from models.errors import InvalidParameter
-from models.plants import Mode
 from models.simulation import metrics, simulate
-from models.smoother_filters import FilterKind
 from models.smoothers import MAX_RATE_TIMES_PERIOD, Chain, refinement, step_response
 from optim.family import BaseFamily, Design, Run
 from optim.problem import Problem
@@ -35,28 +33,9 @@ from optim.smoothers import (
 
 
 @dataclass(frozen=True)
-class FilterOption:
-    type: FilterKind
-    duration_s: float | None = None
-
-
-@dataclass(frozen=True)
 class SmootherOptions:
-    filters: tuple[FilterOption, ...] = (FilterOption("damped_harmonic"),)
+    filters: tuple[FilterSpec, ...] = (FilterSpec("damped_harmonic"),)
     discrete_sample_period_s: float | None = None
-
-
-def mode_block(mode: Mode) -> dict[str, float]:
-    return {
-        "natural_frequency_hz": mode.natural_frequency_hz,
-        "natural_frequency_rad_s": mode.natural_frequency_rad_s,
-        "damping_ratio": mode.damping_ratio,
-        "damped_frequency_hz": mode.damped_frequency_hz,
-        "damped_frequency_rad_s": mode.damped_frequency_rad_s,
-        "natural_period_s": mode.natural_period_s,
-        "damped_period_s": mode.damped_period_s,
-        "decay_rate_1_s": mode.decay_rate_1_s,
-    }
 
 
 def _filters_block(design: ChainDesign) -> list[dict[str, Any]]:
@@ -136,8 +115,9 @@ class SmootherFamily(BaseFamily):
     def design(self, problem: Problem, options: SmootherOptions) -> Design:
         h = problem.move
         lim = problem.limits
-        specs = [FilterSpec(f.type, f.duration_s) for f in options.filters]
-        design = design_chain(problem.plant, h, specs, Limits(lim.max_velocity, lim.max_acceleration, lim.max_jerk))
+        design = design_chain(
+            problem.plant, h, list(options.filters), Limits(lim.max_velocity, lim.max_acceleration, lim.max_jerk)
+        )
         chain, mode = design.chain, design.mode
         residual = chain_residual(chain, problem.plant, h, mode)
         warnings = list(design.warnings)
@@ -165,7 +145,7 @@ class SmootherFamily(BaseFamily):
             "total_duration_s": chain.total_duration_s,
             "duration_s": chain.total_duration_s,
             "continuous_derivatives": chain.continuous_derivatives,
-            "mode": None if mode is None else mode_block(mode),
+            "mode": None if mode is None else mode.as_dict(),
             "vibration_free": residual.vibration_free,
             "percent_residual_vibration": residual.percent_residual_vibration,
             "residual_amplitude_closed_form": residual.amplitude,
@@ -226,7 +206,7 @@ class SmootherFamily(BaseFamily):
     def request_fields(self, options: Any) -> dict[str, Any]:
         out: dict[str, Any] = {
             "filters": [
-                {"type": f.type, **({"duration_s": f.duration_s} if f.duration_s is not None else {})}
+                {"type": f.kind, **({"duration_s": f.duration_s} if f.duration_s is not None else {})}
                 for f in options.filters
             ]
         }
