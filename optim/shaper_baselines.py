@@ -83,9 +83,9 @@ def modified_baseline(velocity: float, shaper: ImpulseSequence, acceleration_lim
             raise Infeasible(
                 f"the modified baseline's ramp would last Delta = a1 max|A_i| / a = {delta:.6g} s, longer than "
                 f"the shortest gap between the shaper's impulses ({shortest:.6g} s): the shaped ramps would "
-                f"overlap and the command's slope would reach {train.max_slope():.6g} > acceleration_limit = "
+                f"overlap and the command's slope would reach {train.max_slope():.6g} > the acceleration limit "
                 f"{acceleration_limit:.6g} (the no-overlap condition t_(i+1) - t_i >= Delta of Sec. 4 fails). It "
-                f"holds for acceleration_limit >= {abs(velocity) * biggest / shortest:.6g} or a velocity of at most "
+                f"holds for an acceleration limit >= {abs(velocity) * biggest / shortest:.6g} or a velocity of at most "
                 f"{acceleration_limit * shortest / biggest:.6g}; baseline 'multi_step' (with baseline_steps = 1 "
                 f"for a single ramp) lengthens the ramps until the overlapping slopes respect the limit",
                 "acceleration_limit",

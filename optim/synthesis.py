@@ -143,8 +143,8 @@ def grid_of(problem: Problem, design: Design, start_s: float = 0.0) -> Grid:
             raise InvalidParameter(
                 "sample_period_s",
                 period,
-                f"{count} samples over {span:.6g} s (and {corners} corners) exceed the cap of {problem.max_samples}; "
-                f"use a period >= {span / max(room - 1, 1):.3g} s",
+                f"{count} samples over {span:.6g} s{f' (and {corners} corners)' if corners else ''} exceed the cap "
+                f"of {problem.max_samples}; use a period >= {span / max(room - 1, 1):.3g} s",
             )
         return Grid(period, horizon)
     period = nice_period(span)

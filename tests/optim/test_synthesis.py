@@ -115,6 +115,7 @@ def test_a_stap_above_a_jerk_limit_is_reported_not_hidden():
 
 
 def test_nice_period_rule():
+    # span / 2000 rounded up to 1, 2 or 5 x 10^k: 1e-3 exactly; 1.0038e-3 -> 2e-3; 3.5e-3 -> 5e-3.
     assert nice_period(2.0) == 1e-3
     assert nice_period(2.0077) == 2e-3
     assert nice_period(7.0) == 5e-3
