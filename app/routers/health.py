@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter, Request
+from fastapi import APIRouter
 
 from app import problems
+from app.deps import PoolDep
 from app.problems import ProblemError
 
 router = APIRouter(tags=["health"])
@@ -20,8 +21,7 @@ async def healthz() -> dict[str, str]:
     summary="Readiness: the solver workers are up",
     responses=problems.responses(503),
 )
-async def readyz(request: Request) -> dict[str, str | int]:
-    pool = request.app.state.pool
+async def readyz(pool: PoolDep) -> dict[str, str | int]:
     if not pool.ready:
         raise ProblemError("not-ready", "the solver workers are starting or restarting")
     return {"status": "ready", "workers": pool.workers}

@@ -4,14 +4,14 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Body, Depends
+from fastapi import APIRouter, Body
 
 from app import problems
+from app.deps import SettingsDep
 from app.examples import SIMULATE_EXAMPLES
 from app.responses import NumpyJSONResponse
 from app.schemas.plants import to_plant
 from app.schemas.simulate import SimulateRequest, SimulateResponse, load_out, metrics_out, profile_out, to_command
-from app.settings import Settings, get_settings
 from models.simulation import metrics, simulate
 
 router = APIRouter(prefix="/v1", tags=["simulation"])
@@ -25,7 +25,7 @@ router = APIRouter(prefix="/v1", tags=["simulation"])
 )
 def simulate_profile(
     request: Annotated[SimulateRequest, Body(openapi_examples=SIMULATE_EXAMPLES)],
-    settings: Annotated[Settings, Depends(get_settings)],
+    settings: SettingsDep,
 ) -> NumpyJSONResponse:
     """Simulate the plant, started at rest, driven by the command, exactly for the chosen hold
     between samples. The metrics measure the load's free oscillation from the state at the
