@@ -1,21 +1,23 @@
 """Compare: every registered family on one problem, ranked by the load's settling time.
 
-Each family runs with its ``default_options`` (its best within the limits) or the caller's override,
-through the same pipeline as its endpoint, so a row's numbers are the endpoint's answer to the
-request the row echoes. A family that does not apply, or whose design fails, is listed with the
-reason and its problem type. The runner is injected (the pool for solver families, a thread
-otherwise), so this module does no I/O.
+Each family offers its ``candidates`` (its best within the limits, or the caller's override), each
+run through the same pipeline as the family's endpoint, so a row's numbers are the endpoint's
+answer to the request the row echoes. Of the candidates in one group only the one that settles
+first is kept. A family that does not apply, or whose designs all fail, is listed with the reason
+and its problem type. The runner is injected (the pool for solver families, a thread otherwise),
+so this module does no I/O.
 """
 
 from __future__ import annotations
 
 import asyncio
+import math
 from collections.abc import Awaitable, Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
 from models.errors import DomainError, Infeasible, InvalidParameter
-from optim.family import FAMILIES, Family
+from optim.family import FAMILIES, Candidate, Family
 from optim.problem import Problem
 from optim.synthesis import Result
 
@@ -27,11 +29,13 @@ class Row:
     family: Family
     options: Any
     result: Result
+    label: str = ""
 
     @property
-    def settling_key(self) -> tuple[bool, float]:
+    def settling_key(self) -> tuple[float, float]:
+        """Settling time (never-settling last), then motion time."""
         settle = self.result.metrics.settling.time_s
-        return (settle is None, settle or 0.0)
+        return (math.inf if settle is None else settle, self.result.metrics.command_end_s)
 
 
 @dataclass(frozen=True)
@@ -48,30 +52,52 @@ def reason_of(exc: DomainError) -> str:
     return str(exc)
 
 
-async def _one(family: Family, problem: Problem, options: Any, run: Runner) -> Row | Unavailable:
-    reason = family.not_applicable(problem)
-    if reason is not None:
-        return Unavailable(family.name, reason, "/problems/not-applicable")
+async def _one(family: Family, problem: Problem, candidate: Candidate, run: Runner) -> Row | Unavailable:
+    options = candidate.options
     try:
         try:
-            return Row(family, options, await run(family, problem, options))
+            return Row(family, options, await run(family, problem, options), candidate.label)
         except Infeasible:
             fallback = family.fallback(problem, options)
             if fallback is None:
                 raise
-            return Row(family, fallback, await run(family, problem, fallback))
+            return Row(family, fallback, await run(family, problem, fallback), candidate.label)
     except DomainError as exc:
         return Unavailable(family.name, reason_of(exc), f"/problems/{exc.problem_type}")
+
+
+def _best_of_groups(candidates: tuple[Candidate, ...], outcomes: list[Row | Unavailable]) -> list[Row | Unavailable]:
+    """Per group, the row that settles first; a group with no row gives its first failure."""
+    out: list[Row | Unavailable] = []
+    for group in dict.fromkeys(c.group for c in candidates):
+        members = [o for c, o in zip(candidates, outcomes, strict=True) if c.group == group]
+        rows = [o for o in members if isinstance(o, Row)]
+        out.append(min(rows, key=lambda r: r.settling_key) if rows else members[0])
+    return out
 
 
 async def compare(
     problem: Problem, run: Runner, names: Iterable[str] | None = None, overrides: Mapping[str, Any] | None = None
 ) -> tuple[list[Row], list[Unavailable]]:
-    """Rows sorted by settling time (never-settling designs last) and the families that gave none."""
+    """Rows sorted by settling time (never-settling designs last), and the families that gave none."""
     overrides = overrides or {}
     families = [FAMILIES[n] for n in (names or FAMILIES) if n in FAMILIES]
-    outcomes = await asyncio.gather(
-        *(_one(f, problem, overrides.get(f.name) or f.default_options(problem), run) for f in families)
-    )
-    rows = sorted((o for o in outcomes if isinstance(o, Row)), key=lambda r: r.settling_key)
-    return rows, [o for o in outcomes if isinstance(o, Unavailable)]
+    plans: list[tuple[Family, tuple[Candidate, ...]]] = []
+    unavailable: list[Unavailable] = []
+    for family in families:
+        reason = family.not_applicable(problem)
+        if reason is not None:
+            unavailable.append(Unavailable(family.name, reason, "/problems/not-applicable"))
+            continue
+        override = overrides.get(family.name)
+        plans.append(
+            (family, (Candidate(family.name, override, family.name),) if override else family.candidates(problem))
+        )
+    outcomes = await asyncio.gather(*(_one(f, problem, c, run) for f, cands in plans for c in cands))
+    kept: list[Row | Unavailable] = []
+    start = 0
+    for _, cands in plans:
+        kept += _best_of_groups(cands, list(outcomes[start : start + len(cands)]))
+        start += len(cands)
+    rows = sorted((o for o in kept if isinstance(o, Row)), key=lambda r: r.settling_key)
+    return rows, unavailable + [o for o in kept if isinstance(o, Unavailable)]

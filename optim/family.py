@@ -89,6 +89,18 @@ class Run:
     metrics: Metrics
 
 
+@dataclass(frozen=True)
+class Candidate:
+    """One design compare runs for a family: a row ``label`` (e.g. ``input_shaped/zvd``) and its
+    options. Of the candidates sharing a ``group`` compare keeps the one that settles first, so a
+    family can offer alternatives (closed form or optimized, several tuned filters) and show only
+    its best, or give each candidate a group of its own to show them all (the shapers)."""
+
+    label: str
+    options: Any
+    group: str
+
+
 @runtime_checkable
 class Family(Protocol):
     name: ClassVar[str]
@@ -116,6 +128,8 @@ class Family(Protocol):
 
     def fallback(self, problem: Problem, options: Any) -> Any | None: ...
 
+    def candidates(self, problem: Problem) -> tuple[Candidate, ...]: ...
+
     def request_fields(self, options: Any) -> dict[str, Any]: ...
 
 
@@ -128,6 +142,9 @@ class BaseFamily:
 
     def not_applicable(self, problem: Problem) -> str | None:
         return None
+
+    def default_options(self, problem: Problem) -> Any:
+        raise NotImplementedError(f"{self.name} must give its default options")
 
     def warm_up(self, solver: SolveCaps) -> None:
         return None
@@ -158,6 +175,10 @@ class BaseFamily:
     def fallback(self, problem: Problem, options: Any) -> Any | None:
         return None
 
+    def candidates(self, problem: Problem) -> tuple[Candidate, ...]:
+        """What compare runs for this family (default: its ``default_options``, one row)."""
+        return (Candidate(self.name, self.default_options(problem), self.name),)
+
     def request_fields(self, options: Any) -> dict[str, Any]:
         """The family's own request fields that reproduce ``options`` (for compare's rows[].request)."""
         from dataclasses import asdict
@@ -173,4 +194,15 @@ def warm_up_all(solver: SolveCaps) -> None:
 
 from optim.families import REGISTRY as FAMILIES  # noqa: E402  (the families import this module's types)
 
-__all__ = ["FAMILIES", "BaseFamily", "Design", "Family", "Grid", "Profile", "Run", "SolverSummary", "warm_up_all"]
+__all__ = [
+    "FAMILIES",
+    "BaseFamily",
+    "Candidate",
+    "Design",
+    "Family",
+    "Grid",
+    "Profile",
+    "Run",
+    "SolverSummary",
+    "warm_up_all",
+]
