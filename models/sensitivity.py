@@ -3,7 +3,9 @@
 For a single mode G(s) = (2 zeta w s + w^2)/(s^2 + 2 zeta w s + w^2) the free response left when
 the command ends is sum_k exp(lambda (t_e - t_k)) J_k (see models.simulation), so the residual
 of any piecewise-polynomial command at any (w, zeta) is one dot product over its breakpoints:
-no simulation per frequency. Values are fractions of the move (0.05 = 5 %).
+no simulation per frequency. ``residual`` holds fractions of the move (0.05 = 5 %), ``amplitude`` the
+load's residual amplitude itself; ``residual_envelope`` bounds a command's residual by the sum of what
+each of its breakpoints excites (the denominator of the percentage vibration).
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from models.errors import InvalidParameter
 
 _CHUNK_ELEMENTS = 2_000_000  # bounds the (frequencies x breakpoints) matrix in memory
 _ROUNDOFF = 4 * np.finfo(float).eps
+_BAND_RTOL = 1e-9
 RELIABLE_FRACTION = 1e-6  # a residual whose round-off could exceed this fraction of the move is refused
 
 
@@ -27,14 +30,15 @@ class Sensitivity:
     damping_ratio: NDArray[np.float64]  # one per row of residual
     residual: NDArray[np.float64]  # shape (damping ratios, frequency ratios), fraction of the move
     quantity: str  # "position" (rest-to-rest) or "velocity" (rest-to-velocity)
+    amplitude: NDArray[np.float64]  # the same, in the load's units (position, or velocity)
 
 
-def mode_residuals(
+def _free_sums(
     command: PiecewiseCommand, natural_frequency_rad_s: ArrayLike, damping_ratio: ArrayLike, derivative: int
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Amplitude of the load's free oscillation (position if derivative = 0, velocity if 1)
-    when the command ends, for each (w, zeta) pair, on the mode plant; and a bound on its
-    round-off error."""
+    """For each (w, zeta): |sum_k F_k| and sum_k |F_k|, where F_k is the free response (position if
+    derivative = 0, velocity if 1) the command's jumps at breakpoint k leave at the command's end,
+    on the mode plant."""
     w = np.asarray(natural_frequency_rad_s, dtype=float).ravel()
     z = np.asarray(damping_ratio, dtype=float).ravel()
     w, z = np.broadcast_arrays(w, z)
@@ -46,19 +50,39 @@ def mode_residuals(
     keep = np.flatnonzero(np.any(jumps != 0.0, axis=0))
     jumps = jumps[:, keep]
     age = command.time_s[end] - command.time_s[keep]
-    out = np.empty(w.size)
-    error = np.empty(w.size)
+    total = np.empty(w.size)
+    magnitudes = np.empty(w.size)
     rows = max(1, _CHUNK_ELEMENTS // max(1, keep.size))
     for start in range(0, w.size, rows):  # chunks of frequencies, bounded memory
         lam = poles[start : start + rows, None]
         drive = sum(jumps[m][None, :] / lam ** (m + 1) for m in range(jumps.shape[0]))
         terms = np.exp(lam * age[None, :]) * drive
         gain = np.abs(2.0 * residues[start : start + rows] * poles[start : start + rows] ** derivative)
-        out[start : start + rows] = gain * np.abs(np.sum(terms, axis=1))
-        # The sum cancels terms far larger than itself when the mode is slow next to the command
-        # (the 1/lambda^(m+1) factors): its round-off is about eps times the sum of magnitudes.
-        error[start : start + rows] = gain * _ROUNDOFF * np.sum(np.abs(terms), axis=1)
-    return out, error
+        total[start : start + rows] = gain * np.abs(np.sum(terms, axis=1))
+        magnitudes[start : start + rows] = gain * np.sum(np.abs(terms), axis=1)
+    return total, magnitudes
+
+
+def mode_residuals(
+    command: PiecewiseCommand, natural_frequency_rad_s: ArrayLike, damping_ratio: ArrayLike, derivative: int
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Amplitude of the load's free oscillation (position if derivative = 0, velocity if 1)
+    when the command ends, for each (w, zeta) pair, on the mode plant; and a bound on its
+    round-off error."""
+    total, magnitudes = _free_sums(command, natural_frequency_rad_s, damping_ratio, derivative)
+    # The sum cancels terms far larger than itself when the mode is slow next to the command
+    # (the 1/lambda^(m+1) factors): its round-off is about eps times the sum of magnitudes.
+    return total, _ROUNDOFF * magnitudes
+
+
+def residual_envelope(
+    command: PiecewiseCommand, natural_frequency_rad_s: ArrayLike, damping_ratio: ArrayLike, derivative: int
+) -> NDArray[np.float64]:
+    """sum_k |F_k|: the residual the command's breakpoints would leave if none cancelled another. For
+    acceleration steps delta a_k it is c sum_k |delta a_k| exp(-sigma (T - t_k)) / (w w_d), for a step
+    of height D it is c D w / w_d, where c = |2 zeta w lambda + w^2| / w^2 is the mode's zero (1 when
+    undamped: 4 a / w^2 for an undamped bang-bang move)."""
+    return _free_sums(command, natural_frequency_rad_s, damping_ratio, derivative)[1]
 
 
 def move_scale(command: PiecewiseCommand) -> tuple[str, float]:
@@ -95,8 +119,8 @@ def sensitivity(
             f"at frequency ratios up to {worst:.3g} the mode is so slow next to the command that the residual "
             f"cannot be computed to {RELIABLE_FRACTION:g} of the move; evaluate higher ratios",
         )
-    residual = amplitudes.reshape(zetas.size, ratios.size) / scale
-    return Sensitivity(ratios, zetas, residual, quantity)
+    amplitude = amplitudes.reshape(zetas.size, ratios.size)
+    return Sensitivity(ratios, zetas, amplitude / scale, quantity, amplitude)
 
 
 def band_below(
@@ -107,13 +131,14 @@ def band_below(
     evaluated ratios (it extends beyond them). None if the residual exceeds it at the centre."""
     r = np.asarray(ratios, dtype=float)
     v = np.asarray(residual, dtype=float)
+    inside = threshold * (1.0 + _BAND_RTOL)  # a design at the threshold (EI at its nominal) is inside
     order = np.argsort(r)
     r, v = r[order], v[order]
     i = int(np.clip(np.searchsorted(r, centre), 1, r.size - 1))
     k = i - 1 if abs(r[i - 1] - centre) <= abs(r[i] - centre) else i
-    if v[k] > threshold:
+    if v[k] > inside:
         return None
-    above = np.flatnonzero(v > threshold)
+    above = np.flatnonzero(v > inside)
     left, right = above[above < k], above[above > k]
     lo = int(left[-1]) + 1 if left.size else 0
     hi = int(right[0]) - 1 if right.size else r.size - 1

@@ -232,8 +232,9 @@ class ModeResidual:
 @dataclass(frozen=True)
 class Settling:
     quantity: str  # "position" or "velocity": what is compared with its steady-state value
-    window: float  # half-width of the band, in the load's units of that quantity
+    window: float  # half-width of the position band, in the load's units of that quantity
     time_s: float | None  # from the start of the command; None when it never settles
+    vibration_window: float | None = None  # bound on the free-vibration envelope (None: not checked)
 
 
 @dataclass(frozen=True)
@@ -267,13 +268,16 @@ def _steady_state(response: Response, end: int) -> tuple[NDArray[np.float64], ND
     return position, velocity
 
 
-def _envelope_crossing_s(
-    amplitudes: NDArray[np.float64], decay_1_s: NDArray[np.float64], window: float
-) -> float | None:
-    """Smallest t >= 0 with sum_j A_j exp(-sigma_j t) <= window; None if never."""
+UNDAMPED_DAMPING_RATIO = 1e-8  # a pole with -Re/|p| below this is undamped (its real part is round-off)
+
+
+def _envelope_crossing_s(amplitudes: NDArray[np.float64], poles: NDArray[np.complex128], window: float) -> float | None:
+    """Smallest t >= 0 with sum_j A_j exp(Re(p_j) t) <= window; None if never (an undamped pole
+    carries more than the window)."""
     if np.sum(amplitudes) <= window:
         return 0.0
-    still = decay_1_s <= 0.0
+    decay_1_s = -poles.real
+    still = decay_1_s <= UNDAMPED_DAMPING_RATIO * np.abs(poles)
     floor = float(np.sum(amplitudes[still]))
     if floor >= window:
         return None
@@ -292,14 +296,41 @@ def _envelope_crossing_s(
     return upper
 
 
-def settling(response: Response, tolerance: float = 1e-3, window: float | None = None) -> Settling:
-    """When the load stays within a band around its steady motion.
+def vibration_envelope(response: Response, order: int) -> NDArray[np.float64]:
+    """At every breakpoint, the amplitude of the load's vibration about its rigid motion: the sum of
+    the oscillatory free responses' amplitudes |w r p^order h| plus the quasi-static deflection
+    sum_(m>=1) g_m p^(m+order) (the elastic lag a moving command holds, e.g. -a / w^2 on one mode).
+    After the command's end it is the exact envelope of the free vibration."""
+    modal = response.modal
+    osc = modal.oscillatory
+    free = np.abs((modal.weights * modal.residues * modal.poles**order)[osc, None] * response.free_state[osc])
+    g = modal.taylor
+    der = response.command.derivatives
+    quasi_static = sum(
+        (g[m] * der[m + order] for m in range(1, g.size) if m + order < der.shape[0]), np.zeros_like(der[0])
+    )
+    envelope: NDArray[np.float64] = np.sum(free, axis=0) + np.abs(quasi_static)
+    return envelope
 
-    The band is ``window`` (absolute, load units) or ``tolerance`` times the move: the load's
-    total displacement (or its largest excursion, if larger) when it ends at rest, its final
-    speed when it ends moving (then the load velocity is compared). During the command the error
-    is checked at the samples; after the command's end the envelope of the free response is used,
-    exactly and without sampling, so the answer does not depend on the horizon.
+
+def settling(
+    response: Response,
+    tolerance: float = 1e-3,
+    window: float | None = None,
+    vibration_window: float | None = None,
+    vibration_fraction: float | None = None,
+) -> Settling:
+    """The earliest time after which the load stays within its band for ever.
+
+    Two criteria hold from then on: |load - steady motion| <= ``window`` (absolute, load units; default
+    ``tolerance`` times the move: the load's total displacement, or its largest excursion if larger,
+    when it ends at rest; its final speed when it ends moving, and then velocities are compared),
+    and, when ``vibration_window`` is given (or ``vibration_fraction`` of the move), the vibration envelope
+    (``vibration_envelope``) <= it.
+    During the command both are checked at the samples; after its end the exact closed-form envelope
+    of the free response is used, so the answer does not depend on the horizon. It can be earlier
+    than the command's end when the last changes are within both bands. None when an undamped mode
+    is left ringing above a band.
     """
     end = response.command.end_index()
     t = response.time_s
@@ -313,17 +344,35 @@ def settling(response: Response, tolerance: float = 1e-3, window: float | None =
         excursion = float(np.max(np.abs(response.load_position - response.load_position[0])))
         scale, order = max(abs(ss_pos[end] - response.load_position[0]), excursion), 0
     band = window if window is not None else tolerance * scale
-    if band <= 0.0:
-        return Settling(quantity, band, None)
-    outside = np.flatnonzero(np.abs(error[:end]) > band)
-    during = t[outside[-1] + 1] if outside.size else t[0]
-    after = _envelope_crossing_s(response.free_amplitudes(end, order), -response.modal.poles.real, band)
+    if vibration_window is None and vibration_fraction is not None:
+        vibration_window = vibration_fraction * scale
+    if band <= 0.0 or (vibration_window is not None and vibration_window <= 0.0):
+        return Settling(quantity, band, None, vibration_window)
+    poles = response.modal.poles
+    amplitudes = response.free_amplitudes(end, order)
+    after = _envelope_crossing_s(amplitudes, poles, band)
+    outside = np.abs(error[:end]) > band
+    if vibration_window is not None:
+        osc = response.modal.oscillatory
+        after_vibration = _envelope_crossing_s(amplitudes[osc], poles[osc], vibration_window)
+        after = None if after is None or after_vibration is None else max(after, after_vibration)
+        outside |= vibration_envelope(response, order)[:end] > vibration_window
     if after is None:
-        return Settling(quantity, band, None)
-    return Settling(quantity, band, float(max(during, t[end] + after) - t[0]))
+        return Settling(quantity, band, None, vibration_window)
+    if after > 0.0:
+        return Settling(quantity, band, float(t[end] + after - t[0]), vibration_window)
+    last = np.flatnonzero(outside)
+    during = t[last[-1] + 1] if last.size else t[0]
+    return Settling(quantity, band, float(during - t[0]), vibration_window)
 
 
-def metrics(response: Response, tolerance: float = 1e-3, window: float | None = None) -> Metrics:
+def metrics(
+    response: Response,
+    tolerance: float = 1e-3,
+    window: float | None = None,
+    vibration_window: float | None = None,
+    vibration_fraction: float | None = None,
+) -> Metrics:
     """Residual vibration, energy, settling and peaks of a simulated command."""
     end = response.command.end_index()
     modal = response.modal
@@ -355,7 +404,7 @@ def metrics(response: Response, tolerance: float = 1e-3, window: float | None = 
         residual_velocity_amplitude=float(np.sum(vel_amp[osc])),
         modes=modes,
         final_energy_j=None if energy is None else float(energy),
-        settling=settling(response, tolerance, window),
+        settling=settling(response, tolerance, window, vibration_window, vibration_fraction),
         peak_velocity=cmd.peak_abs(1),
         peak_acceleration=cmd.peak_abs(2),
         peak_jerk=cmd.peak_abs(3),

@@ -48,11 +48,17 @@ class Limits:
         return {name: value for name, value in self.items() if value is not None}
 
 
+VIBRATION_FRACTION_OF_DEFLECTION = 0.01  # default vibration tolerance: 1 % of the quasi-static deflection
+VIBRATION_FRACTION_OF_MOVE = 1e-3  # ... or, without an acceleration limit, 1e-3 of the load's move
+
+
 @dataclass(frozen=True)
 class Settling:
-    """The settling band: |load - target| <= position_tolerance x the load's move."""
+    """The settling criteria: |load - target| <= position_tolerance x the load's move, and the load's
+    free-vibration envelope <= vibration_tolerance (load units; None: the default of ``Problem``)."""
 
     position_tolerance: float = 1e-3
+    vibration_tolerance: float | None = None
 
 
 @dataclass(frozen=True)
@@ -76,6 +82,7 @@ class Problem:
     sensitivity: SensitivityGrid | None = None
     max_samples: int = 200_000
     solver: SolveCaps = field(default_factory=SolveCaps)
+    allow_limit_violation: bool = False
 
     def __post_init__(self) -> None:
         if (self.displacement is None) == (self.target_velocity is None):
@@ -118,6 +125,24 @@ class Problem:
     def load_move(self) -> float:
         """How far the load goes (or how fast it ends up moving): the scale of every relative residual."""
         return self.plant.load_move(self.move)
+
+    @property
+    def vibration_window(self) -> float | None:
+        """The settling bound on the load's vibration envelope (load units; velocity units for a
+        rest-to-velocity move): ``settling.vibration_tolerance``, else 1 % of the quasi-static deflection
+        of the lowest mode under the acceleration limit, a / w_n^2 (a / w_n in velocity), else 1e-3 of
+        the load's move. None for a plant without a vibration mode."""
+        if self.settling.vibration_tolerance is not None:
+            return self.settling.vibration_tolerance
+        modes = self.plant.modes()
+        if not modes:
+            return None
+        accel = self.acceleration_limit
+        if accel is None:
+            return VIBRATION_FRACTION_OF_MOVE * self.load_move
+        omega = min(m.natural_frequency_rad_s for m in modes)
+        deflection = accel / omega**2 if self.rest_to_rest else accel / omega
+        return VIBRATION_FRACTION_OF_DEFLECTION * self.plant.load_move(1.0) * deflection
 
     @property
     def slowest_period_s(self) -> float:

@@ -13,6 +13,7 @@ the simulated load, the metrics, the sensitivity, the limit check and the warnin
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -20,8 +21,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from models.commands import PiecewiseCommand
-from models.errors import InvalidParameter, NotApplicable
-from models.sensitivity import band_below, sensitivity
+from models.errors import Infeasible, InvalidParameter, NotApplicable
+from models.sensitivity import band_below, move_scale, residual_envelope, sensitivity
 from models.simulation import Metrics, Response, metrics, simulate
 from optim.family import Design, Family, Grid, Profile, Run, SolverSummary
 from optim.problem import TAIL_PERIODS, Limits, Problem, SensitivityGrid, nice_period
@@ -43,6 +44,7 @@ class Result:
     solver: SolverSummary | None
     extras: dict[str, Any]
     summary: dict[str, Any]  # the design block, completed after sampling
+    percentage_vibration: float | None = None  # V at the nominal first mode, % (None: no mode)
 
     @property
     def metrics(self) -> Metrics:
@@ -62,7 +64,8 @@ class Result:
             "profile": self.profile,
             "design": self.summary,
             "load": load_arrays(self.response),
-            "metrics": metrics_dict(self.metrics),
+            "metrics": {**metrics_dict(self.metrics), "percentage_vibration": self.percentage_vibration},
+            "limits_met": not self.limit_violations,
             "sensitivity": self.sensitivity,
             "solver": None if self.solver is None else self.solver.as_dict(),
             "limit_violations": list(self.limit_violations),
@@ -92,7 +95,7 @@ def evaluate(family: Family, problem: Problem, design: Design) -> Result:
             f"{problem.max_samples}; use a longer period",
         )
     response = simulate(problem.plant, sampled)
-    run = Run(grid, sampled, response, metrics(response, problem.settling.position_tolerance))
+    run = Run(grid, sampled, response, metrics_of(problem, response))
     profile = family.profile(design, sampled, grid) or profile_arrays(sampled)
     _check_finite(problem, profile, load_arrays(response))
     curve = None
@@ -100,9 +103,16 @@ def evaluate(family: Family, problem: Problem, design: Design) -> Result:
         zetas, ratios = _sensitivity_axes(problem, problem.sensitivity)
         _check_sensitivity_work(problem.sensitivity, zetas.size, ratios.size, sampled, problem.max_samples)
         curve = family.sensitivity(problem, design, ratios, zetas) or sensitivity_curve(problem, sampled, ratios, zetas)
+    nominal = nominal_percentage_vibration(problem, sampled)
     extras = dict(family.finish(problem, design, run))
     summary = {**design.summary, **extras.pop("design", {})}
     violations = limit_violations(problem.limits, run.metrics)
+    if violations and not problem.allow_limit_violation:
+        raise Infeasible(
+            f"the {family.name} design breaks the limits ({'; '.join(violations)}); ask allow_limit_violation "
+            "to see it anyway",
+            violations[0].split(":")[0],
+        )
     warnings = (*design.warnings, *extras.pop("warnings", ()), *violations)
     return Result(
         family=family.name,
@@ -115,6 +125,7 @@ def evaluate(family: Family, problem: Problem, design: Design) -> Result:
         solver=design.solver,
         extras=extras,
         summary=summary,
+        percentage_vibration=nominal,
     )
 
 
@@ -151,6 +162,11 @@ def grid_of(problem: Problem, design: Design, start_s: float = 0.0) -> Grid:
     if int(span / period) + 1 > room:
         period = nice_period(span, max(room - 1, 1))
     return Grid(period, horizon)
+
+
+def metrics_of(problem: Problem, response: Response) -> Metrics:
+    """The metrics with the problem's settling criteria (position band and vibration bound)."""
+    return metrics(response, problem.settling.position_tolerance, vibration_window=problem.vibration_window)
 
 
 def limit_violations(limits: Limits, result: Metrics) -> tuple[str, ...]:
@@ -209,6 +225,62 @@ def _check_sensitivity_work(
         )
 
 
+def rigid_reference(problem: Problem) -> PiecewiseCommand:
+    """The unshaped rigid command under the same limits: the time-optimal move at the acceleration
+    limit (bang-bang, or a trapezoidal velocity at ``max_velocity``; jerk limits ignored), or without
+    an acceleration limit the step itself (of position, or of velocity for rest-to-velocity)."""
+    move, accel, top = abs(problem.move), problem.acceleration_limit, problem.limits.max_velocity
+    if accel is None:
+        derivatives = [[0.0, move]] if problem.rest_to_rest else [[0.0, 0.0], [0.0, move]]
+        return PiecewiseCommand.from_derivatives([0.0, 1.0], derivatives)
+    if not problem.rest_to_rest:
+        return PiecewiseCommand.from_samples([0.0, move / accel], [accel, 0.0], 2, hold="zero")
+    ramp_s = math.sqrt(move / accel)
+    if top is not None and accel * ramp_s > top:
+        ramp_s = top / accel
+        cruise_s = move / top - ramp_s
+        return PiecewiseCommand.from_samples(
+            [0.0, ramp_s, ramp_s + cruise_s, 2 * ramp_s + cruise_s], [accel, 0.0, -accel, 0.0], 2, hold="zero"
+        )
+    return PiecewiseCommand.from_samples([0.0, ramp_s, 2 * ramp_s], [accel, -accel, 0.0], 2, hold="zero")
+
+
+def reference_wording(problem: Problem) -> str:
+    if problem.acceleration_limit is None:
+        return "the unshaped step" if problem.rest_to_rest else "the unshaped velocity step"
+    cruise = " with a cruise at limits.max_velocity" if problem.limits.max_velocity is not None else ""
+    return f"the rigid time-optimal move at the acceleration limit{cruise} (jerk limits ignored)"
+
+
+def percentage_vibration(
+    problem: Problem,
+    amplitude: NDArray[np.float64],
+    ratios: NDArray[np.float64],
+    zetas: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """V = 100 x residual amplitude / the reference's residual envelope at the same true mode (one row
+    per damping ratio), and that envelope (load units of the residual's quantity)."""
+    omega = problem.plant.modes()[0].natural_frequency_rad_s
+    w = np.repeat(ratios[None, :] * omega, zetas.size, axis=0)
+    z = np.repeat(zetas[:, None], ratios.size, axis=1)
+    derivative = 0 if problem.rest_to_rest else 1
+    envelope = residual_envelope(rigid_reference(problem), w.ravel(), z.ravel(), derivative).reshape(w.shape)
+    return 100.0 * amplitude / envelope, envelope
+
+
+def nominal_percentage_vibration(problem: Problem, command: PiecewiseCommand) -> float | None:
+    """V at the plant's first mode as modelled (ratio 1, its damping ratio); None without a mode."""
+    modes = problem.plant.modes()
+    if not modes:
+        return None
+    ratio, zeta = np.array([1.0]), np.array([modes[0].damping_ratio])
+    try:
+        amplitude = sensitivity(command, modes[0].natural_frequency_rad_s, ratio, zeta).amplitude
+    except InvalidParameter:
+        return None  # round-off would spoil it (the simulation accepted the command on its own scale)
+    return float(percentage_vibration(problem, amplitude, ratio, zeta)[0][0, 0])
+
+
 def sensitivity_curve(
     problem: Problem,
     command: PiecewiseCommand,
@@ -216,19 +288,30 @@ def sensitivity_curve(
     zetas: NDArray[np.float64],
     rows: NDArray[np.float64] | None = None,
 ) -> dict[str, Any]:
-    """Residual / move versus f_n / f_n,e around the plant's first mode (exact free state, one dot
-    product per frequency; models.sensitivity), or the given ``rows`` (one per damping ratio)."""
+    """Percentage vibration versus f_n / f_n,e around the plant's first mode (exact free state, one dot
+    product per frequency; models.sensitivity), from the residual fractions of the move ``rows`` when a
+    family gives them (one per damping ratio)."""
+    quantity, scale = move_scale(command)
     if rows is None:
         mode = problem.plant.modes()[0]
-        rows = sensitivity(command, mode.natural_frequency_rad_s, ratios, zetas).residual
-    grid = rows
-    band = band_below(ratios, grid[0], BAND_LEVEL)
+        amplitude = sensitivity(command, mode.natural_frequency_rad_s, ratios, zetas).amplitude
+        rows = amplitude / (scale if scale > 0 else 1.0)
+    else:
+        amplitude = rows * (scale if scale > 0 else 1.0)
+    percent, envelope = percentage_vibration(problem, amplitude, ratios, zetas)
+    band = band_below(ratios, percent[0], 100.0 * BAND_LEVEL)
+    several = zetas.size > 1
     return {
         "frequency_ratio": ratios,
-        "residual_vibration": grid[0],
-        "quantity": "position" if problem.rest_to_rest else "velocity",
+        "percentage_vibration": percent[0],
+        "reference_amplitude": envelope[0],
+        "reference": reference_wording(problem),
+        "residual_amplitude": amplitude[0],
+        "residual_vibration": rows[0],
+        "quantity": quantity,
         "damping_ratio": zetas,
-        "residual_vibration_grid": grid if zetas.size > 1 else None,
+        "percentage_vibration_grid": percent if several else None,
+        "residual_vibration_grid": rows if several else None,
         "band_5_percent": list(band) if band else None,
     }
 
@@ -269,6 +352,7 @@ def metrics_dict(m: Metrics) -> dict[str, Any]:
         "settled": m.settling.time_s is not None,
         "settling_quantity": m.settling.quantity,
         "settling_window": float(m.settling.window),
+        "settling_vibration_window": m.settling.vibration_window,
         "peak_velocity": m.peak_velocity,
         "peak_acceleration": m.peak_acceleration,
         "peak_jerk": m.peak_jerk,

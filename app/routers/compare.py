@@ -61,17 +61,24 @@ class Curves(OutModel):
 
 class Row(OutModel):
     family: FamilyName
+    label: str = Field(description="The design: the family, and the variant where it offers several (input_shaped/zv).")
     endpoint: str = Field(description="The family endpoint; POST `request` there to get this design.")
     request: dict[str, Any] = Field(description="The request that reproduces this row at `endpoint`.")
     motion_time_s: float = Field(description="Until the command's last change.")
-    settling_time_s: float | None = Field(description="Load within the settling band, from the start; null if never.")
+    settling_time_s: float | None = Field(
+        description="From the start, the earliest time after which the load stays within settling.position_tolerance "
+        "and its vibration envelope below settling.vibration_tolerance for ever; null if never."
+    )
+    percentage_vibration: float | None = Field(
+        description="V at the nominal mode, %: the residual over the unshaped rigid command's (see /v1/profiles/*)."
+    )
     residual_vibration: float = Field(description="Residual at the nominal frequency, fraction of the move.")
     residual_amplitude: float = Field(
         description="Load free-oscillation envelope (position; velocity for rest-to-velocity)."
     )
     band_5_percent: list[float | None] | None = Field(
-        description="f_n/f_n,e range around 1 where the residual stays <= 5 % (evaluated on 0.5..1.5; an end is "
-        "null where the band runs past that range)."
+        description="f_n/f_n,e range around 1 where the percentage vibration V stays <= 5 % (evaluated on 0.5..1.5; "
+        "an end is null where the band runs past that range)."
     )
     peak_velocity: float | None
     peak_acceleration: float | None
@@ -91,7 +98,11 @@ class Unavailable(OutModel):
 
 class CompareOut(OutModel):
     move: Literal["rest_to_rest", "rest_to_velocity"]
-    rows: list[Row] = Field(description="Sorted by settling time (never-settling designs last).")
+    rows: list[Row] = Field(
+        description="Sorted by settling time (never-settling designs last), then motion time. A family offering "
+        "several variants (shapers) has a row per variant; of alternatives (closed form or optimized, filter kinds) "
+        "only the one that settles first."
+    )
     unavailable: list[Unavailable]
 
 
@@ -102,10 +113,12 @@ def _row(request: CompareIn, common: dict[str, Any], row: ComparedRow, load_move
     amplitude = m.residual_amplitude if request.displacement is not None else m.residual_velocity_amplitude
     out: dict[str, Any] = {
         "family": family.name,
+        "label": row.label or family.name,
         "endpoint": family.endpoint,
         "request": {**common, **family.request_fields(row.options)},
         "motion_time_s": m.command_end_s - float(result.command.time_s[0]),
         "settling_time_s": m.settling.time_s,
+        "percentage_vibration": result.percentage_vibration,
         "residual_vibration": amplitude / load_move,
         "residual_amplitude": amplitude,
         "band_5_percent": result.sensitivity["band_5_percent"] if result.sensitivity else None,

@@ -13,6 +13,7 @@ from app.responses import NumpyJSONResponse
 from app.schemas.plants import to_plant
 from app.schemas.simulate import SimulateRequest, SimulateResponse, load_out, metrics_out, profile_out, to_command
 from models.simulation import metrics, simulate
+from optim.problem import VIBRATION_FRACTION_OF_MOVE
 
 router = APIRouter(prefix="/v1", tags=["simulation"])
 
@@ -33,7 +34,13 @@ def simulate_profile(
     plant = to_plant(request.plant)
     command, warnings = to_command(request.profile, request, settings.max_samples)
     response = simulate(plant, command)
-    result = metrics(response, request.settling_tolerance, request.settling_window)
+    result = metrics(
+        response,
+        request.settling_tolerance,
+        request.settling_window,
+        request.vibration_tolerance,
+        vibration_fraction=VIBRATION_FRACTION_OF_MOVE,
+    )
     return NumpyJSONResponse(
         {
             "profile": profile_out(command),

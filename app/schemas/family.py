@@ -16,7 +16,7 @@ from pydantic import Field, PrivateAttr, model_validator
 
 from app.schemas.common import OutModel, StrictModel
 from app.schemas.plants import PlantIn, to_plant
-from app.schemas.simulate import LoadOut, MetricsOut, ProfileOut
+from app.schemas.simulate import LoadOut, MetricsOut, ProfileOut, SettlingIn
 from app.settings import Settings
 from models.errors import InvalidParameter
 from optim.problem import MAX_MOVE, Limits, Problem, SensitivityGrid, Settling
@@ -75,32 +75,36 @@ class SensitivityIn(StrictModel):
 
 
 class SensitivityOut(OutModel):
+    """Robustness to a wrong natural frequency, in the percentage vibration of the field: V(omega) = 100 x the
+    residual amplitude the command leaves on the mode at the true frequency omega = ratio x omega_n (the plant's
+    first mode; its damping ratio, or each of damping_ratio), divided by the residual envelope of the unshaped
+    rigid command under the same limits at that same mode: sum over its acceleration steps of
+    |delta a_k| exp(-sigma (T - t_k)) / (omega omega_d) (4 a_max / omega^2 for an undamped bang-bang move), or,
+    without an acceleration limit, the step itself (then V is the classical ratio to the unshaped residual: a
+    ZV, ZVD or EI shaper on a step has its textbook curve). Rest-to-velocity moves compare velocities."""
+
     frequency_ratio: list[float] = Field(description="f_n / f_n,e: true over estimated natural frequency.")
+    percentage_vibration: list[float] = Field(description="V, % (5 = 5 %), at the first damping ratio.")
+    reference_amplitude: list[float] = Field(
+        description="The reference's residual envelope at each ratio (the denominator of V), load units."
+    )
+    reference: str = Field(description="The reference command V is measured against.")
+    residual_amplitude: list[float] = Field(description="The design's residual amplitude at each ratio, load units.")
     residual_vibration: list[float] = Field(
-        description="Residual amplitude as a fraction of the move (0.05 = 5 %), at the first damping ratio."
+        description="The same residual as a fraction of the move (0.05 = 5 % of the displacement or final speed)."
     )
-    quantity: str = Field(
-        description="position (rest-to-rest: / displacement) or velocity (rest-to-velocity: / final speed)."
-    )
+    quantity: str = Field(description="position (rest-to-rest) or velocity (rest-to-velocity).")
     damping_ratio: list[float] = Field(description="The true damping ratios evaluated.")
+    percentage_vibration_grid: list[list[float]] | None = Field(
+        None, description="One V curve per damping ratio, when several were asked."
+    )
     residual_vibration_grid: list[list[float]] | None = Field(
-        None, description="One residual curve per damping ratio, when several were asked."
+        None, description="One residual-fraction curve per damping ratio, when several were asked."
     )
     band_5_percent: list[float | None] | None = Field(
         None,
-        description="[low, high] ratios around 1 where the residual stays <= 5 % (first damping ratio); an end is "
-        "null where the band runs past the evaluated ratios.",
-    )
-
-
-class SettlingIn(StrictModel):
-    """When the load counts as settled."""
-
-    position_tolerance: float = Field(
-        1e-3,
-        gt=0,
-        le=1,
-        description="|load - target| as a fraction of the load's move (velocity for rest-to-velocity).",
+        description="[low, high]: the contiguous ratios around 1 where V <= 5 % (first damping ratio); an end is "
+        "null where the band runs past the evaluated ratios; null when V > 5 % at ratio 1.",
     )
 
 
@@ -151,7 +155,14 @@ class ProfileRequest(StrictModel):
         "periods of the slowest mode.",
     )
     settling: SettlingIn = Field(default_factory=SettlingIn)
-    sensitivity: SensitivityIn | None = Field(None, description="Residual versus f_n/f_n,e, when asked.")
+    sensitivity: SensitivityIn | None = Field(
+        None, description="Percentage vibration versus f_n/f_n,e (see SensitivityOut), when asked."
+    )
+    allow_limit_violation: bool = Field(
+        False,
+        description="Limits are hard: a design whose samples break a limit (beyond 1e-9 relative) is a 422 "
+        "/problems/infeasible. With true, it is returned instead, with limits_met false and the violations listed.",
+    )
     settling_tolerance: float | None = Field(
         None, gt=0, le=1, deprecated=_deprecated("settling_tolerance", "settling.position_tolerance")
     )
@@ -241,7 +252,8 @@ class ProfileRequest(StrictModel):
             limits=Limits(lim.max_velocity, lim.max_acceleration, lim.max_jerk, lim.max_torque_nm),
             sample_period_s=self.sample_period_s,
             horizon_s=self.horizon_s,
-            settling=Settling(settling.position_tolerance),
+            settling=Settling(settling.position_tolerance, settling.vibration_tolerance),
+            allow_limit_violation=self.allow_limit_violation,
             sensitivity=grid,
             max_samples=settings.max_samples,
             solver=settings.solve_caps,
@@ -260,7 +272,9 @@ class ProfileRequest(StrictModel):
         for name in ("sample_period_s", "horizon_s"):
             if getattr(self, name) is not None:
                 body[name] = getattr(self, name)
-        body["settling"] = settling.model_dump()
+        body["settling"] = settling.model_dump(exclude_none=True)
+        if self.allow_limit_violation:
+            body["allow_limit_violation"] = True
         if self.sensitivity is not None:
             body["sensitivity"] = self.sensitivity.model_dump(exclude_none=True)
         return body
@@ -280,8 +294,10 @@ class FamilyResponse(OutModel):
     metrics: MetricsOut
     sensitivity: SensitivityOut | None = None
     solver: SolverOut | None = Field(None, description="Where a solver ran: its status, iterations and time.")
+    limits_met: bool = Field(True, description="False only when allow_limit_violation let a violating design through.")
     limit_violations: list[str] = Field(
-        default_factory=list, description="Every requested limit the simulated command breaks (also in warnings)."
+        default_factory=list,
+        description="Every requested limit the command breaks (only with allow_limit_violation; also in warnings).",
     )
     warnings: list[str] = Field(default_factory=list)
 

@@ -27,6 +27,26 @@ class ProfileIn(StrictModel):
     jerk: list[float] | None = Field(None, description="Motor jerk, one per time.")
 
 
+class SettlingIn(StrictModel):
+    """When the load counts as settled: from the earliest time after which both hold for ever."""
+
+    position_tolerance: float = Field(
+        1e-3,
+        gt=0,
+        le=1,
+        description="|load - target| as a fraction of the load's move (velocity for rest-to-velocity).",
+    )
+    vibration_tolerance: float | None = Field(
+        None,
+        gt=0,
+        le=1e9,
+        description="Bound on the amplitude of the load's vibration envelope, in the load's units (velocity units "
+        "for rest-to-velocity): the free oscillation about its rigid motion plus, during the move, the quasi-static "
+        "deflection. Default: 1 % of the lowest mode's quasi-static deflection max_acceleration / omega_n^2 "
+        "(max_acceleration / omega_n in velocity) where an acceleration limit applies, else 1e-3 of the load's move.",
+    )
+
+
 class SimulationOptions(StrictModel):
     held_quantity: Quantity | None = Field(
         None,
@@ -46,6 +66,13 @@ class SimulationOptions(StrictModel):
     )
     settling_window: float | None = Field(
         None, gt=0, description="Absolute settling band in load units; overrides settling_tolerance."
+    )
+    vibration_tolerance: float | None = Field(
+        None,
+        gt=0,
+        le=1e9,
+        description="Settling also needs the load's vibration envelope below this (load units; default 1e-3 of the "
+        "load's move): see settling.vibration_tolerance of the profile endpoints.",
     )
 
 
@@ -96,11 +123,20 @@ class MetricsOut(OutModel):
         description="Vibration energy J/2 alpha'^2 + k/2 alpha^2 left when the command ends (physical plants only)."
     )
     settling_time_s: float | None = Field(
-        description="From the command's start until the load stays within the band; null if it never does."
+        description="From the command's start, the earliest time after which the load stays within the position "
+        "band and its vibration envelope below the vibration bound for ever (it can be before the command's end); "
+        "null if it never does (an undamped mode left ringing)."
     )
     settled: bool
     settling_quantity: Literal["position", "velocity"]
-    settling_window: float = Field(description="Half-width of the settling band, in load units.")
+    settling_window: float = Field(description="Half-width of the position band, in load units.")
+    settling_vibration_window: float | None = Field(
+        description="The bound on the load's vibration envelope that settling also needs (load units)."
+    )
+    percentage_vibration: float | None = Field(
+        None,
+        description="V at the plant's first mode as modelled, % (see the sensitivity block for its definition).",
+    )
     peak_velocity: float | None = Field(description="Peak |command velocity|; null where it is impulsive.")
     peak_acceleration: float | None
     peak_jerk: float | None

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from models.errors import NotApplicable
+from models.errors import Infeasible, NotApplicable
 from models.plants import make_plant
 from optim.family import FAMILIES
 from optim.problem import Limits, Problem, Settling, nice_period
@@ -106,12 +106,17 @@ def test_limits_are_reported_the_same_way_by_every_family(name, move):
         assert " peaks at " in line or " is impulsive" in line
 
 
-def test_a_stap_above_a_jerk_limit_is_reported_not_hidden():
+def test_a_design_above_a_limit_is_refused_unless_asked_for():
     # A STAP is not designed for jerk: t_j = 1/f = 0.2 s and a = 20 give |j| = v/(t_j (t_a - t_j)) >> 1.
-    result = run("stap", "target_velocity", limits=Limits(max_acceleration=20.0, max_jerk=1.0))
+    limits = Limits(max_acceleration=20.0, max_jerk=1.0)
+    with pytest.raises(Infeasible, match=r"limits\.max_jerk: the jerk peaks at ") as refused:
+        run("stap", "target_velocity", limits=limits)
+    assert refused.value.field == "limits.max_jerk"
+    result = run("stap", "target_velocity", limits=limits, allow_limit_violation=True)
     (line,) = result.limit_violations
     assert line.startswith("limits.max_jerk: the jerk peaks at ")
     assert result.metrics.peak_jerk > 1.0
+    assert result.body()["limits_met"] is False
 
 
 def test_nice_period_rule():
