@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 from scipy import signal
 
+from models.commands import PiecewiseCommand
 from models.plants import make_plant
 from models.simulation import metrics, simulate, vibration_envelope
-from models.commands import PiecewiseCommand
 from optim.family import FAMILIES
 from optim.problem import Limits, Problem
 from optim.synthesis import evaluate
