@@ -69,6 +69,10 @@ class Row(OutModel):
         description="From the start, the earliest time after which the load stays within settling.position_tolerance "
         "and its vibration envelope below settling.vibration_tolerance for ever; null if never."
     )
+    settling_window: float = Field(description="The position band settling needs, load units.")
+    settling_vibration_window: float | None = Field(
+        description="The bound on the load's vibration envelope settling needs, load units."
+    )
     percentage_vibration: float | None = Field(
         description="V at the nominal mode, %: the residual over the unshaped rigid command's (see /v1/profiles/*)."
     )
@@ -118,6 +122,8 @@ def _row(request: CompareIn, common: dict[str, Any], row: ComparedRow, load_move
         "request": {**common, **family.request_fields(row.options)},
         "motion_time_s": m.command_end_s - float(result.command.time_s[0]),
         "settling_time_s": m.settling.time_s,
+        "settling_window": float(m.settling.window),
+        "settling_vibration_window": m.settling.vibration_window,
         "percentage_vibration": result.percentage_vibration,
         "residual_vibration": amplitude / load_move,
         "residual_amplitude": amplitude,
