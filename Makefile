@@ -32,6 +32,7 @@ test: $(VENV)/.installed-test  ## lint, format and type gates, then the whole te
 bench: $(VENV)/.installed-test  ## run the benchmarks whose figures are in README.md
 	$(BIN)/python bench/simulation.py
 	$(BIN)/python bench/pseudo_polynomial.py
+	$(BIN)/python bench/compare.py
 
 clean:
 	rm -rf $(VENV) .pytest_cache

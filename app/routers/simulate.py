@@ -34,12 +34,11 @@ def simulate_profile(
     plant = to_plant(request.plant)
     command, warnings = to_command(request.profile, request, settings.max_samples)
     response = simulate(plant, command)
+    tolerance, vibration_window = request.settling_criteria()
+    if "settling_tolerance" in request.model_fields_set:
+        warnings = [*warnings, "settling_tolerance is deprecated: use settling.position_tolerance"]
     result = metrics(
-        response,
-        request.settling_tolerance,
-        request.settling_window,
-        request.vibration_tolerance,
-        vibration_fraction=VIBRATION_FRACTION_OF_MOVE,
+        response, tolerance, request.settling_window, vibration_window, vibration_fraction=VIBRATION_FRACTION_OF_MOVE
     )
     return NumpyJSONResponse(
         {

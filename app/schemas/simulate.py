@@ -62,18 +62,29 @@ class SimulationOptions(StrictModel):
         "interpolation.",
     )
     settling_tolerance: float = Field(
-        1e-3, gt=0, le=1, description="Settling band as a fraction of the load's displacement (or final speed)."
+        1e-3,
+        gt=0,
+        le=1,
+        description="Settling band as a fraction of the load's displacement (or final speed).",
+        deprecated="settling_tolerance is deprecated: use settling.position_tolerance",
     )
     settling_window: float | None = Field(
         None, gt=0, description="Absolute settling band in load units; overrides settling_tolerance."
     )
-    vibration_tolerance: float | None = Field(
+    settling: SettlingIn | None = Field(
         None,
-        gt=0,
-        le=1e9,
-        description="Settling also needs the load's vibration envelope below this (load units; default 1e-3 of the "
-        "load's move): see settling.vibration_tolerance of the profile endpoints.",
+        description="The settling criteria (vibration_tolerance default here, without limits: 1e-3 of the load's "
+        "move). settling.position_tolerance replaces settling_tolerance.",
     )
+
+    def settling_criteria(self) -> tuple[float, float | None]:
+        """The position tolerance and the vibration bound (None: the default)."""
+        legacy = float(self.__dict__["settling_tolerance"])  # without the deprecated field's access warning
+        if self.settling is None:
+            return legacy, None
+        if "settling_tolerance" in self.model_fields_set:
+            raise InvalidParameter("settling_tolerance", legacy, "give settling.position_tolerance only")
+        return self.settling.position_tolerance, self.settling.vibration_tolerance
 
 
 class SimulateRequest(SimulationOptions):

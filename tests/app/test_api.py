@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -135,3 +137,28 @@ def test_problem_types_are_documented(client):
     missing = client.get("/problems/nope")
     assert missing.status_code == 404
     assert missing.headers["content-type"] == "application/problem+json"
+
+
+def test_simulate_takes_the_settling_object_and_the_old_tolerance_as_an_alias(client):
+    """A ramp to 1 on a 5 Hz, zeta 0.05 mode: the same settling from settling.position_tolerance and from the
+    deprecated settling_tolerance; a tight vibration bound settles later (the envelope decays as e^(-sigma t))."""
+    t = [i * 0.01 for i in range(201)]
+    base = {
+        "plant": {"kind": "mode", "natural_frequency_hz": 5.0, "damping_ratio": 0.05},
+        "profile": {"time_s": t, "position": [min(x / 0.3, 1.0) for x in t]},
+    }
+    new = client.post("/v1/simulate", json={**base, "settling": {"position_tolerance": 0.01}}).json()
+    old = client.post("/v1/simulate", json={**base, "settling_tolerance": 0.01}).json()
+    assert new["metrics"]["settling_time_s"] == old["metrics"]["settling_time_s"]
+    assert any("deprecated" in w for w in old["warnings"]) and not new["warnings"]
+    tight = client.post(
+        "/v1/simulate", json={**base, "settling": {"position_tolerance": 0.01, "vibration_tolerance": 1e-6}}
+    ).json()["metrics"]
+    assert tight["settling_vibration_window"] == 1e-6
+    sigma = 0.05 * 2 * 3.141592653589793 * 5.0
+    # One mode: the envelope after the ramp is A exp(-sigma (t - 0.3)); it reaches 1e-6 at 0.3 + ln(A / 1e-6) / sigma.
+    amplitude = tight["residual_amplitude"]
+    assert amplitude > 1e-3
+    assert tight["settling_time_s"] == pytest.approx(0.3 + math.log(amplitude / 1e-6) / sigma, rel=1e-9)
+    both = client.post("/v1/simulate", json={**base, "settling": {}, "settling_tolerance": 0.01})
+    assert both.status_code == 422 and "settling_tolerance" in both.text
