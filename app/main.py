@@ -34,6 +34,14 @@ Conventions: SI units, with the unit in each field's name; motor positions in th
 coordinate (rad or m). The drive is assumed to execute the motor command exactly; the load follows
 through the plant's transfer function. Every error is `application/problem+json` whose `type` is
 documented under `/problems/{type}`.
+
+Yardsticks, the same in every family: `settling_time_s` is the earliest time after which the load
+stays within `settling.position_tolerance` of its target and its vibration envelope below
+`settling.vibration_tolerance` for ever (null if an undamped mode is left ringing). The percentage
+vibration `V` is the residual at the true frequency over the residual envelope of the unshaped rigid
+command under the same limits (the step itself without an acceleration limit, so shapers on a step have
+their textbook curves); `band_5_percent` is where `V <= 5 %` around ratio 1. Limits are hard: a design
+that breaks one is a 422 `/problems/infeasible`, unless `allow_limit_violation` asks to see it.
 """
 
 
