@@ -1,0 +1,119 @@
+"""The audit's reproducers of issue 11, each once a 200 that broke a limit, missed the displacement, or
+refused a move that has an answer. Each must now be a 200 within the limits and at the displacement, or
+a 422 of the right type with a reason; none a 500."""
+
+from __future__ import annotations
+
+import pytest
+
+PP = "/v1/profiles/pseudo-polynomial"
+STAP = "/v1/profiles/stap"
+SHAPED = "/v1/profiles/input-shaped"
+
+CASES = [
+    pytest.param(
+        PP,
+        {
+            "plant": {"kind": "mode", "natural_frequency_hz": 3.4136132292137797, "damping_ratio": 0.2840572223301995},
+            "displacement": -717.9817512876891,
+            "duration_s": 0.8859491534569945,
+            "order": 3,
+            "sample_period_s": 0.0011753363975126865,
+            "limits": {"max_jerk": 118612.89875371839},
+        },
+        id="pp-jerk-118722",
+    ),
+    pytest.param(
+        STAP,
+        {
+            "plant": {
+                "kind": "two_inertia",
+                "motor_inertia_kgm2": 0.43113191982048643,
+                "load_inertia_kgm2": 0.7689037090974283,
+                "stiffness_nm_per_rad": 2693.50111016888,
+                "damping_nms_per_rad": 26.490867301436257,
+            },
+            "max_torque_nm": 71.66772219485838,
+            "displacement": 4.132450061901825,
+            "target_velocity": 11.391022289965264,
+            "jerk_periods": "auto",
+            "method": "optimized",
+        },
+        id="stap-torque-71.6956",
+    ),
+    pytest.param(
+        SHAPED,
+        {
+            "plant": {"kind": "mode", "natural_frequency_hz": 40.03893781783215, "damping_ratio": 0.08560034273978648},
+            "shaper": "zvd",
+            "displacement": -0.01355515198087977,
+            "baseline": "step",
+            "acceleration_limit": 32.89918298569201,
+        },
+        id="shaped-step-short-of-the-displacement",
+    ),
+    pytest.param(
+        PP,
+        {
+            "plant": {
+                "kind": "transfer_function",
+                "numerator": [5329676.87849852, 21471366684.057102],
+                "denominator": [1.0, 163.11501159112285, 689806.5368298043, 5329676.87849852, 21471366684.057102],
+            },
+            "displacement": 0.016550784134077873,
+            "duration_s": 0.22808753015020575,
+            "order": 3,
+            "sample_period_s": 0.00020094309001385182,
+            "limits": {"max_acceleration": 4.180686100801731, "max_jerk": 244.7660123724046},
+        },
+        id="pp-solver-failed-but-4567-fits",
+    ),
+] + [
+    pytest.param(
+        SHAPED,
+        {
+            "plant": {"kind": "mode", "natural_frequency_hz": 7.3, "damping_ratio": 0.02},
+            "shaper": shaper,
+            "displacement": 0.4,
+            "limits": {"max_velocity": 0.5, "max_acceleration": 6.0},
+        },
+        id=f"shaped-{shaper}-cruise-within-max-velocity",
+    )
+    for shaper in ("zvdd", "2hump_ei", "zv", "ei")
+]
+
+PEAKS = {
+    "max_velocity": "peak_velocity",
+    "max_acceleration": "peak_acceleration",
+    "max_jerk": "peak_jerk",
+    "max_torque_nm": "peak_motor_torque_nm",
+}
+LEGACY = {"max_torque_nm": "max_torque_nm", "acceleration_limit": "max_acceleration"}
+# Moves with a known answer within the limits: a slower STAP, the classical 4-5-6-7 polynomial (peaks
+# 2.39 < 4.18 and 73.2 < 245, its closed form sampled finely), a ramp at the limit shaped by a positive shaper.
+MUST_ANSWER = (STAP, SHAPED)
+
+
+@pytest.mark.parametrize(("path", "body"), CASES)
+def test_audit_reproducer_is_an_honest_answer(client, path, body):
+    answer = client.post(path, json=body)
+    assert answer.status_code in (200, 422), answer.text
+    if path in MUST_ANSWER or body.get("duration_s") == 0.22808753015020575:
+        assert answer.status_code == 200, answer.text
+    if answer.status_code == 422:
+        problem = answer.json()
+        assert problem["type"] in ("/problems/infeasible", "/problems/not-applicable"), problem
+        assert problem["detail"]
+        return
+    out = answer.json()
+    assert out["limits_met"] is True and out["limit_violations"] == []
+    limits = dict(body.get("limits", {}))
+    limits.update({LEGACY[k]: v for k, v in body.items() if k in LEGACY})
+    for name, limit in limits.items():
+        peak = out["metrics"][PEAKS[name]]
+        assert peak is not None and peak <= limit * (1 + 1e-9), (name, peak, limit)
+    if path == STAP and "target_velocity" in body and "displacement" in body:
+        assert out["metrics"]["peak_velocity"] <= body["target_velocity"] * (1 + 1e-9)  # the legacy cruise limit
+    # At the displacement: the command ends there, to round-off of the move.
+    final = out["profile"]["position"][-1] - out["profile"]["position"][0]
+    assert final == pytest.approx(body["displacement"], rel=1e-9)
