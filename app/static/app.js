@@ -90,6 +90,12 @@ function fmt(value, digits = 4) {
   return Number(value).toPrecision(digits);
 }
 
+function designName(row) {
+  const family = FAMILIES[row.family] || row.family;
+  const variant = (row.label || "").split("/")[1];
+  return variant ? `${family} (${variant.replace(/_/g, " ").toUpperCase()})` : family;
+}
+
 function renderTable(result) {
   const body = $("compare-table").querySelector("tbody");
   body.innerHTML = "";
@@ -102,8 +108,8 @@ function renderTable(result) {
     const band = row.band_5_percent
       ? `${low === null ? "below 0.5" : fmt(low, 3)} – ${high === null ? "above 1.5" : fmt(high, 3)}` : "–";
     const cells = [
-      FAMILIES[row.family] || row.family, fmt(row.motion_time_s), fmt(row.settling_time_s),
-      fmt(100 * row.residual_vibration, 3), band, fmt(row.peak_velocity), fmt(row.peak_acceleration),
+      designName(row), fmt(row.motion_time_s), fmt(row.settling_time_s),
+      fmt(row.percentage_vibration, 3), band, fmt(row.peak_velocity), fmt(row.peak_acceleration),
       fmt(row.peak_jerk), fmt(row.peak_motor_torque_nm), fmt(row.limits_met),
     ];
     for (const text of cells) {
@@ -138,7 +144,7 @@ function drawMotion() {
   const quantity = $("quantity").value;
   const profile = row.curves.profile;
   const load = row.curves.load;
-  $("plot-title").textContent = `Motor and load: ${FAMILIES[row.family] || row.family}`;
+  $("plot-title").textContent = `Motor and load: ${designName(row)}`;
   // The load has its own axis (right): a belt platform turns 1/30 of the motor, for example.
   motionPlot = new uPlot({
     width: plotWidth(el), height: 300,
@@ -159,9 +165,9 @@ function drawSensitivity() {
   sensitivityPlot = new uPlot({
     width: plotWidth(el), height: 260,
     scales: { x: { time: false } },
-    axes: [{ label: "fn / fn,e" }, { label: "residual (% of move)" }],
-    series: [{ label: "ratio" }, { label: "residual %", stroke: "#2a8a4a", width: 2 }],
-  }, [curve.frequency_ratio, curve.residual_vibration.map((v) => 100 * v)], el);
+    axes: [{ label: "fn / fn,e" }, { label: "percentage vibration V (%)" }],
+    series: [{ label: "ratio" }, { label: "V %", stroke: "#2a8a4a", width: 2 }],
+  }, [curve.frequency_ratio, curve.percentage_vibration], el);
 }
 
 function selectRow(index) {
@@ -211,7 +217,7 @@ async function downloadCsv() {
   const blob = await response.blob();
   const link = document.createElement("a");
   link.href = URL.createObjectURL(blob);
-  link.download = `${row.family}-profile.csv`;
+  link.download = `${(row.label || row.family).replace("/", "-")}-profile.csv`;
   document.body.appendChild(link);
   link.click();
   link.remove();
