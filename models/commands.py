@@ -203,15 +203,16 @@ class PiecewiseCommand:
                 roots += [(-c1 + sq) / (2.0 * c2), (-c1 - sq) / (2.0 * c2), -c0 / c1]
         elif deg_inside > 3:
             roots += [h * f for f in np.linspace(0.0, 1.0, 18)[1:-1]]
-        for tau in roots:
-            ok = np.isfinite(tau) & (tau > 0.0) & (tau < h)
-            if np.any(ok):
-                k = np.flatnonzero(ok)
-                tk = tau[k]
-                value = np.zeros_like(tk)
-                for n in range(m, self.degree + 1):
-                    value += self.derivatives[n, k] * tk ** (n - m) / math.factorial(n - m)
-                candidates.append(np.abs(value))
+        if roots:
+            tau = np.array(roots)  # (candidates per piece, pieces)
+            tau = np.where(np.isfinite(tau) & (tau > 0.0) & (tau < h), tau, np.nan)
+            # Horner over the orders (a handful), every piece and candidate at once:
+            # p^(m)(t_k + tau) = D_m + tau (D_(m+1) + tau / 2 (D_(m+2) + ...)).
+            value = np.broadcast_to(self.derivatives[self.degree, :-1], tau.shape)
+            for n in range(self.degree - 1, m - 1, -1):
+                value = value * tau / (n - m + 1) + self.derivatives[n, :-1]
+            inside = np.abs(value[np.isfinite(value)])
+            candidates.append(inside)
         return float(max(np.max(c) if c.size else 0.0 for c in candidates))
 
     @classmethod
