@@ -174,6 +174,16 @@ class TorqueLimitOut(OutModel):
     worst_frequency_ratio: float = Field(description="f_n/f_n,e where it occurs.")
     factor: float = Field(description="1/(1 + torque_overshoot): the lowered limit over the nodal one.")
     acceleration_limit: float = Field(description="The lowered acceleration limit.")
+    peak_torque_nm: float | None = Field(
+        None,
+        description="Exact peak of the real motor torque J_M a_M + J_L a_L of the returned closed-form command, over "
+        "all time (eqs. 19 and 57-59 bound only the rigid part and one undamped ramp; this is simulated).",
+    )
+    lowered_acceleration_limit: float | None = Field(
+        None,
+        description="Where the eq. (57)-(59) design's real torque peak broke max_torque_nm: the acceleration cap, "
+        "found by a 1-D search on the exact peak, under which the returned design was made; null when not needed.",
+    )
 
 
 class CandidateOut(OutModel):
@@ -205,12 +215,15 @@ class StartOut(OutModel):
 class OptimizationOut(OutModel):
     objective: str
     selection: Literal["optimized", "closed_form_kept"] = Field(
-        description="closed_form_kept when no solve improved on the closed-form start (it is then returned)."
+        description="closed_form_kept when no solve met the limits and improved on the closed-form start (it is "
+        "then returned, with a warning)."
     )
     nominal_residual: float = Field(
-        description="Sum over the plant's modes of residual / move (the optimiser's model)."
+        description="Sum over the plant's modes of residual / the load's move (the optimiser's model)."
     )
-    grid_worst_residual: float | None = Field(description="Largest residual / move over the optimiser's band grid.")
+    grid_worst_residual: float | None = Field(
+        description="Largest residual / move over the optimiser's band grid (unit-gain modes)."
+    )
     closed_form: StartOut = Field(description="The closed-form design the optimiser started from.")
     acceleration_time_bounds_s: list[float]
     jerk_time_floor_s: float
@@ -267,8 +280,10 @@ class StapDesignOut(OutModel):
     requested_velocity: float | None = None
     velocity_lowered: bool | None = None
     residual_vibration: float = Field(
-        description="Residual of the returned samples, simulated on the plant: velocity / |v| (rest-to-velocity) or "
-        "position / |displacement| (rest-to-rest)."
+        description="The load's residual vibration amplitude after the command (velocity for rest-to-velocity, "
+        "position for rest-to-rest; metrics.residual_velocity_amplitude or metrics.residual_amplitude, the returned "
+        "samples simulated on the plant) as a fraction of the load's move: |G(0) target_velocity| or "
+        "|G(0) displacement| (the motor's move times the plant's static gain, e.g. lambda for belt_platform)."
     )
     optimization: OptimizationOut | None = None
 
