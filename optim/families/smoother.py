@@ -200,6 +200,7 @@ class SmootherFamily(BaseFamily):
             "sample_period_s": period,
             "commensurate_sample_period_s": commensurate_sample_period_s(chain, mode, run.grid.period_s),
             "hold_residual_fraction_of_move": hold_residual(chain, run.command, problem),
+            "residual_vibration": run.metrics.residual_amplitude / problem.load_move,
         }
         return {"design": more, "warnings": warnings}
 
