@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 from models.errors import NotApplicable
 from models.stap import load_acceleration_oscillation, stap_sensitivity
 from optim import stap as S
-from optim.family import BaseFamily, Design, Run, SolverSummary
+from optim.family import BaseFamily, Candidate, Design, Run, SolverSummary
 from optim.problem import Problem
 from optim.solver import SolveCaps
 
@@ -204,6 +204,14 @@ class StapFamily(BaseFamily):
 
     def default_options(self, problem: Problem) -> StapOptions:
         return StapOptions()
+
+    def candidates(self, problem: Problem) -> tuple[Candidate, ...]:
+        """The closed form and ``optimized`` in one group: compare keeps ``optimized`` only where it settles
+        first (the optimiser returns the closed form itself when no solve beats it, and ties keep the first)."""
+        return (
+            Candidate("stap/closed_form", StapOptions(), self.name),
+            Candidate("stap/optimized", StapOptions(method="optimized"), self.name),
+        )
 
     def uses_solver(self, options: Any) -> bool:
         return bool(options.method == "optimized")

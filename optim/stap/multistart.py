@@ -202,7 +202,7 @@ def optimize(request: StapRequest, start: StapDesign) -> OptimizedDesign:
                     continue
             converged_status = report.status
             key = (False, fx, _duration(stap, move))
-            if key < key_start and (best is None or key < best[0]):
+            if _beats(key, key_start) and (best is None or _beats(key, best[0])):
                 best = (key, xs)
             break
         if timed_out:
@@ -242,6 +242,21 @@ def optimize(request: StapRequest, start: StapDesign) -> OptimizedDesign:
         jerk_time_floor_s=t_hat_lo * ta_lo,
         move=move,
     )
+
+
+IMPROVEMENT = 1e-6  # a solve must lower the objective by this fraction (or tie and be shorter) to replace
+
+
+def _beats(key: tuple[bool, float, float], other: tuple[bool, float, float]) -> bool:
+    """Whether a design ranked (misses the tolerance, objective, duration) is better than ``other``: it
+    meets the tolerance where the other does not, or lowers the objective by more than 1e-6 of it, or
+    ties on the objective and is shorter; round-off differences do not count."""
+    if key[0] != other[0]:
+        return not key[0]
+    scale = max(abs(other[1]), 1e-300)
+    if key[1] < other[1] - IMPROVEMENT * scale:
+        return True
+    return key[1] <= other[1] + 1e-12 * scale and key[2] < other[2] * (1.0 - 1e-9)
 
 
 def _duration(stap: Stap, move: RestToRest | None) -> float:
