@@ -58,7 +58,9 @@ class StapIn(ProfileRequest):
     (default: the fastest move, with no cruise; lowered if the displacement is too short) and a decelerating STAP.
 
     The acceleration limit is ``limits.max_acceleration``; on a two_inertia plant ``limits.max_torque_nm`` gives
-    a_Max = M/(J_M + J_L) (eq. 19), lowered by the torque oscillation of eqs. (57)-(59) over the frequency band.
+    a_Max = M/(J_M + J_L) (eq. 19), lowered by the torque oscillation of eqs. (57)-(59) over the frequency band,
+    and lowered further where the real torque J_M a_M + J_L a_L (damping, a short t_c, the other ramp of a move)
+    would still exceed M: the product departs from the paper there, and checks the exact peak of every design.
     The plant's first vibration mode is the estimate f_n,e the STAP is designed for. The closed-form rules assume
     zeta = 0 (Sec. 2.3); method 'optimized' accounts for damping and frequency uncertainty."""
 
@@ -79,7 +81,10 @@ class StapIn(ProfileRequest):
         description="A caller-fixed t_a (>= t_a,min and >= 1/f_n,e, eq. 72); its zero-vibration jerk times are listed.",
     )
     method: Literal["closed_form", "optimized"] = Field(
-        "closed_form", description="closed_form: the paper's rules; optimized: CasADi/IPOPT over (t_a, t_j)."
+        "closed_form",
+        description="closed_form: the paper's rules; optimized: CasADi/IPOPT over (t_a, t_j), started from the closed "
+        "form and returning it (design.optimization.selection = closed_form_kept, with a warning) when no solve "
+        "meets the limits and beats it: a failed, timed-out or locally infeasible solve is never the answer.",
     )
     frequency_uncertainty: float = Field(
         DEFAULT_FREQUENCY_UNCERTAINTY,
