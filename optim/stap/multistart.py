@@ -186,10 +186,11 @@ def optimize(request: StapRequest, start: StapDesign) -> OptimizedDesign:
             if not report.converged:
                 break
             xs = np.clip(np.asarray(solution["x"]).ravel(), lbx, ubx)
-            fx, worst = breach(xs)
-            if worst > FEASIBLE:
+            if breach(xs)[1] > FEASIBLE:
                 break
             stap, move = projected(xs)
+            xs = x_of(stap.acceleration_time_s, stap.jerk_time_s, *xs[2:])  # the design as returned
+            fx = breach(xs)[0]
             if request.max_torque_nm is not None:
                 fits, peak = fits_torque(plant, command_of(stap, move), request.max_torque_nm)
                 if not fits:  # tighten the torque rows by the measured excess and solve again
