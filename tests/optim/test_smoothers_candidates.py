@@ -4,6 +4,7 @@ exponential, models.smoother_filters) in one group; compare keeps the one that s
 from __future__ import annotations
 
 import asyncio
+from concurrent.futures import ThreadPoolExecutor
 
 import pytest
 
@@ -22,6 +23,12 @@ async def in_process(family, problem, options):
     return synthesize(family, problem, options)
 
 
+def run_compare(problem, names):
+    """compare() on its own event loop in a thread (a browser test may leave one running in this thread)."""
+    with ThreadPoolExecutor(1) as pool:
+        return pool.submit(asyncio.run, compare(problem, in_process, names=names)).result()
+
+
 def test_the_candidates_are_the_tuned_kinds_in_one_group():
     problem = Problem(BIAGIOTTI, displacement=0.03)
     candidates = SmootherFamily().candidates(problem)
@@ -35,7 +42,7 @@ def test_the_candidates_are_the_tuned_kinds_in_one_group():
 
 def test_compare_shows_the_chain_that_settles_first():
     problem = Problem(BIAGIOTTI, displacement=0.03)
-    rows, unavailable = asyncio.run(compare(problem, in_process, names=["smoother"]))
+    rows, unavailable = run_compare(problem, ["smoother"])
     assert unavailable == [] and len(rows) == 1
     # Independent: both tuned chains through the pipeline; both cancel the mode (PAPER-NOTES: T0 = 3 pi/Omega =
     # 0.0768 s for S_sigma, 2 pi/Omega = 0.0512 s for M_sigma), so the shorter one settles first.

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import asyncio
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 
 import pytest
@@ -18,6 +19,12 @@ from optim.synthesis import synthesize
 
 async def in_process(family, problem, options):
     return synthesize(family, problem, options)
+
+
+def run_compare(problem, names):
+    """compare() on its own event loop in a thread (a browser test may leave one running in this thread)."""
+    with ThreadPoolExecutor(1) as pool:
+        return pool.submit(asyncio.run, compare(problem, in_process, names=names)).result()
 
 
 def settle(problem: Problem, options: StapOptions) -> float:
@@ -54,7 +61,7 @@ def test_compare_keeps_the_candidate_that_settles_first(monkeypatch, zeta, fixed
     problem = Problem(ModePlant(40.0, zeta), target_velocity=150.0, limits=Limits(max_acceleration=1000.0))
     family = FixedTime() if fixed else StapFamily()
     monkeypatch.setitem(FAMILIES, "stap", family)
-    rows, unavailable = asyncio.run(compare(problem, in_process, names=["stap"]))
+    rows, unavailable = run_compare(problem, ["stap"])
     assert unavailable == [] and [r.label for r in rows] == [label]
     # Independent: each candidate through the pipeline by itself; the row is the one that settles first.
     closed, optimized = (settle(problem, c.options) for c in family.candidates(problem))
