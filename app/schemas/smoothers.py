@@ -118,7 +118,9 @@ class DiscreteOut(OutModel):
     residual_amplitude: float = Field(
         description="Residual of the plant driven by the discrete output held linearly between samples (simulated)."
     )
-    residual_fraction_of_move: float
+    residual_fraction_of_move: float = Field(
+        description="residual_amplitude / the load's move |G(0) displacement| (G(0) the plant's static gain)."
+    )
     exact_sample_period_s: float | None = Field(
         description="The sample period nearest the requested one with N Ts = T for every vibration-free filter: "
         "at it the discrete chain cancels the mode exactly. Keeping Ts instead means running filters of "
@@ -145,7 +147,15 @@ class SmootherDesignOut(OutModel):
         description="Residual envelope when the motion ends, from the chain's transfer function at the plant's "
         "poles (sum over modes): an independent check of metrics.residual_amplitude."
     )
-    residual_fraction_of_move: float = Field(description="residual_amplitude_closed_form / |displacement|.")
+    residual_fraction_of_move: float = Field(
+        description="residual_amplitude_closed_form / the load's move |G(0) displacement| (G(0) the plant's static "
+        "gain, e.g. lambda for belt_platform)."
+    )
+    residual_vibration: float = Field(
+        description="The load's residual vibration amplitude after the command (metrics.residual_amplitude, the "
+        "returned samples simulated on the plant) as a fraction of the load's move |G(0) displacement|: the same "
+        "definition in every family."
+    )
     sample_period_s: float = Field(
         description="Period of the returned profile: the requested one, divided by an integer when the filters are "
         "too fast for it (see warnings)."
@@ -158,7 +168,8 @@ class SmootherDesignOut(OutModel):
     hold_residual_fraction_of_move: float = Field(
         description="Residual left when the returned samples alone drive the plant, interpolated as a cam table "
         "with feed-forward does: the cubic Hermite curve through position and velocity (C^1 profiles), velocity "
-        "and acceleration (C^2) or acceleration and jerk (C^3 and smoother); linear position for C^0."
+        "and acceleration (C^2) or acceleration and jerk (C^3 and smoother); linear position for C^0. A fraction "
+        "of the load's move |G(0) displacement|."
     )
     predicted_peaks: PeaksOut = Field(
         description="Peak |velocity|, |acceleration|, |jerk| by the design's closed forms."

@@ -58,7 +58,9 @@ class StapIn(ProfileRequest):
     (default: the fastest move, with no cruise; lowered if the displacement is too short) and a decelerating STAP.
 
     The acceleration limit is ``limits.max_acceleration``; on a two_inertia plant ``limits.max_torque_nm`` gives
-    a_Max = M/(J_M + J_L) (eq. 19), lowered by the torque oscillation of eqs. (57)-(59) over the frequency band.
+    a_Max = M/(J_M + J_L) (eq. 19), lowered by the torque oscillation of eqs. (57)-(59) over the frequency band,
+    and lowered further where the real torque J_M a_M + J_L a_L (damping, a short t_c, the other ramp of a move)
+    would still exceed M: the product departs from the paper there, and checks the exact peak of every design.
     The plant's first vibration mode is the estimate f_n,e the STAP is designed for. The closed-form rules assume
     zeta = 0 (Sec. 2.3); method 'optimized' accounts for damping and frequency uncertainty."""
 
@@ -79,7 +81,10 @@ class StapIn(ProfileRequest):
         description="A caller-fixed t_a (>= t_a,min and >= 1/f_n,e, eq. 72); its zero-vibration jerk times are listed.",
     )
     method: Literal["closed_form", "optimized"] = Field(
-        "closed_form", description="closed_form: the paper's rules; optimized: CasADi/IPOPT over (t_a, t_j)."
+        "closed_form",
+        description="closed_form: the paper's rules; optimized: CasADi/IPOPT over (t_a, t_j), started from the closed "
+        "form and returning it (design.optimization.selection = closed_form_kept, with a warning) when no solve "
+        "meets the limits and beats it: a failed, timed-out or locally infeasible solve is never the answer.",
     )
     frequency_uncertainty: float = Field(
         DEFAULT_FREQUENCY_UNCERTAINTY,
@@ -174,6 +179,16 @@ class TorqueLimitOut(OutModel):
     worst_frequency_ratio: float = Field(description="f_n/f_n,e where it occurs.")
     factor: float = Field(description="1/(1 + torque_overshoot): the lowered limit over the nodal one.")
     acceleration_limit: float = Field(description="The lowered acceleration limit.")
+    peak_torque_nm: float | None = Field(
+        None,
+        description="Exact peak of the real motor torque J_M a_M + J_L a_L of the returned closed-form command, over "
+        "all time (eqs. 19 and 57-59 bound only the rigid part and one undamped ramp; this is simulated).",
+    )
+    lowered_acceleration_limit: float | None = Field(
+        None,
+        description="Where the eq. (57)-(59) design's real torque peak broke max_torque_nm: the acceleration cap, "
+        "found by a 1-D search on the exact peak, under which the returned design was made; null when not needed.",
+    )
 
 
 class CandidateOut(OutModel):
@@ -205,12 +220,15 @@ class StartOut(OutModel):
 class OptimizationOut(OutModel):
     objective: str
     selection: Literal["optimized", "closed_form_kept"] = Field(
-        description="closed_form_kept when no solve improved on the closed-form start (it is then returned)."
+        description="closed_form_kept when no solve met the limits and improved on the closed-form start (it is "
+        "then returned, with a warning)."
     )
     nominal_residual: float = Field(
-        description="Sum over the plant's modes of residual / move (the optimiser's model)."
+        description="Sum over the plant's modes of residual / the load's move (the optimiser's model)."
     )
-    grid_worst_residual: float | None = Field(description="Largest residual / move over the optimiser's band grid.")
+    grid_worst_residual: float | None = Field(
+        description="Largest residual / move over the optimiser's band grid (unit-gain modes)."
+    )
     closed_form: StartOut = Field(description="The closed-form design the optimiser started from.")
     acceleration_time_bounds_s: list[float]
     jerk_time_floor_s: float
@@ -267,8 +285,10 @@ class StapDesignOut(OutModel):
     requested_velocity: float | None = None
     velocity_lowered: bool | None = None
     residual_vibration: float = Field(
-        description="Residual of the returned samples, simulated on the plant: velocity / |v| (rest-to-velocity) or "
-        "position / |displacement| (rest-to-rest)."
+        description="The load's residual vibration amplitude after the command (velocity for rest-to-velocity, "
+        "position for rest-to-rest; metrics.residual_velocity_amplitude or metrics.residual_amplitude, the returned "
+        "samples simulated on the plant) as a fraction of the load's move: |G(0) target_velocity| or "
+        "|G(0) displacement| (the motor's move times the plant's static gain, e.g. lambda for belt_platform)."
     )
     optimization: OptimizationOut | None = None
 

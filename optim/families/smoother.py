@@ -14,8 +14,9 @@ from typing import Any, ClassVar, Literal
 from models.commands import PiecewiseCommand
 from models.errors import InvalidParameter
 from models.simulation import metrics, simulate
+from models.smoother_filters import FilterKind
 from models.smoothers import MAX_RATE_TIMES_PERIOD, Chain, refinement, step_response
-from optim.family import BaseFamily, Design, Run
+from optim.family import BaseFamily, Candidate, Design, Run
 from optim.problem import Problem
 from optim.smoothers import (
     ChainDesign,
@@ -30,6 +31,9 @@ from optim.smoothers import (
     same_time_ratio,
     vibration_free_durations_s,
 )
+
+# The kinds a duration tuned to the mode makes vibration-free on a damped mode (models.smoother_filters.DAMPED).
+TUNED_KINDS: tuple[FilterKind, ...] = ("damped_harmonic", "exponential")
 
 
 @dataclass(frozen=True)
@@ -111,6 +115,15 @@ class SmootherFamily(BaseFamily):
 
     def default_options(self, problem: Problem) -> SmootherOptions:
         return SmootherOptions()  # one damped harmonic smoother tuned to the plant: 3 pi/Omega, sigma = -zeta omega_n
+
+    def candidates(self, problem: Problem) -> tuple[Candidate, ...]:
+        """One chain per tuned filter kind (models.smoother_filters: the damped ones, S_sigma of duration
+        3 pi/Omega and M_sigma of 2 pi/Omega, sigma = -zeta omega_n), in one group: compare keeps the one
+        that settles first."""
+        return tuple(
+            Candidate(f"{self.name}/{kind}", SmootherOptions(filters=(FilterSpec(kind),)), self.name)
+            for kind in TUNED_KINDS
+        )
 
     def design(self, problem: Problem, options: SmootherOptions) -> Design:
         h = problem.move
@@ -200,6 +213,7 @@ class SmootherFamily(BaseFamily):
             "sample_period_s": period,
             "commensurate_sample_period_s": commensurate_sample_period_s(chain, mode, run.grid.period_s),
             "hold_residual_fraction_of_move": hold_residual(chain, run.command, problem),
+            "residual_vibration": run.metrics.residual_amplitude / problem.load_move,
         }
         return {"design": more, "warnings": warnings}
 

@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 from models.errors import NotApplicable
 from models.stap import load_acceleration_oscillation, stap_sensitivity
 from optim import stap as S
-from optim.family import BaseFamily, Design, Run, SolverSummary
+from optim.family import BaseFamily, Candidate, Design, Run, SolverSummary
 from optim.problem import Problem
 from optim.solver import SolveCaps
 
@@ -57,6 +57,11 @@ class _Detail:
     options: StapOptions
 
     @property
+    def kept(self) -> bool:
+        """The closed form is the answer (method closed_form, or no solve beat it)."""
+        return self.optimized is None or self.optimized.selection == "closed_form_kept"
+
+    @property
     def stap(self) -> Any:
         return self.closed.stap if self.optimized is None else self.optimized.stap
 
@@ -92,10 +97,13 @@ def core_request(problem: Problem, options: StapOptions) -> S.StapRequest:
     )
 
 
-def _torque_block(torque: Any, speed: float) -> dict[str, Any] | None:
+def _torque_block(closed: S.StapDesign, speed: float) -> dict[str, Any] | None:
+    torque = closed.torque
     if torque is None:
         return None
     return {
+        "peak_torque_nm": closed.peak_torque_nm,
+        "lowered_acceleration_limit": closed.torque_lowered_acceleration,
         "max_torque_nm": torque.max_torque_nm,
         "nodal_acceleration_limit": torque.nodal_acceleration_limit,
         "nodal_min_acceleration_time_s": speed / torque.nodal_acceleration_limit,
@@ -133,9 +141,10 @@ def _design_block(problem: Problem, detail: _Detail) -> dict[str, Any]:
     stap, move = detail.stap, detail.move
     f = closed.estimated_frequency_hz
     speed = abs(stap.velocity)
-    fixed = closed.fixed_acceleration_time and optimized is None
-    if optimized is None:
-        a_max, rule, torque = closed.acceleration_limit, closed.rule, closed.torque
+    kept = detail.kept
+    fixed = closed.fixed_acceleration_time and kept
+    if kept or optimized is None:
+        a_max, rule, torque = closed.acceleration_limit, closed.rule, _torque_block(closed, speed)
         k_j, delta = closed.k_j, closed.delta
     else:
         a_max, torque = problem.limits.max_acceleration, None
@@ -164,17 +173,17 @@ def _design_block(problem: Problem, detail: _Detail) -> dict[str, Any]:
         "dimensionless_jerk_time": stap.dimensionless_jerk_time,
         "acceleration_limit": a_max,
         "limit_reached": a_max is not None and abs(peak - a_max) <= S.LIMIT_RTOL * a_max,
-        "torque_limit": _torque_block(torque, speed),
+        "torque_limit": torque,
         "load_acceleration_oscillation": float(load_acceleration_oscillation(1.0, f * stap.jerk_time_s)),
         "frequency_uncertainty": options.frequency_uncertainty,
         "residual_tolerance": options.residual_tolerance,
         "band_worst_residual": S.band_worst(stap, f, options.frequency_uncertainty),
         "candidates": [vars(c) for c in closed.candidates] if fixed else None,
         "candidates_truncated": closed.candidates_truncated if fixed else None,
-        "k_j_max": closed.k_j_max if optimized is None else None,
-        "delta_f": closed.delta_f if optimized is None else None,
-        "paper_k_j_max": closed.paper_k_j_max if optimized is None else None,
-        "paper_delta_f": closed.paper_delta_f if optimized is None else None,
+        "k_j_max": closed.k_j_max if kept else None,
+        "delta_f": closed.delta_f if kept else None,
+        "paper_k_j_max": closed.paper_k_j_max if kept else None,
+        "paper_delta_f": closed.paper_delta_f if kept else None,
         "auto_steps": [vars(s) for s in closed.auto_steps] or None,
         "displacement": None if move is None else move.displacement,
         "cruise_velocity": None if move is None else move.ramp.velocity,
@@ -196,6 +205,14 @@ class StapFamily(BaseFamily):
     def default_options(self, problem: Problem) -> StapOptions:
         return StapOptions()
 
+    def candidates(self, problem: Problem) -> tuple[Candidate, ...]:
+        """The closed form and ``optimized`` in one group: compare keeps ``optimized`` only where it settles
+        first (the optimiser returns the closed form itself when no solve beats it, and ties keep the first)."""
+        return (
+            Candidate("stap/closed_form", StapOptions(), self.name),
+            Candidate("stap/optimized", StapOptions(method="optimized"), self.name),
+        )
+
     def uses_solver(self, options: Any) -> bool:
         return bool(options.method == "optimized")
 
@@ -216,7 +233,11 @@ class StapFamily(BaseFamily):
         detail = _Detail(closed, optimized, options)
         stap, move = detail.stap, detail.move
         command = stap.command() if move is None else move.command()
-        notes = (*(closed.notes if optimized is None else ()), *closed.move_notes)
+        notes = (
+            *(closed.notes if detail.kept else ()),
+            *(optimized.notes if optimized is not None else ()),
+            *closed.move_notes,
+        )
         solver = None if optimized is None else SolverSummary.of(optimized.solver, optimized.solves)
         return Design(command, _design_block(problem, detail), notes, solver, detail=detail)
 

@@ -7,6 +7,8 @@ package composes them:
 - ``limits``: f_n,e and a_Max, with the torque limit lowered for the oscillation (eqs. 19, 57-59);
 - ``ramp``: the closed-form ramp at one speed and the Fig. 25 flowchart (Secs. 2-4, Appendix C);
 - ``moves``: request checks, rest-to-velocity and rest-to-rest designs (``design``);
+- ``torque``: the real motor torque J_M a_M + J_L a_L held within max_torque_nm (a 1-D search on the
+  acceleration against the exact peak, beyond eqs. 19 and 57-59);
 - ``problem``: the CasADi problem over (t_a, t_j), built once per shape with named parameters;
 - ``multistart``: the optimised design (``optimize``): starts, solves and selection.
 """
@@ -47,6 +49,7 @@ from optim.stap.problem import (
     warm_up,
 )
 from optim.stap.ramp import AUTO_MAX_PERIODS, MAX_LISTED_CANDIDATES, zero_vibration_candidates
+from optim.stap.torque import fits_torque, lower_acceleration
 from optim.stap.types import (
     DEFAULT_FREQUENCY_UNCERTAINTY,
     DEFAULT_RESIDUAL_TOLERANCE,
@@ -93,6 +96,8 @@ __all__ = [
     "closed_form",
     "design",
     "estimated_mode",
+    "fits_torque",
+    "lower_acceleration",
     "min_acceleration_time",
     "nodal_acceleration_limit",
     "optimize",

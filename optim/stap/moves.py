@@ -18,6 +18,7 @@ from models.errors import InvalidParameter
 from models.stap import MAX_TIME_S, RestToRest, Stap
 from optim.stap.limits import estimated_mode, no_acceleration_limit_error, torque_plant
 from optim.stap.ramp import rest_to_velocity
+from optim.stap.torque import lower_acceleration
 from optim.stap.types import (
     MAX_BAND_DAMPING_RATIOS,
     MAX_FREQUENCY_POINTS,
@@ -182,5 +183,7 @@ def check_request(request: StapRequest) -> StapRequest:
 
 
 def design(request: StapRequest) -> StapDesign:
-    """The closed-form design (in-process: no solver)."""
-    return closed_form(check_request(request))
+    """The closed-form design (in-process: no solver), its acceleration lowered where the real motor
+    torque would break max_torque_nm (``optim.stap.torque``)."""
+    request = check_request(request)
+    return lower_acceleration(request, closed_form(request), closed_form)

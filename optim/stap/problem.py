@@ -22,7 +22,7 @@ per shape in the worker (``warm_up`` builds the common ones).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -54,6 +54,12 @@ class CompiledProblem:
     layout: dict[str, slice]
     parameter_count: int
     variables: int
+    torque_rows: slice = field(
+        default_factory=lambda: slice(0, 0)
+    )  # rows of g bounding the torque on the grid (|.| <= 1 - margin)
+    envelope_rows: slice = field(
+        default_factory=lambda: slice(0, 0)
+    )  # rows bounding the squared torque envelope after t_a
 
 
 ProblemKey = tuple[str, int, int, int, SolveCaps]  # kind, points, torque modes, torque grid, caps
@@ -136,10 +142,13 @@ def build_problem(kind: str, points: int, torque_modes: int, torque_grid: int, c
         modes = ca.reshape(p[layout["tq"]], 4, torque_modes)
         jj_p = p[layout["jj"]]
         mapped = torque_at.map(torque_grid)
+        first_torque_row = len(lbg)
         for m in range(torque_modes):  # a loop over a few modes, not samples
             g.append(ca.transpose(mapped(xs, speed, grid, modes[:, m], jj_p)))
             lbg += [-(1.0 - TORQUE_MARGIN)] * torque_grid
             ubg += [1.0 - TORQUE_MARGIN] * torque_grid
+        torque_rows = slice(first_torque_row, len(lbg))
+        envelope_rows = slice(len(lbg), len(lbg) + torque_modes)
         g.append(ca.transpose(after.map(torque_modes)(xs, speed, modes, jj_p)))
         lbg += [-np.inf] * torque_modes
         ubg += [(1.0 - TORQUE_MARGIN) ** 2] * torque_modes
@@ -147,7 +156,8 @@ def build_problem(kind: str, points: int, torque_modes: int, torque_grid: int, c
     nlp = {"x": x, "p": p, "f": f, "g": g_all}
     solver = ca.nlpsol("stap", "ipopt", nlp, ipopt_options(caps, **OPTIONS))
     evaluate = ca.Function("evaluate", [x, p], [f, g_all, squares])
-    return CompiledProblem(solver, evaluate, np.array(lbg), np.array(ubg), layout, start, n_x)
+    rows = (torque_rows, envelope_rows) if torque_modes else (slice(0, 0), slice(0, 0))
+    return CompiledProblem(solver, evaluate, np.array(lbg), np.array(ubg), layout, start, n_x, *rows)
 
 
 def compiled_problem(kind: str, points: int, torque_modes: int, torque_grid: int, caps: SolveCaps) -> CompiledProblem:
@@ -189,14 +199,15 @@ class ResidualPoints:
 
 
 def residual_points(
-    poles: ComplexArray, residues: ComplexArray, speed: float, distance: float | None
+    poles: ComplexArray, residues: ComplexArray, speed: float, distance: float | None, gain: float = 1.0
 ) -> ResidualPoints:
-    """Each pole's factor: |2 r lambda^m (exp(lambda D/v) - 1)| / move, m = 1 for
-    rest-to-velocity (the velocity residual over v), 0 for rest-to-rest (position over D)."""
+    """Each pole's factor: |2 r lambda^m (exp(lambda D/v) - 1)| / the load's move, m = 1 for
+    rest-to-velocity (the velocity residual over |G(0)| v), 0 for rest-to-rest (position over
+    |G(0)| D); ``gain`` = |G(0)| (1 for the unit-gain modes of the band grid)."""
     if distance is None:
-        factor = np.abs(2.0 * residues * poles) / speed
+        factor = np.abs(2.0 * residues * poles) / (gain * speed)
     else:
-        factor = np.abs(2.0 * residues * np.expm1(poles * distance / speed)) / distance
+        factor = np.abs(2.0 * residues * np.expm1(poles * distance / speed)) / (gain * distance)
     return ResidualPoints(poles, factor)
 
 

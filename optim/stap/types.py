@@ -108,6 +108,9 @@ class StapDesign:
     move_notes: tuple[str, ...] = ()  # what the rest-to-rest rules did (lowered speed, ...)
     requested_velocity: float | None = None
     velocity_lowered: bool = False
+    # the real torque (optim.stap.torque): its exact peak, and the acceleration cap that made it fit
+    peak_torque_nm: float | None = None
+    torque_lowered_acceleration: float | None = None
 
 
 @dataclass(frozen=True)
@@ -125,3 +128,4 @@ class OptimizedDesign:
     acceleration_time_bounds_s: tuple[float, float]
     jerk_time_floor_s: float
     move: RestToRest | None = None
+    notes: tuple[str, ...] = ()  # why the closed form was kept, when it was
