@@ -26,12 +26,13 @@ from optim.pseudo_polynomial.duration_search import _shortest
 from optim.pseudo_polynomial.problem import (
     _CACHE,
     CONSTRAINT_INTERVALS,
+    INTERPOLATION_NODES,
     LIMIT_MARGIN,
     MAX_EXPONENT,
     MAX_MODES,
+    MAX_PHASE_RAD,
     MIN_SEPARATION,
     PROBE_ITERATIONS,
-    QUADRATURE_SIZES,
     QUICK_ITERATIONS,
     SEARCH_ITERATIONS,
     SYMBOLIC_KINDS,
@@ -43,7 +44,7 @@ from optim.pseudo_polynomial.problem import (
     evaluate,
     limit_grid_u,
     lower_bound,
-    quadrature_nodes,
+    product_weights,
     warm_up,
 )
 from optim.pseudo_polynomial.solve import (
@@ -58,13 +59,14 @@ from optim.pseudo_polynomial.types import Limits, PseudoPolynomialDesign, Pseudo
 
 __all__ = [
     "CONSTRAINT_INTERVALS",
+    "INTERPOLATION_NODES",
     "LIMIT_MARGIN",
     "MAX_EXPONENT",
     "MAX_MODES",
     "MAX_ORDER",
+    "MAX_PHASE_RAD",
     "MIN_SEPARATION",
     "PROBE_ITERATIONS",
-    "QUADRATURE_SIZES",
     "QUICK_ITERATIONS",
     "SEARCH_ITERATIONS",
     "SPREAD_STARTS",
@@ -84,7 +86,7 @@ __all__ = [
     "evaluate",
     "limit_grid_u",
     "lower_bound",
-    "quadrature_nodes",
+    "product_weights",
     "spread_starts",
     "warm_up",
 ]
