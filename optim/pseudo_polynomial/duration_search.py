@@ -3,7 +3,8 @@
 Zero-energy designs do not exist at every duration: for order 2 they appear near whole numbers of
 periods of the mode (from about three), so feasibility is not monotone in T. The search scans whole
 periods of the slowest mode upwards from the kinematic floor (no move within the limits is shorter),
-then refines below the first feasible one: steps of a quarter of a period down to the candidate below
+(if none is feasible up to EXTRA_PERIODS beyond duration_s, a multi-start solve at duration_s is the
+last resort), then refines below the first feasible one: steps of a quarter of a period down to the candidate below
 it, and bisection between the shortest feasible step and the infeasible one below it. A probe first
 solves the closest zero-energy design without the limits (a problem of two equality constraints, a few
 milliseconds) and keeps it when its checked peaks meet the limits; only otherwise does it solve with the
@@ -138,14 +139,16 @@ def shortest(request: PseudoPolynomialRequest, peaks_of: PeaksOf | None) -> Sear
     initial = np.asarray(request.initial_exponents)
     best: _Attempt | None = None
     below: float | None = None  # the infeasible candidate just below the first feasible one
+    high = request.duration_s
     for duration in _candidates(request, period):
         best = probe(duration, initial)
-        if best is None and duration == request.duration_s:
-            best = probe(duration, initial, "thorough")  # multi-start where the closest solve fails (order >= 3)
         if best is not None:
             high = duration
             break
         below = duration
+    if best is None:  # the multi-start at duration_s, where no closest solve succeeds (order >= 3 from its start)
+        best = probe(request.duration_s, initial, "thorough")
+        below = max((d for d, _ in tried if d < high), default=None)
     if best is None:
         raise Infeasible(
             f"no pseudo-polynomial command of order {request.order} meets the limits with a residual below "

@@ -158,7 +158,7 @@ def _solve_at(
 
     1. the zero-energy design closest to the initial exponents, solved from ``start`` (``effort``
        "probe": at most PROBE_ITERATIONS iterations, and a capped iterate within the limits is returned
-       as stage "capped", never a design; "polish": the full iteration cap, nothing else);
+       as stage "capped", never a design; "polish": QUICK_ITERATIONS, nothing else);
     2. if IPOPT does not reach one (and ``effort`` is not "probe"): minimise the energy from the
        initial exponents and (``effort`` "thorough") from fixed spread starts, keeping the
        lowest-energy design that meets the limits; if its energy is zero to round-off, move it
@@ -201,7 +201,7 @@ def _solve_at(
     def feasible(gamma: FloatArray) -> bool:
         return float(compiled.violation(np.clip(gamma, lbx, ubx), p)) <= 1e-9
 
-    first = {"probe": compiled.probe, "polish": compiled.closest}.get(effort, compiled.quick)
+    first = compiled.probe if effort == "probe" else compiled.quick
     gamma, report = run(first, start, lbg_c, ubg_c)
     if report.converged and feasible(gamma):
         return attempt(gamma, "closest_zero_energy", report.status)
