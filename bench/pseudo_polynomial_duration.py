@@ -47,14 +47,14 @@ def main() -> None:
     reference = median_s(lambda: pp.design(fixed))
     default = median_s(lambda: FAMILY.design(problem, options))
     summary = design.summary
-    bracket = summary["duration_bracket"]
+    below = summary["duration_bracket"]["longest_infeasible_below_s"]
     print(f"one fixed-duration design (Table III, 1 s, no limits), median of {RUNS}: {1e3 * reference:.1f} ms")
     print(
         f"default design of the compare example (minimize_duration), median of {RUNS}: {1e3 * default:.0f} ms "
         f"= {default / reference:.1f} x the fixed-duration design"
     )
     print(
-        f"  duration {summary['duration_s']:.6f} s (longest infeasible below: {bracket['longest_infeasible_below_s']:.6f} s), "
+        f"  duration {summary['duration_s']:.6f} s (longest infeasible below: {below:.6f} s), "
         f"{summary['solver']['solves']} solves, {summary['solver']['iterations']} iterations, "
         f"{len(summary['duration_search'])} durations tried"
     )

@@ -29,7 +29,8 @@ class PseudoPolynomialIn(ProfileRequest):
         gt=0,
         le=1e5,
         description="Motion time T, s. Default: 5 periods of the slowest mode without limits; with limits, the "
-        "shortest duration found from whole periods above twice the kinematic floor (minimize_duration).",
+        "shortest duration found by minimize_duration, scanning whole periods from the kinematic floor up to "
+        "whole periods above twice the floor (at least 5).",
     )
     order: int = Field(
         2, ge=1, le=MAX_ORDER, description="n: derivatives up to n are null at both ends (n + 1 exponents)."

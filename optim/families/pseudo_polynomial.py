@@ -106,8 +106,9 @@ class PseudoPolynomialFamily(BaseFamily):
         return None
 
     def default_options(self, problem: Problem) -> PseudoPolynomialOptions:
-        """Without limits, 5 periods of the slowest mode; with limits, the shortest duration, searched from
-        whole periods above twice the kinematic floor (order-2 zero-energy designs live near them)."""
+        """Without limits, 5 periods of the slowest mode; with limits, the shortest duration: whole periods
+        scanned from the kinematic floor (order-2 zero-energy designs live near them) up to those above twice
+        the floor, here the duration_s of the options (optim.pseudo_polynomial.duration_search)."""
         period = problem.slowest_period_s
         if not problem.limits.any:
             return PseudoPolynomialOptions(duration_s=5 * period)
