@@ -13,8 +13,8 @@ interpolated at 96 fixed Chebyshev nodes, and the kernel exp(z v^2) times each L
 is integrated in numpy by composite Gauss-Legendre with panels scaled with |z|. The weights are parameters
 of the problem, so its size does not grow with the number of periods T / (2 pi / |lambda|) (a plain
 Gauss-Legendre rule needs about |z| nodes: the old rule capped moves at 76 periods). Measured against
-composite Gauss-Legendre with a panel per radian: absolute error below 3e-16 / (gamma - 1) for |z| = 31,
-500 and 3000 and gamma in 3..80, (gamma - 1) |error| below 5e-14 (``tests/optim``). The deflection
+composite Gauss-Legendre with a panel per radian for |z| = 31, 500 and 3000 and gamma in 3..80:
+(gamma - 1) |error| below 5e-14 (``tests/optim``). The deflection
 alpha_j = Re(w r h) and its rate alpha_j' = Re(w r lambda h) give the energy
 E = sum_j m_j/2 (alpha_j'^2 + w_j^2 alpha_j^2), which is eq. (26) for the belt platform (m = J) and the
 two-inertia plant (m = J_L), and the same quantity per unit inertia for plants without physical
