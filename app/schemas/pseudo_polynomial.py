@@ -29,7 +29,8 @@ class PseudoPolynomialIn(ProfileRequest):
         gt=0,
         le=1e5,
         description="Motion time T, s. Default: 5 periods of the slowest mode without limits; with limits, the "
-        "shortest duration found from whole periods above twice the kinematic floor (minimize_duration).",
+        "shortest duration found by minimize_duration, scanning whole periods from the kinematic floor up to "
+        "whole periods above twice the floor (at least 5).",
     )
     order: int = Field(
         2, ge=1, le=MAX_ORDER, description="n: derivatives up to n are null at both ends (n + 1 exponents)."
@@ -39,8 +40,9 @@ class PseudoPolynomialIn(ProfileRequest):
     )
     minimize_duration: bool = Field(
         False,
-        description="Search the shortest duration (from duration_s down) whose design meets the residual tolerance "
-        "within the limits.",
+        description="Search the shortest duration whose design meets the residual tolerance within the limits: "
+        "whole periods of the slowest mode from the kinematic floor up to duration_s (and 8 beyond), refined below "
+        "the first feasible one (design.duration_search_method, design.duration_bracket).",
     )
     residual_tolerance: float | None = Field(
         None,
@@ -78,11 +80,18 @@ class PseudoPolynomialDesignOut(OutModel):
     energy_units: str = Field(description="J for belt_platform and two_inertia; per unit load inertia otherwise.")
     residual_amplitude: float = Field(description="Load free-oscillation envelope at T, from the optimiser's model.")
     initial_residual_amplitude: float
-    selection: str = Field(description="closest_zero_energy or minimum_energy (see selection_rule).")
+    selection: str = Field(description="closest_zero_energy, minimum_energy or fallback (see selection_rule).")
+    fallback_reason: str | None = Field(None, description="For selection 'fallback': why, and which design it is.")
     selection_rule: str
     bounds: BoundsOut
     solver: SolverOut = Field(description="Deprecated here: the same as the top-level solver.")
     duration_search: list[dict[str, Any]] | None = Field(None, description="Durations tried by minimize_duration.")
+    duration_search_method: str | None = Field(None, description="How minimize_duration searched.")
+    duration_bracket: dict[str, float | None] | None = Field(
+        None,
+        description="minimize_duration's answer: the shortest feasible duration found and the longest infeasible "
+        "one tried below it (null if none), s.",
+    )
 
 
 class DesignRun(OutModel):

@@ -10,7 +10,10 @@ import math
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
+import numpy as np
+
 from models.errors import InvalidParameter
+from models.pseudo_polynomial import PseudoPolynomial
 from models.simulation import metrics, simulate
 from optim import pseudo_polynomial as pp
 from optim.family import BaseFamily, Design, Grid, Profile, Run, SolverSummary
@@ -22,7 +25,11 @@ SELECTION_RULE = (
     "designs form a curve (or a surface). The design returned is the zero-energy design closest to the "
     "initial exponents that IPOPT reaches from them (selection 'closest_zero_energy'). If none meets the "
     "limits, the energy is minimised from the initial exponents and six fixed spread starts and the "
-    "lowest-energy design within the limits is returned (selection 'minimum_energy', energy_ratio > 0)."
+    "lowest-energy design within the limits is returned (selection 'minimum_energy', energy_ratio > 0). If no "
+    "minimum-energy solve converges, the lowest-energy design within the limits met on the way (the initial "
+    "exponents or a solve's last iterate) is returned (selection 'fallback', fallback_reason says which). "
+    "Every design is checked on the sampled command, as the response's limit check does, and re-solved with "
+    "tightened limits where the solver's constraint grid let a peak through."
 )
 
 
@@ -58,9 +65,35 @@ def _design_block(design: pp.PseudoPolynomialDesign) -> dict[str, Any]:
             "max_exponent": pp.MAX_EXPONENT,
             "min_separation": pp.MIN_SEPARATION,
         },
+        "fallback_reason": design.fallback_reason or None,
         "solver": SolverSummary.of(design.solver, design.solves).as_dict(),
         "duration_search": [{"duration_s": d, "feasible": ok} for d, ok in design.duration_search] or None,
+        "duration_search_method": pp.SEARCH_METHOD if design.duration_search else None,
+        "duration_bracket": {
+            "shortest_feasible_s": law.duration_s,
+            "longest_infeasible_below_s": design.longest_infeasible_below_s,
+        }
+        if design.duration_search
+        else None,
     }
+
+
+def sampled_peaks(problem: Problem) -> pp.PeaksOf:
+    """The peaks the pipeline checks (``optim.synthesis.limit_violations``): those of the law sampled as
+    ``PseudoPolynomialFamily.sample`` does on the pipeline's grid for that duration, the motor torque
+    from its exact simulation."""
+    from optim.synthesis import grid_of
+
+    def peaks(law: PseudoPolynomial) -> pp.Peaks:
+        grid = grid_of(problem, Design(None, {}, end_s=law.duration_s))
+        command = law.command(grid.period_s, grid.horizon_s)
+        torque = None
+        if problem.limits.max_torque_nm is not None:
+            torque_nm = simulate(problem.plant, command).motor_torque_nm
+            torque = None if torque_nm is None else float(np.max(np.abs(torque_nm)))
+        return pp.Peaks(command.peak_abs(1), command.peak_abs(2), command.peak_abs(3), torque)
+
+    return peaks
 
 
 class PseudoPolynomialFamily(BaseFamily):
@@ -73,8 +106,9 @@ class PseudoPolynomialFamily(BaseFamily):
         return None
 
     def default_options(self, problem: Problem) -> PseudoPolynomialOptions:
-        """Without limits, 5 periods of the slowest mode; with limits, the shortest duration, searched from
-        whole periods above twice the kinematic floor (order-2 zero-energy designs live near them)."""
+        """Without limits, 5 periods of the slowest mode; with limits, the shortest duration: whole periods
+        scanned from the kinematic floor (order-2 zero-energy designs live near them) up to those above twice
+        the floor, here the duration_s of the options (optim.pseudo_polynomial.duration_search)."""
         period = problem.slowest_period_s
         if not problem.limits.any:
             return PseudoPolynomialOptions(duration_s=5 * period)
@@ -106,13 +140,18 @@ class PseudoPolynomialFamily(BaseFamily):
         )
         # Refuse a sampling above the cap before any solve (the design is no longer than duration_s).
         grid_of(problem, Design(None, {}, end_s=options.duration_s))
-        result = pp.design(core)
+        result = pp.design(core, sampled_peaks(problem))
         warnings = []
+        within = " within the limits" if lim.any else ""
         if result.selection == "minimum_energy":
-            within = " within the limits" if lim.any else ""
             warnings.append(
                 f"no zero-energy design was found{within}; this one leaves {100 * result.energy_ratio:.3g} % of "
                 "the initial design's vibration energy"
+            )
+        elif result.selection == "fallback":
+            warnings.append(
+                f"fallback: {result.fallback_reason}; it leaves {100 * result.energy_ratio:.3g} % of the initial "
+                "design's vibration energy"
             )
         return Design(
             command=None,

@@ -22,16 +22,17 @@ import numpy as np
 from models.errors import InvalidParameter
 from models.plants import TwoInertiaPlant
 from models.pseudo_polynomial import PseudoPolynomial, check_exponents
-from optim.pseudo_polynomial.duration_search import _shortest
+from optim.pseudo_polynomial.duration_search import SEARCH_METHOD, shortest
 from optim.pseudo_polynomial.problem import (
     _CACHE,
     CONSTRAINT_INTERVALS,
+    INTERPOLATION_NODES,
     LIMIT_MARGIN,
     MAX_EXPONENT,
     MAX_MODES,
+    MAX_PHASE_RAD,
     MIN_SEPARATION,
     PROBE_ITERATIONS,
-    QUADRATURE_SIZES,
     QUICK_ITERATIONS,
     SEARCH_ITERATIONS,
     SYMBOLIC_KINDS,
@@ -43,35 +44,45 @@ from optim.pseudo_polynomial.problem import (
     evaluate,
     limit_grid_u,
     lower_bound,
-    quadrature_nodes,
+    product_weights,
     warm_up,
 )
 from optim.pseudo_polynomial.solve import (
     SPREAD_STARTS,
     ZERO_ENERGY,
+    Peaks,
+    PeaksOf,
     _raise_unless_design,
-    _solve_at,
     check_limits_possible,
+    law_peaks,
+    overshoot,
+    solve_within,
     spread_starts,
+    total,
 )
 from optim.pseudo_polynomial.types import Limits, PseudoPolynomialDesign, PseudoPolynomialRequest
+from optim.solver import SolverReport
 
 __all__ = [
     "CONSTRAINT_INTERVALS",
+    "INTERPOLATION_NODES",
     "LIMIT_MARGIN",
     "MAX_EXPONENT",
     "MAX_MODES",
     "MAX_ORDER",
+    "MAX_PHASE_RAD",
     "MIN_SEPARATION",
     "PROBE_ITERATIONS",
-    "QUADRATURE_SIZES",
     "QUICK_ITERATIONS",
     "SEARCH_ITERATIONS",
+    "SEARCH_METHOD",
     "SPREAD_STARTS",
     "SYMBOLIC_KINDS",
     "ZERO_ENERGY",
     "_CACHE",
     "Limits",
+    "Peaks",
+    "PeaksOf",
     "PseudoPolynomialDesign",
     "PseudoPolynomialRequest",
     "_build",
@@ -82,9 +93,11 @@ __all__ = [
     "default_exponents",
     "design",
     "evaluate",
+    "law_peaks",
     "limit_grid_u",
     "lower_bound",
-    "quadrature_nodes",
+    "overshoot",
+    "product_weights",
     "spread_starts",
     "warm_up",
 ]
@@ -133,16 +146,29 @@ def _checked(request: PseudoPolynomialRequest) -> tuple[PseudoPolynomialRequest,
     return replace(request, initial_exponents=initial_exponents), initial_exponents
 
 
-def design(request: PseudoPolynomialRequest) -> PseudoPolynomialDesign:
-    """The design for a request (runs in a worker process)."""
+def design(request: PseudoPolynomialRequest, peaks_of: PeaksOf | None = None) -> PseudoPolynomialDesign:
+    """The design for a request (runs in a worker process). ``peaks_of`` gives the peaks checked against
+    the limits (the pipeline passes those of the sampled command; default: the law's own, ``law_peaks``)."""
     request, initial = _checked(request)
     energy0, residual0 = evaluate(request, np.asarray(initial))
+    peaks_of = peaks_of or law_peaks(request.plant, request.limits)
     started = time.perf_counter()
+    below: float | None = None
     if request.minimize_duration:
-        duration, attempt, tried = _shortest(request)
+        search = shortest(request, peaks_of)
+        duration, attempt, tried, below = (
+            search.duration_s,
+            search.attempt,
+            search.tried,
+            search.longest_infeasible_below_s,
+        )
+        solver, solves = attempt.report, attempt.solves
     else:
-        duration, attempt, tried = request.duration_s, _solve_at(request, np.asarray(initial)), ()
+        ledger: list[SolverReport] = []
+        duration, tried = request.duration_s, ()
+        attempt = solve_within(request, np.asarray(initial), "thorough", peaks_of, ledger)
         _raise_unless_design(attempt)
+        solver, solves = total(ledger, attempt.report.status), len(ledger)
     return PseudoPolynomialDesign(
         law=PseudoPolynomial(request.displacement, duration, tuple(attempt.gamma)),
         initial=PseudoPolynomial(request.displacement, request.duration_s, initial),
@@ -151,8 +177,10 @@ def design(request: PseudoPolynomialRequest) -> PseudoPolynomialDesign:
         residual_amplitude=attempt.residual,
         initial_residual_amplitude=residual0,
         selection=attempt.stage,
-        solver=replace(attempt.report, solve_time_s=time.perf_counter() - started),
-        solves=attempt.solves,
+        solver=replace(solver, solve_time_s=time.perf_counter() - started),
+        solves=solves,
         energy_is_physical=request.plant.energy_inertia is not None and _oscillatory(request.plant).poles.size == 1,
         duration_search=tried,
+        longest_infeasible_below_s=below,
+        fallback_reason=attempt.note,
     )

@@ -6,23 +6,41 @@ the one closest to the initial exponents that IPOPT reaches from them (stage "cl
 minimise |gamma - gamma_0|^2 subject to h_j(T) = 0 and the limits). If none is reached, the energy
 is minimised within the limits from the initial exponents and a few fixed spread starts; a
 zero-energy result is moved to the closest zero-energy design near it, otherwise the
-lowest-energy design is returned (stage "minimum_energy") with its energy ratio.
+lowest-energy design is returned (stage "minimum_energy") with its energy ratio. If no minimum-energy
+solve converges, the lowest-energy design within the limits met on the way (the initial exponents, the
+classical polynomial by default, or a solve's last iterate) is returned as stage "fallback", with the
+reason. A solve that reaches its wall-time cap raises SolverTimedOut, never Infeasible.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
-from models.errors import Infeasible, SolverFailed
-from optim.pseudo_polynomial.problem import MAX_EXPONENT, MIN_SEPARATION, _prepare, lower_bound
-from optim.pseudo_polynomial.types import FloatArray, PseudoPolynomialRequest
+from models.errors import Infeasible, SolverTimedOut
+from models.plants import Plant
+from models.pseudo_polynomial import PseudoPolynomial
+from optim.pseudo_polynomial.problem import MAX_EXPONENT, MIN_SEPARATION, _active, _prepare, lower_bound
+from optim.pseudo_polynomial.types import FloatArray, Limits, PseudoPolynomialRequest
 from optim.solver import SolverReport, raise_for_status, report_of
 
-__all__ = ["SPREAD_STARTS", "ZERO_ENERGY", "check_limits_possible", "spread_starts"]
+__all__ = [
+    "SPREAD_STARTS",
+    "TIGHTENING_ROUNDS",
+    "ZERO_ENERGY",
+    "Peaks",
+    "PeaksOf",
+    "check_limits_possible",
+    "law_peaks",
+    "overshoot",
+    "solve_within",
+    "spread_starts",
+    "total",
+]
 
 SPREAD_STARTS = 6  # extra starting points when the closest zero-energy design is not reached
 ZERO_ENERGY = 1e-16  # energy ratio below which a design counts as zero-energy (amplitude ratio 1e-8)
@@ -67,25 +85,90 @@ def spread_starts(order: int, count: int = SPREAD_STARTS) -> list[FloatArray]:
 
 
 @dataclass(frozen=True)
+class Peaks:
+    """The peaks the pipeline checks against the limits (None: not checked / not defined)."""
+
+    velocity: float | None = None
+    acceleration: float | None = None
+    jerk: float | None = None
+    torque_nm: float | None = None
+
+
+PeaksOf = Callable[[PseudoPolynomial], Peaks]
+
+
+@dataclass(frozen=True)
 class _Attempt:
     gamma: FloatArray
     stage: str
-    report: SolverReport
+    report: SolverReport  # the last solve's status; iterations and time of every solve of the attempt
     energy: float
     residual: float
     solves: int
+    note: str = ""  # why a fallback was chosen
 
 
-def _solve_at(request: PseudoPolynomialRequest, start: FloatArray, effort: str = "thorough") -> _Attempt:
+def total(ledger: list[SolverReport], status: str) -> SolverReport:
+    """One report for every solve in ``ledger``: the given status, the summed iterations and time."""
+    return SolverReport(status, sum(r.iterations for r in ledger), sum(r.solve_time_s for r in ledger))
+
+
+def law_peaks(plant: Plant, limits: Limits) -> PeaksOf:
+    """The law's own peaks: |phi^(k)| on 20001 points and a geometric cluster near T; the motor torque
+    (only when limited) of the law's command sampled at T/2000, simulated exactly."""
+
+    def peaks(law: PseudoPolynomial) -> Peaks:
+        T = law.duration_s
+        t = np.concatenate([np.linspace(0.0, T, 20_001), T * (1.0 - np.logspace(-12, -4, 33))])
+        values = [float(np.max(np.abs(law.derivative(k, t)))) for k in (1, 2, 3)]
+        torque = None
+        if limits.max_torque_nm is not None:
+            from models.simulation import simulate
+
+            tail = 5 * max(m.natural_period_s for m in plant.modes())
+            torque_nm = simulate(plant, law.command(T / 2000, T + tail)).motor_torque_nm
+            torque = None if torque_nm is None else float(np.max(np.abs(torque_nm)))
+        return Peaks(values[0], values[1], values[2], torque)
+
+    return peaks
+
+
+def overshoot(limits: Limits, peaks: Peaks) -> dict[str, float]:
+    """peak / limit for every requested limit whose checked peak exceeds it."""
+    pairs = (
+        ("max_velocity", limits.max_velocity, peaks.velocity),
+        ("max_acceleration", limits.max_acceleration, peaks.acceleration),
+        ("max_jerk", limits.max_jerk, peaks.jerk),
+        ("max_torque_nm", limits.max_torque_nm, peaks.torque_nm),
+    )
+    return {name: peak / limit for name, limit, peak in pairs if limit and peak is not None and peak > limit}
+
+
+def _scaled(limits: Limits, factors: dict[str, float]) -> Limits:
+    return replace(limits, **{name: getattr(limits, name) * f for name, f in factors.items()})
+
+
+def _solve_at(
+    request: PseudoPolynomialRequest,
+    start: FloatArray,
+    effort: str = "thorough",
+    ledger: list[SolverReport] | None = None,
+) -> _Attempt:
     """The design at a fixed duration (see the module docstring for the rule):
 
-    1. the zero-energy design closest to the initial exponents, solved from ``start``;
+    1. the zero-energy design closest to the initial exponents, solved from ``start`` (``effort``
+       "probe": at most PROBE_ITERATIONS iterations, and a capped iterate within the limits is returned
+       as stage "capped", never a design; "polish": QUICK_ITERATIONS, nothing else);
     2. if IPOPT does not reach one (and ``effort`` is not "probe"): minimise the energy from the
        initial exponents and (``effort`` "thorough") from fixed spread starts, keeping the
        lowest-energy design that meets the limits; if its energy is zero to round-off, move it
-       to the closest zero-energy design.
+       to the closest zero-energy design;
+    3. if no minimum-energy solve converged: the lowest-energy design within the limits met on the
+       way (the initial exponents, or a solve's last iterate), as stage "fallback" with its reason.
 
-    Raises Infeasible when no start yields a design within the limits.
+    Raises Infeasible when no start yields a design within the limits, SolverTimedOut when a solve
+    reaches its wall-time cap or the starts use twice a solve's cap without a design. Every solve's
+    report is appended to ``ledger``.
     """
     compiled, p, gamma0 = _prepare(request)
     lbg_c, ubg_c, lbg_m, ubg_m = compiled.g_bounds
@@ -97,48 +180,71 @@ def _solve_at(request: PseudoPolynomialRequest, start: FloatArray, effort: str =
         started = time.perf_counter()
         solution = solver(x0=np.clip(x0, lbx, ubx), p=p, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
         report = report_of(solver, time.perf_counter() - started)
+        if ledger is not None:
+            ledger.append(report)
         iterations, elapsed, solves = iterations + report.iterations, elapsed + report.solve_time_s, solves + 1
+        if report.timed_out:
+            raise SolverTimedOut(
+                SolverReport(report.status, iterations, elapsed),
+                f"IPOPT reached its wall-time cap ({request.caps.max_wall_time_s:g} s) "
+                f"at duration {request.duration_s:.6g} s",
+            )
         return np.asarray(solution["x"]).ravel(), report
 
-    def attempt(gamma: FloatArray, stage: str, report: SolverReport) -> _Attempt:
+    def attempt(gamma: FloatArray, stage: str, status: str, note: str = "") -> _Attempt:
         gamma = np.clip(gamma, lbx, ubx)  # IPOPT may end a hair outside a bound
         energy, residual, _ = compiled.evaluate(gamma, p)
         return _Attempt(
-            gamma, stage, SolverReport(report.status, iterations, elapsed), float(energy), float(residual), solves
+            gamma, stage, SolverReport(status, iterations, elapsed), float(energy), float(residual), solves, note
         )
 
     def feasible(gamma: FloatArray) -> bool:
-        return float(compiled.violation(gamma, p)) <= 1e-9
+        return float(compiled.violation(np.clip(gamma, lbx, ubx), p)) <= 1e-9
 
-    gamma, report = run(compiled.probe if effort == "probe" else compiled.quick, start, lbg_c, ubg_c)
-    if report.timed_out or (report.converged and feasible(gamma)):
-        return attempt(gamma, "closest_zero_energy", report)
-    if effort == "probe":
+    first = compiled.probe if effort == "probe" else compiled.quick
+    gamma, report = run(first, start, lbg_c, ubg_c)
+    if report.converged and feasible(gamma):
+        return attempt(gamma, "closest_zero_energy", report.status)
+    if effort == "probe" and feasible(gamma):
+        return attempt(gamma, "capped", report.status)  # the search may polish it (duration_search)
+    if effort in ("probe", "polish"):
         raise Infeasible("no zero-energy design reached from the start", field="limits")
     energy_ref = float(p[compiled.layout["energy_ref"]][0])
     best: tuple[float, FloatArray, SolverReport] | None = None
+    met: list[tuple[float, FloatArray, str]] = []  # feasible designs met by unconverged solves, and the start
+    if feasible(gamma0):
+        met.append((float(compiled.evaluate(gamma0, p)[0]), gamma0, "the initial exponents"))
     last: SolverReport | None = None
-    reached_limits = False
+    out_of_time = False
     for x0 in [gamma0, *(spread_starts(request.order) if effort == "thorough" else [])]:
         if elapsed > 2.0 * request.caps.max_wall_time_s:
+            out_of_time = True
             break  # the starts so far have used the time a design may take
         candidate, rep = run(compiled.minimum, x0, lbg_m, ubg_m)
-        if rep.timed_out:
-            report = rep
-            break
         last = rep
-        reached_limits = reached_limits or feasible(candidate)
-        if rep.converged and feasible(candidate):  # a capped iterate is never a design
-            energy = float(compiled.evaluate(candidate, p)[0])
-            if best is None or energy < best[0]:
-                best = (energy, candidate, rep)
-            if energy <= ZERO_ENERGY * energy_ref:
-                break
+        if not feasible(candidate):
+            continue
+        energy = float(compiled.evaluate(candidate, p)[0])
+        if not rep.converged:  # a capped iterate is never a converged design, at most a fallback
+            met.append((energy, candidate, f"the last iterate of a minimum-energy solve ({rep.status})"))
+            continue
+        if best is None or energy < best[0]:
+            best = (energy, candidate, rep)
+        if energy <= ZERO_ENERGY * energy_ref:
+            break
     if best is None:
-        if report.timed_out:
-            return attempt(gamma, "minimum_energy", report)
-        if reached_limits and last is not None:  # designs within the limits exist, but no solve converged
-            raise SolverFailed(SolverReport(last.status, iterations, elapsed), "no minimum-energy solve converged")
+        if met:
+            energy, candidate, what = min(met, key=lambda m: m[0])
+            status = last.status if last is not None else report.status
+            note = (
+                f"no minimum-energy solve converged ({status}); the lowest-energy design within the limits met: {what}"
+            )
+            return attempt(candidate, "fallback", status, note)
+        if out_of_time:
+            raise SolverTimedOut(
+                SolverReport("Maximum_WallTime_Exceeded", iterations, elapsed),
+                f"the minimum-energy starts used {elapsed:.3g} s without a design within the limits",
+            )
         raise Infeasible(
             f"no pseudo-polynomial command of order {request.order} found that moves {request.displacement:.6g} in "
             f"{request.duration_s:.6g} s within the limits; lengthen duration_s, raise the limits or try another order",
@@ -148,12 +254,49 @@ def _solve_at(request: PseudoPolynomialRequest, start: FloatArray, effort: str =
     if energy <= ZERO_ENERGY * energy_ref:
         closer, rep_c = run(compiled.closest, candidate, lbg_c, ubg_c)
         if rep_c.converged and feasible(closer):
-            return attempt(closer, "closest_zero_energy", rep_c)
-    return attempt(candidate, "minimum_energy", rep)
+            return attempt(closer, "closest_zero_energy", rep_c.status)
+    return attempt(candidate, "minimum_energy", rep.status)
+
+
+TIGHTENING_ROUNDS = 4  # re-solves with limits tightened by the measured overshoot
+TIGHTENING_SLACK = 1e-6  # each re-solve aims this fraction below the limit
+
+
+def solve_within(
+    request: PseudoPolynomialRequest,
+    start: FloatArray,
+    effort: str,
+    peaks_of: PeaksOf | None,
+    ledger: list[SolverReport] | None = None,
+) -> _Attempt:
+    """``_solve_at``, then the checked peaks (``peaks_of``: what the pipeline checks); where one exceeds
+    its limit (the NLP sees the limits on a grid), re-solve from the design with that limit scaled by
+    limit / peak, up to ``TIGHTENING_ROUNDS`` times. Raises Infeasible when the limits still do not hold."""
+    factors: dict[str, float] = {}
+    over: dict[str, float] = {}
+    for _ in range(TIGHTENING_ROUNDS + 1):
+        trial = replace(request, limits=_scaled(request.limits, factors))
+        result = _solve_at(trial, start, effort, ledger)
+        if peaks_of is None or not any(_active(request.limits)):
+            return result
+        over = overshoot(
+            request.limits, peaks_of(PseudoPolynomial(request.displacement, request.duration_s, tuple(result.gamma)))
+        )
+        if not over:
+            return result
+        for name, ratio in over.items():
+            factors[name] = factors.get(name, 1.0) / ratio * (1.0 - TIGHTENING_SLACK)
+        start = result.gamma
+    worst = ", ".join(f"limits.{name} by {100 * (ratio - 1):.3g} %" for name, ratio in over.items())
+    raise Infeasible(
+        f"the design at {request.duration_s:.6g} s still breaks {worst} on the sampled command after "
+        f"{TIGHTENING_ROUNDS} re-solves with tightened limits; lengthen duration_s or shorten sample_period_s",
+        field=f"limits.{next(iter(over))}",
+    )
 
 
 def _raise_unless_design(attempt: _Attempt) -> None:
-    """A timed-out or failed closest-zero solve is never a design; a minimum-energy design is
-    only returned when it was checked to meet the limits (``_solve_at``)."""
-    if attempt.report.timed_out or attempt.stage == "closest_zero_energy":
+    """A failed closest-zero solve is never a design (a timed-out one raised already); minimum-energy
+    and fallback designs are only returned when they were checked to meet the limits (``_solve_at``)."""
+    if attempt.stage == "closest_zero_energy":
         raise_for_status(attempt.report)

@@ -56,6 +56,8 @@ class PseudoPolynomialDesign:
     solves: int
     energy_is_physical: bool
     duration_search: tuple[tuple[float, bool], ...] = ()
+    longest_infeasible_below_s: float | None = None  # minimize_duration's bracket below the answer
+    fallback_reason: str = ""  # selection "fallback": why, and which design
 
     @property
     def energy_ratio(self) -> float:

@@ -112,3 +112,70 @@ def test_csv_export_for_a_cam_table(client, how):
     # Same numbers as the JSON profile, bit for bit (both are shortest round-trip reprs).
     np.testing.assert_array_equal(rows[:, 1], json_body["profile"]["position"])
     np.testing.assert_array_equal(rows[:, 4], json_body["profile"]["jerk"])
+
+
+# --- issue 11: the audit's reproducers answer a 200 within the limits (or a 422 with a reason) ------------
+
+JERK_CASE = {
+    "plant": {"kind": "mode", "natural_frequency_hz": 3.4136132292137797, "damping_ratio": 0.2840572223301995},
+    "displacement": -717.9817512876891,
+    "duration_s": 0.8859491534569945,
+    "order": 3,
+    "sample_period_s": 0.0011753363975126865,
+    "limits": {"max_jerk": 118612.89875371839},
+}
+FALLBACK_CASE = {
+    "plant": {
+        "kind": "transfer_function",
+        "numerator": [5329676.87849852, 21471366684.057102],
+        "denominator": [1.0, 163.11501159112285, 689806.5368298043, 5329676.87849852, 21471366684.057102],
+    },
+    "displacement": 0.016550784134077873,
+    "duration_s": 0.22808753015020575,
+    "order": 3,
+    "sample_period_s": 0.00020094309001385182,
+    "limits": {"max_acceleration": 4.180686100801731, "max_jerk": 244.7660123724046},
+}
+
+
+def test_the_jerk_limit_holds_on_the_returned_samples(client):
+    # Before: a 200 whose sampled jerk peaked at 118722 > 118613 (the solver's constraint grid let it through).
+    # The pipeline's own check (metrics.peak_jerk of the sampled command, limit_violations) is the oracle.
+    body = client.post(PATH, json=JERK_CASE).json()
+    assert body["limit_violations"] == []
+    assert body["metrics"]["peak_jerk"] <= JERK_CASE["limits"]["max_jerk"]
+    assert body["profile"]["position"][-1] == pytest.approx(JERK_CASE["displacement"], rel=1e-12)
+
+
+def test_a_failed_minimum_energy_search_falls_back_to_a_feasible_design(client):
+    # Before: solver-failed ("no minimum-energy solve converged") although the classical 4-5-6-7 polynomial
+    # meets both limits. Now the lowest-energy design within the limits met is returned, and said to be one.
+    response = client.post(PATH, json=FALLBACK_CASE)
+    assert response.status_code == 200, response.text
+    body = response.json()
+    design = body["design"]
+    assert design["selection"] == "fallback" and "converged" in design["fallback_reason"]
+    assert any(w.startswith("fallback:") for w in body["warnings"])
+    assert body["limit_violations"] == []
+    assert design["energy_ratio"] <= 1.0  # never worse than the classical polynomial it starts from
+    assert body["metrics"]["residual_amplitude"] <= body["initial"]["metrics"]["residual_amplitude"] * (1 + 1e-6)
+
+
+def test_the_duration_search_states_its_method_and_bracket(client):
+    # minimize_duration's answer: the shortest feasible duration found, the longest infeasible one below it
+    # (within the 0.1 % bisection stop), every solve counted in the solver summary.
+    body = client.post(
+        PATH,
+        json={
+            **TABLE_III_MOVE,
+            "limits": {"max_velocity": 200.0, "max_acceleration": 700.0},
+            "minimize_duration": True,
+        },
+    ).json()
+    design = body["design"]
+    bracket = design["duration_bracket"]
+    assert bracket["shortest_feasible_s"] == design["duration_s"] == body["metrics"]["command_end_s"]
+    assert design["duration_s"] * (1 - 1e-3) <= bracket["longest_infeasible_below_s"] < design["duration_s"]
+    assert "kinematic floor" in design["duration_search_method"]
+    assert body["solver"]["solves"] >= len(design["duration_search"]) > 1
+    assert body["limit_violations"] == []
