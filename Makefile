@@ -32,7 +32,7 @@ test: $(VENV)/.installed-test  ## lint, format and type gates, then the whole te
 bench: $(VENV)/.installed-test  ## run the benchmarks whose figures are in README.md
 	$(BIN)/python bench/simulation.py
 	$(BIN)/python bench/pseudo_polynomial.py
-	$(BIN)/python bench/compare.py
+	$(BIN)/python bench/compare.py  # includes bench/pseudo_polynomial_duration.py
 
 clean:
 	rm -rf $(VENV) .pytest_cache

@@ -2,8 +2,8 @@
 
 Figures for README.md (issue 11's target: compare answers its examples in at most 1 s p50 on the
 2-core development machine). Compare is timed through the app with its solver pool (in-process
-client, so the figure is the service's work, not the loopback's); the duration search in-process,
-next to one fixed-duration solve of the same problem as the reference measured in the same run.
+client, so the figure is the service's work, not the loopback's); the duration search it runs for the
+pseudo-polynomial row by bench/pseudo_polynomial_duration.py, as a ratio to one fixed-duration design.
 """
 
 from __future__ import annotations
@@ -19,10 +19,7 @@ sys.path.insert(0, str(ROOT))
 from fastapi.testclient import TestClient  # noqa: E402
 
 from app.main import app  # noqa: E402
-from app.routers.compare import EXAMPLES, CompareIn  # noqa: E402
-from app.settings import Settings  # noqa: E402
-from optim.families.pseudo_polynomial import PseudoPolynomialOptions  # noqa: E402
-from optim.family import FAMILIES  # noqa: E402
+from app.routers.compare import EXAMPLES  # noqa: E402
 
 RUNS = 15
 
@@ -50,27 +47,8 @@ def compare_examples() -> None:
             )
 
 
-def duration_search() -> None:
-    family = FAMILIES["pseudo_polynomial"]
-    problem = CompareIn.model_validate(EXAMPLES["incerti_rest_to_rest"]["value"]).to_problem(Settings())
-    family.warm_up(problem.solver)
-    searched = family.default_options(problem)
-    fixed = PseudoPolynomialOptions(duration_s=searched.duration_s)
-    family.design(problem, searched)
-    figures = {}
-    for label, options in (("one fixed-duration solve", fixed), ("minimize_duration", searched)):
-        times = []
-        for _ in range(RUNS):
-            start = time.perf_counter()
-            design = family.design(problem, options)
-            times.append(time.perf_counter() - start)
-        figures[label] = p50_ms(times)
-        solves = design.solver.solves if design.solver else 0
-        print(f"pseudo-polynomial {label}: p50 {figures[label]:.1f} ms ({solves} solves)")
-    ratio = figures["minimize_duration"] / figures["one fixed-duration solve"]
-    print(f"minimize_duration / one solve: {ratio:.1f}x")
-
-
 if __name__ == "__main__":
-    duration_search()
+    import pseudo_polynomial_duration  # bench/ is on sys.path when run as a script
+
+    pseudo_polynomial_duration.main()
     compare_examples()
