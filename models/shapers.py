@@ -460,7 +460,7 @@ def follow_position(
     t, p_ref, v_ref = reference.time_s, reference.derivative(0), reference.derivative(1)
     if float(np.max(np.abs(v_ref))) > top:
         raise InvalidParameter("velocity_limit", top, "the reference itself moves faster than the velocity limit")
-    on_reference = (1e-13 * max(float(np.max(np.abs(p_ref))), 1e-300), 1e-13 * max(float(np.max(np.abs(v_ref))), 1e-300))
+    on_reference = tuple(1e-13 * max(float(np.max(np.abs(x))), 1e-300) for x in (p_ref, v_ref))
     rows: list[tuple[float, float, float, float]] = []  # (time, position, velocity, acceleration) of each piece
     p, v = float(p_ref[0]), 0.0
     for k in range(t.size):  # loop over the reference's pieces (impulses x steps: a few dozen)

@@ -304,7 +304,7 @@ def test_position_follower_arrives_within_the_limits_and_matches_a_drive_loop(cr
     # A sample-by-sample square-root position loop (dt = 1e-6 s) follows the same path: it lags each
     # chase by about a sample (measured: at most 1.7e-6 and 9.5e-7 apart); 1e-5 (0.07 % of the move)
     # allows that lag.
-    t, p, v = square_root_follower(reference, 1e-6, float(out.time_s[-1]) + 0.01, accel, top)
+    t, p, _ = square_root_follower(reference, 1e-6, float(out.time_s[-1]) + 0.01, accel, top)
     np.testing.assert_allclose(out.evaluate(0, t), p, atol=1e-5)
     # ... and ends where it does.
     assert p[-1] == pytest.approx(displacement, abs=1e-8)

@@ -7,6 +7,7 @@ PAPER-NOTES.md gives the exact-pole values. Defining conditions are checked with
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -23,9 +24,12 @@ from optim.shapers import (
     design_for_modes,
     design_shaper,
     fastest_cruise_velocity,
+    fastest_single_ramp_cruise,
     fastest_steps,
     modified_baseline,
     multi_step_baseline,
+    single_ramp_baseline,
+    single_ramp_time_s,
 )
 from tests.shaper_oracle import klipper_ei, klipper_hump_ei, klipper_mzv, v_by_simulation
 
@@ -397,3 +401,78 @@ def test_catalogue_bands_are_computed_from_v():
     # With damping the bands change: they are computed, not tabulated.
     damped = {e.name: e for e in catalogue(0.1, 0.05, 0.05)[0]}
     assert damped["zvd"].band != by_name["zvd"].band
+
+
+# ------------------------------------------------------------------------------------------
+# The single ramp (modified where it fits, lengthened where it would overlap) and the cruise
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_single_ramp_closed_form_is_the_linear_programme(seed):
+    # Random shapers (one or two modes) and limits: Delta from the window sums equals the one-step
+    # linear programme's (an independent route: HiGHS over overlap patterns), to its 1e-9.
+    rng = np.random.default_rng(seed)
+    for _ in range(10):
+        name = str(rng.choice(["zv", "mzv", "zvd", "zvdd", "ei", "2hump_ei"]))
+        modes = tuple(
+            Mode(2 * math.pi * rng.uniform(0.5, 5.0), rng.uniform(0.0, 0.15)) for _ in range(rng.integers(1, 3))
+        )
+        shaper = design_for_modes(name, modes).impulses
+        velocity, limit = rng.uniform(0.1, 10.0), 10 ** rng.uniform(-1.0, 2.0)
+        delta, _ = single_ramp_time_s(velocity, shaper, limit)
+        assert delta == pytest.approx(fastest_steps(velocity, shaper, limit, shaper.times_s[:1].copy())[1], rel=1e-9)
+        # ... and the shaped ramp's own slope (RampTrain.max_slope, a third route) is at the limit.
+        assert RampTrain.single(0.0, delta, velocity).shaped(shaper).max_slope() == pytest.approx(limit, rel=1e-12)
+
+
+def test_single_ramp_is_the_modified_baseline_where_that_fits():
+    zvd = design_shaper("zvd", MODE).impulses
+    assert single_ramp_baseline(1.0, zvd, 0.1).kind == "modified"  # Delta 4.959 <= t2 = 5.4535
+    lengthened = single_ramp_baseline(1.0, zvd, 0.08)  # (A1 + A2)/a = 9.9155 s, as the test above
+    assert lengthened.kind == "multi_step" and lengthened.ramp_time_s == pytest.approx(0.79323683 / 0.08, rel=1e-7)
+
+
+def _end_by_bisection(shaper, displacement: float, velocity: float, limit: float) -> float:
+    """D/V + the smallest valid ramp + t_n. Which shaped ramps overlap changes only where Delta crosses a
+    difference of impulse times, and between two such the slope falls as Delta grows: so the first
+    interval whose right end is valid (RampTrain.max_slope <= a) holds the answer, found there by
+    bisection to 1e-12 relative."""
+
+    def ok(delta: float) -> bool:
+        return RampTrain.single(0.0, delta, velocity).shaped(shaper).max_slope() <= limit * (1 + 1e-12)
+
+    t = shaper.times_s
+    differences = np.unique(np.round((t[None, :] - t[:, None])[np.triu_indices(t.size, 1)], 12))
+    edges = [0.0, *[d for d in differences if d < velocity / limit], velocity / limit]
+    for low, high in itertools.pairwise(edges):
+        if not ok(high):
+            continue
+        while high - low > 1e-12 * high:
+            mid = 0.5 * (low + high)
+            low, high = (low, mid) if ok(mid) else (mid, high)
+        return displacement / velocity + high + shaper.duration_s
+    raise AssertionError("a ramp at the limit is always valid")
+
+
+@pytest.mark.parametrize(("displacement", "limit", "top"), [(10.0, 0.05, None), (2.0, 0.1, None), (10.0, 0.05, 0.6)])
+def test_fastest_single_ramp_cruise_is_the_scan_minimum(displacement, limit, top):
+    # ZVD on the paper's plant, where the fastest move's ramps overlap (a = 0.05) or not (2 m at 0.1):
+    # a scan of 200 speeds up to max_velocity (or 2) with each ramp found by bisection never ends sooner
+    # (1e-9 s: the bisection's resolution), and comes within one scan step of the optimum. (Here the
+    # optimum sits where the modified ramp just fits, Delta = t_2: a = 0.05, 10 m.)
+    zvd = design_shaper("zvd", MODE).impulses
+    best = fastest_single_ramp_cruise(displacement, zvd, limit, top)
+    speeds = np.linspace(1e-3, top or 2.0, 200)
+    ends = [_end_by_bisection(zvd, displacement, v, limit) for v in speeds]
+    ours = _end_by_bisection(zvd, displacement, best, limit)
+    assert ours <= min(ends) + 1e-9
+    assert top is None or best <= top
+    step = speeds[1] - speeds[0]  # near the optimum the end changes by at most (D/V^2 + W/a) x step
+    assert ours >= min(ends) - (displacement / best**2 + 1 / limit) * step
+
+
+def test_explicit_modified_cruise_is_capped_by_max_velocity():
+    ei = design_shaper("ei", MODE).impulses
+    free = fastest_cruise_velocity(10.0, ei, 0.1)
+    assert fastest_cruise_velocity(10.0, ei, 0.1, 0.5 * free) == 0.5 * free
+    assert fastest_cruise_velocity(10.0, ei, 0.1, 2.0 * free) == free
