@@ -15,10 +15,16 @@ import pytest
 from scipy.optimize import minimize_scalar
 
 from models.errors import Infeasible, InvalidParameter
-from models.plants import Mode, example_plants
+from models.plants import Mode, example_plants, make_plant
 from models.shapers import RampTrain, rate_limit
 from models.simulation import metrics, simulate
+from optim.family import FAMILIES  # before the families' modules: the registry imports them
+
+# isort: split
+from optim.families.input_shaped import InputShapedOptions
+from optim.problem import Limits, Problem
 from optim.shapers import (
+    CATALOGUE_NAMES,
     catalogue,
     design_baseline,
     design_for_modes,
@@ -31,9 +37,11 @@ from optim.shapers import (
     single_ramp_baseline,
     single_ramp_time_s,
 )
+from optim.synthesis import synthesize
 from tests.shaper_oracle import klipper_ei, klipper_hump_ei, klipper_mzv, v_by_simulation
 
 PLANT = example_plants()["chatlatanagulchai_eq3"]
+FAMILY = FAMILIES["input_shaped"]
 MODE = PLANT.modes()[0]
 
 
@@ -476,3 +484,90 @@ def test_explicit_modified_cruise_is_capped_by_max_velocity():
     free = fastest_cruise_velocity(10.0, ei, 0.1)
     assert fastest_cruise_velocity(10.0, ei, 0.1, 0.5 * free) == 0.5 * free
     assert fastest_cruise_velocity(10.0, ei, 0.1, 2.0 * free) == free
+
+
+# ------------------------------------------------------------------------------------------
+# The family: automatic baseline, cruise within max_velocity, compare's candidates
+
+
+def _design(problem: Problem, **options):
+    """The family's pipeline answer for these options (the endpoint's numbers)."""
+    return synthesize(FAMILY, problem, InputShapedOptions(**options))
+
+
+@pytest.mark.parametrize("shaper", ["zv", "mzv", "zvd", "zvdd", "ei", "2hump_ei", "3hump_ei"])
+def test_cruise_never_exceeds_max_velocity_and_every_limit_holds(shaper):
+    # Each catalogue shaper on a 5 Hz mode, 0.2 m at a = 20, with max_velocity below the free fastest
+    # cruise (it binds: the cruise is max_velocity) and above it (the cruise is the free optimum).
+    plant = make_plant(kind="mode", natural_frequency_hz=5.0, damping_ratio=0.05)
+    free = None
+    for top in (None, 0.5, 10.0):
+        problem = Problem(plant, displacement=0.2, limits=Limits(max_velocity=top, max_acceleration=20.0))
+        result = _design(problem, shaper=shaper)
+        m, cruise = result.metrics, abs(result.summary["baseline"]["velocity"])
+        free = cruise if top is None else free
+        if top is not None:
+            assert cruise == pytest.approx(min(top, free), rel=1e-12)
+            assert m.peak_velocity <= top * (1 + 1e-12)
+        assert m.peak_velocity <= cruise * (1 + 1e-12)  # positive impulses summing to 1
+        assert m.peak_acceleration <= 20.0 * (1 + 1e-12)
+        assert not result.limit_violations
+        assert result.command.derivative(0)[-1] == pytest.approx(0.2, rel=1e-12)
+        assert result.summary["passes_limiter_unchanged"] is True
+
+
+def _end(problem: Problem, baseline: str, steps: int = 2) -> float | None:
+    """The shaped command's end with this baseline, or None where it is refused or breaks the limit."""
+    try:
+        result = _design(problem, baseline=baseline, baseline_steps=steps)
+    except Infeasible:
+        return None
+    return result.summary["duration_s"] if result.summary["passes_limiter_unchanged"] else None
+
+
+@pytest.mark.parametrize("limit", [0.2, 0.1, 0.08, 0.05])
+@pytest.mark.parametrize("move", [{"target_velocity": 1.0}, {"displacement": 10.0}])
+def test_auto_is_the_fastest_baseline_that_meets_the_limit(limit, move):
+    # ZVD on the paper's plant: the modified baseline fits for a >= 0.0909 (Sec. 4, PAPER-NOTES), not
+    # below. auto ends no later than any explicit baseline whose shaped command meets the limit
+    # (modified where it fits, multi_step with 1, 2 or 3 steps), passes the drive unchanged, and cancels
+    # the mode (exact shaper, exact simulation: round-off).
+    problem = Problem(PLANT, **move, limits=Limits(max_acceleration=limit))
+    auto = _design(problem)
+    ends = [_end(problem, "modified")] + [_end(problem, "multi_step", steps) for steps in (1, 2, 3)]
+    assert auto.summary["duration_s"] <= min(e for e in ends if e is not None) * (1 + 1e-12)
+    assert auto.summary["passes_limiter_unchanged"] is True
+    if "target_velocity" in move:  # a rest-to-rest move may cruise slower so that the modified ramp fits
+        assert (auto.summary["baseline"]["kind"] == "modified") == (limit >= 0.0909)
+    assert auto.summary["baseline"]["requested"] == "auto" and "auto:" in auto.summary["baseline"]["choice"]
+    residual = auto.metrics.residual_amplitude if "displacement" in move else auto.metrics.residual_velocity_amplitude
+    assert residual < 1e-12
+
+
+def test_explicit_baselines_keep_their_behaviour():
+    # modified still refuses where its ramps would overlap (a rest-to-velocity move cannot slow down),
+    # and the step baseline is still the plain staircase the drive distorts.
+    problem = Problem(PLANT, target_velocity=1.0, limits=Limits(max_acceleration=0.05))
+    with pytest.raises(Infeasible) as info:
+        _design(problem, baseline="modified")
+    assert "no-overlap" in info.value.reason
+    step = _design(problem, baseline="step")
+    assert step.summary["baseline"]["kind"] == "step" and step.summary["passes_limiter_unchanged"] is False
+
+
+def test_compare_candidates_are_one_group_per_shaper_with_the_automatic_baseline():
+    problem = Problem(PLANT, displacement=1.0, limits=Limits(max_acceleration=0.1))
+    candidates = FAMILY.candidates(problem)
+    assert [c.label for c in candidates] == [
+        "input_shaped/zv",
+        "input_shaped/mzv",
+        "input_shaped/zvd",
+        "input_shaped/ei",
+    ]
+    assert len({c.group for c in candidates}) == 4
+    assert {c.options.baseline for c in candidates} == {"auto"}
+    # Every shaper of the rows is in the catalogue, and the default is one design, ZVD with auto.
+    assert {c.options.shaper for c in candidates} <= set(CATALOGUE_NAMES)
+    assert FAMILY.default_options(problem) == InputShapedOptions(shaper="zvd", baseline="auto")
+    # No fallback is needed any more: auto never refuses where a baseline meets the limits.
+    assert FAMILY.fallback(problem, FAMILY.default_options(problem)) is None
