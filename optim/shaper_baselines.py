@@ -100,7 +100,8 @@ def modified_baseline(velocity: float, shaper: ImpulseSequence, acceleration_lim
                 f"{acceleration_limit:.6g} (the no-overlap condition t_(i+1) - t_i >= Delta of Sec. 4 fails). It "
                 f"holds for an acceleration limit >= {abs(velocity) * biggest / shortest:.6g} or a velocity of at most "
                 f"{acceleration_limit * shortest / biggest:.6g}; baseline 'multi_step' (with baseline_steps = 1 "
-                f"for a single ramp) lengthens the ramps until the overlapping slopes respect the limit",
+                f"for a single ramp) lengthens the ramps until the overlapping slopes respect the limit, and "
+                f"baseline 'auto' (the default) takes the earliest-ending baseline that does",
                 "acceleration_limit",
             )
     method = "closed form: Delta = a1 max|A_i| / a (Sec. 4)"

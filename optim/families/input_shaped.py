@@ -27,7 +27,7 @@ from models.errors import Infeasible, InvalidParameter
 from models.shapers import ImpulseSequence, RampTrain, follow_position, percentage_vibration, rate_limit
 from models.simulation import metrics, simulate
 from optim.family import BaseFamily, Candidate, Design, Grid, Profile, Run
-from optim.problem import Problem
+from optim.problem import TAIL_PERIODS, Problem
 from optim.shapers import (
     DEFAULT_VIBRATION_TOLERANCE,
     MAX_COMMAND_S,
@@ -45,6 +45,9 @@ from optim.shapers import (
 
 MAX_SHAPED_MODES = 3
 MAX_SHAPED_RAMPS = 1000  # impulses x baseline steps: bounds the limiter's corners and the step programme
+TORQUE_ITERATIONS = 8  # lowering the acceleration limit until the motor torque fits: 2-3 passes seen
+TORQUE_SAMPLES_PER_PERIOD = 2000  # a peak between samples is then within (pi/2000)^2/2 = 1.3e-6 of the sampled
+TORQUE_GRID_SLACK = 2e-6  # so a design is kept when its sampled peak is this far below the limit
 COMPARED_SHAPERS = ("zv", "mzv", "zvd", "ei")  # compare's rows: the shapers users set in their firmware
 AUTO_MULTI_STEP_MAX_IMPULSES = 5  # auto also tries multi-step baselines (linear programmes) on shapers this small
 
@@ -110,6 +113,24 @@ def _cruise_velocity(problem: Problem, shaper: ImpulseSequence, kind: str, limit
     return math.copysign(fastest_single_ramp_cruise(displacement, shaper, limit, top), displacement)
 
 
+def _velocity_and_cruise(
+    problem: Problem, shaper: ImpulseSequence, kind: str, limit: float | None
+) -> tuple[float, float | None]:
+    """(V, D/V): the target velocity of a rest-to-velocity move (no cruise), else the cruise and its time."""
+    if problem.target_velocity is not None:
+        return problem.target_velocity, None
+    velocity = _cruise_velocity(problem, shaper, kind, limit)
+    return velocity, abs(problem.move / velocity)
+
+
+def _why(chosen: Baseline, single_ramp: bool) -> str:
+    if chosen.kind == "modified":
+        return "its shaped ramps do not overlap (t_(i+1) - t_i >= Delta, Sec. 4)"
+    if single_ramp:
+        return "the modified baseline's shaped ramps would overlap and break the limit"
+    return "it ends before the single ramp"
+
+
 def _auto(problem: Problem, shaper: ImpulseSequence, limit: float | None) -> Plan:
     """The fastest baseline whose shaped command meets the limits, by the shaped command's end: the
     plain step without an acceleration limit; else the shortest single ramp (the modified baseline where
@@ -119,13 +140,9 @@ def _auto(problem: Problem, shaper: ImpulseSequence, limit: float | None) -> Pla
     steps can end sooner (ZVD, a = 0.05 on the paper's plant: 26.84 s with 3 steps, 30.91 s with one ramp);
     where the modified ramp fits none can, as its second step starts at t_2 >= min gap >= Delta."""
     if limit is None:
-        velocity = (
-            problem.move if problem.target_velocity is not None else _cruise_velocity(problem, shaper, "step", limit)
-        )
-        cruise = None if problem.target_velocity is not None else abs(problem.move / velocity)
+        velocity, cruise = _velocity_and_cruise(problem, shaper, "step", limit)
         return Plan(step_baseline(velocity), velocity, cruise, "auto: no acceleration limit, so the plain step")
-    velocity = problem.move if problem.target_velocity is not None else _cruise_velocity(problem, shaper, "ramp", limit)
-    cruise = None if problem.target_velocity is not None else abs(problem.move / velocity)
+    velocity, cruise = _velocity_and_cruise(problem, shaper, "ramp", limit)
     options = [single_ramp_baseline(velocity, shaper, limit)]
     if options[0].kind != "modified" and shaper.count <= AUTO_MULTI_STEP_MAX_IMPULSES:
         options += [multi_step_baseline(velocity, shaper, limit, steps) for steps in range(2, shaper.count + 1)]
@@ -135,16 +152,10 @@ def _auto(problem: Problem, shaper: ImpulseSequence, limit: float | None) -> Pla
         {"kind": b.kind, "steps": int(b.step_times_s.size), "ramp_time_s": b.ramp_time_s, "end_s": e}
         for b, e in zip(options, ends, strict=True)
     )
-    why = (
-        "its shaped ramps do not overlap (t_(i+1) - t_i >= Delta, Sec. 4)"
-        if options[best].kind == "modified"
-        else "the modified baseline's shaped ramps would overlap and break the limit"
-        if best == 0
-        else "it ends before the single ramp"
-    )
     reason = (
         f"auto: the {options[best].kind} baseline with {options[best].step_times_s.size} step(s), the earliest-ending "
-        f"of those tried whose shaped command meets the limits (shaped end {ends[best]:.6g} s): {why}"
+        f"of those tried whose shaped command meets the limits (shaped end {ends[best]:.6g} s): "
+        f"{_why(options[best], best == 0)}"
     )
     return Plan(options[best], velocity, cruise, reason, alternatives)
 
@@ -155,11 +166,7 @@ def plan(problem: Problem, options: InputShapedOptions, shaper: ImpulseSequence,
     if options.baseline == "auto":
         return _auto(problem, shaper, limit)
     kind = options.baseline
-    if problem.target_velocity is not None:
-        velocity, cruise = problem.target_velocity, None
-    else:
-        velocity = _cruise_velocity(problem, shaper, kind, limit)
-        cruise = abs(problem.move / velocity)
+    velocity, cruise = _velocity_and_cruise(problem, shaper, kind, limit)
     baseline = design_baseline(kind, velocity, shaper, limit, options.baseline_steps)
     return Plan(baseline, velocity, cruise, f"requested: {kind}")
 
@@ -208,6 +215,41 @@ def _commands(problem: Problem, chosen: Plan, shaper: ImpulseSequence, limit: fl
     )
     _check_length(max(commands.end_s, float(commands.plain_limited.time_s[-1])), shaper, chosen, limit)
     return commands
+
+
+def peak_motor_torque_nm(problem: Problem, command: PiecewiseCommand) -> float | None:
+    """max |motor torque| of the exact simulated command (inertial plus shaft torque, two_inertia), on a grid
+    of TORQUE_SAMPLES_PER_PERIOD per period of the fastest mode (corners kept) to TAIL_PERIODS past the end."""
+    modes = problem.plant.modes()
+    if problem.limits.max_torque_nm is None or not modes:
+        return None
+    period = min(m.natural_period_s for m in modes) / TORQUE_SAMPLES_PER_PERIOD
+    end = float(command.time_s[-1]) + TAIL_PERIODS * problem.slowest_period_s
+    torque = simulate(problem.plant, command.resampled(period, end)).motor_torque_nm
+    return None if torque is None else float(np.max(np.abs(torque)))
+
+
+def within_torque(
+    problem: Problem, options: InputShapedOptions, shaper: ImpulseSequence
+) -> tuple[Plan, Commands, float | None]:
+    """The plan and commands at the problem's acceleration limit, lowered where the motor torque would pass
+    limits.max_torque_nm: M / (J_M + J_L) (Cusimano eq. 19) bounds the inertial torque only, the shaft adds
+    J_L times the load's excess acceleration. The torque scales about as the limit, so each pass scales the
+    limit by M / peak (less 1e-4); refused when TORQUE_ITERATIONS passes do not fit."""
+    limit = problem.acceleration_limit
+    for _ in range(TORQUE_ITERATIONS):  # 1 pass without a torque limit, 2-3 with one
+        chosen = plan(problem, options, shaper, limit)
+        commands = _commands(problem, chosen, shaper, limit)
+        peak = peak_motor_torque_nm(problem, commands.limited)
+        top = problem.limits.max_torque_nm
+        if peak is None or top is None or peak <= top * (1.0 - TORQUE_GRID_SLACK) or limit is None:
+            return chosen, commands, limit
+        limit *= top / peak * (1.0 - 1e-4)
+    raise Infeasible(
+        f"the motor torque still peaks at {peak:.6g} N m > limits.max_torque_nm = {top:.6g} after lowering the "
+        f"acceleration limit {TORQUE_ITERATIONS} times (to {limit:.6g})",
+        "limits.max_torque_nm",
+    )
 
 
 def _drive_name(unchanged: bool, rest_to_rest: bool) -> str:
@@ -315,10 +357,14 @@ class InputShapedFamily(BaseFamily):
                 f"the shaped command would have more than {MAX_SHAPED_RAMPS} ramps; use fewer steps, modes or "
                 "derivatives",
             )
-        chosen = plan(problem, options, shaper, limit)
-        commands = _commands(problem, chosen, shaper, limit)
+        chosen, commands, limit = within_torque(problem, options, shaper)
         velocity = chosen.velocity
         warnings = []
+        if limit is not None and problem.acceleration_limit is not None and limit < problem.acceleration_limit:
+            warnings.append(
+                f"acceleration limit lowered from {problem.acceleration_limit:.6g} to {limit:.6g} so that the motor "
+                "torque (the inertia's and the shaft's) stays within limits.max_torque_nm"
+            )
         unchanged = limit is None or _largest_gap(commands.shaped, commands.limited) <= 1e-9 * abs(velocity)
         if not unchanged:
             drive = (

@@ -571,3 +571,17 @@ def test_compare_candidates_are_one_group_per_shaper_with_the_automatic_baseline
     assert FAMILY.default_options(problem) == InputShapedOptions(shaper="zvd", baseline="auto")
     # No fallback is needed any more: auto never refuses where a baseline meets the limits.
     assert FAMILY.fallback(problem, FAMILY.default_options(problem)) is None
+
+
+@pytest.mark.parametrize("shaper", ["mzv", "zvd", "ei"])
+def test_motor_torque_stays_within_its_limit(shaper):
+    # Cusimano's 8 Hz two-inertia plant to 150 rad/s with 10 N m: M / (J_M + J_L) = 1000 rad/s^2 bounds the
+    # inertial torque only; at that limit the shaft adds up to 22 % (measured 12.2 N m for MZV). The family
+    # lowers the acceleration limit until the simulated peak fits, and says so.
+    plant = example_plants()["cusimano_8hz_equal_inertia"]
+    problem = Problem(plant, target_velocity=150.0, limits=Limits(max_torque_nm=10.0))
+    result = _design(problem, shaper=shaper)
+    assert result.metrics.peak_motor_torque_nm <= 10.0 * (1 + 1e-9) and not result.limit_violations
+    assert result.summary["acceleration_limit"] < 10.0 / 0.01
+    assert any("lowered" in w for w in result.warnings)
+    assert result.summary["passes_limiter_unchanged"] is True
