@@ -458,7 +458,7 @@ def follow_position(
     if command_has_slopes(reference):
         raise InvalidParameter("profile", "ramps", "the position follower needs a reference of velocity steps")
     t, p_ref, v_ref = reference.time_s, reference.derivative(0), reference.derivative(1)
-    if float(np.max(np.abs(v_ref))) > top:
+    if float(np.max(np.abs(v_ref))) > top * (1.0 + 1e-12):  # round-off of the impulses' sum allowed
         raise InvalidParameter("velocity_limit", top, "the reference itself moves faster than the velocity limit")
     on_reference = tuple(1e-13 * max(float(np.max(np.abs(x))), 1e-300) for x in (p_ref, v_ref))
     rows: list[tuple[float, float, float, float]] = []  # (time, position, velocity, acceleration) of each piece

@@ -179,11 +179,13 @@ def _largest_gap(first: PiecewiseCommand, second: PiecewiseCommand) -> float:
 
 def _drive(command: PiecewiseCommand, limit: float | None, top: float | None, rest_to_rest: bool) -> PiecewiseCommand:
     """What the drive makes of a shaped command: itself within the acceleration limit; else a position-mode
-    follower (rest-to-rest, so it arrives) or the paper's velocity rate limiter (Fig. 5)."""
+    follower of a rest-to-rest staircase (so it arrives) or the paper's velocity rate limiter (Fig. 5)."""
     peak = None if limit is None else command.peak_abs(2)  # None: a velocity step
     if limit is None or (peak is not None and peak <= limit * (1.0 + 1e-12)):
         return command
-    return follow_position(command, limit, top) if rest_to_rest else rate_limit(command, limit)
+    if rest_to_rest and peak is None:  # a staircase: the position-mode drive
+        return follow_position(command, limit, top)
+    return rate_limit(command, limit)  # a velocity step, or ramps over the limit by round-off
 
 
 def _commands(problem: Problem, chosen: Plan, shaper: ImpulseSequence, limit: float | None) -> Commands:
@@ -229,6 +231,29 @@ def peak_motor_torque_nm(problem: Problem, command: PiecewiseCommand) -> float |
     return None if torque is None else float(np.max(np.abs(torque)))
 
 
+def _overshoot(command: PiecewiseCommand, limit: float | None) -> float:
+    """How far (relative) a ramp command's slope passes the limit; 0 for a staircase (the drive's business)."""
+    peak = None if limit is None else command.peak_abs(2)
+    return 0.0 if peak is None or limit is None else max(peak / limit - 1.0, 0.0)
+
+
+def _designed(
+    problem: Problem, options: InputShapedOptions, shaper: ImpulseSequence, limit: float | None
+) -> tuple[Plan, Commands]:
+    """The plan and commands for the drive's limit. The command's kinks sit on merged breakpoints (moved by
+    up to 2e-9 s, or 1e-12 of the command's length), which can put a short ramp's slope above the limit by
+    round-off (up to 2e-8 seen): then the baseline is redesigned twice that much inside the limit."""
+    design_limit = limit
+    for _ in range(3):  # one pass almost always; a second where round-off showed
+        chosen = plan(problem, options, shaper, design_limit)
+        commands = _commands(problem, chosen, shaper, limit)
+        over = _overshoot(commands.shaped, limit)
+        if over <= 1e-12 or design_limit is None:
+            break
+        design_limit *= 1.0 - 2.0 * over
+    return chosen, commands
+
+
 def within_torque(
     problem: Problem, options: InputShapedOptions, shaper: ImpulseSequence
 ) -> tuple[Plan, Commands, float | None]:
@@ -238,8 +263,7 @@ def within_torque(
     limit by M / peak (less 1e-4); refused when TORQUE_ITERATIONS passes do not fit."""
     limit = problem.acceleration_limit
     for _ in range(TORQUE_ITERATIONS):  # 1 pass without a torque limit, 2-3 with one
-        chosen = plan(problem, options, shaper, limit)
-        commands = _commands(problem, chosen, shaper, limit)
+        chosen, commands = _designed(problem, options, shaper, limit)
         peak = peak_motor_torque_nm(problem, commands.limited)
         top = problem.limits.max_torque_nm
         if peak is None or top is None or peak <= top * (1.0 - TORQUE_GRID_SLACK) or limit is None:
