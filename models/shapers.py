@@ -409,3 +409,89 @@ def rate_limit(command: PiecewiseCommand, acceleration_limit: float) -> Piecewis
     # The output velocity is continuous: integrate the slopes (it is exactly what the drive does).
     velocity = np.concatenate(([0.0], np.cumsum(slopes[:-1] * np.diff(times))))
     return _integrated(times, velocity, slopes, float(command.derivative(0)[0]), continuous_orders=2)
+
+
+# ------------------------------------------------------------------------------------------
+# A position-mode drive: the time-optimal follower of a position reference
+
+
+def catch_up_plan(
+    gap: float, velocity: float, target_velocity: float, acceleration_limit: float, velocity_limit: float
+) -> tuple[tuple[float, float], ...]:
+    """(duration_s, acceleration) phases that bring a double integrator onto a target moving at constant
+    ``target_velocity`` in least time under |u| <= a and |velocity| <= velocity_limit (math.inf: none);
+    ``gap`` = target - position.
+
+    Bang-coast-bang, the classical time-optimal double integrator in the target's frame: the direction
+    s is that of the gap left after braking, gap - w|w|/(2a) with w = velocity - target_velocity; the
+    peak approach speed is sqrt(a s gap + w^2/2), or a coast at the top approach speed
+    velocity_limit - s target_velocity when that is lower (a zero top speed coasts for ever).
+    """
+    a = acceleration_limit
+    w = velocity - target_velocity
+    s = 1.0 if gap >= w * abs(w) / (2.0 * a) else -1.0
+    e, w = s * gap, s * w
+    top = velocity_limit - s * target_velocity
+    peak = math.sqrt(max(a * e + 0.5 * w * w, 0.0))
+    if peak <= top:
+        return ((max(peak - w, 0.0) / a, s * a), (peak / a, -s * a))
+    if top <= 0.0:
+        return ((max(-w, 0.0) / a, s * a), (math.inf, 0.0))
+    coast = (e - (top * top - w * w) / (2.0 * a) - top * top / (2.0 * a)) / top
+    return ((max(top - w, 0.0) / a, s * a), (max(coast, 0.0), 0.0), (top / a, -s * a))
+
+
+def follow_position(
+    reference: PiecewiseCommand, acceleration_limit: float, velocity_limit: float | None = None
+) -> PiecewiseCommand:
+    """What a position-mode drive makes of a position reference that moves at constant velocity between
+    its breakpoints (a shaped velocity staircase): at every breakpoint its profile generator replans the
+    time-optimal catch-up onto the reference under |a| <= acceleration_limit and |v| <= velocity_limit
+    (``catch_up_plan``), then follows it. It starts at rest on the reference and reaches the final
+    position at rest; piecewise constant in acceleration, so exact. The reference must not move faster
+    than the velocity limit (then the follower's top approach speed is never negative).
+    """
+    a = float(acceleration_limit)
+    if not (math.isfinite(a) and a > 0.0):
+        raise InvalidParameter("acceleration_limit", a, "must be a finite number > 0")
+    top = math.inf if velocity_limit is None else float(velocity_limit)
+    if command_has_slopes(reference):
+        raise InvalidParameter("profile", "ramps", "the position follower needs a reference of velocity steps")
+    t, p_ref, v_ref = reference.time_s, reference.derivative(0), reference.derivative(1)
+    if float(np.max(np.abs(v_ref))) > top * (1.0 + 1e-12):  # round-off of the impulses' sum allowed
+        raise InvalidParameter("velocity_limit", top, "the reference itself moves faster than the velocity limit")
+    on_reference = tuple(1e-13 * max(float(np.max(np.abs(x))), 1e-300) for x in (p_ref, v_ref))
+    rows: list[tuple[float, float, float, float]] = []  # (time, position, velocity, acceleration) of each piece
+    p, v = float(p_ref[0]), 0.0
+    for k in range(t.size):  # loop over the reference's pieces (impulses x steps: a few dozen)
+        start = float(t[k])
+        length = float(t[k + 1] - t[k]) if k + 1 < t.size else math.inf
+        gap, target_v = float(p_ref[k]) - p, float(v_ref[k])
+        phases: tuple[tuple[float, float], ...] = ()
+        if abs(gap) > on_reference[0] or abs(v - target_v) > on_reference[1]:
+            phases = catch_up_plan(gap, v, target_v, a, top)
+        elapsed = 0.0
+        for duration, accel in (*phases, (math.inf, None)):  # the plan, then on the reference
+            step = min(duration, length - elapsed)
+            if step <= 0.0:
+                continue
+            if accel is None:  # on the reference (round-off of the plan removed)
+                p, v, accel = float(p_ref[k]) + target_v * elapsed, target_v, 0.0
+            rows.append((start + elapsed, p, v, accel))
+            if not math.isfinite(step):
+                break
+            p, v, elapsed = p + v * step + 0.5 * accel * step * step, v + accel * step, elapsed + step
+            if elapsed >= length:
+                break
+    table = np.array(rows)
+    # Of breakpoints closer than the merge tolerance keep the last (its state is exact): a plan's phase
+    # that short changes the velocity by at most a x 2e-9 s.
+    table = table[np.concatenate((np.diff(table[:, 0]) > _merge_tolerance(table[:, 0]), [True]))]
+    if table.shape[0] < 2:
+        table = np.vstack([table, table + np.array([1.0, 0.0, 0.0, 0.0])])
+    return PiecewiseCommand(check_time_grid(table[:, 0]), table[:, 1:].T.copy(), continuous_orders=2)
+
+
+def command_has_slopes(command: PiecewiseCommand) -> bool:
+    """Whether any piece of a degree-2 command accelerates (else its velocity is a staircase)."""
+    return command.degree > 2 or bool(np.any(command.derivative(2) != 0.0))

@@ -6,6 +6,13 @@ Baselines under the acceleration limit a (Sec. 4 of Chatlatanagulchai & Pongpani
   slope a1 |A_i| / Delta <= a, provided the no-overlap condition t_{i+1} - t_i >= Delta holds
   (PAPER-NOTES: every shaped ramp lasts Delta). When it fails the closed form is not valid: that
   is reported as infeasible, with the limits that would make it hold.
+- a single ramp lengthened past the overlap (``single_ramp_baseline``): where the modified ramp
+  would overlap, the shortest ramp whose shaped copies, added where they overlap, keep the slope
+  <= a. The slope at t is V/Delta times the sum of the A_i with t_i in (t - Delta, t], so the
+  shortest valid Delta is the least Delta >= V W(Delta) / a with W(Delta) the largest sum of
+  amplitudes in a window shorter than Delta: closed form, one regime per impulse-time difference
+  (Delta = V max A_i / a, the modified baseline, in the first; V / a, the plain ramp at the limit, in
+  the last). It always exists (the shaped slope of a ramp at a is at most a sum A_i = a).
 - ``multi_step``: steps at the first m impulse times, each a ramp of rise Delta (Fig. 10). The
   paper's two-step relations (a1 + a2 = V, a1 A1/Delta = (a1 A2 + a2 A1)/Delta = a) are used
   where they hold: two impulses with A1 >= A2 (ZV) and no overlap. Otherwise (ZVD has A2 > A1, and
@@ -31,19 +38,25 @@ from models.shapers import ImpulseSequence, RampTrain
 
 __all__ = [
     "Baseline",
+    "BaselineChoice",
     "BaselineKind",
     "design_baseline",
     "fastest_cruise_velocity",
+    "fastest_single_ramp_cruise",
     "fastest_steps",
     "modified_baseline",
     "modified_ramp_time_s",
     "multi_step_baseline",
     "paper_two_step",
+    "single_ramp_baseline",
+    "single_ramp_time_s",
     "step_baseline",
+    "window_sums",
 ]
 
 FloatArray = NDArray[np.float64]
 BaselineKind = Literal["step", "modified", "multi_step"]
+BaselineChoice = Literal["auto", "step", "modified", "multi_step"]
 
 
 @dataclass(frozen=True)
@@ -87,7 +100,8 @@ def modified_baseline(velocity: float, shaper: ImpulseSequence, acceleration_lim
                 f"{acceleration_limit:.6g} (the no-overlap condition t_(i+1) - t_i >= Delta of Sec. 4 fails). It "
                 f"holds for an acceleration limit >= {abs(velocity) * biggest / shortest:.6g} or a velocity of at most "
                 f"{acceleration_limit * shortest / biggest:.6g}; baseline 'multi_step' (with baseline_steps = 1 "
-                f"for a single ramp) lengthens the ramps until the overlapping slopes respect the limit",
+                f"for a single ramp) lengthens the ramps until the overlapping slopes respect the limit, and "
+                f"baseline 'auto' (the default) takes the earliest-ending baseline that does",
                 "acceleration_limit",
             )
     method = "closed form: Delta = a1 max|A_i| / a (Sec. 4)"
@@ -223,15 +237,87 @@ def design_baseline(
     return multi_step_baseline(velocity, shaper, acceleration_limit, steps)
 
 
-def fastest_cruise_velocity(displacement: float, shaper: ImpulseSequence, acceleration_limit: float) -> float:
-    """The cruise velocity of the fastest rest-to-rest move with the modified baseline.
+def fastest_cruise_velocity(
+    displacement: float, shaper: ImpulseSequence, acceleration_limit: float, max_velocity: float | None = None
+) -> float:
+    """The cruise velocity of the fastest rest-to-rest move with the modified baseline, within max_velocity.
 
     The move lasts D/V + V max|A_i|/a + t_n, convex in V with its minimum at
     V = sqrt(a D / max|A_i|) (the baseline is then a triangle: cruise = Delta); the no-overlap
-    condition Delta <= min(t_(i+1) - t_i) caps V at a min gap / max|A_i|.
+    condition Delta <= min(t_(i+1) - t_i) caps V at a min gap / max|A_i|, and so does max_velocity.
     """
     biggest = float(np.max(np.abs(shaper.amplitudes)))
     best = math.sqrt(acceleration_limit * abs(displacement) / biggest)
     if shaper.count > 1:
         best = min(best, acceleration_limit * float(np.min(np.diff(shaper.times_s))) / biggest)
-    return best
+    return best if max_velocity is None else min(best, max_velocity)
+
+
+def window_sums(shaper: ImpulseSequence) -> tuple[FloatArray, FloatArray]:
+    """(d_k, W_k), k = 0..K: for a window length Delta in (d_k, d_(k+1)] (d_0 = 0, d_(K+1) = inf) the
+    largest sum of amplitudes of impulses closer together than Delta is W_k. The d_k are the distinct
+    differences t_j - t_i; W_0 = max A_i, W_K = sum A_i."""
+    t, a = shaper.times_s, shaper.amplitudes
+    i, j = np.triu_indices(t.size)  # pairs i <= j
+    cumulative = np.concatenate(([0.0], np.cumsum(a)))
+    differences, sums = t[j] - t[i], cumulative[j + 1] - cumulative[i]
+    edges = _distinct(differences)
+    group = np.searchsorted(edges, differences - max(2e-9, 1e-12 * float(t[-1])))
+    best = np.full(edges.size, -math.inf)
+    np.maximum.at(best, group, sums)
+    return edges, np.maximum.accumulate(best)
+
+
+def single_ramp_time_s(velocity: float, shaper: ImpulseSequence, acceleration_limit: float) -> tuple[float, int]:
+    """(Delta, k): the shortest ramp of height V whose shaped command keeps |slope| <= a, and its regime.
+
+    The slope is V/Delta x (sum of A_i within a window shorter than Delta), at most V W_k / Delta on
+    (d_k, d_(k+1)] (``window_sums``): the answer is Delta = V W_k / a in the first regime where that
+    is <= d_(k+1); it then exceeds d_k (otherwise the regime before was already feasible).
+    """
+    if np.any(shaper.amplitudes < 0.0):
+        raise InvalidParameter("shaper", "negative impulses", "the single-ramp baseline needs non-negative amplitudes")
+    edges, sums = window_sums(shaper)
+    tops = np.append(edges[1:], math.inf)
+    deltas = abs(velocity) * sums / acceleration_limit
+    k = int(np.flatnonzero(deltas <= tops * (1.0 + 1e-12))[0])
+    return float(deltas[k]), k
+
+
+def single_ramp_baseline(velocity: float, shaper: ImpulseSequence, acceleration_limit: float) -> Baseline:
+    """The shortest single ramp within the limit: the modified baseline (Sec. 4) where its shaped ramps do
+    not overlap, else the ramp lengthened until the overlapping slopes add up to at most a."""
+    delta, k = single_ramp_time_s(velocity, shaper, acceleration_limit)
+    if k == 0:
+        return modified_baseline(velocity, shaper, acceleration_limit)
+    sums = window_sums(shaper)[1]
+    method = (
+        f"a single ramp lengthened past the overlap: Delta = V W / a with W = {sums[k]:.6g}, the largest sum of "
+        f"amplitudes within a window of Delta (the modified baseline's shaped ramps would overlap)"
+    )
+    return Baseline("multi_step", np.array([0.0]), np.array([velocity]), delta, method)
+
+
+def fastest_single_ramp_cruise(
+    displacement: float, shaper: ImpulseSequence, acceleration_limit: float, max_velocity: float | None
+) -> float:
+    """The cruise V <= max_velocity of the fastest rest-to-rest single-ramp move, exactly.
+
+    The move ends at D/V + Delta(V) + t_n with Delta(V) = V W_k / a in regime k
+    (``single_ramp_time_s``): convex on each regime, least at sqrt(a D / W_k). The optimum is one of
+    those points (clipped to their regimes), a regime's end a d_(k+1) / W_k, or max_velocity; all are
+    evaluated with the exact Delta(V).
+    """
+    edges, sums = window_sums(shaper)
+    a, d = acceleration_limit, abs(displacement)
+    tops = np.append(edges[1:], math.inf)
+    lows, highs = a * edges / sums, a * tops / sums
+    candidates = np.concatenate([np.clip(np.sqrt(a * d / sums), lows, highs), highs[np.isfinite(highs)]])
+    if max_velocity is not None:
+        candidates = np.append(candidates[candidates <= max_velocity], max_velocity)
+    candidates = candidates[candidates > 0.0]
+
+    def end_s(v: float) -> float:
+        return d / v + single_ramp_time_s(v, shaper, a)[0]
+
+    return float(min(candidates, key=end_s))

@@ -44,15 +44,20 @@ from models.plants import Mode
 from models.shapers import ImpulseSequence, convolve, vibration_band
 from optim.shaper_baselines import (
     Baseline,
+    BaselineChoice,
     BaselineKind,
     design_baseline,
     fastest_cruise_velocity,
+    fastest_single_ramp_cruise,
     fastest_steps,
     modified_baseline,
     modified_ramp_time_s,
     multi_step_baseline,
     paper_two_step,
+    single_ramp_baseline,
+    single_ramp_time_s,
     step_baseline,
+    window_sums,
 )
 
 __all__ = [
@@ -62,6 +67,7 @@ __all__ = [
     "MAX_COMMAND_S",
     "MAX_DERIVATIVE_ORDER",
     "Baseline",
+    "BaselineChoice",
     "BaselineKind",
     "CatalogueEntry",
     "ShaperDesign",
@@ -72,13 +78,17 @@ __all__ = [
     "ei_family",
     "ei_undamped",
     "fastest_cruise_velocity",
+    "fastest_single_ramp_cruise",
     "fastest_steps",
     "modified_baseline",
     "modified_ramp_time_s",
     "multi_step_baseline",
     "mzv",
     "paper_two_step",
+    "single_ramp_baseline",
+    "single_ramp_time_s",
     "step_baseline",
+    "window_sums",
     "zv_family",
 ]
 

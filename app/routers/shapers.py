@@ -70,14 +70,19 @@ async def input_shaped_profile(
     drive's acceleration limit.
 
     The shaped command v_s (``profile``) is the baseline v_b (``baseline``) convolved with the
-    impulses; the drive limits its slope (Fig. 5), giving v_a (``rate_limited``), which the load
-    response and ``metrics`` simulate exactly. With the ``modified`` baseline (Sec. 4) the ramp
-    time Delta = a1 max|A_i| / a keeps v_s within the limit, so v_a = v_s; it needs the no-overlap
-    condition t_(i+1) - t_i >= Delta (the paper prints |A_i| in place of max|A_i| there), and a
-    request that breaks it is answered as infeasible. ``multi_step`` uses the paper's two-step
-    relations only where they hold (two impulses with A1 >= A2, as ZV); for other shapers (ZVD,
-    where the relations give a negative step and a slope of 2a) it finds the fastest valid steps.
-    ``unmodified`` gives the metrics of the plain shaped step after the limiter, for comparison.
+    impulses. The default baseline ``auto`` is the earliest-ending one whose shaped command meets the
+    limits, so the drive passes it unchanged: the ``modified`` ramp of Sec. 4 (Delta = a1 max|A_i| / a)
+    where the no-overlap condition t_(i+1) - t_i >= Delta holds (the paper prints |A_i| in place of
+    max|A_i| there), else a longer single ramp or a multi-step baseline; ``design.baseline`` says which
+    and why. A rest-to-rest move cruises at the fastest speed within ``limits.max_velocity``. Asked
+    for explicitly, ``modified`` refuses as infeasible where its ramps would overlap; ``multi_step``
+    uses the paper's two-step relations only where they hold (two impulses with A1 >= A2, as ZV), and
+    otherwise (ZVD, where they give a negative step and a slope of 2a) the fastest valid steps.
+    A command beyond the limit (``step``) is changed by the drive (``rate_limited``): a rate limiter
+    for a velocity step (Fig. 5); for a rest-to-rest move a position-mode drive whose profile
+    generator follows the shaped position reference time-optimally and arrives at the displacement.
+    The load response and ``metrics`` simulate what the drive does, exactly; ``unmodified`` gives the
+    metrics of the plain shaped step after the drive, for comparison.
     """
     answer = await services.profile(FAMILY, body, settings, pool)
     return negotiate(request, answer, "input-shaped profile (the shaped command sent to the drive)")

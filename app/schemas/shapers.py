@@ -23,11 +23,16 @@ class InputShapedRequest(ProfileRequest):
     the plant's mode and kept within the drive's acceleration limit.
 
     The command is the motor velocity (steps and ramps); for position-input plants the motor
-    position is its exact integral. The drive limits the slope of the velocity it receives to
-    ``limits.max_acceleration`` (Chatlatanagulchai Fig. 5; on a two_inertia plant also M/(J_M + J_L) from
-    ``limits.max_torque_nm``): the load is simulated with that rate-limited command. A rest-to-rest move
-    cruises at ``limits.max_velocity``; default: the speed that makes the modified move fastest,
-    sqrt(a |D| / max A_i), capped by the no-overlap condition at a min(t_(i+1) - t_i) / max A_i.
+    position is its exact integral. A command that breaks the acceleration limit ``limits.max_acceleration``
+    (on a two_inertia plant also M/(J_M + J_L) from ``limits.max_torque_nm``) is changed by the drive: for a
+    velocity step its rate limiter ramps at the limit (Chatlatanagulchai Fig. 5); for a rest-to-rest move the
+    drive is in position mode and its profile generator follows the shaped position reference time-optimally
+    within the acceleration and velocity limits, so it arrives at the displacement. The load is simulated
+    with what the drive does. A rest-to-rest move cruises at the speed, at most ``limits.max_velocity``, that
+    makes it end soonest with its baseline: for a single ramp of Delta = V W / a (W the largest sum of
+    amplitudes within a window of Delta; max A_i, the modified baseline, where the ramps do not overlap),
+    sqrt(a |D| / W) or the end of a regime of W; the plain step cruises at ``limits.max_velocity``. The shaped
+    command's peak velocity is the baseline's (positive impulses summing to 1), so it never exceeds it.
     """
 
     LEGACY_LIMITS: ClassVar[dict[str, str]] = {
@@ -51,12 +56,16 @@ class InputShapedRequest(ProfileRequest):
         description="Shape the lowest mode, or every mode (one shaper per mode, convolved; at most "
         f"{MAX_SHAPED_MODES}).",
     )
-    baseline: Literal["step", "modified", "multi_step"] = Field(
-        "modified",
-        description="step: the plain velocity step (or pulse), which the drive's limiter distorts; modified: the "
-        "paper's ramp-plus-step with Delta = a1 max|A_i| / a (Sec. 4); multi_step: steps at the first impulse "
-        "times (Fig. 10), by the paper's relations where they hold (ZV) and otherwise the fastest valid steps. "
-        "modified and multi_step need an acceleration limit.",
+    baseline: Literal["auto", "step", "modified", "multi_step"] = Field(
+        "auto",
+        description="auto: the fastest baseline (by the shaped command's end) whose shaped command meets the limits: "
+        "the plain step without an acceleration limit, else the shortest single ramp (the modified baseline where "
+        "its shaped ramps do not overlap, a longer ramp where they would) or, for shapers of up to 5 impulses, a "
+        "multi-step baseline when it ends sooner; design.baseline says which and why. step: the plain velocity step "
+        "(or pulse), which the drive's limiter distorts; modified: the paper's ramp-plus-step with "
+        "Delta = a1 max|A_i| / a (Sec. 4), refused where its ramps would overlap; multi_step: steps at the first "
+        "impulse times (Fig. 10), by the paper's relations where they hold (ZV) and otherwise the fastest valid "
+        "steps. modified and multi_step need an acceleration limit.",
     )
     baseline_steps: int = Field(2, ge=1, le=32, description="multi_step only: the number of steps (<= impulse count).")
     cruise_velocity: float | None = Field(

@@ -1,38 +1,55 @@
 """The input-shaping family (Chatlatanagulchai & Pongpanich): shaped velocity commands whose baseline
 respects the drive's acceleration limit.
 
-The shaped command v_s is the baseline v_b convolved with the impulses; the drive limits its slope
-(Fig. 5) to v_a, which the load is simulated with. The modified baseline (Sec. 4) keeps v_s within the
-limit when t_(i+1) - t_i >= Delta.
+The shaped command v_s is the baseline v_b convolved with the impulses (positive, summing to one, so
+|v_s| never exceeds the baseline's peak, nor its slope the baseline's where the copies do not
+overlap). The modified baseline (Sec. 4) keeps v_s within the limit when t_(i+1) - t_i >= Delta;
+``auto`` (the default) takes the fastest baseline whose shaped command meets the limits.
+
+What the drive makes of v_s: with a velocity command (rest-to-velocity, Fig. 5) a rate limiter at
+the acceleration limit; with a rest-to-rest move the drive is in position mode and its profile
+generator follows the shaped position reference time-optimally within the acceleration and
+velocity limits (``models.shapers.follow_position``), so it arrives at the displacement, where a
+rate limiter on the velocity would lose (or gain) distance whenever it lags. Either is the identity
+for a command within the limit; the load is simulated with its output.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, ClassVar, Literal
 
 import numpy as np
 
 from models.commands import PiecewiseCommand
 from models.errors import Infeasible, InvalidParameter
-from models.shapers import ImpulseSequence, RampTrain, percentage_vibration, rate_limit
+from models.shapers import ImpulseSequence, RampTrain, follow_position, percentage_vibration, rate_limit
 from models.simulation import metrics, simulate
-from optim.family import BaseFamily, Design, Grid, Profile, Run
-from optim.problem import Problem
+from optim.family import BaseFamily, Candidate, Design, Grid, Profile, Run
+from optim.problem import TAIL_PERIODS, Problem
 from optim.shapers import (
     DEFAULT_VIBRATION_TOLERANCE,
     MAX_COMMAND_S,
     Baseline,
+    BaselineChoice,
     ShaperDesign,
     design_baseline,
     design_for_modes,
     fastest_cruise_velocity,
+    fastest_single_ramp_cruise,
+    multi_step_baseline,
+    single_ramp_baseline,
     step_baseline,
 )
 
 MAX_SHAPED_MODES = 3
 MAX_SHAPED_RAMPS = 1000  # impulses x baseline steps: bounds the limiter's corners and the step programme
+TORQUE_ITERATIONS = 8  # lowering the acceleration limit until the motor torque fits: 2-3 passes seen
+TORQUE_SAMPLES_PER_PERIOD = 2000  # a peak between samples is then within (pi/2000)^2/2 = 1.3e-6 of the sampled
+TORQUE_GRID_SLACK = 2e-6  # so a design is kept when its sampled peak is this far below the limit
+COMPARED_SHAPERS = ("zv", "mzv", "zvd", "ei")  # compare's rows: the shapers users set in their firmware
+AUTO_MULTI_STEP_MAX_IMPULSES = 5  # auto also tries multi-step baselines (linear programmes) on shapers this small
 
 
 @dataclass(frozen=True)
@@ -40,7 +57,7 @@ class InputShapedOptions:
     shaper: str = "zvd"
     vibration_tolerance: float = DEFAULT_VIBRATION_TOLERANCE
     shaped_modes: Literal["first", "all"] = "first"
-    baseline: Literal["step", "modified", "multi_step"] = "modified"
+    baseline: BaselineChoice = "auto"
     baseline_steps: int = 2
 
 
@@ -61,24 +78,97 @@ class Commands:
         return max(float(c.time_s[-1]) for c in (self.baseline, self.shaped, self.limited))
 
 
-def _move(problem: Problem, shaper: ImpulseSequence, limit: float | None) -> tuple[float, float | None, list[str]]:
-    """(baseline velocity V, cruise time D/V of a rest-to-rest move or None, notes)."""
-    if problem.target_velocity is not None:
-        return problem.target_velocity, None, []
-    displacement = problem.move
-    velocity = problem.limits.max_velocity
-    notes = []
-    if velocity is None:
-        if limit is None:
+@dataclass(frozen=True)
+class Plan:
+    """The baseline of one design and why it was chosen: velocity V, cruise time D/V (rest-to-rest)."""
+
+    baseline: Baseline
+    velocity: float
+    cruise_s: float | None
+    reason: str
+    alternatives: tuple[dict[str, Any], ...] = ()
+
+
+def shaped_end_s(baseline: Baseline, shaper: ImpulseSequence, cruise_s: float | None) -> float:
+    """When the shaped command stops changing: the baseline (a pulse of ``cruise_s`` for a rest-to-rest
+    move) convolved with the impulses."""
+    train = baseline.train() if cruise_s is None else baseline.train().pulse(cruise_s)
+    return train.shaped(shaper).end_s
+
+
+def _cruise_velocity(problem: Problem, shaper: ImpulseSequence, kind: str, limit: float | None) -> float:
+    """The signed cruise V of a rest-to-rest move: the fastest within limits.max_velocity for the kind of
+    baseline (the shaped command's peak velocity is the baseline's, at most V)."""
+    displacement, top = problem.move, problem.limits.max_velocity
+    if limit is None:
+        if top is None:
             raise InvalidParameter(
                 "limits.max_velocity", None, "is required for a rest-to-rest move without an acceleration limit"
             )
-        velocity = fastest_cruise_velocity(displacement, shaper, limit)
-        notes.append(
-            f"cruise velocity {velocity:.6g}: the fastest modified rest-to-rest move that keeps the no-overlap "
-            "condition"
-        )
-    return math.copysign(velocity, displacement), abs(displacement) / velocity, notes
+        return math.copysign(top, displacement)
+    if kind == "modified":
+        return math.copysign(fastest_cruise_velocity(displacement, shaper, limit, top), displacement)
+    if kind == "step" and top is not None:
+        return math.copysign(top, displacement)
+    return math.copysign(fastest_single_ramp_cruise(displacement, shaper, limit, top), displacement)
+
+
+def _velocity_and_cruise(
+    problem: Problem, shaper: ImpulseSequence, kind: str, limit: float | None
+) -> tuple[float, float | None]:
+    """(V, D/V): the target velocity of a rest-to-velocity move (no cruise), else the cruise and its time."""
+    if problem.target_velocity is not None:
+        return problem.target_velocity, None
+    velocity = _cruise_velocity(problem, shaper, kind, limit)
+    return velocity, abs(problem.move / velocity)
+
+
+def _why(chosen: Baseline, single_ramp: bool) -> str:
+    if chosen.kind == "modified":
+        return "its shaped ramps do not overlap (t_(i+1) - t_i >= Delta, Sec. 4)"
+    if single_ramp:
+        return "the modified baseline's shaped ramps would overlap and break the limit"
+    return "it ends before the single ramp"
+
+
+def _auto(problem: Problem, shaper: ImpulseSequence, limit: float | None) -> Plan:
+    """The fastest baseline whose shaped command meets the limits, by the shaped command's end: the
+    plain step without an acceleration limit; else the shortest single ramp (the modified baseline where
+    its ramps do not overlap, lengthened where they do) at its fastest cruise, against the multi-step
+    baselines of Fig. 10 (2 to n steps) at the same speed, for shapers of at most
+    AUTO_MULTI_STEP_MAX_IMPULSES impulses (each is a linear programme). Where the ramps must overlap the
+    steps can end sooner (ZVD, a = 0.05 on the paper's plant: 26.84 s with 3 steps, 30.91 s with one ramp);
+    where the modified ramp fits none can, as its second step starts at t_2 >= min gap >= Delta."""
+    if limit is None:
+        velocity, cruise = _velocity_and_cruise(problem, shaper, "step", limit)
+        return Plan(step_baseline(velocity), velocity, cruise, "auto: no acceleration limit, so the plain step")
+    velocity, cruise = _velocity_and_cruise(problem, shaper, "ramp", limit)
+    options = [single_ramp_baseline(velocity, shaper, limit)]
+    if options[0].kind != "modified" and shaper.count <= AUTO_MULTI_STEP_MAX_IMPULSES:
+        options += [multi_step_baseline(velocity, shaper, limit, steps) for steps in range(2, shaper.count + 1)]
+    ends = [shaped_end_s(b, shaper, cruise) for b in options]
+    best = int(np.argmin(ends))
+    alternatives = tuple(
+        {"kind": b.kind, "steps": int(b.step_times_s.size), "ramp_time_s": b.ramp_time_s, "end_s": e}
+        for b, e in zip(options, ends, strict=True)
+    )
+    reason = (
+        f"auto: the {options[best].kind} baseline with {options[best].step_times_s.size} step(s), the earliest-ending "
+        f"of those tried whose shaped command meets the limits (shaped end {ends[best]:.6g} s): "
+        f"{_why(options[best], best == 0)}"
+    )
+    return Plan(options[best], velocity, cruise, reason, alternatives)
+
+
+def plan(problem: Problem, options: InputShapedOptions, shaper: ImpulseSequence, limit: float | None) -> Plan:
+    """The baseline and cruise of a design: ``auto``'s choice, or the requested kind at its fastest cruise
+    within max_velocity (modified refuses where its ramps would overlap at the speed asked)."""
+    if options.baseline == "auto":
+        return _auto(problem, shaper, limit)
+    kind = options.baseline
+    velocity, cruise = _velocity_and_cruise(problem, shaper, kind, limit)
+    baseline = design_baseline(kind, velocity, shaper, limit, options.baseline_steps)
+    return Plan(baseline, velocity, cruise, f"requested: {kind}")
 
 
 def _largest_gap(first: PiecewiseCommand, second: PiecewiseCommand) -> float:
@@ -87,41 +177,121 @@ def _largest_gap(first: PiecewiseCommand, second: PiecewiseCommand) -> float:
     return float(np.max(np.abs(first.evaluate(1, t) - second.evaluate(1, t))))
 
 
-def _commands(
-    baseline: Baseline, shaper: ImpulseSequence, velocity: float, cruise_s: float | None, limit: float | None
-) -> Commands:
-    """v_b, v_s = v_b * impulses, v_a = rate_limit(v_s), and the plain shaped step after the limiter;
-    refuses commands longer than the service simulates before building them."""
+def _drive(command: PiecewiseCommand, limit: float | None, top: float | None, rest_to_rest: bool) -> PiecewiseCommand:
+    """What the drive makes of a shaped command: itself within the acceleration limit; else a position-mode
+    follower of a rest-to-rest staircase (so it arrives) or the paper's velocity rate limiter (Fig. 5)."""
+    peak = None if limit is None else command.peak_abs(2)  # None: a velocity step
+    if limit is None or (peak is not None and peak <= limit * (1.0 + 1e-12)):
+        return command
+    if rest_to_rest and peak is None:  # a staircase: the position-mode drive
+        return follow_position(command, limit, top)
+    return rate_limit(command, limit)  # a velocity step, or ramps over the limit by round-off
+
+
+def _commands(problem: Problem, chosen: Plan, shaper: ImpulseSequence, limit: float | None) -> Commands:
+    """v_b, v_s = v_b * impulses, v_a = what the drive makes of v_s, and the plain shaped step after the
+    drive; refuses commands longer than the service simulates before building them."""
+    baseline, velocity, cruise_s = chosen.baseline, chosen.velocity, chosen.cruise_s
     base_train, plain_train = baseline.train(), step_baseline(velocity).train()
     if cruise_s is not None:
         base_train, plain_train = base_train.pulse(cruise_s), plain_train.pulse(cruise_s)
     shaped_train, plain_shaped = base_train.shaped(shaper), plain_train.shaped(shaper)
     longest = max(shaped_train.end_s, plain_shaped.end_s)
-    if limit is not None:  # the limiter lags by at most the command's total variation over a
+    if limit is not None:  # the drive lags by at most the command's total variation over a
         longest = max(
             shaped_train.end_s + float(np.sum(np.abs(shaped_train.height))) / limit,
             plain_shaped.end_s + float(np.sum(np.abs(plain_shaped.height))) / limit,
         )
-    if longest > MAX_COMMAND_S:
-        raise Infeasible(
-            f"the command could last up to {longest:.6g} s (shaper {shaper.duration_s:.6g} s, ramp "
-            f"{baseline.ramp_time_s:.6g} s"
-            + (f", cruise {cruise_s:.6g} s" if cruise_s is not None else "")
-            + (f", velocity {abs(velocity):.6g} at {limit:.6g} per s" if limit is not None else "")
-            + f"), beyond the {MAX_COMMAND_S:g} s this service simulates",
-            "limits.max_acceleration" if limit is not None else None,
-        )
+    _check_length(longest, shaper, chosen, limit)
     shaped = shaped_train.to_command()
     plain = plain_shaped.to_command()
-    return Commands(
+    rest_to_rest, top = cruise_s is not None, problem.limits.max_velocity
+    commands = Commands(
         base_train.to_command(),
         shaped,
-        rate_limit(shaped, limit) if limit is not None else shaped,
-        rate_limit(plain, limit) if limit is not None else plain,
+        _drive(shaped, limit, top, rest_to_rest),
+        _drive(plain, limit, top, rest_to_rest),
         shaped_train,
         shaper,
         baseline.ramp_time_s if baseline.kind != "step" else None,
     )
+    _check_length(max(commands.end_s, float(commands.plain_limited.time_s[-1])), shaper, chosen, limit)
+    return commands
+
+
+def peak_motor_torque_nm(problem: Problem, command: PiecewiseCommand) -> float | None:
+    """max |motor torque| of the exact simulated command (inertial plus shaft torque, two_inertia), on a grid
+    of TORQUE_SAMPLES_PER_PERIOD per period of the fastest mode (corners kept) to TAIL_PERIODS past the end."""
+    modes = problem.plant.modes()
+    if problem.limits.max_torque_nm is None or not modes:
+        return None
+    period = min(m.natural_period_s for m in modes) / TORQUE_SAMPLES_PER_PERIOD
+    end = float(command.time_s[-1]) + TAIL_PERIODS * problem.slowest_period_s
+    torque = simulate(problem.plant, command.resampled(period, end)).motor_torque_nm
+    return None if torque is None else float(np.max(np.abs(torque)))
+
+
+def _overshoot(command: PiecewiseCommand, limit: float | None) -> float:
+    """How far (relative) a ramp command's slope passes the limit; 0 for a staircase (the drive's business)."""
+    peak = None if limit is None else command.peak_abs(2)
+    return 0.0 if peak is None or limit is None else max(peak / limit - 1.0, 0.0)
+
+
+def _designed(
+    problem: Problem, options: InputShapedOptions, shaper: ImpulseSequence, limit: float | None
+) -> tuple[Plan, Commands]:
+    """The plan and commands for the drive's limit. The command's kinks sit on merged breakpoints (moved by
+    up to 2e-9 s, or 1e-12 of the command's length), which can put a short ramp's slope above the limit by
+    round-off (up to 2e-8 seen): then the baseline is redesigned twice that much inside the limit."""
+    design_limit = limit
+    for _ in range(3):  # one pass almost always; a second where round-off showed
+        chosen = plan(problem, options, shaper, design_limit)
+        commands = _commands(problem, chosen, shaper, limit)
+        over = _overshoot(commands.shaped, limit)
+        if over <= 1e-12 or design_limit is None:
+            break
+        design_limit *= 1.0 - 2.0 * over
+    return chosen, commands
+
+
+def within_torque(
+    problem: Problem, options: InputShapedOptions, shaper: ImpulseSequence
+) -> tuple[Plan, Commands, float | None]:
+    """The plan and commands at the problem's acceleration limit, lowered where the motor torque would pass
+    limits.max_torque_nm: M / (J_M + J_L) (Cusimano eq. 19) bounds the inertial torque only, the shaft adds
+    J_L times the load's excess acceleration. The torque scales about as the limit, so each pass scales the
+    limit by M / peak (less 1e-4); refused when TORQUE_ITERATIONS passes do not fit."""
+    limit = problem.acceleration_limit
+    for _ in range(TORQUE_ITERATIONS):  # 1 pass without a torque limit, 2-3 with one
+        chosen, commands = _designed(problem, options, shaper, limit)
+        peak = peak_motor_torque_nm(problem, commands.limited)
+        top = problem.limits.max_torque_nm
+        if peak is None or top is None or peak <= top * (1.0 - TORQUE_GRID_SLACK) or limit is None:
+            return chosen, commands, limit
+        limit *= top / peak * (1.0 - 1e-4)
+    raise Infeasible(
+        f"the motor torque still peaks at {peak:.6g} N m > limits.max_torque_nm = {top:.6g} after lowering the "
+        f"acceleration limit {TORQUE_ITERATIONS} times (to {limit:.6g})",
+        "limits.max_torque_nm",
+    )
+
+
+def _drive_name(unchanged: bool, rest_to_rest: bool) -> str:
+    if unchanged:
+        return "none: the shaped command meets the limits and the drive passes it unchanged"
+    return "position follower (time-optimal, arrives)" if rest_to_rest else "velocity rate limiter (Fig. 5)"
+
+
+def _check_length(longest: float, shaper: ImpulseSequence, chosen: Plan, limit: float | None) -> None:
+    if longest > MAX_COMMAND_S:
+        raise Infeasible(
+            f"the command could last up to {longest:.6g} s (shaper {shaper.duration_s:.6g} s, ramp "
+            f"{chosen.baseline.ramp_time_s:.6g} s"
+            + (f", cruise {chosen.cruise_s:.6g} s" if chosen.cruise_s is not None else "")
+            + (f", velocity {abs(chosen.velocity):.6g} at {limit:.6g} per s" if limit is not None else "")
+            + f"), beyond the {MAX_COMMAND_S:g} s this service simulates",
+            "limits.max_acceleration" if limit is not None else None,
+        )
 
 
 def _shaper_block(design: ShaperDesign) -> dict[str, Any]:
@@ -149,9 +319,17 @@ def _shaper_block(design: ShaperDesign) -> dict[str, Any]:
     }
 
 
-def _baseline_block(baseline: Baseline, velocity: float, cruise_s: float | None) -> dict[str, Any]:
+def _baseline_block(chosen: Plan, requested: str) -> dict[str, Any]:
+    baseline, velocity, cruise_s = chosen.baseline, chosen.velocity, chosen.cruise_s
     return {
         "kind": baseline.kind,
+        "requested": requested,
+        "choice": chosen.reason,
+        "alternatives": list(chosen.alternatives),
+        "cruise_choice": None
+        if cruise_s is None
+        else f"cruise {abs(velocity):.6g}: the earliest-ending {baseline.kind} move within limits.max_velocity "
+        "(the shaped command never moves faster than its baseline's cruise)",
         "move": "rest_to_velocity" if cruise_s is None else "rest_to_rest",
         "velocity": velocity,
         "cruise_time_s": cruise_s,
@@ -181,41 +359,55 @@ class InputShapedFamily(BaseFamily):
     endpoint: ClassVar[str] = "/v1/profiles/input-shaped"
 
     def default_options(self, problem: Problem) -> InputShapedOptions:
-        """ZVD, with the modified baseline where an acceleration limit applies (else the plain step)."""
-        return InputShapedOptions(baseline="modified" if problem.acceleration_limit is not None else "step")
+        """ZVD with the automatic baseline (the fastest that meets the limits) at the fastest cruise."""
+        return InputShapedOptions()
 
-    def fallback(self, problem: Problem, options: Any) -> InputShapedOptions | None:
-        """The modified baseline needs t_(i+1) - t_i >= Delta; a single slower ramp always exists."""
-        if options.baseline == "modified":
-            return InputShapedOptions(**{**vars(options), "baseline": "multi_step", "baseline_steps": 1})
-        return None
+    def candidates(self, problem: Problem) -> tuple[Candidate, ...]:
+        """One row per shaper users compare (ZV, MZV, ZVD, EI), each in its own group, automatic baseline."""
+        base = self.default_options(problem)
+        return tuple(
+            Candidate(f"{self.name}/{name}", replace(base, shaper=name), f"{self.name}/{name}")
+            for name in COMPARED_SHAPERS
+        )
 
     def design(self, problem: Problem, options: InputShapedOptions) -> Design:
         design = shaper_design(problem, options)
         shaper, limit = design.impulses, problem.acceleration_limit
-        steps = options.baseline_steps if options.baseline == "multi_step" else 1
+        steps = options.baseline_steps if options.baseline == "multi_step" else 2
         if len(shaper.amplitudes) * steps > MAX_SHAPED_RAMPS:
             raise InvalidParameter(
-                "baseline_steps" if steps > 1 else "shaper",
+                "baseline_steps" if options.baseline == "multi_step" else "shaper",
                 f"{len(shaper.amplitudes)} impulses x {steps} steps",
                 f"the shaped command would have more than {MAX_SHAPED_RAMPS} ramps; use fewer steps, modes or "
                 "derivatives",
             )
-        velocity, cruise_s, warnings = _move(problem, shaper, limit)
-        baseline = design_baseline(options.baseline, velocity, shaper, limit, options.baseline_steps)
-        commands = _commands(baseline, shaper, velocity, cruise_s, limit)
+        chosen, commands, limit = within_torque(problem, options, shaper)
+        velocity = chosen.velocity
+        warnings = []
+        if limit is not None and problem.acceleration_limit is not None and limit < problem.acceleration_limit:
+            warnings.append(
+                f"acceleration limit lowered from {problem.acceleration_limit:.6g} to {limit:.6g} so that the motor "
+                "torque (the inertia's and the shaft's) stays within limits.max_torque_nm"
+            )
         unchanged = limit is None or _largest_gap(commands.shaped, commands.limited) <= 1e-9 * abs(velocity)
         if not unchanged:
+            drive = (
+                "the drive's position-mode profile generator follows the shaped position reference time-optimally "
+                "within the limits and arrives at the displacement"
+                if chosen.cruise_s is not None
+                else "the drive's rate limiter ramps the velocity at the limit (Fig. 5)"
+            )
             warnings.append(
-                "the drive's acceleration limit changes the shaped command: the plant receives the rate-limited "
-                "command (rate_limited), which the load and metrics simulate; baseline 'modified' keeps the shaped "
-                "command within the limit"
+                f"the shaped command breaks the acceleration limit ({chosen.baseline.kind} baseline): {drive}; the "
+                "plant receives that command (rate_limited), which the load and metrics simulate, so the shaper no "
+                "longer cancels the residual as designed; baseline 'auto' keeps the shaped command within the limit"
             )
         steps_in_command = bool(np.any(commands.shaped_train.rise_s == 0.0))
         summary = {
             "shaper": _shaper_block(design),
-            "baseline": _baseline_block(baseline, velocity, cruise_s),
+            "baseline": _baseline_block(chosen, options.baseline),
             "acceleration_limit": limit,
+            "drive": _drive_name(unchanged, chosen.cruise_s is not None),
             "shaped_peak_acceleration": None if steps_in_command else commands.shaped_train.max_slope(),
             "passes_limiter_unchanged": unchanged,
             "duration_s": commands.end_s,

@@ -92,7 +92,7 @@ def test_load_and_metrics_are_what_the_core_computes(client):
     assert body["design"]["passes_limiter_unchanged"] is False
     assert body["ramp_time_s"] is None
     assert body["metrics"] == body["unmodified"]
-    assert any("acceleration limit changes the shaped command" in w for w in body["warnings"])
+    assert any("shaped command breaks the acceleration limit" in w and "rate limiter" in w for w in body["warnings"])
 
 
 def test_two_step_baseline_for_zv_and_not_for_zvd(client):
@@ -229,18 +229,30 @@ def test_missing_move_and_missing_limit(client):
 
 def test_impossible_limits_are_infeasible_with_the_reason(client):
     # a = 0.05 < 0.0909: Delta = 9.918 s > t2 - t1 = 5.4535 s, the no-overlap condition fails.
-    body = assert_problem(client.post(PATH, json={**PAPER, "acceleration_limit": 0.05}), 422, slug="infeasible")
+    # The modified baseline, asked for explicitly, refuses with the reason.
+    modified = {**PAPER, "acceleration_limit": 0.05, "baseline": "modified"}
+    body = assert_problem(client.post(PATH, json=modified), 422, slug="infeasible")
     assert body["field"] == "acceleration_limit"
     assert "no-overlap" in body["detail"] and "0.0909" in body["detail"]
-    # ... which multi_step with one step handles by lengthening the ramp (Delta = V/a = 20 s).
+    # ... which multi_step with one step handles by lengthening the ramp (Delta = V/a = 20 s). The default
+    # (auto) takes the earliest-ending valid baseline: three steps (26.84 s) beat that ramp (30.91 s), and
+    # it says so.
     fixed = client.post(PATH, json={**PAPER, "acceleration_limit": 0.05, "baseline": "multi_step", "baseline_steps": 1})
     assert fixed.status_code == 200 and fixed.json()["ramp_time_s"] == pytest.approx(20.0, rel=1e-7)
+    auto = client.post(PATH, json={**PAPER, "acceleration_limit": 0.05})
+    assert auto.status_code == 200
+    chosen = auto.json()["design"]["baseline"]
+    assert chosen["kind"] == "multi_step" and len(chosen["step_times_s"]) == 3
+    assert "ends before the single ramp" in chosen["choice"]
+    ends = {a["steps"]: a["end_s"] for a in chosen["alternatives"]}
+    assert auto.json()["design"]["duration_s"] == ends[3] == min(ends.values())
+    assert ends[1] == pytest.approx(20.0 + 10.907045, abs=1e-6)  # Delta = V/a, then t_3 (5 decimals above)
     # An EI shaper beyond the damping where it exists, and a command too long to simulate.
     mode = {"kind": "mode", "natural_frequency_hz": 2.0, "damping_ratio": 0.5}
     request = {**PAPER, "plant": mode, "shaper": "3hump_ei", "horizon_s": None}
     body = assert_problem(client.post(PATH, json=request), 422, slug="infeasible")
     assert body["field"] == "vibration_tolerance"
-    request = {**PAPER, "acceleration_limit": 1e-9, "baseline": "step", "horizon_s": None}
+    request = {**PAPER, "acceleration_limit": 1e-9, "horizon_s": None}
     body = assert_problem(client.post(PATH, json=request), 422, slug="infeasible")
     assert "beyond" in body["detail"]
 
@@ -251,3 +263,57 @@ def test_impossible_limits_are_infeasible_with_the_reason(client):
 )
 def test_catalogue_query_errors(client, params, field):
     assert_problem(client.get("/v1/shapers", params=params), 422, field)
+
+
+# ------------------------------------------------------------------------------------------
+# Issue 11: the step baseline arrives, auto is the default, compare shows the shapers
+
+REPRODUCER = {
+    "plant": {"kind": "mode", "natural_frequency_hz": 40.03893781783215, "damping_ratio": 0.08560034273978648},
+    "shaper": "zvd",
+    "displacement": -0.01355515198087977,
+    "baseline": "step",
+    "acceleration_limit": 32.89918298569201,
+}
+
+
+def test_step_baseline_through_the_drive_arrives_and_reports_its_residual(client):
+    # The audit's reproducer: 1.8 % short before. The position-mode drive arrives (round-off of a few dozen
+    # pieces: 1e-12), within the limit, and the residual is what an exact simulation of the returned
+    # command gives (measured 1.33e-3, 9.8 % of the move: the limiter undoes the shaper).
+    body = client.post(PATH, json=REPRODUCER).json()
+    received = _command(body["rate_limited"])
+    assert received.derivative(0)[-1] == pytest.approx(REPRODUCER["displacement"], rel=1e-12)
+    assert body["metrics"]["peak_acceleration"] <= REPRODUCER["acceleration_limit"] * (1 + 1e-12)
+    assert body["limit_violations"] == []
+    plant = make_plant(**REPRODUCER["plant"])
+    assert body["metrics"]["residual_amplitude"] == pytest.approx(
+        metrics(simulate(plant, received)).residual_amplitude, rel=1e-9
+    )
+    assert body["metrics"]["residual_amplitude"] > 1e-4  # honest: the shaped staircase was changed
+    assert body["design"]["drive"].startswith("position follower")
+    assert any("arrives at the displacement" in w for w in body["warnings"])
+    # The default (auto) on the same request: the modified baseline fits, nothing to change, no residual.
+    auto = client.post(PATH, json={k: v for k, v in REPRODUCER.items() if k != "baseline"}).json()
+    assert auto["design"]["baseline"]["kind"] == "modified" and auto["design"]["passes_limiter_unchanged"]
+    assert auto["metrics"]["residual_amplitude"] < 1e-12 * abs(REPRODUCER["displacement"])  # exact: round-off
+    assert auto["metrics"]["command_end_s"] < body["metrics"]["command_end_s"]
+
+
+def test_compare_has_a_row_per_shaper_each_reproduced_by_its_request(client):
+    body = client.post(
+        "/v1/compare",
+        json={
+            "plant": {"kind": "mode", "natural_frequency_hz": 5.0, "damping_ratio": 0.05},
+            "displacement": 0.2,
+            "limits": {"max_velocity": 0.5, "max_acceleration": 20.0},
+            "families": ["input_shaped"],
+        },
+    ).json()
+    rows = body["rows"]
+    assert sorted(row["request"]["shaper"] for row in rows) == ["ei", "mzv", "zv", "zvd"]
+    for row in rows:
+        assert row["request"]["baseline"] == "auto" and row["limits_met"]
+        assert row["peak_velocity"] <= 0.5 * (1 + 1e-12)
+        direct = client.post(row["endpoint"], json=row["request"]).json()
+        assert direct["metrics"]["settling_time_s"] == row["settling_time_s"]

@@ -147,7 +147,7 @@ def test_errors_name_the_field_the_caller_sent(client):
 def test_a_core_error_is_named_in_the_callers_words(client):
     # The no-overlap condition fails at a = 0.05 (Chatlatanagulchai Sec. 4: Delta = 9.9 s > t2 - t1 = 5.45 s);
     # the shaping core names its acceleration limit, reported as the caller sent it.
-    body = {"plant": CHATLATANAGULCHAI_EQ3, "shaper": "zvd", "target_velocity": 1.0}
+    body = {"plant": CHATLATANAGULCHAI_EQ3, "shaper": "zvd", "target_velocity": 1.0, "baseline": "modified"}
     new = client.post("/v1/profiles/input-shaped", json={**body, "limits": {"max_acceleration": 0.05}}).json()
     old = client.post("/v1/profiles/input-shaped", json={**body, "acceleration_limit": 0.05}).json()
     assert new["type"] == old["type"] == "/problems/infeasible"
