@@ -64,7 +64,7 @@ class Result:
             "profile": self.profile,
             "design": self.summary,
             "load": load_arrays(self.response),
-            "metrics": {**metrics_dict(self.metrics), "percentage_vibration": self.percentage_vibration},
+            "metrics": metrics_dict(self.metrics, self.percentage_vibration),
             "limits_met": not self.limit_violations,
             "sensitivity": self.sensitivity,
             "solver": None if self.solver is None else self.solver.as_dict(),
@@ -340,7 +340,14 @@ def load_arrays(response: Response) -> dict[str, NDArray[np.float64] | None]:
     }
 
 
-def metrics_dict(m: Metrics) -> dict[str, Any]:
+def metrics_block(problem: Problem, command: PiecewiseCommand) -> dict[str, Any]:
+    """The ``metrics`` block of any command the answer shows beside the design (simulated here)."""
+    return metrics_dict(
+        metrics_of(problem, simulate(problem.plant, command)), nominal_percentage_vibration(problem, command)
+    )
+
+
+def metrics_dict(m: Metrics, percentage_vibration: float | None = None) -> dict[str, Any]:
     return {
         "command_end_s": m.command_end_s,
         "motion_time_s": m.command_end_s,
@@ -357,4 +364,5 @@ def metrics_dict(m: Metrics) -> dict[str, Any]:
         "peak_acceleration": m.peak_acceleration,
         "peak_jerk": m.peak_jerk,
         "peak_motor_torque_nm": m.peak_motor_torque_nm,
+        "percentage_vibration": percentage_vibration,
     }

@@ -25,7 +25,7 @@ import numpy as np
 from models.commands import PiecewiseCommand
 from models.errors import Infeasible, InvalidParameter
 from models.shapers import ImpulseSequence, RampTrain, follow_position, percentage_vibration, rate_limit
-from models.simulation import metrics, simulate
+from models.simulation import simulate
 from optim.family import BaseFamily, Candidate, Design, Grid, Profile, Run
 from optim.problem import TAIL_PERIODS, Problem
 from optim.shapers import (
@@ -422,7 +422,7 @@ class InputShapedFamily(BaseFamily):
         return profile_arrays(design.detail.shaped.resampled(grid.period_s, grid.horizon_s))
 
     def finish(self, problem: Problem, design: Design, run: Run) -> dict[str, Any]:
-        from optim.synthesis import metrics_dict, profile_arrays
+        from optim.synthesis import metrics_block, profile_arrays
 
         commands: Commands = design.detail
         grid = run.grid
@@ -430,11 +430,10 @@ class InputShapedFamily(BaseFamily):
         room = max(problem.max_samples - plain.time_s.size - 2, 1)
         end = max(grid.horizon_s, float(plain.time_s[-1]))
         period = max(grid.period_s, (end - float(plain.time_s[0])) / room)  # the residual is exact at any period
-        unmodified = metrics(simulate(problem.plant, plain.resampled(period, end)), problem.settling.position_tolerance)
         return {
             "rate_limited": profile_arrays(run.command),
             "baseline": profile_arrays(commands.baseline.resampled(grid.period_s, grid.horizon_s)),
             "impulses": {"amplitudes": commands.impulses.amplitudes, "times_s": commands.impulses.times_s},
             "ramp_time_s": commands.ramp_time_s,
-            "unmodified": metrics_dict(unmodified),
+            "unmodified": metrics_block(problem, plain.resampled(period, end)),
         }

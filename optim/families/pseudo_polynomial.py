@@ -14,7 +14,7 @@ import numpy as np
 
 from models.errors import InvalidParameter
 from models.pseudo_polynomial import PseudoPolynomial
-from models.simulation import metrics, simulate
+from models.simulation import simulate
 from optim import pseudo_polynomial as pp
 from optim.family import BaseFamily, Design, Grid, Profile, Run, SolverSummary
 from optim.problem import Problem
@@ -177,7 +177,7 @@ class PseudoPolynomialFamily(BaseFamily):
 
     def finish(self, problem: Problem, design: Design, run: Run) -> dict[str, Any]:
         """The initial design's profile, load response and metrics on the same sampling."""
-        from optim.synthesis import horizon_of, load_arrays, metrics_dict
+        from optim.synthesis import horizon_of, load_arrays, metrics_dict, metrics_of, nominal_percentage_vibration
 
         initial = design.detail.initial
         command = initial.command(run.grid.period_s, horizon_of(problem, initial.duration_s))
@@ -186,7 +186,7 @@ class PseudoPolynomialFamily(BaseFamily):
             "initial": {
                 "profile": initial.samples(command.time_s),
                 "load": load_arrays(response),
-                "metrics": metrics_dict(metrics(response, problem.settling.position_tolerance)),
+                "metrics": metrics_dict(metrics_of(problem, response), nominal_percentage_vibration(problem, command)),
             }
         }
 
