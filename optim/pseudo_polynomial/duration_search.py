@@ -19,7 +19,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from models.errors import Infeasible, SolverTimedOut
+from models.errors import Infeasible, SolverFailed, SolverTimedOut
 from models.pseudo_polynomial import PseudoPolynomial
 from optim.pseudo_polynomial.problem import _active, _oscillatory
 from optim.pseudo_polynomial.solve import (
@@ -85,7 +85,8 @@ def _candidates(request: PseudoPolynomialRequest, period_s: float) -> list[float
 
 def shortest(request: PseudoPolynomialRequest, peaks_of: PeaksOf | None) -> Search:
     """The shortest duration whose design meets the residual tolerance within the limits (module
-    docstring). A time-out propagates as SolverTimedOut; no feasible duration found is Infeasible."""
+    docstring). A time-out propagates as SolverTimedOut; no feasible duration found is SolverFailed (the
+    scan is no proof that none exists)."""
     tolerance = request.residual_tolerance or _default_tolerance(request)
     started = time.perf_counter()
     budget = 3.0 * request.caps.max_wall_time_s
@@ -149,11 +150,13 @@ def shortest(request: PseudoPolynomialRequest, peaks_of: PeaksOf | None) -> Sear
     if best is None:  # the multi-start at duration_s, where no closest solve succeeds (order >= 3 from its start)
         best = probe(request.duration_s, initial, "thorough")
         below = max((d for d, _ in tried if d < high), default=None)
-    if best is None:
-        raise Infeasible(
-            f"no pseudo-polynomial command of order {request.order} meets the limits with a residual below "
-            f"{tolerance:.3g} at whole periods from {kinematic_floor_s(request):.6g} s up to {tried[-1][0]:.6g} s",
-            field="duration_s",
+    if best is None:  # not a proof that none exists: a solver failure, never "infeasible"
+        raise SolverFailed(
+            total(ledger, "Search_Found_No_Design"),
+            f"the duration search found no pseudo-polynomial command of order {request.order} within the limits "
+            f"with a residual below {tolerance:.3g} at whole periods from {kinematic_floor_s(request):.6g} s up to "
+            f"{max(d for d, _ in tried):.6g} s (nor the multi-start at {request.duration_s:.6g} s); give a "
+            "duration_s to design at, or another order",
         )
     floor = max(kinematic_floor_s(request), below or 0.0, high - period)
     step = period / REFINE_STEPS
