@@ -6,23 +6,15 @@ from __future__ import annotations
 
 import pytest
 
+from tests.app.test_pseudo_polynomial_api import FALLBACK_CASE, JERK_CASE
+from tests.app.test_shapers_api import REPRODUCER as SHAPED_STEP_CASE
+
 PP = "/v1/profiles/pseudo-polynomial"
 STAP = "/v1/profiles/stap"
 SHAPED = "/v1/profiles/input-shaped"
 
 CASES = [
-    pytest.param(
-        PP,
-        {
-            "plant": {"kind": "mode", "natural_frequency_hz": 3.4136132292137797, "damping_ratio": 0.2840572223301995},
-            "displacement": -717.9817512876891,
-            "duration_s": 0.8859491534569945,
-            "order": 3,
-            "sample_period_s": 0.0011753363975126865,
-            "limits": {"max_jerk": 118612.89875371839},
-        },
-        id="pp-jerk-118722",
-    ),
+    pytest.param(PP, JERK_CASE, id="pp-jerk-118722"),
     pytest.param(
         STAP,
         {
@@ -41,33 +33,8 @@ CASES = [
         },
         id="stap-torque-71.6956",
     ),
-    pytest.param(
-        SHAPED,
-        {
-            "plant": {"kind": "mode", "natural_frequency_hz": 40.03893781783215, "damping_ratio": 0.08560034273978648},
-            "shaper": "zvd",
-            "displacement": -0.01355515198087977,
-            "baseline": "step",
-            "acceleration_limit": 32.89918298569201,
-        },
-        id="shaped-step-short-of-the-displacement",
-    ),
-    pytest.param(
-        PP,
-        {
-            "plant": {
-                "kind": "transfer_function",
-                "numerator": [5329676.87849852, 21471366684.057102],
-                "denominator": [1.0, 163.11501159112285, 689806.5368298043, 5329676.87849852, 21471366684.057102],
-            },
-            "displacement": 0.016550784134077873,
-            "duration_s": 0.22808753015020575,
-            "order": 3,
-            "sample_period_s": 0.00020094309001385182,
-            "limits": {"max_acceleration": 4.180686100801731, "max_jerk": 244.7660123724046},
-        },
-        id="pp-solver-failed-but-4567-fits",
-    ),
+    pytest.param(SHAPED, SHAPED_STEP_CASE, id="shaped-step-short-of-the-displacement"),
+    pytest.param(PP, FALLBACK_CASE, id="pp-solver-failed-but-4567-fits"),
 ] + [
     pytest.param(
         SHAPED,
@@ -98,7 +65,7 @@ MUST_ANSWER = (STAP, SHAPED)
 def test_audit_reproducer_is_an_honest_answer(client, path, body):
     answer = client.post(path, json=body)
     assert answer.status_code in (200, 422), answer.text
-    if path in MUST_ANSWER or body.get("duration_s") == 0.22808753015020575:
+    if path in MUST_ANSWER or body is FALLBACK_CASE:
         assert answer.status_code == 200, answer.text
     if answer.status_code == 422:
         problem = answer.json()
