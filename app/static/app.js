@@ -4,8 +4,8 @@
 const FAMILIES = {
   pseudo_polynomial: "Pseudo-polynomial (Incerti)",
   stap: "Trapezoidal acceleration, STAP (Cusimano)",
-  smoother: "Damped harmonic smoother (Biagiotti)",
-  input_shaped: "Input shaping, ZVD (Chatlatanagulchai)",
+  smoother: "Smoother (Biagiotti)",
+  input_shaped: "Input shaping (Chatlatanagulchai)",
 };
 
 const PRESETS = {
@@ -93,7 +93,9 @@ function fmt(value, digits = 4) {
 function designName(row) {
   const family = FAMILIES[row.family] || row.family;
   const variant = (row.label || "").split("/")[1];
-  return variant ? `${family} (${variant.replace(/_/g, " ").toUpperCase()})` : family;
+  const SHAPERS = ["zv", "mzv", "zvd", "ei"];
+  const name = variant && (SHAPERS.includes(variant) ? variant.toUpperCase() : variant.replace(/_/g, " "));
+  return name ? `${family}: ${name}` : family;
 }
 
 function renderTable(result) {
