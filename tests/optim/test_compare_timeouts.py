@@ -4,17 +4,10 @@ closed form that needs no solve, saying so), never call the move infeasible."""
 
 from __future__ import annotations
 
-import asyncio
-
 from app.examples import INCERTI_TABLE_III
 from app.routers.compare import CompareIn
 from app.settings import Settings
-from optim.compare import compare
-from optim.synthesis import synthesize
-
-
-async def in_process(family, problem, options):
-    return synthesize(family, problem, options)
+from tests.optim.compare_runner import run_compare
 
 
 def test_time_outs_in_compare_are_time_outs():
@@ -28,7 +21,7 @@ def test_time_outs_in_compare_are_time_outs():
     )
     problem = body.to_problem(settings)
     assert problem.solver.max_wall_time_s == 1e-4
-    rows, unavailable = asyncio.run(compare(problem, in_process))
+    rows, unavailable = run_compare(problem)
     types = {u.family: u.problem_type for u in unavailable}
     assert types.get("pseudo_polynomial") == "/problems/solve-timeout", unavailable
     assert "/problems/infeasible" not in types.values()

@@ -3,30 +3,17 @@ exponential, models.smoother_filters) in one group; compare keeps the one that s
 
 from __future__ import annotations
 
-import asyncio
-from concurrent.futures import ThreadPoolExecutor
-
 import pytest
 
 from models.plants import ModePlant
-from optim.compare import compare
 from optim.families.smoother import SmootherFamily, SmootherOptions
 from optim.problem import Problem
 from optim.smoothers import FilterSpec
 from optim.synthesis import synthesize
+from tests.optim.compare_runner import run_compare
 
 # Biagiotti Sec. VI: sigma = -15.6539 1/s, Omega = 122.7185 rad/s (omega_n = 123.71 rad/s, zeta = 0.1265).
 BIAGIOTTI = ModePlant(19.6895152, 0.1265341)
-
-
-async def in_process(family, problem, options):
-    return synthesize(family, problem, options)
-
-
-def run_compare(problem, names):
-    """compare() on its own event loop in a thread (a browser test may leave one running in this thread)."""
-    with ThreadPoolExecutor(1) as pool:
-        return pool.submit(asyncio.run, compare(problem, in_process, names=names)).result()
 
 
 def test_the_candidates_are_the_tuned_kinds_in_one_group():

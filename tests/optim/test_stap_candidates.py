@@ -3,28 +3,16 @@
 
 from __future__ import annotations
 
-import asyncio
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 
 import pytest
 
 from models.plants import ModePlant
-from optim.compare import compare
 from optim.families.stap import StapFamily, StapOptions
 from optim.family import FAMILIES
 from optim.problem import Limits, Problem
 from optim.synthesis import synthesize
-
-
-async def in_process(family, problem, options):
-    return synthesize(family, problem, options)
-
-
-def run_compare(problem, names):
-    """compare() on its own event loop in a thread (a browser test may leave one running in this thread)."""
-    with ThreadPoolExecutor(1) as pool:
-        return pool.submit(asyncio.run, compare(problem, in_process, names=names)).result()
+from tests.optim.compare_runner import run_compare
 
 
 def settle(problem: Problem, options: StapOptions) -> float:
