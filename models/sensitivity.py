@@ -79,9 +79,9 @@ def residual_envelope(
     command: PiecewiseCommand, natural_frequency_rad_s: ArrayLike, damping_ratio: ArrayLike, derivative: int
 ) -> NDArray[np.float64]:
     """sum_k |F_k|: the residual the command's breakpoints would leave if none cancelled another. For
-    acceleration steps delta a_k it is c sum_k |delta a_k| exp(-sigma (T - t_k)) / (w w_d), for a step
-    of height D it is c D w / w_d, where c = |2 zeta w lambda + w^2| / w^2 is the mode's zero (1 when
-    undamped: 4 a / w^2 for an undamped bang-bang move)."""
+    acceleration steps delta a_k it is sum_k |delta a_k| exp(-sigma (T - t_k)) / (w w_d) (4 a / w^2 for an
+    undamped bang-bang move), for a step of height D it is D w / w_d (the mode's zero, |2 zeta w lambda +
+    w^2| = w^2, changes no magnitude)."""
     return _free_sums(command, natural_frequency_rad_s, damping_ratio, derivative)[1]
 
 

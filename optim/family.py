@@ -188,14 +188,23 @@ class BaseFamily:
 
 def warm_up_all(solver: SolveCaps) -> None:
     """Build every family's solver problems (run once in each new worker process)."""
-    for family in FAMILIES.values():
+    from optim.families import REGISTRY
+
+    for family in REGISTRY.values():
         family.warm_up(solver)
 
 
-from optim.families import REGISTRY as FAMILIES  # noqa: E402  (the families import this module's types)
+def __getattr__(name: str) -> dict[str, Family]:
+    """``FAMILIES``, the registry, resolved on first use: the families import this module's types, so
+    importing any family module first must not need the registry yet (PEP 562)."""
+    if name == "FAMILIES":
+        from optim.families import REGISTRY
 
-__all__ = [
-    "FAMILIES",
+        return REGISTRY
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+__all__ = [  # and FAMILIES, through __getattr__
     "BaseFamily",
     "Candidate",
     "Design",

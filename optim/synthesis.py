@@ -246,9 +246,13 @@ def rigid_reference(problem: Problem) -> PiecewiseCommand:
 
 
 def reference_wording(problem: Problem) -> str:
+    """What ``rigid_reference`` built, in words."""
     if problem.acceleration_limit is None:
         return "the unshaped step" if problem.rest_to_rest else "the unshaped velocity step"
-    cruise = " with a cruise at limits.max_velocity" if problem.limits.max_velocity is not None else ""
+    if not problem.rest_to_rest:
+        return "the rigid ramp to the target velocity at the acceleration limit (jerk limits ignored)"
+    reference = rigid_reference(problem)
+    cruise = " with a cruise at limits.max_velocity" if reference.time_s.size == 4 else " (bang-bang)"
     return f"the rigid time-optimal move at the acceleration limit{cruise} (jerk limits ignored)"
 
 
@@ -299,6 +303,8 @@ def sensitivity_curve(
     else:
         amplitude = rows * (scale if scale > 0 else 1.0)
     percent, envelope = percentage_vibration(problem, amplitude, ratios, zetas)
+    gain = problem.plant.load_move(1.0)  # the mode model moves with the motor: the load's units
+    amplitude, envelope = gain * amplitude, gain * envelope
     band = band_below(ratios, percent[0], 100.0 * BAND_LEVEL)
     several = zetas.size > 1
     return {

@@ -103,6 +103,8 @@ class PseudoPolynomialFamily(BaseFamily):
     def not_applicable(self, problem: Problem) -> str | None:
         if not problem.rest_to_rest:
             return "pseudo-polynomial commands are rest-to-rest moves; give a displacement"
+        if not problem.plant.modes():
+            return "the plant has no vibration mode for a pseudo-polynomial command to cancel"
         return None
 
     def default_options(self, problem: Problem) -> PseudoPolynomialOptions:
