@@ -298,17 +298,20 @@ def _envelope_crossing_s(amplitudes: NDArray[np.float64], poles: NDArray[np.comp
 
 def vibration_envelope(response: Response, order: int) -> NDArray[np.float64]:
     """At every breakpoint, the amplitude of the load's vibration about its rigid motion: the sum of
-    the oscillatory free responses' amplitudes |w r p^order h| plus the quasi-static deflection
-    sum_(m>=1) g_m p^(m+order) (the elastic lag a moving command holds, e.g. -a / w^2 on one mode).
-    After the command's end it is the exact envelope of the free vibration."""
+    the oscillatory free responses' amplitudes |w r p^order h| plus the quasi-static deflection of the
+    oscillatory modes, Re sum_osc w r (-sum_(m>=1) p^(m+order) / p_j^(m+1)) (the elastic lag a moving
+    command holds, -a / w^2 on one mode; real poles and the rigid part are no vibration). After the
+    command's end it is the exact envelope of the free vibration."""
     modal = response.modal
     osc = modal.oscillatory
-    free = np.abs((modal.weights * modal.residues * modal.poles**order)[osc, None] * response.free_state[osc])
-    g = modal.taylor
+    weighted = (modal.weights * modal.residues)[osc]
+    poles = modal.poles[osc]
+    free = np.abs((weighted * poles**order)[:, None] * response.free_state[osc])
     der = response.command.derivatives
-    quasi_static = sum(
-        (g[m] * der[m + order] for m in range(1, g.size) if m + order < der.shape[0]), np.zeros_like(der[0])
-    )
+    quasi_static = np.zeros_like(der[0])
+    for m in range(1, der.shape[0] - order):  # a loop over derivative orders (a handful)
+        coefficient = float(np.sum(-(weighted / poles ** (m + 1))).real)
+        quasi_static += coefficient * der[m + order]
     envelope: NDArray[np.float64] = np.sum(free, axis=0) + np.abs(quasi_static)
     return envelope
 
@@ -350,6 +353,8 @@ def settling(
         return Settling(quantity, band, None, vibration_window)
     poles = response.modal.poles
     amplitudes = response.free_amplitudes(end, order)
+    if not np.any(response.modal.oscillatory):
+        vibration_window = None  # nothing vibrates: the position band alone decides
     after = _envelope_crossing_s(amplitudes, poles, band)
     outside = np.abs(error[:end]) > band
     if vibration_window is not None:
