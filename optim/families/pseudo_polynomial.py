@@ -145,6 +145,8 @@ class PseudoPolynomialFamily(BaseFamily):
         result = pp.design(core, sampled_peaks(problem))
         warnings = []
         within = " within the limits" if lim.any else ""
+        if options.minimize_duration and not result.duration_search:  # the search found none (its note)
+            warnings.append(f"minimize_duration: {result.fallback_reason}")
         if result.selection == "minimum_energy":
             warnings.append(
                 f"no zero-energy design was found{within}; this one leaves {100 * result.energy_ratio:.3g} % of "

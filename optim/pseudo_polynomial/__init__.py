@@ -19,10 +19,10 @@ from dataclasses import replace
 
 import numpy as np
 
-from models.errors import InvalidParameter
+from models.errors import InvalidParameter, SolverFailed, SolverTimedOut
 from models.plants import TwoInertiaPlant
 from models.pseudo_polynomial import PseudoPolynomial, check_exponents
-from optim.pseudo_polynomial.duration_search import SEARCH_METHOD, shortest
+from optim.pseudo_polynomial.duration_search import SEARCH_METHOD, Search, shortest
 from optim.pseudo_polynomial.problem import (
     _CACHE,
     CONSTRAINT_INTERVALS,
@@ -154,8 +154,15 @@ def design(request: PseudoPolynomialRequest, peaks_of: PeaksOf | None = None) ->
     peaks_of = peaks_of or law_peaks(request.plant, request.limits)
     started = time.perf_counter()
     below: float | None = None
+    search: Search | None = None
     if request.minimize_duration:
-        search = shortest(request, peaks_of)
+        try:
+            search = shortest(request, peaks_of)
+        except SolverTimedOut:
+            raise
+        except SolverFailed as exc:  # none found at the scanned durations: the design at duration_s, said so
+            missed = str(exc)
+    if search is not None:
         duration, attempt, tried, below = (
             search.duration_s,
             search.attempt,
@@ -168,6 +175,9 @@ def design(request: PseudoPolynomialRequest, peaks_of: PeaksOf | None = None) ->
         duration, tried = request.duration_s, ()
         attempt = solve_within(request, np.asarray(initial), "thorough", peaks_of, ledger)
         _raise_unless_design(attempt)
+        if request.minimize_duration:
+            note = f"{missed}; this is the design at duration_s = {request.duration_s:.6g} s"
+            attempt = replace(attempt, note=f"{attempt.note}; {note}" if attempt.note else note)
         solver, solves = total(ledger, attempt.report.status), len(ledger)
     return PseudoPolynomialDesign(
         law=PseudoPolynomial(request.displacement, duration, tuple(attempt.gamma)),

@@ -129,7 +129,7 @@ def shortest(request: PseudoPolynomialRequest, peaks_of: PeaksOf | None) -> Sear
         if outside is not None or (found is None and effort == "thorough"):
             try:
                 limited = solve_within(trial, start if outside is None else outside, effort, peaks_of, ledger)
-                converged = limited.stage == "closest_zero_energy"
+                converged = limited.stage in ("closest_zero_energy", "minimum_energy")  # a converged solve
                 found = limited if converged and limited.residual <= tolerance else None
             except Infeasible:
                 pass
