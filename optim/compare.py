@@ -100,4 +100,5 @@ async def compare(
         kept += _best_of_groups(cands, list(outcomes[start : start + len(cands)]))
         start += len(cands)
     rows = sorted((o for o in kept if isinstance(o, Row)), key=lambda r: r.settling_key)
-    return rows, unavailable + [o for o in kept if isinstance(o, Unavailable)]
+    failures = [o for o in kept if isinstance(o, Unavailable)]
+    return rows, unavailable + list(dict.fromkeys(failures))  # a reason once per family (the shapers share one)

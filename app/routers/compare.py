@@ -76,7 +76,9 @@ class Row(OutModel):
     percentage_vibration: float | None = Field(
         description="V at the nominal mode, %: the residual over the unshaped rigid command's (see /v1/profiles/*)."
     )
-    residual_vibration: float = Field(description="Residual at the nominal frequency, fraction of the move.")
+    residual_vibration: float = Field(
+        description="Residual left by every mode of the plant (the sum of their envelopes), fraction of the load's move."
+    )
     residual_amplitude: float = Field(
         description="Load free-oscillation envelope (position; velocity for rest-to-velocity)."
     )

@@ -42,8 +42,10 @@ class SettlingIn(StrictModel):
         le=1e9,
         description="Bound on the amplitude of the load's vibration envelope, in the load's units (velocity units "
         "for rest-to-velocity): the free oscillation about its rigid motion plus, during the move, the quasi-static "
-        "deflection. Default: 1 % of the lowest mode's quasi-static deflection max_acceleration / omega_n^2 "
-        "(max_acceleration / omega_n in velocity) where an acceleration limit applies, else 1e-3 of the load's move.",
+        "deflection. Default: 1 % of the lowest mode's quasi-static deflection of the load, |G(0)| max_acceleration "
+        "/ omega_n^2 (|G(0)| max_acceleration / omega_n in velocity) where an acceleration limit applies, else 1e-3 of "
+        "the load's move (on /v1/simulate, which has no limits: 1e-3 of the load's move, or of its largest excursion "
+        "if larger).",
     )
 
 
@@ -136,7 +138,7 @@ class MetricsOut(OutModel):
     settling_time_s: float | None = Field(
         description="From the command's start, the earliest time after which the load stays within the position "
         "band and its vibration envelope below the vibration bound for ever (it can be before the command's end); "
-        "null if it never does (an undamped mode left ringing)."
+        "null if it never does (an undamped mode left ringing, or a command that does not move: a band of zero)."
     )
     settled: bool
     settling_quantity: Literal["position", "velocity"]
@@ -146,7 +148,8 @@ class MetricsOut(OutModel):
     )
     percentage_vibration: float | None = Field(
         None,
-        description="V at the plant's first mode as modelled, % (see the sensitivity block for its definition).",
+        description="V at the plant's first mode as modelled, % (see the sensitivity block for its definition); "
+        "null without a mode, and on /v1/simulate, which has no limits to build the reference from.",
     )
     peak_velocity: float | None = Field(description="Peak |command velocity|; null where it is impulsive.")
     peak_acceleration: float | None

@@ -358,6 +358,14 @@ class InputShapedFamily(BaseFamily):
     name: ClassVar[str] = "input_shaped"
     endpoint: ClassVar[str] = "/v1/profiles/input-shaped"
 
+    def not_applicable(self, problem: Problem) -> str | None:
+        if problem.limits.max_jerk is not None:
+            return (
+                "limits.max_jerk: input-shaped commands are shaped steps and ramps, whose acceleration steps make "
+                "the jerk impulsive; use a smoother, STAP or the pseudo-polynomial family under a jerk limit"
+            )
+        return None
+
     def default_options(self, problem: Problem) -> InputShapedOptions:
         """ZVD with the automatic baseline (the fastest that meets the limits) at the fastest cruise."""
         return InputShapedOptions()
