@@ -77,7 +77,7 @@ class Row(OutModel):
         description="V at the nominal mode, %: the residual over the unshaped rigid command's (see /v1/profiles/*)."
     )
     residual_vibration: float = Field(
-        description="Residual left by every mode of the plant (the sum of their envelopes), fraction of the load's move."
+        description="Residual left by every mode of the plant (their envelopes summed), fraction of the load's move."
     )
     residual_amplitude: float = Field(
         description="Load free-oscillation envelope (position; velocity for rest-to-velocity)."
