@@ -76,11 +76,27 @@ def test_audit_reproducer_is_an_honest_answer(client, path, body):
     assert out["limits_met"] is True and out["limit_violations"] == []
     limits = dict(body.get("limits", {}))
     limits.update({LEGACY[k]: v for k, v in body.items() if k in LEGACY})
+    samples = {
+        "max_velocity": out["profile"]["velocity"],
+        "max_acceleration": out["profile"]["acceleration"],
+        "max_jerk": out["profile"]["jerk"],
+        "max_torque_nm": out["load"]["motor_torque_nm"],
+    }
     for name, limit in limits.items():
         peak = out["metrics"][PEAKS[name]]
         assert peak is not None and peak <= limit * (1 + 1e-9), (name, peak, limit)
+        # The acceptance is about the samples a drive receives: checked on them, not only on the metric.
+        assert max(abs(v) for v in samples[name]) <= limit * (1 + 1e-9), name
     if path == STAP and "target_velocity" in body and "displacement" in body:
         assert out["metrics"]["peak_velocity"] <= body["target_velocity"] * (1 + 1e-9)  # the legacy cruise limit
     # At the displacement: the command ends there, to round-off of the move.
     final = out["profile"]["position"][-1] - out["profile"]["position"][0]
     assert final == pytest.approx(body["displacement"], rel=1e-9)
+
+
+@pytest.mark.parametrize("limits", [{}, {"max_velocity": 2.0, "max_acceleration": 20.0}])
+def test_a_plant_without_a_mode_is_not_applicable_to_the_pseudo_polynomial(client, limits):
+    # Found in review: the default duration divided by the slowest period, 0 without a mode (a 500).
+    plant = {"kind": "transfer_function", "numerator": [99.0], "denominator": [1.0, 20.0, 99.0]}  # poles -9, -11
+    answer = client.post(PP, json={"plant": plant, "displacement": 1.0, "limits": limits})
+    assert answer.status_code == 422 and answer.json()["type"] == "/problems/not-applicable", answer.text
