@@ -29,6 +29,9 @@ async def profile(family: Family, body: ProfileRequest, settings: Settings, pool
     """The answer of a family endpoint: the pipeline's result, with a line per deprecated field used."""
     try:
         problem = await run_in_threadpool(body.to_problem, settings)
+        reason = family.not_applicable(problem)
+        if reason is not None:  # before the options, whose defaults may need what is missing (a mode)
+            raise NotApplicable(reason)
         result = await run(family, problem, body.options(problem), settings, pool)
     except (InvalidParameter, Infeasible, NotApplicable) as exc:
         raise _as_sent(exc, body) from None
