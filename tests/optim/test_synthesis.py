@@ -86,7 +86,8 @@ def test_limits_are_reported_the_same_way_by_every_family(name, move):
     try:
         result = run(name, move, limits=limits)
     except Exception as exc:  # a family that designs for jerk may find the limits infeasible: that is honest
-        assert type(exc).__name__ in ("Infeasible", "SolverFailed"), exc
+        # (the shapers, whose acceleration steps make the jerk impulsive, do not apply under a jerk limit)
+        assert type(exc).__name__ in ("Infeasible", "SolverFailed", "NotApplicable"), exc
         return
     command = result.command
     dense = np.linspace(0.0, float(command.time_s[-1]), 200_001)
