@@ -123,6 +123,25 @@ def _velocity_and_cruise(
     return velocity, abs(problem.move / velocity)
 
 
+def _nominal_residual(problem: Problem, baseline: Baseline, shaper: ImpulseSequence, cruise_s: float | None) -> float:
+    """The residual the shaped baseline leaves on the plant's first mode (position; velocity when the move
+    ends moving), in the load's units: one sum over its breakpoints (models.sensitivity)."""
+    from models.sensitivity import mode_residuals
+
+    modes = problem.plant.modes()
+    if not modes:
+        return 0.0
+    train = baseline.train() if cruise_s is None else baseline.train().pulse(cruise_s)
+    try:
+        command = train.shaped(shaper).to_command()
+    except InvalidParameter:  # a move beyond the time range: refused later, with its reason
+        return math.inf
+    mode = modes[0]
+    derivative = 0 if problem.rest_to_rest else 1
+    amplitude, _ = mode_residuals(command, mode.natural_frequency_rad_s, mode.damping_ratio, derivative)
+    return float(amplitude[0]) * problem.plant.load_move(1.0)
+
+
 def _why(chosen: Baseline, single_ramp: bool) -> str:
     if chosen.kind == "modified":
         return "its shaped ramps do not overlap (t_(i+1) - t_i >= Delta, Sec. 4)"
@@ -147,14 +166,26 @@ def _auto(problem: Problem, shaper: ImpulseSequence, limit: float | None) -> Pla
     if options[0].kind != "modified" and shaper.count <= AUTO_MULTI_STEP_MAX_IMPULSES:
         options += [multi_step_baseline(velocity, shaper, limit, steps) for steps in range(2, shaper.count + 1)]
     ends = [shaped_end_s(b, shaper, cruise) for b in options]
-    best = int(np.argmin(ends))
+    residuals = [_nominal_residual(problem, b, shaper, cruise) for b in options]
+    # The earliest-ending of those that leave the least residual (an EI, which leaves some by design,
+    # can leave three times more on a multi-step baseline); for a zero-residual shaper: the earliest.
+    floor = min(residuals)
+    least = [i for i, r in enumerate(residuals) if r <= floor * (1 + 1e-6) + 1e-12 * problem.load_move]
+    best = min(least, key=lambda i: ends[i])
     alternatives = tuple(
-        {"kind": b.kind, "steps": int(b.step_times_s.size), "ramp_time_s": b.ramp_time_s, "end_s": e}
-        for b, e in zip(options, ends, strict=True)
+        {
+            "kind": b.kind,
+            "steps": int(b.step_times_s.size),
+            "ramp_time_s": b.ramp_time_s,
+            "end_s": e,
+            "nominal_residual": r,
+        }
+        for b, e, r in zip(options, ends, residuals, strict=True)
     )
     reason = (
         f"auto: the {options[best].kind} baseline with {options[best].step_times_s.size} step(s), the earliest-ending "
-        f"of those tried whose shaped command meets the limits (shaped end {ends[best]:.6g} s): "
+        f"of those tried whose shaped command meets the limits and leaves the least residual at the first mode "
+        f"(shaped end {ends[best]:.6g} s): "
         f"{_why(options[best], best == 0)}"
     )
     return Plan(options[best], velocity, cruise, reason, alternatives)
