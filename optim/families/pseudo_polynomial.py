@@ -135,7 +135,7 @@ class PseudoPolynomialFamily(BaseFamily):
             duration_s=options.duration_s,
             order=options.order,
             initial_exponents=options.initial_exponents,
-            limits=pp.Limits(lim.max_velocity, lim.max_acceleration, lim.max_jerk, lim.max_torque_nm),
+            limits=lim,
             minimize_duration=options.minimize_duration,
             residual_tolerance=options.residual_tolerance,
             caps=problem.solver,

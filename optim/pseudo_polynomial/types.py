@@ -15,19 +15,12 @@ from numpy.typing import NDArray
 
 from models.plants import Plant
 from models.pseudo_polynomial import PseudoPolynomial
+from optim.problem import Limits  # the service's limits, re-exported for the family's core
 from optim.solver import SolveCaps, SolverReport
 
 __all__ = ["FloatArray", "Limits", "PseudoPolynomialDesign", "PseudoPolynomialRequest"]
 
 FloatArray = NDArray[np.float64]  # exponents, parameter vectors, bounds
-
-
-@dataclass(frozen=True)
-class Limits:
-    max_velocity: float | None = None
-    max_acceleration: float | None = None
-    max_jerk: float | None = None
-    max_torque_nm: float | None = None
 
 
 @dataclass(frozen=True)
