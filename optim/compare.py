@@ -90,9 +90,12 @@ async def compare(
             unavailable.append(Unavailable(family.name, reason, "/problems/not-applicable"))
             continue
         override = overrides.get(family.name)
-        plans.append(
-            (family, (Candidate(family.name, override, family.name),) if override else family.candidates(problem))
-        )
+        try:
+            candidates = (Candidate(family.name, override, family.name),) if override else family.candidates(problem)
+        except DomainError as exc:  # its default options cannot be built for this problem
+            unavailable.append(Unavailable(family.name, reason_of(exc), f"/problems/{exc.problem_type}"))
+            continue
+        plans.append((family, candidates))
     outcomes = await asyncio.gather(*(_one(f, problem, c, run) for f, cands in plans for c in cands))
     kept: list[Row | Unavailable] = []
     start = 0

@@ -17,6 +17,8 @@ from models.plants import Plant
 from optim.solver import SolveCaps
 
 MAX_MOVE = 1e9
+MIN_MOVE = 1e-9  # a nanometre (nanoradian) move, or speed: below it no figure of the answer means anything
+MIN_LIMIT = 1e-9  # the least limit (SI units) kept: smaller ones underflow the formulas they enter
 TAIL_PERIODS = 5.0  # the returned series run this many natural periods of the slowest mode past the command
 DEFAULT_SAMPLES = 2000  # about this many samples over the horizon when no sample period is given
 MIN_SAMPLE_PERIOD_S = 1e-6
@@ -92,8 +94,18 @@ class Problem:
                 "give exactly one of displacement (rest-to-rest) or target_velocity (rest-to-velocity)",
             )
         name, move = self.move_field, self.move
-        if move == 0.0 or not math.isfinite(move) or abs(move) > MAX_MOVE:
-            raise InvalidParameter(name, move, f"must be non-zero and within +-{MAX_MOVE:g}")
+        if not math.isfinite(move) or not MIN_MOVE <= abs(move) <= MAX_MOVE:
+            raise InvalidParameter(name, move, f"|{name}| must be within [{MIN_MOVE:g}, {MAX_MOVE:g}]")
+        for limit, value in self.limits.items():
+            if value is not None and value < MIN_LIMIT:
+                raise InvalidParameter(f"limits.{limit}", value, f"must be >= {MIN_LIMIT:g} (SI units)")
+        accel = self.acceleration_limit
+        if accel is not None and accel < MIN_LIMIT:  # a torque over the inertias: M / (J_M + J_L)
+            raise InvalidParameter(
+                "limits.max_torque_nm",
+                self.limits.max_torque_nm,
+                f"gives an acceleration below {MIN_LIMIT:g} (M / (J_M + J_L) = {accel:.3g})",
+            )
         if self.limits.max_torque_nm is not None and self.plant.torque_inertias() is None:
             raise InvalidParameter(
                 "limits.max_torque_nm",

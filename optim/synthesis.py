@@ -277,6 +277,10 @@ def percentage_vibration(
     z = np.repeat(zetas[:, None], ratios.size, axis=1)
     derivative = 0 if problem.rest_to_rest else 1
     envelope = residual_envelope(rigid_reference(problem), w.ravel(), z.ravel(), derivative).reshape(w.shape)
+    if not np.all(envelope > 0.0):  # underflow: a move or a limit too small for double precision here
+        raise InvalidParameter(
+            problem.move_field, problem.move, "too small for its reference residual to be representable"
+        )
     return 100.0 * amplitude / envelope, envelope
 
 

@@ -40,7 +40,7 @@ class CompareIn(ProfileRequest):
 
     duration_s: float | None = Field(
         None,
-        gt=0,
+        ge=1e-6,
         le=1e5,
         description="Duration of the pseudo-polynomial move (default: the shortest within the limits).",
     )

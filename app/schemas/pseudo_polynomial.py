@@ -26,7 +26,7 @@ class PseudoPolynomialIn(ProfileRequest):
 
     duration_s: float | None = Field(
         None,
-        gt=0,
+        ge=1e-6,
         le=1e5,
         description="Motion time T, s. Default: 5 periods of the slowest mode without limits; with limits, the "
         "shortest duration found by minimize_duration, scanning whole periods from the kinematic floor up to "

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import pytest
 
+from app.examples import CUSIMANO_8HZ, INCERTI_TABLE_III
 from tests.app.test_pseudo_polynomial_api import FALLBACK_CASE, JERK_CASE
 from tests.app.test_shapers_api import REPRODUCER as SHAPED_STEP_CASE
 
@@ -100,3 +101,24 @@ def test_a_plant_without_a_mode_is_not_applicable_to_the_pseudo_polynomial(clien
     plant = {"kind": "transfer_function", "numerator": [99.0], "denominator": [1.0, 20.0, 99.0]}  # poles -9, -11
     answer = client.post(PP, json={"plant": plant, "displacement": 1.0, "limits": limits})
     assert answer.status_code == 422 and answer.json()["type"] == "/problems/not-applicable", answer.text
+
+
+INCERTI_COMPARE = {"plant": INCERTI_TABLE_III, "displacement": 94.24777960769379, "limits": {"max_velocity": 200.0}}
+
+
+@pytest.mark.parametrize(
+    ("body", "field"),
+    [
+        # Found trying the service: 500s from underflow (a default duration of 1e150 periods, M / J = 0).
+        ({**INCERTI_COMPARE, "limits": {"max_velocity": 1e-300, "max_acceleration": 700.0}}, "limits.max_velocity"),
+        ({**INCERTI_COMPARE, "limits": {"max_velocity": 200.0, "max_acceleration": 5e-324}}, "limits.max_acceleration"),
+        ({**INCERTI_COMPARE, "displacement": 5e-324}, "displacement"),
+        (
+            {"plant": CUSIMANO_8HZ, "target_velocity": 150.0, "limits": {"max_torque_nm": 5e-324}},
+            "limits.max_torque_nm",
+        ),
+    ],
+)
+def test_moves_and_limits_below_a_nanometre_are_refused_by_name(client, body, field):
+    answer = client.post("/v1/compare", json=body)
+    assert answer.status_code == 422 and answer.json()["field"] == field, answer.text
