@@ -17,7 +17,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from models.commands import PiecewiseCommand
-from models.errors import DomainError, InvalidParameter
+from models.errors import DomainError, InvalidParameter, SolverFailed
+from models.simulation import simulate
+from optim.solver import SolverReport
 from models.plant_base import Mode
 from models.sensitivity import band_below, residual_envelope, sensitivity
 from optim.family import BaseFamily, Candidate, Design, Run, SolverSummary
@@ -180,6 +182,48 @@ def limits_met(problem: Problem, spec: Spec, arcs: tuple[Arc, ...]) -> bool:
     return True
 
 
+TIGHTENINGS = 3
+
+
+def excess(problem: Problem, spec: Spec, arcs: tuple[Arc, ...]) -> dict[str, float]:
+    """peak / limit > 1 for every limit a grid command breaks between the LP's check points: the velocity of a
+    held jerk, the torque (simulated on 4000 points and the corners)."""
+    command = command_of(arcs, spec.order, spec.rest_to_rest)
+    out: dict[str, float] = {}
+    peak = command.peak_abs(1)
+    if spec.max_velocity is not None and peak is not None and peak > spec.max_velocity:
+        out["max_velocity"] = peak / spec.max_velocity
+    if spec.torque is not None:
+        fine = command.resampled(float(command.time_s[-1]) / 4000)
+        torque = simulate(problem.plant, fine).motor_torque_nm
+        peak_torque = float(np.max(np.abs(torque))) if torque is not None else 0.0
+        if peak_torque > spec.torque.max_torque_nm:
+            out["max_torque_nm"] = peak_torque / spec.torque.max_torque_nm
+    return out
+
+
+def solve_within_limits(problem: Problem, spec: Spec) -> Solution:
+    """solve, with a limit the grid command breaks between its check points tightened by its excess and solved
+    again (at most TIGHTENINGS times); the refined commands are checked exactly by limits_met."""
+    current = spec
+    for _ in range(TIGHTENINGS):
+        solution = solve(current, lambda arcs, s=current: limits_met(problem, s, arcs))
+        over = excess(problem, spec, solution.arcs)
+        if not over:
+            return solution
+        margin = 1.0 - 1e-6
+        if "max_velocity" in over and current.max_velocity is not None:
+            current = replace(current, max_velocity=current.max_velocity / over["max_velocity"] * margin)
+        if "max_torque_nm" in over and current.torque is not None:
+            torque = replace(current.torque, max_torque_nm=current.torque.max_torque_nm / over["max_torque_nm"] * margin)
+            current = replace(current, torque=torque)
+    raise SolverFailed(
+        SolverReport("limits_not_met", 0, 0.0),
+        f"the grid command still breaks {', '.join(f'limits.{k}' for k in over)} between its check points after "
+        f"{TIGHTENINGS} tightenings",
+    )
+
+
 def _arc_block(arc: Arc, order: int, unit: float) -> dict[str, Any]:
     level = arc.level
     kind = "bang" if abs(abs(level) - unit) <= 1e-9 * unit else ("coast" if level == 0.0 else "partial")
@@ -218,7 +262,7 @@ class TimeOptimalFamily(BaseFamily):
     def design(self, problem: Problem, options: TimeOptimalOptions) -> Design:
         chosen, notes = selected_modes(problem, options)
         spec = spec_of(problem, options, chosen)
-        solution = solve(spec, lambda arcs: limits_met(problem, spec, arcs))
+        solution = solve_within_limits(problem, spec)
         sign = math.copysign(1.0, problem.move)
         arcs = tuple(replace(a, level=sign * a.level) for a in solution.arcs)
         command = command_of(arcs, spec.order, spec.rest_to_rest)
@@ -248,7 +292,7 @@ class TimeOptimalFamily(BaseFamily):
             spec = spec_of(problem, replace(options, robustness=band, tradeoff=None), chosen)
             row: dict[str, Any] = {"half_width": h, "frequency_ratio_range": [1.0 - h, 1.0 + h]}
             try:
-                s = solve(spec, lambda arcs, spec=spec: limits_met(problem, spec, arcs))
+                s = solve_within_limits(problem, spec)
             except DomainError as exc:
                 rows.append({**row, "duration_s": None, "lower_bound_s": None, "status": exc.problem_type,
                              "reason": str(exc)})
@@ -366,7 +410,7 @@ def robustness_report(problem: Problem, design: Design, detail: _Detail) -> dict
         "max_percentage_vibration": robust.max_percentage_vibration,
         "bands": entries,
         "check": f"models.sensitivity on the exact command: {CHECK_POINTS} frequencies over each requested band x "
-        f"the damping ratios asked; the achieved band on {4 * CHECK_POINTS} frequencies around it",
+        f"the damping ratios asked; the achieved band on {4 * CHECK_POINTS} more frequencies around it",
     }
 
 
@@ -379,7 +423,7 @@ def _band_entry(
     lo, hi = lo_w / omega, hi_w / omega
     inside = np.linspace(lo, hi, CHECK_POINTS) if hi > lo else np.array([lo])
     worst = float(np.max(_v(problem, command, omega, inside, zetas)))
-    wide = np.linspace(max(0.02, lo / 3), min(50.0, max(3 * hi, 3.0)), 4 * CHECK_POINTS)
+    wide = np.union1d(np.linspace(max(0.02, lo / 3), min(50.0, max(3 * hi, 3.0)), 4 * CHECK_POINTS), inside)
     achieved = band_below(wide, np.max(_v(problem, command, omega, wide, zetas), axis=0), vmax, centre=0.5 * (lo + hi))
     covers = (
         achieved is not None

@@ -19,7 +19,8 @@ from optim.time_optimal.types import Band, Spec
 from optim.time_optimal.weights import amplitude_gain, mode_poles
 
 Array = NDArray[np.float64]
-DENSE_POINTS = 400
+DENSE_POINTS = 1500
+CHECK_MARGIN = 1e-6  # the search's check asks |F_0| <= (1 - this) bound: the independent check then passes
 INITIAL_POINTS = 9
 
 
@@ -58,13 +59,13 @@ def worst_ratios(
     return ratios
 
 
-def violations(ratios: Array, count: int = 3) -> NDArray[np.intp]:
-    """The indices of the ``count`` worst local maxima above 1 (the points to add as cuts)."""
-    above = ratios > 1.0
-    if not np.any(above):
+def violations(ratios: Array, count: int = 40, near: float = 0.995) -> NDArray[np.intp]:
+    """Where to add cuts when the check fails (some ratio > 1): every local maximum above ``near`` (the ones
+    about to fail next round too), the worst ``count`` of them; none when every ratio is <= 1."""
+    if not np.any(ratios > 1.0):
         return np.zeros(0, dtype=np.intp)
     padded = np.concatenate(([-np.inf], ratios, [-np.inf]))
-    peaks = np.flatnonzero(above & (ratios >= padded[:-2]) & (ratios >= padded[2:]))
+    peaks = np.flatnonzero((ratios > near) & (ratios >= padded[:-2]) & (ratios >= padded[2:]))
     order = np.argsort(ratios[peaks])[::-1]
     out: NDArray[np.intp] = peaks[order[:count]]
     return out

@@ -10,7 +10,7 @@ z_(k+1) = Phi z_k + Gamma u_k. The states are LP variables, so that the LP stays
   linear); the velocity of a jerk-limited command is also bounded mid-step, the torque
   J_M a + J_L a_L at four points of every step (rows C z_k + D u_k);
 - zero residual at each cancelled pole: Re F_n = Im F_n = 0 (optim.time_optimal.weights), two dense rows;
-- each band point |F_0| <= c, by the 16-gon inscribed in that circle (the bound holds at the point).
+- each band point |F_0| <= (1 - BAND_MARGIN) c, by the 16-gon inscribed in that circle.
 
 ``relaxed_lp`` is the LP every continuous command of duration T satisfies in its step averages of the
 acceleration, abar_k: the velocity at the nodes is exact, the other equalities are widened by what
@@ -40,7 +40,11 @@ Array = NDArray[np.float64]
 CArray = NDArray[np.complex128]
 POLYGON_SIDES = 16
 MARGIN = 1e-7  # bounds tightened by this fraction so that HiGHS's feasibility tolerance cannot break a limit
-TORQUE_POINTS = (0.0, 0.25, 0.5, 0.75)
+# The band's bound at its points is lowered by this fraction: between points a PHASE_STEP apart the residual
+# rises by about (PHASE_STEP / 2)^2 / 2 = 0.28 % (its phase turns, its modulus is smooth), so the dense check
+# seldom adds a point.
+BAND_MARGIN = 0.003
+TORQUE_POINTS = (0.0, 0.25, 0.5, 0.75, 1.0)  # 1.0: the left limit at the next node (the torque jumps)
 
 
 @dataclass(frozen=True)
@@ -149,6 +153,7 @@ class _Lp:
     steps: int
     states: int
     extra: int = 0  # variables after the states (|x_k| of the weighted L1 objective)
+    cut_count: int = 0  # then (Re F, Im F) / bound of each band point
     lower: Array = field(init=False)
     upper: Array = field(init=False)
     eq: list[sp.coo_matrix] = field(default_factory=list)
@@ -157,7 +162,7 @@ class _Lp:
     ub_rhs: list[Array] = field(default_factory=list)
 
     def __post_init__(self) -> None:
-        size = self.steps + (self.steps + 1) * self.states + self.extra
+        size = self.steps + (self.steps + 1) * self.states + self.extra + 2 * self.cut_count
         self.cost = np.zeros(size)
         self.lower = np.full(size, -np.inf)
         self.upper = np.full(size, np.inf)
@@ -172,7 +177,7 @@ class _Lp:
     def weighted_l1(self, weights: Array) -> None:
         """Minimise sum_k weights_k |x_k| (a feasibility LP returns any vertex, often chattering): another
         vertex, with another arc structure for the refinement to start from."""
-        n, first = self.steps, self.lower.size - self.extra
+        n, first = self.steps, self.lower.size - self.extra - 2 * self.cut_count
         k = np.arange(n)
         w = first + k
         for sign in (1.0, -1.0):
@@ -183,6 +188,34 @@ class _Lp:
             self.add_ub(m, np.zeros(n))
         self.lower[w] = 0.0
         self.cost[w] = weights
+
+    def band(self, weights: CArray, bounds: Array, inscribed: bool) -> None:
+        """|weights_p . x| <= bounds_p for each band point: (Re, Im) / bound as two variables (two dense rows),
+        then the 16-gon on them (sparse): inscribed in the unit circle (the bound holds) or circumscribed
+        (a relaxation)."""
+        count = weights.shape[0]
+        first = self.lower.size - 2 * count
+        scaled = weights / bounds[:, None]
+        parts = np.vstack([scaled.real, scaled.imag])
+        scale = np.max(np.abs(parts), axis=1)
+        scale[scale == 0.0] = 1.0
+        dense = self.dense_x_rows(parts / scale[:, None]).tocsr()
+        aux = sp.coo_matrix(
+            (-1.0 / scale, (np.arange(2 * count), first + np.arange(2 * count))), shape=(2 * count, self.lower.size)
+        )
+        self.add_eq((dense + aux).tocoo(), np.zeros(2 * count))
+        theta = 2 * math.pi * np.arange(POLYGON_SIDES) / POLYGON_SIDES
+        factor = math.cos(math.pi / POLYGON_SIDES) if inscribed else 1.0
+        p = np.arange(count)
+        rows = (p[:, None] * POLYGON_SIDES + np.arange(POLYGON_SIDES)[None, :]).ravel()
+        re_cols = np.repeat(first + p, POLYGON_SIDES)
+        im_cols = np.repeat(first + count + p, POLYGON_SIDES)
+        cos, sin = np.tile(np.cos(theta), count), np.tile(np.sin(theta), count)
+        m = sp.coo_matrix(
+            (np.concatenate([cos, sin]), (np.concatenate([rows, rows]), np.concatenate([re_cols, im_cols]))),
+            shape=(count * POLYGON_SIDES, self.lower.size),
+        )
+        self.add_ub(m, np.full(count * POLYGON_SIDES, factor))
 
     def add_eq(self, m: sp.coo_matrix, rhs: Array) -> None:
         self.eq.append(m)
@@ -242,15 +275,6 @@ class _Lp:
         return sp.vstack(mats).tocoo()
 
 
-def _polygon_rows(weights: CArray, bounds: Array, inscribed: bool) -> tuple[Array, Array]:
-    theta = 2 * math.pi * np.arange(POLYGON_SIDES) / POLYGON_SIDES
-    rot = np.exp(-1j * theta)
-    rows = np.real(rot[None, :, None] * weights[:, None, :]).reshape(-1, weights.shape[1])
-    factor = math.cos(math.pi / POLYGON_SIDES) if inscribed else 1.0
-    rhs = np.repeat(bounds * factor, POLYGON_SIDES)
-    return rows, rhs
-
-
 def _unit_rows(rows: Array, rhs: Array) -> tuple[Array, Array]:
     scale = np.max(np.abs(rows), axis=1)
     scale[scale == 0.0] = 1.0
@@ -265,7 +289,7 @@ def grid_lp(
     q, unit = spec.order, spec.scale
     total = steps * dt
     c = chain(spec, total)
-    lp = _Lp(steps, c.a.shape[0], 0 if weights is None else steps)
+    lp = _Lp(steps, c.a.shape[0], 0 if weights is None else steps, len(cuts))
     if weights is not None:
         lp.weighted_l1(weights)
     tight = 1.0 - MARGIN
@@ -313,9 +337,7 @@ def grid_lp(
     if cuts:
         poles = np.array([cut.pole for cut in cuts])
         w = unit * acceleration_moment(spec, poles, start, end, total, 0)
-        rows, rhs = _polygon_rows(w, np.array([cut.bound for cut in cuts]) * tight, inscribed=True)
-        rows, rhs = _unit_rows(rows, rhs)
-        lp.add_ub(lp.dense_x_rows(rows), rhs)
+        lp.band(w, np.array([cut.bound for cut in cuts]) * (1.0 - BAND_MARGIN), inscribed=True)
     x, _ = _solve(lp, counter)
     return None if x is None else x[:steps]
 
@@ -328,7 +350,7 @@ def relaxed_lp(spec: Spec, total_s: float, steps: int, cuts: list[Cut], counter:
     accel = spec.max_acceleration
     dt = total_s / steps
     start, end = pieces(steps, dt)
-    lp = _Lp(steps, 1)  # the velocity at the nodes, exact for averages
+    lp = _Lp(steps, 1, 0, len(cuts))  # the velocity at the nodes, exact for averages
     lp.lower[:steps], lp.upper[:steps] = -1.0, 1.0
     slack = 1e-9  # relative, against round-off (a wider relaxation stays valid)
     v_scale = accel * total_s
@@ -380,9 +402,7 @@ def relaxed_lp(spec: Spec, total_s: float, steps: int, cuts: list[Cut], counter:
         poles = np.array([cut.pole for cut in cuts])
         w = accel * exponential_moment(poles, start, end, total_s, 0)
         widths = np.abs(poles) * total_s * dt / 4 * accel + slack * np.sum(np.abs(w), axis=1)
-        rows, rhs = _polygon_rows(w, np.array([cut.bound for cut in cuts]) + widths, inscribed=False)
-        rows, rhs = _unit_rows(rows, rhs)
-        lp.add_ub(lp.dense_x_rows(rows), rhs)
+        lp.band(w, np.array([cut.bound for cut in cuts]) + widths, inscribed=False)
     x, status = _solve(lp, counter)
     return not (x is None and status == 2)  # only HiGHS's proven infeasibility is a certificate
 

@@ -25,6 +25,7 @@ from optim.time_optimal.lp import Cut
 from optim.time_optimal.types import Arc, Spec
 
 Array = NDArray[np.float64]
+MAX_ITERATIONS = 80  # SLSQP's cap: a structure that needs more is not the optimum's (the grid's is kept)
 ACTIVE = 1e-7  # a scaled inequality within this of its bound is held as an equality by the polish
 
 
@@ -211,7 +212,7 @@ def refine(spec: Spec, durations: list[float], levels: list[float], free: list[b
         method="SLSQP",
         bounds=bounds,
         constraints=constraints,
-        options={"maxiter": 200, "ftol": 1e-10},
+        options={"maxiter": MAX_ITERATIONS, "ftol": 1e-10},
     )
     if not result.success:
         return None

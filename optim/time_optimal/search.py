@@ -24,19 +24,21 @@ from models.errors import Infeasible, SolverFailed
 from optim.solver import SolverReport
 from optim.time_optimal import lp
 from optim.time_optimal.arcs import arcs_of, merged, structure
-from optim.time_optimal.check import DENSE_POINTS, INITIAL_POINTS, BandGrid, band_grid, violations, worst_ratios
+from optim.time_optimal.check import CHECK_MARGIN, DENSE_POINTS, INITIAL_POINTS, BandGrid, band_grid, violations, worst_ratios
 from optim.time_optimal.lp import Cut, LpCounter, grid_lp, pieces, relaxed_lp
 from optim.time_optimal.refine import refine
-from optim.time_optimal.types import Arc, GridSolution, Solution, Spec
+from optim.time_optimal.types import Arc, Band, GridSolution, Solution, Spec
 
 Array = NDArray[np.float64]
+FALLBACK_FINER = 4  # without a refinement, the grid optimum is sought again on steps this much shorter
 FINER = 2  # the second, finer grid's step is this fraction of the first's
 STEPS = 128  # steps over the search's upper duration
 CUT_ROUNDS = 12
 RELAXED_STEPS = 250
-BOUND_BISECTIONS = 7
-BAND_RTOL = 1e-9
-MAX_ARCS = 24  # a grid solution with more arcs is not refined (it chatters: another start is tried)
+BOUND_BISECTIONS = 4
+PHASE_STEP = 0.15  # rad
+MAX_INITIAL_POINTS = 200
+MAX_ARCS = 16  # a grid solution with more arcs is not refined (it chatters: another start is tried)
 
 
 class _Search:
@@ -47,7 +49,8 @@ class _Search:
         self.cuts: list[Cut] = []
         self.alternatives: list[tuple[Array, float]] = []  # other vertices (values, step): other arc structures
         for b in spec.bands:
-            self.cuts += band_grid(spec, b, INITIAL_POINTS).cuts(np.arange(INITIAL_POINTS * len(b.damping_ratios)))
+            points = initial_points(b, spec.upper_guess_s)
+            self.cuts += band_grid(spec, b, points).cuts(np.arange(points * len(b.damping_ratios)))
 
     def feasible(self, steps: int, dt: float, weights: Array | None = None) -> Array | None:
         """A grid command of ``steps`` steps meeting every constraint (bands on the dense check), or None."""
@@ -65,7 +68,7 @@ class _Search:
         added = False
         for grid in self.dense:
             ratios = worst_ratios(self.spec, grid, start, end, level, total)
-            worst = violations(ratios / (1.0 + BAND_RTOL))
+            worst = violations(ratios / (1.0 - CHECK_MARGIN))
             if worst.size:
                 self.cuts += grid.cuts(worst)
                 added = True
@@ -91,7 +94,22 @@ class _Search:
                 lo = mid
             else:
                 hi, best = mid, y
-        return self.finer(GridSolution(dt, hi, best, lo))
+        coarse = GridSolution(dt, hi, best, lo)
+        return coarse if spec.bands else self.finer(coarse)  # band structures are seldom refined: no other starts
+
+    def bisect(self, dt: float, lo: int, hi: int) -> GridSolution | None:
+        """The least feasible step count in (lo, hi] on steps of dt (None if hi itself is not shown feasible)."""
+        best = self.feasible(hi, dt)
+        if best is None:
+            return None
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            y = self.feasible(mid, dt)
+            if y is None:
+                lo = mid
+            else:
+                hi, best = mid, y
+        return GridSolution(dt, hi, best, lo)
 
     def finer(self, coarse: GridSolution) -> GridSolution:
         """Other vertices at the grid optimum's duration on steps FINER times shorter: those of two weighted-L1
@@ -156,9 +174,16 @@ class _Search:
         level = np.array([a.level for a in arcs])
         total = float(end[-1])
         return all(
-            float(np.max(worst_ratios(self.spec, grid, start, end, level, total))) <= 1.0 + BAND_RTOL
+            float(np.max(worst_ratios(self.spec, grid, start, end, level, total))) <= 1.0 - CHECK_MARGIN
             for grid in self.dense
         )
+
+
+def initial_points(band: Band, duration_s: float) -> int:
+    """Band points to start with: about one per PHASE_STEP radians of the residual's phase across the band
+    (the phase of F_0 turns by about T dw), so that few cutting-plane rounds are needed."""
+    span = (band.high_rad_s - band.low_rad_s) * duration_s
+    return int(min(MAX_INITIAL_POINTS, max(INITIAL_POINTS, math.ceil(span / PHASE_STEP) + 1)))
 
 
 def project(spec: Spec, grid: GridSolution) -> Array:
@@ -212,8 +237,11 @@ def solve(spec: Spec, check_limits: object = None) -> Solution:
     )
     grid_arcs = arcs_of(spec.scale * values, grid.step_s)
     arcs, refined, how = grid_arcs, False, "not refined"
-    if spec.torque is not None:
-        how = "not refined: with a torque limit the grid optimum is returned (within one step of it)"
+    if spec.torque is not None or spec.bands:
+        how = (
+            "not refined: with a torque limit or a band the grid optimum is returned (on the finer grid, within one "
+            "of its steps of it)"
+        )
     else:
         starts = [(values, grid.step_s)] + [(np.clip(y, -1, 1), h) for y, h in search.alternatives]
         how = "the refined switching times did not converge or check out (limits, band): the grid optimum is returned"
@@ -227,6 +255,14 @@ def solve(spec: Spec, check_limits: object = None) -> Solution:
             ok_limits = check_limits is None or bool(check_limits(result.arcs))  # type: ignore[operator]
             if total < sum(a.duration_s for a in arcs) and ok_limits and search.verified(result.arcs):
                 arcs, refined, how = merged(result.arcs), True, result.status
+    if not refined:  # the grid optimum on a grid FALLBACK_FINER times finer, from the coarse bounds
+        fine = search.bisect(grid.step_s / FALLBACK_FINER, FALLBACK_FINER * grid.infeasible_steps, FALLBACK_FINER * grid.steps)
+        if fine is not None:
+            grid = fine
+            values = np.clip(project(spec, fine), -1.0, 1.0) if (spec.order == 3 or spec.max_acceleration) else project(
+                spec, fine
+            )
+            arcs = arcs_of(spec.scale * values, fine.step_s)
     duration = sum(a.duration_s for a in arcs)
     bound, method = search.lower_bound(duration)
     return Solution(
