@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from app.schemas.common import OutModel, StrictModel
 from app.schemas.family import FamilyResponse, ProfileRequest
@@ -123,13 +123,19 @@ class TimeOptimalIn(ProfileRequest):
         "cancelled mode). Infeasible within it is proven, or reported as not found.",
     )
 
-    @model_validator(mode="after")
-    def _check_own(self) -> TimeOptimalIn:
-        if self.modes is not None and any(not (0 <= m < 1000) for m in self.modes):
-            raise ValueError("modes must be indices >= 0")
-        if self.tradeoff is not None and any(not (0.0 <= h < 0.9) for h in self.tradeoff):
+    @field_validator("modes")
+    @classmethod
+    def _modes(cls, value: list[int] | None) -> list[int] | None:
+        if value is not None and any(not (0 <= m < 1000) for m in value):
+            raise ValueError("modes must be indices >= 0 (0 = the lowest mode)")
+        return value
+
+    @field_validator("tradeoff")
+    @classmethod
+    def _tradeoff(cls, value: list[float] | None) -> list[float] | None:
+        if value is not None and any(not (0.0 <= h < 0.9) for h in value):
             raise ValueError("every tradeoff half-width must lie in [0, 0.9)")
-        return self
+        return value
 
     def options(self, problem: Problem) -> TimeOptimalOptions:
         return TimeOptimalOptions(
@@ -148,6 +154,11 @@ class TradeoffRow(OutModel):
     cost_over_nominal: float | None = Field(description="duration / the h = 0 duration - 1 (when h = 0 was asked).")
     status: str = Field(description="ok, or the problem type of the failure (infeasible, solver-failed, ...).")
     reason: str | None = Field(description="Why a row has no duration.")
+    from_half_width: float | None = Field(
+        None,
+        description="The band whose design gives this duration: a design for a wider band meets every narrower one, "
+        "so a row shows the shortest of them (equal to half_width unless a wider band's design is shorter).",
+    )
 
 
 class TimeOptimalOut(FamilyResponse):

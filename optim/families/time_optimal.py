@@ -137,12 +137,12 @@ def spec_of(problem: Problem, options: TimeOptimalOptions, chosen: tuple[int, ..
     modes = problem.plant.modes()
     robust = options.robustness
     bands, covered = _bands(problem, robust, chosen)
-    zero = tuple(modes[i].pole for i in chosen if i not in covered)
+    zero = tuple(modes[i].pole for i in chosen)  # a band keeps the nominal exact too: the load settles at the end
     order = 0 if robust is None else robust.derivative_order
     reference = rigid_reference(problem)
     floor = problem.kinematic_floor_s()
     rigid = float(reference.time_s[-1]) if problem.acceleration_limit is not None else floor
-    periods = sum((0.5 + 0.5 * order) * modes[i].damped_period_s for i in chosen if i not in covered)
+    periods = sum((0.5 + 0.5 * order) * modes[i].damped_period_s for i in chosen)
     periods += sum(2 * math.pi / b.low_rad_s for b in bands)
     slowest = max(modes[i].natural_period_s for i in chosen)
     upper = max(rigid, floor) + periods
@@ -191,13 +191,13 @@ def excess(problem: Problem, spec: Spec, arcs: tuple[Arc, ...]) -> dict[str, flo
     command = command_of(arcs, spec.order, spec.rest_to_rest)
     out: dict[str, float] = {}
     peak = command.peak_abs(1)
-    if spec.max_velocity is not None and peak is not None and peak > spec.max_velocity:
+    if spec.max_velocity is not None and peak is not None and peak > spec.max_velocity * (1 + LIMIT_RTOL):
         out["max_velocity"] = peak / spec.max_velocity
     if spec.torque is not None:
         fine = command.resampled(float(command.time_s[-1]) / 4000)
         torque = simulate(problem.plant, fine).motor_torque_nm
         peak_torque = float(np.max(np.abs(torque))) if torque is not None else 0.0
-        if peak_torque > spec.torque.max_torque_nm:
+        if peak_torque > spec.torque.max_torque_nm * (1 + LIMIT_RTOL):
             out["max_torque_nm"] = peak_torque / spec.torque.max_torque_nm
     return out
 
@@ -281,24 +281,36 @@ class TimeOptimalFamily(BaseFamily):
     def _tradeoff(
         self, problem: Problem, options: TimeOptimalOptions, chosen: tuple[int, ...]
     ) -> tuple[dict[str, Any], ...]:
+        """One row per half-width h: the minimum duration for the band [1 - h, 1 + h] (h = 0: zero residual).
+        A design for a wider band meets every narrower one, so a row never shows more than a wider band's
+        duration (``from_half_width`` says which design it is: band designs are grid optima, within a step)."""
         robust = options.robustness or Robustness()
-        rows = []
-        for h in options.tradeoff or ():
+        solved: dict[float, dict[str, Any]] = {}
+        for h in sorted(set(options.tradeoff or ())):
             band = Robustness(
                 frequency_ratio_range=(1.0 - h, 1.0 + h) if h > 0 else None,
                 max_percentage_vibration=robust.max_percentage_vibration,
                 damping_ratio_range=robust.damping_ratio_range,
             )
             spec = spec_of(problem, replace(options, robustness=band, tradeoff=None), chosen)
-            row: dict[str, Any] = {"half_width": h, "frequency_ratio_range": [1.0 - h, 1.0 + h]}
             try:
                 s = solve_within_limits(problem, spec)
             except DomainError as exc:
-                rows.append({**row, "duration_s": None, "lower_bound_s": None, "status": exc.problem_type,
-                             "reason": str(exc)})
+                solved[h] = {"duration_s": None, "lower_bound_s": None, "status": exc.problem_type, "reason": str(exc)}
                 continue
-            rows.append({**row, "duration_s": s.duration_s, "lower_bound_s": s.lower_bound_s, "status": "ok",
-                         "reason": None})
+            solved[h] = {"duration_s": s.duration_s, "lower_bound_s": s.lower_bound_s, "status": "ok", "reason": None}
+        rows = []
+        for h in options.tradeoff or ():
+            row = dict(solved[h])
+            wider = [w for w in solved if w >= h and solved[w]["duration_s"] is not None]
+            source = min(wider, key=lambda w: solved[w]["duration_s"], default=None)
+            if source is not None and (row["duration_s"] is None or solved[source]["duration_s"] < row["duration_s"]):
+                row.update(duration_s=solved[source]["duration_s"], status="ok", reason=None)
+            row["lower_bound_s"] = max(
+                (solved[w]["lower_bound_s"] for w in solved if w <= h and solved[w]["lower_bound_s"] is not None),
+                default=None,
+            )
+            rows.append({"half_width": h, "frequency_ratio_range": [1.0 - h, 1.0 + h], **row, "from_half_width": source})
         return tuple(rows)
 
     def finish(self, problem: Problem, design: Design, run: Run) -> dict[str, Any]:
@@ -352,7 +364,7 @@ def _design_block(
                 "index": i,
                 "natural_frequency_hz": modes[i].natural_frequency_hz,
                 "damping_ratio": modes[i].damping_ratio,
-                "constraint": "band" if i in covered else "zero_residual",
+                "constraint": "zero_residual_and_band" if i in covered else "zero_residual",
             }
             for i in chosen
         ],

@@ -60,12 +60,13 @@ class LpCounter:
     solves: int = 0
     iterations: int = 0
     deadline: float = math.inf
+    started: float = field(default_factory=time.perf_counter)
 
     def remaining_s(self) -> float:
         left = self.deadline - time.perf_counter()
         if left <= 0.0:
             raise SolverTimedOut(
-                SolverReport("time_limit", self.iterations, 0.0),
+                SolverReport("time_limit", self.iterations, time.perf_counter() - self.started),
                 f"the time-optimal search overran its wall-time cap after {self.solves} LP solves",
             )
         return left

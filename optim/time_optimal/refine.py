@@ -26,6 +26,7 @@ from optim.time_optimal.types import Arc, Spec
 
 Array = NDArray[np.float64]
 MAX_ITERATIONS = 80  # SLSQP's cap: a structure that needs more is not the optimum's (the grid's is kept)
+TINY_ARC = 1e-6  # of the duration: a shorter refined arc is tried without
 ACTIVE = 1e-7  # a scaled inequality within this of its bound is held as an equality by the polish
 
 
@@ -219,6 +220,13 @@ def refine(spec: Spec, durations: list[float], levels: list[float], free: list[b
     z = _polish(model, np.asarray(result.x, dtype=float))
     if z is None:
         return None
+    tiny = (z[: model.count] > 0.0) & (z[: model.count] < TINY_ARC)
+    if np.any(tiny):  # an arc SLSQP left at a few ns is no arc: drop it if the polish still converges
+        trial = z.copy()
+        trial[: model.count][tiny] = 0.0
+        dropped = _polish(model, trial)
+        if dropped is not None and np.sum(dropped[: model.count]) <= np.sum(z[: model.count]) * (1 + 1e-9):
+            z = dropped
     start, end, lv = model.unpack(z)
     keep = end - start > 0.0
     arcs = tuple(
@@ -233,7 +241,13 @@ def _polish(model: _Model, z: Array, iterations: int = 20) -> Array | None:
     """Newton (minimal-norm steps) on the equalities and the active inequalities, from SLSQP's point."""
     z = z.copy()
     z[: model.count] = np.where(z[: model.count] < 1e-8, 0.0, z[: model.count])
-    movable = np.flatnonzero(np.concatenate([z[: model.count] > 0.0, np.ones(model.free.size, dtype=bool)]))
+    levels = z[model.count :]
+    on_level = np.zeros(levels.size, dtype=bool)
+    for level in (-1.0, 0.0, 1.0):  # a free level SLSQP brought to a bound or to 0 is that level exactly
+        near = np.abs(levels - level) < 1e-6
+        levels[near] = level
+        on_level |= near
+    movable = np.flatnonzero(np.concatenate([z[: model.count] > 0.0, ~on_level]))
     ineq = model.inequalities(z)
     active = np.flatnonzero(np.abs(ineq) < ACTIVE) if ineq.size else np.zeros(0, dtype=int)
 

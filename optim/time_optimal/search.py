@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -23,16 +24,19 @@ from numpy.typing import NDArray
 from models.errors import Infeasible, SolverFailed
 from optim.solver import SolverReport
 from optim.time_optimal import lp
-from optim.time_optimal.arcs import arcs_of, merged, structure
+from optim.time_optimal.arcs import SNAP, arcs_of, merged, structure
 from optim.time_optimal.check import CHECK_MARGIN, DENSE_POINTS, INITIAL_POINTS, BandGrid, band_grid, violations, worst_ratios
-from optim.time_optimal.lp import Cut, LpCounter, grid_lp, pieces, relaxed_lp
+from optim.time_optimal.lp import MARGIN, Cut, LpCounter, grid_lp, pieces, relaxed_lp
 from optim.time_optimal.refine import refine
 from optim.time_optimal.types import Arc, Band, GridSolution, Solution, Spec
 
 Array = NDArray[np.float64]
 FALLBACK_FINER = 4  # without a refinement, the grid optimum is sought again on steps this much shorter
+PROBES = 3
+PROBE_FINER = 4  # the probe's grid is this much finer than the search's
+PROBE_GAP = 0  # steps of the probe grid below the best refined duration it asks for (0: that duration)
 FINER = 2  # the second, finer grid's step is this fraction of the first's
-STEPS = 128  # steps over the search's upper duration
+STEPS = 96  # steps over the search's upper duration
 CUT_ROUNDS = 12
 RELAXED_STEPS = 250
 BOUND_BISECTIONS = 4
@@ -192,11 +196,23 @@ def project(spec: Spec, grid: GridSolution) -> Array:
 
 
 def project_values(spec: Spec, grid: GridSolution, values: Array) -> Array:
-    x = values.copy()
+    """Steps within SNAP of +-1 or 0 set to exactly that level (a bang is a bang), the others moved by a
+    least-norm step onto the equalities; without enough free steps, or if that breaks a bound, every step
+    is moved instead (by ~1e-8 of the unit)."""
     rows, rhs = equality_system(spec, grid.steps, grid.step_s)
-    if rows.size:
-        x = x + np.linalg.lstsq(rows, rhs - rows @ x, rcond=None)[0]
-    return x
+    boxed = spec.order == 3 or spec.max_acceleration is not None
+    if not rows.size:
+        return values.copy()
+    snapped = values.copy()
+    for level in (-1.0, 0.0, 1.0):
+        snapped[np.abs(values - level) < SNAP] = level
+    free = np.flatnonzero(~np.isin(snapped, (-1.0, 0.0, 1.0)))
+    if free.size >= 2 * rows.shape[0]:
+        x = snapped.copy()
+        x[free] += np.linalg.lstsq(rows[:, free], rhs - rows @ snapped, rcond=None)[0]
+        if not boxed or np.max(np.abs(x[free])) <= 1.0 - 0.5 * MARGIN:
+            return x
+    return values + np.linalg.lstsq(rows, rhs - rows @ values, rcond=None)[0]
 
 
 def equality_system(spec: Spec, steps: int, dt: float) -> tuple[Array, Array]:
@@ -226,17 +242,47 @@ def equality_system(spec: Spec, steps: int, dt: float) -> tuple[Array, Array]:
     return np.vstack(rows) if rows else np.zeros((0, steps)), np.asarray(rhs)
 
 
-def solve(spec: Spec, check_limits: object = None) -> Solution:
+def _clip(spec: Spec, values: Array) -> Array:
+    return np.clip(values, -1.0, 1.0) if (spec.order == 3 or spec.max_acceleration) else values
+
+
+def _refine_best(
+    spec: Spec,
+    search: _Search,
+    starts: list[tuple[Array, float]],
+    best: tuple[Arc, ...] | None,
+    check_limits: Callable[[tuple[Arc, ...]], bool] | None,
+) -> tuple[tuple[Arc, ...] | None, str]:
+    """The shortest refined command from the given grid starts that checks out (or ``best``), and how."""
+    how = ""
+    for start, step in starts:
+        parts = structure(start, step)
+        if len(parts[0]) > MAX_ARCS:
+            continue
+        result = refine(spec, *parts, search.cuts)
+        if result is None:
+            continue
+        total = sum(a.duration_s for a in result.arcs)
+        shorter = best is None or total < sum(a.duration_s for a in best)
+        if shorter and (check_limits is None or check_limits(result.arcs)) and search.verified(result.arcs):
+            best, how = merged(result.arcs), result.status
+    return best, how
+
+
+def solve(spec: Spec, check_limits: Callable[[tuple[Arc, ...]], bool] | None = None) -> Solution:
     """The minimum-time command of ``spec`` (see the module's docstring). ``check_limits(arcs) -> bool``
-    tells whether a refined command meets the limits exactly (the caller's independent check)."""
+    tells whether a refined command meets the limits exactly (the caller's independent check).
+
+    Without a torque limit or a band, the grid optimum's structures are refined to exact switching times;
+    then a probe asks a grid PROBE_FINER times finer for a command PROBE_GAP of its steps shorter: if one
+    exists, it is another structure, refined in turn (at most PROBES times), so that a local optimum of one
+    structure is not returned where a shorter one exists on the fine grid."""
     began = time.perf_counter()
     search = _Search(spec)
     grid = search.grid_optimum()
-    values = np.clip(project(spec, grid), -1.0, 1.0) if (spec.order == 3 or spec.max_acceleration) else project(
-        spec, grid
-    )
-    grid_arcs = arcs_of(spec.scale * values, grid.step_s)
-    arcs, refined, how = grid_arcs, False, "not refined"
+    values = _clip(spec, project(spec, grid))
+    arcs = arcs_of(spec.scale * values, grid.step_s)
+    refined, how = False, "not refined"
     if spec.torque is not None or spec.bands:
         how = (
             "not refined: with a torque limit or a band the grid optimum is returned (on the finer grid, within one "
@@ -244,25 +290,31 @@ def solve(spec: Spec, check_limits: object = None) -> Solution:
         )
     else:
         starts = [(values, grid.step_s)] + [(np.clip(y, -1, 1), h) for y, h in search.alternatives]
-        how = "the refined switching times did not converge or check out (limits, band): the grid optimum is returned"
-        for start, step in starts:
-            if len(structure(start, step)[0]) > MAX_ARCS:
-                continue
-            result = refine(spec, *structure(start, step), search.cuts)
-            if result is None:
-                continue
-            total = sum(a.duration_s for a in result.arcs)
-            ok_limits = check_limits is None or bool(check_limits(result.arcs))  # type: ignore[operator]
-            if total < sum(a.duration_s for a in arcs) and ok_limits and search.verified(result.arcs):
-                arcs, refined, how = merged(result.arcs), True, result.status
+        best, how = _refine_best(spec, search, starts, None, check_limits)
+        for _ in range(PROBES if best is not None else 0):
+            assert best is not None
+            total = sum(a.duration_s for a in best)
+            steps = PROBE_FINER * grid.steps
+            dt = total / (steps + PROBE_GAP)
+            k = np.arange(steps, dtype=float)
+            probe = search.feasible(steps, dt, 0.01 + ((k + 1) / steps) ** 4)
+            if probe is None:
+                break
+            better, note = _refine_best(spec, search, [(np.clip(probe, -1, 1), dt)], best, check_limits)
+            if better is best:
+                break
+            best, how = better, note
+        if best is None:
+            how = "the refined switching times did not converge or check out (limits, band): the grid optimum is returned"
+        else:
+            arcs, refined = best, True
     if not refined:  # the grid optimum on a grid FALLBACK_FINER times finer, from the coarse bounds
-        fine = search.bisect(grid.step_s / FALLBACK_FINER, FALLBACK_FINER * grid.infeasible_steps, FALLBACK_FINER * grid.steps)
+        fine = search.bisect(
+            grid.step_s / FALLBACK_FINER, FALLBACK_FINER * grid.infeasible_steps, FALLBACK_FINER * grid.steps
+        )
         if fine is not None:
             grid = fine
-            values = np.clip(project(spec, fine), -1.0, 1.0) if (spec.order == 3 or spec.max_acceleration) else project(
-                spec, fine
-            )
-            arcs = arcs_of(spec.scale * values, fine.step_s)
+            arcs = arcs_of(spec.scale * _clip(spec, project(spec, fine)), fine.step_s)
     duration = sum(a.duration_s for a in arcs)
     bound, method = search.lower_bound(duration)
     return Solution(

@@ -10,7 +10,7 @@ import pytest
 from app.examples import CUSIMANO_8HZ, INCERTI_TABLE_III
 from tests.app.test_errors import assert_problem
 
-ALL = {"pseudo_polynomial", "stap", "smoother", "input_shaped"}
+ALL = {"time_optimal", "pseudo_polynomial", "stap", "smoother", "input_shaped"}
 METRICS = (
     "settling_time_s",
     "peak_velocity",
@@ -178,7 +178,7 @@ def test_compare_forwards_sampling_settling_and_sensitivity_to_every_family(clie
             "include_curves": True,
         },
     ).json()
-    assert {row["family"] for row in body["rows"]} == {"pseudo_polynomial", "stap", "smoother", "input_shaped"}
+    assert {row["family"] for row in body["rows"]} == {"time_optimal", "pseudo_polynomial", "stap", "smoother", "input_shaped"}
     for row in body["rows"]:
         request = row["request"]
         assert request["sample_period_s"] == 2e-3 and request["settling"] == {"position_tolerance": 0.01}
