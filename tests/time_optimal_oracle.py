@@ -32,8 +32,11 @@ minimum.
 
 Range: no coast. When the structure's peak velocity a t1 exceeds ``v`` the velocity limit makes a coast
 arc whose time-optimal structure is not derived here; ``minimum_time`` raises ``OutOfRange`` (and also
-when the PMP check fails, which would mean a different switch structure). ``coast_upper_bound`` gives a
-feasible (not optimal) trapezoid with its cruise tuned to a whole number of periods, as an upper bound.
+when the PMP check fails, which would mean a different switch structure). For those moves
+``velocity_limited_upper_bound`` gives a feasible zero-residual command, not proven optimal: the faster of
+a trapezoid whose cruise (at most ``v``) puts the ramps a whole number of periods apart
+(``coast_upper_bound``) and the best antisymmetric command +a, -a, +a, coast at ``v``, mirrored
+(``coast_structure_upper_bound``). A time-optimal answer slower than it is not optimal.
 """
 
 from __future__ import annotations
@@ -167,6 +170,70 @@ def coast_upper_bound(w: float, a: float, v: float, d: float) -> float:
         if vc <= v and ramp <= span:
             best = min(best, span + ramp)
     return best
+
+
+def _coast_half(w: float, a: float, v: float, d: float, u: float, t2: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The coast structure's residual equation g, its time T and coast tc at (u = t3 - t2, t2); see
+    ``coast_structure_upper_bound``."""
+    t3 = t2 + u
+    t1 = v / a - u
+    v2 = a * (t1 - t2)
+    p_acc = a * t1 * t1 / 2 + a * t1 * t2 - a * t2 * t2 / 2 + v2 * t3 + a * t3 * t3 / 2
+    tc = (d - 2 * p_acc) / v
+    c = tc / 2
+    taus = [c, c + t3, c + t3 + t2, c + t3 + t2 + t1]
+    cos = [np.cos(w * x) for x in taus]
+    g = -cos[0] + 2 * cos[1] - 2 * cos[2] + cos[3]
+    return g, 2 * (t1 + t2 + t3) + tc, tc
+
+
+def coast_structure_upper_bound(w: float, a: float, v: float, d: float, points: int = 801) -> Bang | None:
+    """The fastest zero-residual command of the antisymmetric coast structure +a t1, -a t2, +a t3, coast at v for
+    tc, -a t3, +a t2, -a t1 (velocity a (t1 - t2 + t3) = v at the coast, t2 <= t3 so it never exceeds v), by a scan
+    of u = t3 - t2 in [0, v/a] and of t2 in [0, one period], brentq on the residual equation and a bounded refinement
+    of u. Feasible, so an upper bound on the minimum time; its optimality is not proven (the velocity limit is a
+    state constraint the check of ``pmp_check`` does not cover). None when no such command exists."""
+    d = abs(d)
+    period = 2 * math.pi / w
+    t2_grid = np.linspace(0.0, period, 4001)
+
+    def best_at(u: float) -> tuple[float, float] | None:
+        g, _, tc = _coast_half(w, a, v, d, u, t2_grid)
+        ok = tc >= 0
+        best: tuple[float, float] | None = None
+        change = np.nonzero((np.sign(g[1:]) != np.sign(g[:-1])) & ok[1:] & ok[:-1])[0]
+        for k in change:
+            root = brentq(lambda x: float(_coast_half(w, a, v, d, u, np.array([x]))[0][0]), t2_grid[k], t2_grid[k + 1])
+            t = float(_coast_half(w, a, v, d, u, np.array([root]))[1][0])
+            if best is None or t < best[0]:
+                best = (t, root)
+        return best
+
+    us = np.linspace(0.0, v / a, points)
+    found = [(best_at(float(u)), float(u)) for u in us]
+    found_ok = [(b, u) for b, u in found if b is not None]
+    if not found_ok:
+        return None
+    (t_best, t2_best), u_best = min(found_ok, key=lambda item: item[0][0])
+    step = us[1] - us[0]
+    for _ in range(40):  # golden-section-like shrink around the best grid point
+        step /= 2
+        for u in (u_best - step, u_best + step):
+            if 0 <= u <= v / a:
+                b = best_at(u)
+                if b is not None and b[0] < t_best:
+                    t_best, t2_best, u_best = b[0], b[1], u
+    t2, t3, t1 = t2_best, t2_best + u_best, v / a - u_best
+    tc = float(_coast_half(w, a, v, d, u_best, np.array([t2]))[2][0])
+    arcs = [(t1, a), (t2, -a), (t3, a), (tc, 0.0), (t3, -a), (t2, a), (t1, -a)]
+    arcs = [(h, lv) for h, lv in arcs if h > 0]
+    return Bang(tuple(h for h, _ in arcs), tuple(lv for _, lv in arcs))
+
+
+def velocity_limited_upper_bound(w: float, a: float, v: float, d: float) -> float:
+    """An upper bound on the minimum time when the velocity limit is active (see the module docstring)."""
+    structured = coast_structure_upper_bound(w, a, v, d)
+    return min(coast_upper_bound(w, a, v, d), math.inf if structured is None else structured.duration_s)
 
 
 def residual_by_quadrature(times: list[float], levels: list[float], w: float) -> float:

@@ -18,6 +18,8 @@ from scipy import signal
 from tests.time_optimal_oracle import (
     KNOWN,
     OutOfRange,
+    coast_structure_upper_bound,
+    coast_upper_bound,
     minimum_time,
     minimum_time_command,
     pmp_check,
@@ -114,3 +116,20 @@ def test_signed_move_and_rigid_times() -> None:
 def test_coast_is_out_of_range() -> None:
     with pytest.raises(OutOfRange, match="velocity limit"):
         minimum_time(W_KNOWN, 10.0, 0.5, 0.12)
+
+
+def test_velocity_limited_upper_bound_is_feasible() -> None:
+    """Where the velocity limit is active the oracle gives only a feasible bound: it must end at rest at D,
+    leave no residual, never exceed the limits, and lie between the rigid minimum and the tuned trapezoid."""
+    w, a, v, d = W_KNOWN, 10.0, 0.5, 0.12
+    bang = coast_structure_upper_bound(w, a, v, d, points=41)
+    assert bang is not None
+    switches, levels = bang.command()
+    p, vel = position_at_end(switches, levels)
+    assert p == pytest.approx(d, rel=1e-12) and abs(vel) < 1e-12
+    assert residual_by_quadrature(switches, levels, w) < 1e-10 * d
+    assert max(abs(x) for x in levels) <= a
+    speeds = np.cumsum([h * x for h, x in zip(bang.durations_s, levels, strict=True)])
+    assert np.max(np.abs(speeds)) <= v * (1 + 1e-9)
+    assert rigid_minimum_time(a, v, d) <= bang.duration_s
+    assert bang.duration_s <= coast_upper_bound(w, a, v, d)  # here the structure beats the tuned trapezoid
