@@ -283,7 +283,7 @@ def time_optimal(client: Any, body: dict[str, Any]) -> dict[str, Any] | None:
 def part_a(client: Any) -> None:
     print("\na. nominal: duration (ms) vs the exact minimum, the rigid minimum and the ZV / ZVD-shaped rigid commands")
     print(
-        f"{'move':13} {'T/per':>5} {'rigid':>8} {'exact':>8} {'bound':>8} {'t-opt':>8} {'vs exact':>9} {'/rigid':>6} "
+        f"{'move':13} {'T/per':>5} {'rigid':>8} {'exact':>8} {'bound':>8} {'t-opt':>8} {'vs ex %':>8} {'/rigid':>6} "
         f"{'ZV end':>8} {'ZVD end':>8} {'/ZV':>5} {'/ZVD':>5} {'settle':>8} {'ZVset':>8} {'ZVDset':>8} {'resid':>8}"
     )
     for move in MOVES:
@@ -311,7 +311,7 @@ def part_a(client: Any) -> None:
         print(
             f"{move.name:13} {move.periods:5.2f} {1e3 * move.rigid_s:8.3f} {fmt(ms(exact), '8.3f')} "
             f"{fmt(ms(bound), '8.3f')} "
-            f"{fmt(ms(t), '8.3f')} {fmt(gap, '+8.4f')}% {fmt(t and t / move.rigid_s, '6.3f')} "
+            f"{fmt(ms(t), '8.3f')} {fmt(gap, '+8.4f')} {fmt(t and t / move.rigid_s, '6.3f')} "
             f"{fmt(ms(zv_end), '8.3f')} {fmt(ms(zvd_end), '8.3f')} "
             f"{fmt(t and zv_end and t / zv_end, '5.3f')} {fmt(t and zvd_end and t / zvd_end, '5.3f')} "
             f"{fmt(ms(settle), '8.3f')} {fmt(ms(zv and zv['metrics']['settling_time_s']), '8.3f')} "
@@ -424,7 +424,7 @@ def part_d(client: Any) -> None:
         ("2-mode tf", {"plant": two, "displacement": 0.3, "limits": limits, "modes": [0, 1]}, 2.0),
         ("3-mode tf", {"plant": three, "displacement": 0.3, "limits": limits, "modes": [0, 1, 2]}, 2.0),
     ]
-    print(f"{'case':16} {'p50 ms':>8} {'max ms':>8} {'target':>7} {'T ms':>9} {'LB ms':>9}")
+    print(f"{'case':16} {'p50 ms':>8} {'max ms':>8} {'target':>7} {'T ms':>9} {'LB ms':>9} {'resid/D':>8}")
     for name, body, target in cases:
         answer, _ = post(client, ENDPOINT, body)
         if answer is None:
@@ -439,9 +439,14 @@ def part_d(client: Any) -> None:
             defect(f"speed {name}: p50 {1e3 * p50:.0f} ms > target {1e3 * target:.0f} ms")
         design = answer["design"] if answer else {}
         lb = design.get("lower_bound_s")
+        if lb is not None and lb > design["duration_s"] * (1 + 1e-12):
+            defect(f"speed {name}: lower_bound_s {lb} > duration_s {design['duration_s']}")
+        if answer and answer["metrics"]["residual_amplitude"] > 1e-6 * abs(body["displacement"]):
+            defect(f"speed {name}: residual_amplitude {answer['metrics']['residual_amplitude']:.3g} > 1e-6 of the move")
         print(
             f"{name:16} {1e3 * p50:8.1f} {1e3 * max(times):8.1f} {1e3 * target:7.0f} "
-            f"{fmt(design.get('duration_s') and 1e3 * design['duration_s'], '9.3f')} {fmt(lb and 1e3 * lb, '9.3f')}"
+            f"{fmt(ms(design.get('duration_s')), '9.3f')} {fmt(ms(lb), '9.3f')} "
+            f"{fmt(answer and answer['metrics']['residual_amplitude'] / abs(body['displacement']), '8.1e')}"
         )
 
 
