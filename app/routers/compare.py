@@ -29,7 +29,7 @@ from optim.problem import Problem
 from optim.synthesis import Result, load_arrays
 
 router = APIRouter(prefix="/v1", tags=["compare"])
-FamilyName = Literal["pseudo_polynomial", "stap", "smoother", "input_shaped"]
+FamilyName = Literal["time_optimal", "pseudo_polynomial", "stap", "smoother", "input_shaped"]
 DEFAULT_SENSITIVITY = SensitivityIn(min_ratio=0.5, max_ratio=1.5, count=201)
 
 

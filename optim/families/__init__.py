@@ -8,12 +8,20 @@ from optim.families.input_shaped import InputShapedFamily
 from optim.families.pseudo_polynomial import PseudoPolynomialFamily
 from optim.families.smoother import SmootherFamily
 from optim.families.stap import StapFamily
+from optim.families.time_optimal import TimeOptimalFamily
 
 if TYPE_CHECKING:
     from optim.family import Family
 
 REGISTRY: dict[str, Family] = {
-    family.name: family for family in (PseudoPolynomialFamily(), StapFamily(), SmootherFamily(), InputShapedFamily())
+    family.name: family
+    for family in (
+        TimeOptimalFamily(),
+        PseudoPolynomialFamily(),
+        StapFamily(),
+        SmootherFamily(),
+        InputShapedFamily(),
+    )
 }
 
-__all__ = ["REGISTRY", "InputShapedFamily", "PseudoPolynomialFamily", "SmootherFamily", "StapFamily"]
+__all__ = ["REGISTRY", "InputShapedFamily", "PseudoPolynomialFamily", "SmootherFamily", "StapFamily", "TimeOptimalFamily"]

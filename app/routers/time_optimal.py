@@ -1,0 +1,103 @@
+"""POST /v1/profiles/time-optimal: the minimum-time command without residual vibration, nominal or robust."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Body, Request, Response
+
+from app import problems, services
+from app.deps import PoolDep, SettingsDep
+from app.responses import CSV_RESPONSE_DOC, CsvFormat, negotiate
+from app.schemas.time_optimal import FAMILY, TimeOptimalIn, TimeOptimalOut
+
+router = APIRouter(prefix="/v1", tags=["time-optimal"])
+
+_40HZ = {"plant": {"kind": "mode", "natural_frequency_hz": 40.0, "damping_ratio": 0.0}, "displacement": 0.12}
+_LIMITS = {"max_velocity": 5.0, "max_acceleration": 10.0}
+
+EXAMPLES: dict[str, dict[str, Any]] = {
+    "known_answer": {
+        "summary": "One undamped 40 Hz mode, 0.12 m at 10 m/s^2: 219.7077 ms (arcs +104.03, -5.83, +5.83, -104.03 ms)",
+        "description": "The closed-form symmetric three-switch solution; the rigid bang-bang move takes 219.09 ms.",
+        "value": {**_40HZ, "limits": _LIMITS},
+    },
+    "robust_band": {
+        "summary": "The same, robust: V <= 5 % for a true frequency within +-10 %",
+        "value": {**_40HZ, "limits": _LIMITS, "robustness": {"frequency_ratio_range": [0.9, 1.1]}},
+    },
+    "zvd_like": {
+        "summary": "Zero residual and zero frequency derivative at the mode (ZVD-like), damped 5 Hz, with a cruise",
+        "value": {
+            "plant": {"kind": "mode", "natural_frequency_hz": 5.0, "damping_ratio": 0.05},
+            "displacement": 0.3,
+            "limits": {"max_velocity": 1.0, "max_acceleration": 10.0},
+            "robustness": {"derivative_order": 1},
+        },
+    },
+    "jerk_limited": {
+        "summary": "Jerk-limited: the jerk is piecewise constant (5 Hz, zeta = 0.05)",
+        "value": {
+            "plant": {"kind": "mode", "natural_frequency_hz": 5.0, "damping_ratio": 0.05},
+            "displacement": 0.3,
+            "limits": {"max_velocity": 1.0, "max_acceleration": 10.0, "max_jerk": 200.0},
+        },
+    },
+    "tradeoff": {
+        "summary": "What robustness costs: the minimum duration for bands of +-0, 5, 10, 15, 20 %",
+        "value": {**_40HZ, "limits": _LIMITS, "tradeoff": [0, 0.05, 0.1, 0.15, 0.2]},
+    },
+    "two_inertia_torque": {
+        "summary": "Two-inertia plant (8 Hz) under a 10 N m motor torque limit (Cusimano Table 2 motor)",
+        "value": {
+            "plant": {
+                "kind": "two_inertia",
+                "motor_inertia_kgm2": 0.005,
+                "load_inertia_kgm2": 0.005,
+                "stiffness_nm_per_rad": 12.633093633,
+                "damping_nms_per_rad": 0.0,
+            },
+            "displacement": 3.0,
+            "limits": {"max_velocity": 150.0, "max_torque_nm": 10.0},
+        },
+    },
+}
+
+
+@router.post(
+    "/profiles/time-optimal",
+    summary="Minimum-time command without residual vibration, nominal or robust over a frequency band",
+    response_model=TimeOptimalOut,
+    responses={**CSV_RESPONSE_DOC, **problems.responses(413, 422, 503, 504)},
+)
+async def time_optimal_profile(
+    body: Annotated[TimeOptimalIn, Body(openapi_examples=EXAMPLES)],
+    request: Request,
+    settings: SettingsDep,
+    pool: PoolDep,
+    format: CsvFormat = None,
+) -> Response:
+    """The shortest motor command within the limits that leaves the load without residual vibration at the
+    plant's modes (exactly zero), or whose percentage vibration V stays <= robustness.max_percentage_vibration
+    for every true natural frequency in a band (and damping ratio in a range), or with zero derivatives of the
+    residual in frequency (derivative_order). The stop cancels what the start excited: shaping pays half a period
+    (ZV) or a whole one (ZVD, EI) after each acceleration step, this command typically a fraction of a percent.
+
+    Method (Singh and Vadali 1993; Pao and Singhose; the LP view of Dhanda, Vaughan and Singhose 2009): for a
+    fixed duration on a grid with the acceleration (with max_jerk, the jerk) constant on each step, every
+    constraint is linear: the end state, the velocity/acceleration bounds (exact at the nodes), the motor
+    torque J_M a + J_L a_L of a two-inertia plant (four points a step), the residual of each mode
+    (Re F = Im F = 0, F = int a(t) exp(lambda (T - t)) dt), each band point |F| <= c by an inscribed 16-gon, the
+    points added as cutting planes until a dense check of 400 frequencies per damping ratio passes. Feasibility
+    is monotone in the number of steps, so bisection gives the grid's optimum (HiGHS); its switching times are
+    then made exact (SLSQP and a Newton polish), kept only if every limit and the dense band check hold and the
+    command is shorter.
+
+    design: duration_s; lower_bound_s (a certificate: HiGHS proves infeasible a relaxation that every command of
+    that duration satisfies, by its step averages, or the rigid kinematic floor; no command at all, on any grid,
+    is shorter); arcs (start, duration, level, bang/coast/partial); robustness (requested, achieved band and the
+    worst V inside the request, by an independent dense check with models.sensitivity on the exact command);
+    modes cancelled; the grid, the refinement and the search's LP counts. tradeoff: one row per half-width.
+    Infeasible within max_duration_s is a 422 /problems/infeasible only where proven; a search that found
+    nothing without a proof is /problems/solver-failed; over the time limit, 504."""
+    return negotiate(request, await services.profile(FAMILY, body, settings, pool), "time-optimal profile")

@@ -1,0 +1,159 @@
+"""Request and response of POST /v1/profiles/time-optimal."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import Field, model_validator
+
+from app.schemas.common import OutModel, StrictModel
+from app.schemas.family import FamilyResponse, ProfileRequest
+from optim.families.time_optimal import MAX_TRADEOFF, Robustness, TimeOptimalOptions
+from optim.family import FAMILIES
+from optim.problem import Problem
+from optim.time_optimal.types import DEFAULT_MAX_PERCENTAGE_VIBRATION, MAX_MODES
+
+FAMILY = FAMILIES["time_optimal"]
+MIN_RATIO, MAX_RATIO = 0.05, 20.0
+
+
+def _range(value: list[float] | None, name: str, low: float, high: float) -> None:
+    if value is None:
+        return
+    if not (low <= value[0] < value[1] <= high):
+        raise ValueError(f"{name} must be [lo, hi] with {low:g} <= lo < hi <= {high:g}")
+
+
+class RobustnessIn(StrictModel):
+    """Robustness of the command: a band where the percentage vibration V stays <= max_percentage_vibration, or
+    zero residual with zero derivatives in frequency at the nominal modes. Give at most one of
+    frequency_ratio_range, frequency_range_hz and derivative_order."""
+
+    frequency_ratio_range: list[float] | None = Field(
+        None,
+        min_length=2,
+        max_length=2,
+        description=f"[lo, hi]: the true natural frequency over the plant's, for every cancelled mode "
+        f"({MIN_RATIO:g} <= lo < hi <= {MAX_RATIO:g}); e.g. [0.9, 1.1] for +-10 %.",
+    )
+    frequency_range_hz: list[float] | None = Field(
+        None,
+        min_length=2,
+        max_length=2,
+        description="[lo, hi] Hz: an absolute band (the damping ratio of the cancelled mode nearest to it); modes "
+        "outside it keep zero residual.",
+    )
+    max_percentage_vibration: float = Field(
+        DEFAULT_MAX_PERCENTAGE_VIBRATION,
+        gt=0,
+        le=100,
+        description="V_max, %: residual amplitude over the unshaped rigid command's residual envelope (see "
+        "SensitivityOut), bounded over the whole band.",
+    )
+    damping_ratio_range: list[float] | None = Field(
+        None,
+        min_length=2,
+        max_length=2,
+        description="[lo, hi]: the band also holds for these true damping ratios (its ends and middle are checked); "
+        "default: the mode's own.",
+    )
+    derivative_order: int | None = Field(
+        None,
+        ge=1,
+        le=2,
+        description="Zero residual and zero derivatives in frequency up to this order at the nominal modes "
+        "(1: ZVD-like, 2: ZVDD-like), instead of a band.",
+    )
+
+    @model_validator(mode="after")
+    def _check(self) -> RobustnessIn:
+        given = [self.frequency_ratio_range, self.frequency_range_hz, self.derivative_order]
+        if sum(v is not None for v in given) != 1:
+            raise ValueError("give exactly one of frequency_ratio_range, frequency_range_hz or derivative_order")
+        _range(self.frequency_ratio_range, "frequency_ratio_range", MIN_RATIO, MAX_RATIO)
+        _range(self.frequency_range_hz, "frequency_range_hz", 1e-3, 1e5)
+        if self.damping_ratio_range is not None and not (
+            0.0 <= self.damping_ratio_range[0] <= self.damping_ratio_range[1] < 1.0
+        ):
+            raise ValueError("damping_ratio_range must be [lo, hi] with 0 <= lo <= hi < 1")
+        return self
+
+    def to_core(self) -> Robustness:
+        def pair(v: list[float] | None) -> tuple[float, float] | None:
+            return None if v is None else (float(v[0]), float(v[1]))
+
+        return Robustness(
+            frequency_ratio_range=pair(self.frequency_ratio_range),
+            frequency_range_hz=pair(self.frequency_range_hz),
+            max_percentage_vibration=self.max_percentage_vibration,
+            damping_ratio_range=pair(self.damping_ratio_range),
+            derivative_order=self.derivative_order or 0,
+        )
+
+
+class TimeOptimalIn(ProfileRequest):
+    """The shortest command within the limits that leaves no residual vibration at the plant's modes, or whose
+    percentage vibration stays below max_percentage_vibration over a band of frequencies (robustness).
+
+    The acceleration (with limits.max_jerk, the jerk) is piecewise constant: bang, coast and switch arcs. Limits:
+    max_acceleration (or max_jerk, or max_torque_nm on a two_inertia plant) is needed, max_velocity and the
+    others are optional; all are hard."""
+
+    robustness: RobustnessIn | None = Field(None, description="Default: exactly zero residual at the nominal modes.")
+    modes: list[int] | None = Field(
+        None,
+        min_length=1,
+        max_length=MAX_MODES,
+        description=f"Indices of the plant's modes to cancel (0 = lowest, see /v1/plants/modes). Default: every mode, "
+        f"at most the lowest {MAX_MODES} (a warning says so).",
+    )
+    tradeoff: list[float] | None = Field(
+        None,
+        min_length=1,
+        max_length=MAX_TRADEOFF,
+        description="Band half-widths h (each in [0, 0.9)): the answer's tradeoff lists the minimum duration for the "
+        "band [1 - h, 1 + h] of frequency ratios (h = 0: zero residual), with the same max_percentage_vibration "
+        "and damping_ratio_range: what robustness costs.",
+    )
+    max_duration_s: float | None = Field(
+        None,
+        gt=0,
+        le=1e4,
+        description="The longest command searched (default: 4 x the rigid minimum time + 20 periods of the slowest "
+        "cancelled mode). Infeasible within it is proven, or reported as not found.",
+    )
+
+    @model_validator(mode="after")
+    def _check_own(self) -> TimeOptimalIn:
+        if self.modes is not None and any(not (0 <= m < 1000) for m in self.modes):
+            raise ValueError("modes must be indices >= 0")
+        if self.tradeoff is not None and any(not (0.0 <= h < 0.9) for h in self.tradeoff):
+            raise ValueError("every tradeoff half-width must lie in [0, 0.9)")
+        return self
+
+    def options(self, problem: Problem) -> TimeOptimalOptions:
+        return TimeOptimalOptions(
+            robustness=None if self.robustness is None else self.robustness.to_core(),
+            modes=None if self.modes is None else tuple(self.modes),
+            tradeoff=None if self.tradeoff is None else tuple(float(h) for h in self.tradeoff),
+            max_duration_s=self.max_duration_s,
+        )
+
+
+class TradeoffRow(OutModel):
+    half_width: float = Field(description="h: the band [1 - h, 1 + h] of frequency ratios (0: zero residual).")
+    frequency_ratio_range: list[float]
+    duration_s: float | None = Field(description="The minimum duration for that band, s (null if none was found).")
+    lower_bound_s: float | None = Field(description="The proven lower bound for that band, s.")
+    cost_over_nominal: float | None = Field(description="duration / the h = 0 duration - 1 (when h = 0 was asked).")
+    status: str = Field(description="ok, or the problem type of the failure (infeasible, solver-failed, ...).")
+    reason: str | None = Field(description="Why a row has no duration.")
+
+
+class TimeOptimalOut(FamilyResponse):
+    tradeoff: list[TradeoffRow] | None = Field(None, description="One row per requested half-width.")
+
+
+EXAMPLE_DESIGN_FIELDS: dict[str, Any] = {}  # the design block is documented in the endpoint's description
+
+__all__ = ["FAMILY", "RobustnessIn", "TimeOptimalIn", "TimeOptimalOut", "TradeoffRow"]

@@ -1,0 +1,417 @@
+"""The time-optimal family: the shortest command that leaves no residual vibration, or whose percentage
+vibration stays below a bound over a band of frequencies (optim.time_optimal).
+
+Literature: time-optimal rest-to-rest control of flexible systems (Singh and Vadali 1993; Pao and
+Singhose 1996, 1998, on the robust and jerk-limited forms), computed as linear programs on a grid as in
+Dhanda, Vaughan and Singhose 2009, here with a certificate (a relaxation proven infeasible) and an exact
+refinement of the switching times.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Any, ClassVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from models.commands import PiecewiseCommand
+from models.errors import DomainError, InvalidParameter
+from models.plant_base import Mode
+from models.sensitivity import band_below, residual_envelope, sensitivity
+from optim.family import BaseFamily, Candidate, Design, Run, SolverSummary
+from optim.problem import Problem
+from optim.synthesis import rigid_reference
+from optim.time_optimal import Arc, Band, Solution, Spec, Torque, command_of, solve
+from optim.time_optimal.types import DEFAULT_MAX_PERCENTAGE_VIBRATION, MAX_MODES
+
+LIMIT_RTOL = 1e-10  # a refined command must meet its limits this tightly (the pipeline refuses above 1e-9)
+CHECK_POINTS = 2001  # the independent dense check of a band
+MAX_TRADEOFF = 8
+SEARCH_PERIODS = 20.0  # default max_duration_s: 4 x the rigid time plus this many periods of the slowest mode
+
+
+@dataclass(frozen=True)
+class Robustness:
+    """A band (ratios to each cancelled mode, or absolute Hz) where V <= max_percentage_vibration, or zero
+    residual and zero frequency derivatives up to ``derivative_order`` at the nominal modes."""
+
+    frequency_ratio_range: tuple[float, float] | None = None
+    frequency_range_hz: tuple[float, float] | None = None
+    max_percentage_vibration: float = DEFAULT_MAX_PERCENTAGE_VIBRATION
+    damping_ratio_range: tuple[float, float] | None = None
+    derivative_order: int = 0
+
+    @property
+    def has_band(self) -> bool:
+        return self.frequency_ratio_range is not None or self.frequency_range_hz is not None
+
+
+@dataclass(frozen=True)
+class TimeOptimalOptions:
+    robustness: Robustness | None = None
+    modes: tuple[int, ...] | None = None
+    tradeoff: tuple[float, ...] | None = None
+    max_duration_s: float | None = None
+
+
+@dataclass(frozen=True)
+class _Detail:
+    solution: Solution
+    modes: tuple[int, ...]
+    robustness: Robustness | None
+    tradeoff: tuple[dict[str, Any], ...] | None
+
+
+def selected_modes(problem: Problem, options: TimeOptimalOptions) -> tuple[tuple[int, ...], tuple[str, ...]]:
+    modes = problem.plant.modes()
+    if options.modes is None:
+        chosen = tuple(range(min(len(modes), MAX_MODES)))
+        notes = (
+            (
+                f"the plant has {len(modes)} modes: the lowest {MAX_MODES} are cancelled (list others in modes)",
+            )
+            if len(modes) > MAX_MODES
+            else ()
+        )
+        return chosen, notes
+    for k, index in enumerate(options.modes):
+        if not 0 <= index < len(modes):
+            raise InvalidParameter(f"modes[{k}]", index, f"the plant has modes 0..{len(modes) - 1} (lowest first)")
+    chosen = tuple(sorted(set(options.modes)))
+    if len(chosen) > MAX_MODES:
+        raise InvalidParameter("modes", list(options.modes), f"at most {MAX_MODES} modes can be cancelled")
+    return chosen, ()
+
+
+def _zetas(robust: Robustness | None, mode: Mode) -> tuple[float, ...]:
+    if robust is None or robust.damping_ratio_range is None:
+        return (mode.damping_ratio,)
+    lo, hi = robust.damping_ratio_range
+    return tuple(sorted({lo, 0.5 * (lo + hi), hi}))
+
+
+def _bands(problem: Problem, robust: Robustness | None, chosen: tuple[int, ...]) -> tuple[tuple[Band, ...], set[int]]:
+    """The bands, and the chosen modes a band covers (no exact zero is required there)."""
+    if robust is None or not robust.has_band:
+        return (), set()
+    modes = problem.plant.modes()
+    vmax = robust.max_percentage_vibration
+    if robust.frequency_ratio_range is not None:
+        lo, hi = robust.frequency_ratio_range
+        bands = tuple(
+            Band(
+                lo * modes[i].natural_frequency_rad_s,
+                hi * modes[i].natural_frequency_rad_s,
+                _zetas(robust, modes[i]),
+                vmax,
+                modes[i].natural_frequency_rad_s,
+            )
+            for i in chosen
+        )
+        return bands, set(chosen)
+    assert robust.frequency_range_hz is not None
+    lo_w, hi_w = (2 * math.pi * f for f in robust.frequency_range_hz)
+    centre = math.sqrt(lo_w * hi_w)
+    nearest = min(chosen, key=lambda i: abs(math.log(modes[i].natural_frequency_rad_s / centre)))
+    covered = {i for i in chosen if lo_w <= modes[i].natural_frequency_rad_s <= hi_w}
+    band = Band(lo_w, hi_w, _zetas(robust, modes[nearest]), vmax, modes[nearest].natural_frequency_rad_s)
+    return (band,), covered
+
+
+def _torque(problem: Problem) -> Torque | None:
+    inertias = problem.plant.torque_inertias()
+    if problem.limits.max_torque_nm is None or inertias is None:
+        return None
+    mode = problem.plant.modes()[0]
+    num, den = problem.plant.load_transfer_function()
+    pole = mode.pole
+    residue = complex(np.polyval(num, pole) / np.polyval(np.polyder(den), pole))
+    return Torque(inertias[0], inertias[1], problem.limits.max_torque_nm, pole, residue)
+
+
+def spec_of(problem: Problem, options: TimeOptimalOptions, chosen: tuple[int, ...]) -> Spec:
+    modes = problem.plant.modes()
+    robust = options.robustness
+    bands, covered = _bands(problem, robust, chosen)
+    zero = tuple(modes[i].pole for i in chosen if i not in covered)
+    order = 0 if robust is None else robust.derivative_order
+    reference = rigid_reference(problem)
+    floor = problem.kinematic_floor_s()
+    rigid = float(reference.time_s[-1]) if problem.acceleration_limit is not None else floor
+    periods = sum((0.5 + 0.5 * order) * modes[i].damped_period_s for i in chosen if i not in covered)
+    periods += sum(2 * math.pi / b.low_rad_s for b in bands)
+    slowest = max(modes[i].natural_period_s for i in chosen)
+    upper = max(rigid, floor) + periods
+    cap = options.max_duration_s or 4.0 * max(rigid, floor) + SEARCH_PERIODS * slowest
+    if cap <= floor:
+        raise InvalidParameter(
+            "max_duration_s", cap, f"must exceed the rigid minimum time within the limits ({floor:.6g} s)"
+        )
+    return Spec(
+        move=abs(problem.move),
+        rest_to_rest=problem.rest_to_rest,
+        max_velocity=problem.limits.max_velocity,
+        max_acceleration=problem.limits.max_acceleration,
+        max_jerk=problem.limits.max_jerk,
+        torque=_torque(problem),
+        zero_poles=zero,
+        derivative_order=order,
+        bands=bands,
+        reference=reference,
+        floor_s=floor,
+        upper_guess_s=min(upper, cap),
+        max_duration_s=cap,
+        wall_time_s=problem.solver.max_wall_time_s,
+    )
+
+
+def limits_met(problem: Problem, spec: Spec, arcs: tuple[Arc, ...]) -> bool:
+    """The refined command's exact peaks within the limits (the pipeline's own check is 1e-9)."""
+    command = command_of(arcs, spec.order, spec.rest_to_rest)
+    for m, limit in ((1, spec.max_velocity), (2, spec.max_acceleration), (3, spec.max_jerk)):
+        peak = command.peak_abs(m)
+        if limit is not None and (peak is None or peak > limit * (1 + LIMIT_RTOL)):
+            return False
+    end = command.end_index()
+    if problem.rest_to_rest and abs(command.derivatives[0, end] - spec.move) > 1e-12 * spec.move:
+        return False
+    return True
+
+
+def _arc_block(arc: Arc, order: int, unit: float) -> dict[str, Any]:
+    level = arc.level
+    kind = "bang" if abs(abs(level) - unit) <= 1e-9 * unit else ("coast" if level == 0.0 else "partial")
+    return {
+        "start_s": arc.start_s,
+        "duration_s": arc.duration_s,
+        "level": level,
+        "quantity": "jerk" if order == 3 else "acceleration",
+        "kind": kind,
+    }
+
+
+class TimeOptimalFamily(BaseFamily):
+    name: ClassVar[str] = "time_optimal"
+    endpoint: ClassVar[str] = "/v1/profiles/time-optimal"
+
+    def not_applicable(self, problem: Problem) -> str | None:
+        if not problem.plant.modes():
+            return "the plant has no vibration mode to cancel: the rigid time-optimal move is the answer"
+        if problem.limits.max_acceleration is None and problem.limits.max_jerk is None and problem.limits.max_torque_nm is None:
+            return (
+                "the minimum-time command is impulsive without a bound on the acceleration: give "
+                "limits.max_acceleration (or limits.max_jerk, or limits.max_torque_nm on a two_inertia plant)"
+            )
+        return None
+
+    def default_options(self, problem: Problem) -> TimeOptimalOptions:
+        return TimeOptimalOptions()
+
+    def candidates(self, problem: Problem) -> tuple[Candidate, ...]:
+        return (Candidate(self.name, TimeOptimalOptions(), self.name),)
+
+    def uses_solver(self, options: Any) -> bool:
+        return True
+
+    def design(self, problem: Problem, options: TimeOptimalOptions) -> Design:
+        chosen, notes = selected_modes(problem, options)
+        spec = spec_of(problem, options, chosen)
+        solution = solve(spec, lambda arcs: limits_met(problem, spec, arcs))
+        sign = math.copysign(1.0, problem.move)
+        arcs = tuple(replace(a, level=sign * a.level) for a in solution.arcs)
+        command = command_of(arcs, spec.order, spec.rest_to_rest)
+        tradeoff = None if options.tradeoff is None else self._tradeoff(problem, options, chosen)
+        detail = _Detail(solution, chosen, options.robustness, tradeoff)
+        extra = () if solution.refined else (f"the switching times are the grid's ({solution.refinement})",)
+        report = SolverSummary(
+            "optimal" if solution.refined else "grid_optimal",
+            solution.lp_iterations,
+            solution.solve_time_s,
+            solution.lp_solves,
+        )
+        block = _design_block(problem, spec, options, solution, arcs, chosen)
+        return Design(command, block, (*notes, *extra), report, detail=detail)
+
+    def _tradeoff(
+        self, problem: Problem, options: TimeOptimalOptions, chosen: tuple[int, ...]
+    ) -> tuple[dict[str, Any], ...]:
+        robust = options.robustness or Robustness()
+        rows = []
+        for h in options.tradeoff or ():
+            band = Robustness(
+                frequency_ratio_range=(1.0 - h, 1.0 + h) if h > 0 else None,
+                max_percentage_vibration=robust.max_percentage_vibration,
+                damping_ratio_range=robust.damping_ratio_range,
+            )
+            spec = spec_of(problem, replace(options, robustness=band, tradeoff=None), chosen)
+            row: dict[str, Any] = {"half_width": h, "frequency_ratio_range": [1.0 - h, 1.0 + h]}
+            try:
+                s = solve(spec, lambda arcs, spec=spec: limits_met(problem, spec, arcs))
+            except DomainError as exc:
+                rows.append({**row, "duration_s": None, "lower_bound_s": None, "status": exc.problem_type,
+                             "reason": str(exc)})
+                continue
+            rows.append({**row, "duration_s": s.duration_s, "lower_bound_s": s.lower_bound_s, "status": "ok",
+                         "reason": None})
+        return tuple(rows)
+
+    def finish(self, problem: Problem, design: Design, run: Run) -> dict[str, Any]:
+        detail: _Detail = design.detail
+        out: dict[str, Any] = {"design": {"robustness": robustness_report(problem, design, detail)}}
+        if detail.tradeoff is not None:
+            nominal = next((r["duration_s"] for r in detail.tradeoff if r["half_width"] == 0), None)
+            out["tradeoff"] = [
+                {**r, "cost_over_nominal": None if not (nominal and r["duration_s"]) else r["duration_s"] / nominal - 1}
+                for r in detail.tradeoff
+            ]
+        return out
+
+    def request_fields(self, options: Any) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        if options.robustness is not None:
+            out["robustness"] = {k: list(v) if isinstance(v, tuple) else v for k, v in vars(options.robustness).items() if v is not None}
+        if options.modes is not None:
+            out["modes"] = list(options.modes)
+        if options.tradeoff is not None:
+            out["tradeoff"] = list(options.tradeoff)
+        if options.max_duration_s is not None:
+            out["max_duration_s"] = options.max_duration_s
+        return out
+
+
+def _design_block(
+    problem: Problem,
+    spec: Spec,
+    options: TimeOptimalOptions,
+    solution: Solution,
+    arcs: tuple[Arc, ...],
+    chosen: tuple[int, ...],
+) -> dict[str, Any]:
+    modes = problem.plant.modes()
+    reference = rigid_reference(problem) if problem.acceleration_limit is not None else None
+    rigid = None if reference is None else float(reference.time_s[-1])
+    bands, covered = _bands(problem, options.robustness, chosen)
+    grid = solution.grid
+    return {
+        "duration_s": solution.duration_s,
+        "lower_bound_s": solution.lower_bound_s,
+        "lower_bound_method": solution.lower_bound_method,
+        "optimality_gap": solution.duration_s / solution.lower_bound_s - 1.0 if solution.lower_bound_s > 0 else None,
+        "rigid_duration_s": rigid,
+        "cost_over_rigid": None if not rigid else solution.duration_s / rigid - 1.0,
+        "held_quantity": "jerk" if spec.order == 3 else "acceleration",
+        "arcs": [_arc_block(a, spec.order, spec.scale) for a in arcs],
+        "modes": [
+            {
+                "index": i,
+                "natural_frequency_hz": modes[i].natural_frequency_hz,
+                "damping_ratio": modes[i].damping_ratio,
+                "constraint": "band" if i in covered else "zero_residual",
+            }
+            for i in chosen
+        ],
+        "derivative_order": spec.derivative_order,
+        "max_duration_s": spec.max_duration_s,
+        "grid": {
+            "step_s": grid.step_s,
+            "steps": grid.steps,
+            "duration_s": grid.steps * grid.step_s,
+            "longest_infeasible_s": grid.infeasible_steps * grid.step_s,
+        },
+        "refined": solution.refined,
+        "refinement": solution.refinement,
+        "search": {
+            "lp_solves": solution.lp_solves,
+            "lp_iterations": solution.lp_iterations,
+            "band_points": solution.cut_frequencies,
+            "solve_time_s": solution.solve_time_s,
+            "lp_solver": "HiGHS (scipy.optimize.linprog)",
+        },
+        "bands_rad_s": [[b.low_rad_s, b.high_rad_s] for b in bands],
+    }
+
+
+def robustness_report(problem: Problem, design: Design, detail: _Detail) -> dict[str, Any] | None:
+    """The requested band, the achieved one and the worst V inside the request, by models.sensitivity on the
+    exact command (CHECK_POINTS frequencies, every damping ratio asked): independent of the LP's weights. One
+    entry per band (a ratio range gives one per cancelled mode); the top level is the first."""
+    robust = detail.robustness
+    if robust is None:
+        return None
+    command = design.command
+    assert command is not None
+    modes = problem.plant.modes()
+    if robust.frequency_range_hz is not None:
+        lo_w, hi_w = (2 * math.pi * f for f in robust.frequency_range_hz)
+        centre = math.sqrt(lo_w * hi_w)
+        nearest = min(detail.modes, key=lambda i: abs(math.log(modes[i].natural_frequency_rad_s / centre)))
+        entries = [_band_entry(problem, command, robust, nearest, lo_w, hi_w)]
+    else:
+        lo, hi = robust.frequency_ratio_range or (1.0, 1.0)
+        entries = [
+            _band_entry(
+                problem, command, robust, i, lo * modes[i].natural_frequency_rad_s, hi * modes[i].natural_frequency_rad_s
+            )
+            for i in detail.modes
+        ]
+    requested: dict[str, Any] = {k: (list(v) if isinstance(v, tuple) else v) for k, v in vars(robust).items()}
+    first = entries[0]
+    return {
+        "requested": requested,
+        "achieved": first["achieved"],
+        "covers_request": all(e["covers_request"] for e in entries),
+        "worst_percentage_vibration": max(e["worst_percentage_vibration"] for e in entries),
+        "max_percentage_vibration": robust.max_percentage_vibration,
+        "bands": entries,
+        "check": f"models.sensitivity on the exact command: {CHECK_POINTS} frequencies over each requested band x "
+        f"the damping ratios asked; the achieved band on {4 * CHECK_POINTS} frequencies around it",
+    }
+
+
+def _band_entry(
+    problem: Problem, command: PiecewiseCommand, robust: Robustness, index: int, lo_w: float, hi_w: float
+) -> dict[str, Any]:
+    mode = problem.plant.modes()[index]
+    omega, vmax = mode.natural_frequency_rad_s, robust.max_percentage_vibration
+    zetas = np.asarray(_zetas(robust, mode))
+    lo, hi = lo_w / omega, hi_w / omega
+    inside = np.linspace(lo, hi, CHECK_POINTS) if hi > lo else np.array([lo])
+    worst = float(np.max(_v(problem, command, omega, inside, zetas)))
+    wide = np.linspace(max(0.02, lo / 3), min(50.0, max(3 * hi, 3.0)), 4 * CHECK_POINTS)
+    achieved = band_below(wide, np.max(_v(problem, command, omega, wide, zetas), axis=0), vmax, centre=0.5 * (lo + hi))
+    covers = (
+        achieved is not None
+        and (achieved[0] is None or achieved[0] <= lo * (1 + 1e-9))
+        and (achieved[1] is None or achieved[1] >= hi * (1 - 1e-9))
+        and worst <= vmax * (1 + 1e-9)
+    )
+    ratio_range = None if achieved is None else [achieved[0], achieved[1]]
+    return {
+        "mode": index,
+        "requested_frequency_ratio_range": [lo, hi],
+        "achieved": {
+            "frequency_ratio_range": ratio_range,
+            "frequency_range_hz": None
+            if ratio_range is None
+            else [None if r is None else r * mode.natural_frequency_hz for r in ratio_range],
+            "relative_to_mode": index,
+        },
+        "covers_request": bool(covers),
+        "worst_percentage_vibration": worst,
+    }
+
+
+def _v(
+    problem: Problem, command: PiecewiseCommand, omega: float, ratios: NDArray[np.float64], zetas: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """V (%) per (damping ratio, frequency ratio) around ``omega``: the same definition as
+    optim.synthesis.percentage_vibration, about any mode (that one is about the first)."""
+    amplitude = sensitivity(command, omega, ratios, zetas).amplitude
+    w = np.repeat(ratios[None, :] * omega, zetas.size, axis=0)
+    z = np.repeat(zetas[:, None], ratios.size, axis=1)
+    derivative = 0 if problem.rest_to_rest else 1
+    envelope = residual_envelope(rigid_reference(problem), w.ravel(), z.ravel(), derivative).reshape(w.shape)
+    out: NDArray[np.float64] = 100.0 * amplitude / envelope
+    return out

@@ -1,0 +1,117 @@
+"""Arcs: a command whose held derivative (acceleration or jerk) is constant on consecutive intervals.
+
+The exact command (a breakpoint at every switch), the constraint functions of the refinement (end
+state, residual moments, node bounds, band points) and the grid solution's arcs.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from models.commands import PiecewiseCommand
+from optim.time_optimal.types import Arc
+
+Array = NDArray[np.float64]
+SNAP = 1e-5  # a step within this of +-1 or 0 (of the unit) is on that level
+
+
+def command_of(arcs: tuple[Arc, ...], order: int, rest_to_rest: bool) -> PiecewiseCommand:
+    """The exact command: p, v, a (and j) at each arc's start, integrated in closed form; at rest (or
+    cruising at the final speed) after the last arc."""
+    starts = np.array([a.start_s for a in arcs])
+    durations = np.array([a.duration_s for a in arcs])
+    levels = np.array([a.level for a in arcs])
+    count = len(arcs)
+    state = np.zeros((order + 1, count + 1))  # rows: p, v, (a,) u at each breakpoint
+    for k in range(count):
+        h = durations[k]
+        held = np.append(state[:order, k], levels[k])
+        for m in range(order):  # Taylor step of each derivative below the held one
+            state[m, k + 1] = sum(held[n] * h ** (n - m) / math.factorial(n - m) for n in range(m, order + 1))
+        state[order, k] = levels[k]
+    state[order, count] = 0.0
+    time_s = np.append(starts, starts[-1] + durations[-1])
+    if not rest_to_rest and order == 3:
+        state[2, count] = 0.0  # the acceleration ends at 0 (to round-off)
+    return PiecewiseCommand(time_s, state, continuous_orders=order)
+
+
+def merged(arcs: tuple[Arc, ...]) -> tuple[Arc, ...]:
+    """Consecutive arcs on the same level joined, empty arcs dropped."""
+    out: list[Arc] = []
+    for arc in arcs:
+        if arc.duration_s <= 0.0:
+            continue
+        if out and out[-1].level == arc.level:
+            last = out[-1]
+            out[-1] = Arc(last.start_s, arc.start_s + arc.duration_s - last.start_s, last.level)
+        else:
+            out.append(arc)
+    return tuple(out)
+
+
+def arcs_of(levels: Array, dt: float) -> tuple[Arc, ...]:
+    """The grid solution as arcs: runs of equal values merged."""
+    arcs: list[Arc] = []
+    start = 0
+    for k in range(1, levels.size + 1):
+        if k == levels.size or levels[k] != levels[start]:
+            arcs.append(Arc(start * dt, (k - start) * dt, float(levels[start])))
+            start = k
+    return tuple(arcs)
+
+
+def structure(values: Array, dt: float) -> tuple[list[float], list[float], list[bool]]:
+    """Initial durations, levels (in the unit) and which levels are free, from a grid solution x: runs of
+    a saturated or zero level become arcs on that level; a single fractional step between two different
+    such levels is a switch inside the step (split in proportion); other fractional runs are arcs of a
+    free level."""
+    snapped = np.where(np.abs(values - 1) < SNAP, 1.0, np.where(np.abs(values + 1) < SNAP, -1.0, values))
+    snapped = np.where(np.abs(snapped) < SNAP, 0.0, snapped)
+    fixed = np.isin(snapped, (-1.0, 0.0, 1.0))
+    runs: list[tuple[int, int, bool]] = []
+    k = 0
+    while k < values.size:
+        j = k
+        while j + 1 < values.size and fixed[j + 1] == fixed[k] and (not fixed[k] or snapped[j + 1] == snapped[k]):
+            j += 1
+        runs.append((k, j + 1, bool(fixed[k])))
+        k = j + 1
+    durations: list[float] = []
+    levels: list[float] = []
+    free: list[bool] = []
+    for i, (a, b, is_fixed) in enumerate(runs):
+        if is_fixed:
+            durations.append((b - a) * dt)
+            levels.append(float(snapped[a]))
+            free.append(False)
+            continue
+        left = runs[i - 1] if i > 0 else None
+        right = runs[i + 1] if i + 1 < len(runs) else None
+        if b - a == 1 and left and right and left[2] and right[2] and snapped[left[0]] != snapped[right[0]]:
+            l1, l2 = snapped[left[0]], snapped[right[0]]
+            alpha = float(np.clip((values[a] - l2) / (l1 - l2), 0.0, 1.0))
+            durations[-1] += alpha * dt
+            durations.append(-(1 - alpha) * dt)  # marker: added to the next run below
+            levels.append(math.nan)
+            free.append(False)
+            continue
+        durations.append((b - a) * dt)
+        levels.append(float(np.mean(values[a:b])))
+        free.append(True)
+    out_d: list[float] = []
+    out_l: list[float] = []
+    out_f: list[bool] = []
+    carry = 0.0
+    for d, lv, f in zip(durations, levels, free, strict=True):
+        if math.isnan(lv):
+            carry = -d
+            continue
+        out_d.append(d + carry)
+        out_l.append(lv)
+        out_f.append(f)
+        carry = 0.0
+    return out_d, out_l, out_f

@@ -1,0 +1,70 @@
+"""The band check on a dense grid of frequencies (and damping ratios), for any piecewise-constant command.
+
+|F_0| of the acceleration at each (w, zeta) against the band's bound c = V_max / 100 x the rigid
+reference's residual envelope / the mode's amplitude gain (weights.amplitude_gain), so that
+amplitude / envelope <= V_max / 100 there. Used as the cutting-plane oracle of the search (the worst
+violating points become LP cuts) and on the final command.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from models.sensitivity import residual_envelope
+from optim.time_optimal.lp import Cut, acceleration_moment
+from optim.time_optimal.types import Band, Spec
+from optim.time_optimal.weights import amplitude_gain, mode_poles
+
+Array = NDArray[np.float64]
+DENSE_POINTS = 400
+INITIAL_POINTS = 9
+
+
+@dataclass(frozen=True)
+class BandGrid:
+    """A band's (w, zeta) points, their poles and bounds on |F_0|."""
+
+    band: Band
+    omega: Array
+    zeta: Array
+    poles: NDArray[np.complex128]
+    bound: Array
+
+    def cuts(self, index: NDArray[np.intp]) -> list[Cut]:
+        return [Cut(complex(self.poles[i]), float(self.bound[i])) for i in index]
+
+
+def band_grid(spec: Spec, band: Band, points: int) -> BandGrid:
+    omega1 = np.linspace(band.low_rad_s, band.high_rad_s, points)
+    zetas = np.asarray(band.damping_ratios, dtype=float)
+    omega, zeta = (a.ravel() for a in np.meshgrid(omega1, zetas))
+    poles = mode_poles(omega, zeta)
+    derivative = 0 if spec.rest_to_rest else 1
+    envelope = residual_envelope(spec.reference, omega, zeta, derivative)
+    gain = amplitude_gain(poles, omega, zeta, derivative)
+    bound = band.max_percentage_vibration / 100.0 * envelope / gain
+    return BandGrid(band, omega, zeta, poles, bound)
+
+
+def worst_ratios(
+    spec: Spec, grid: BandGrid, start: Array, end: Array, level: Array, total_s: float
+) -> Array:
+    """|F_0| / bound at every point of ``grid`` for the command holding ``level`` on [start, end)."""
+    moment = acceleration_moment(spec, grid.poles, start, end, total_s, 0)
+    ratios: Array = np.abs(moment @ level) / grid.bound
+    return ratios
+
+
+def violations(ratios: Array, count: int = 3) -> NDArray[np.intp]:
+    """The indices of the ``count`` worst local maxima above 1 (the points to add as cuts)."""
+    above = ratios > 1.0
+    if not np.any(above):
+        return np.zeros(0, dtype=np.intp)
+    padded = np.concatenate(([-np.inf], ratios, [-np.inf]))
+    peaks = np.flatnonzero(above & (ratios >= padded[:-2]) & (ratios >= padded[2:]))
+    order = np.argsort(ratios[peaks])[::-1]
+    out: NDArray[np.intp] = peaks[order[:count]]
+    return out

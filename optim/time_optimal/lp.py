@@ -1,0 +1,413 @@
+"""The fixed-duration linear programs of the time-optimal search (HiGHS through scipy, sparse).
+
+For N steps of dt the held derivative u (acceleration, or jerk with a jerk limit) is constant on each
+step, u_k = U x_k. The motor's integrator chain (and, on a two-inertia plant, the load's response
+G a, for the torque) is one linear system z' = A z + B u, discretised exactly (matrix exponential):
+z_(k+1) = Phi z_k + Gamma u_k. The states are LP variables, so that the LP stays sparse:
+
+- the end state (position, velocity, acceleration) and the node bounds are bounds on the states
+  (exact: between nodes the velocity of a held acceleration, and the acceleration of a held jerk, are
+  linear); the velocity of a jerk-limited command is also bounded mid-step, the torque
+  J_M a + J_L a_L at four points of every step (rows C z_k + D u_k);
+- zero residual at each cancelled pole: Re F_n = Im F_n = 0 (optim.time_optimal.weights), two dense rows;
+- each band point |F_0| <= c, by the 16-gon inscribed in that circle (the bound holds at the point).
+
+``relaxed_lp`` is the LP every continuous command of duration T satisfies in its step averages of the
+acceleration, abar_k: the velocity at the nodes is exact, the other equalities are widened by what
+averaging can change (|int f a - sum abar_k int_step f| <= A max|f'| T dt / 4), the band polygons are
+circumscribed and widened alike, and the jerk bound becomes |abar_(k+1) - abar_k| <= J dt. HiGHS
+proving it infeasible proves that no command of duration T exists (the certificate of lower_bound_s).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import NDArray
+from scipy.linalg import expm
+from scipy.optimize import linprog
+
+from models.errors import SolverTimedOut
+from optim.solver import SolverReport
+from optim.time_optimal.types import Spec
+from optim.time_optimal.weights import exponential_moment
+
+Array = NDArray[np.float64]
+CArray = NDArray[np.complex128]
+POLYGON_SIDES = 16
+MARGIN = 1e-7  # bounds tightened by this fraction so that HiGHS's feasibility tolerance cannot break a limit
+TORQUE_POINTS = (0.0, 0.25, 0.5, 0.75)
+
+
+@dataclass(frozen=True)
+class Cut:
+    """A band point: |F_0(pole)| <= bound, F_0 of the acceleration (see weights)."""
+
+    pole: complex
+    bound: float
+
+
+@dataclass
+class LpCounter:
+    solves: int = 0
+    iterations: int = 0
+    deadline: float = math.inf
+
+    def remaining_s(self) -> float:
+        left = self.deadline - time.perf_counter()
+        if left <= 0.0:
+            raise SolverTimedOut(
+                SolverReport("time_limit", self.iterations, 0.0),
+                f"the time-optimal search overran its wall-time cap after {self.solves} LP solves",
+            )
+        return left
+
+
+def pieces(steps: int, dt: float) -> tuple[Array, Array]:
+    k = np.arange(steps, dtype=float)
+    return k * dt, (k + 1) * dt
+
+
+def acceleration_moment(spec: Spec, poles: CArray, start: Array, end: Array, total: float, n: int) -> CArray:
+    """Weights of F_n of the acceleration per unit u on each piece: the acceleration's own moment, or for a
+    held jerk the jerk's divided by lambda (int a e^(lambda s) = int j e^(lambda s) / lambda when
+    a(0) = a(T) = 0; n = 0, all the bands use)."""
+    w = exponential_moment(poles, start, end, total, n)
+    if spec.order == 3:
+        w = w / poles[:, None]
+    return w
+
+
+# --- the state-space model --------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Chain:
+    """z' = A z + B u: the motor's derivatives (p, v[, a]) and, with a torque, G's two states."""
+
+    a: Array
+    b: Array
+    scale: Array  # a natural size of each state, so that the LP's rows are balanced
+    velocity: int = 1
+    acceleration: int | None = None  # the state index of a (order 3)
+    torque: tuple[Array, float] | None = None  # (row c, d): tau = c z + d u
+
+
+def chain(spec: Spec, total_s: float) -> Chain:
+    q, unit = spec.order, spec.scale
+    n = q + (2 if spec.torque is not None else 0)
+    a = np.zeros((n, n))
+    b = np.zeros(n)
+    for m in range(q - 1):
+        a[m, m + 1] = 1.0
+    b[q - 1] = 1.0
+    scale = np.array([unit * total_s ** (q - m) for m in range(q)] + [1.0] * (n - q))
+    torque = None
+    if spec.torque is not None:
+        tq = spec.torque
+        w2 = abs(tq.pole) ** 2
+        two_zw = -2.0 * tq.pole.real
+        # g1'' + 2 zeta w g1' + w^2 g1 = a (the motor's acceleration), a_L = w^2 g1 + 2 zeta w g1'
+        a[q, q + 1] = 1.0
+        a[q + 1, q] = -w2
+        a[q + 1, q + 1] = -two_zw
+        accel = np.zeros(n)
+        if q == 2:
+            b[q + 1] = 1.0
+            d = tq.motor_inertia_kgm2
+        else:
+            a[q + 1, 2] = 1.0
+            accel[2] = 1.0
+            d = 0.0
+        row = tq.motor_inertia_kgm2 * accel
+        row[q] += tq.load_inertia_kgm2 * w2
+        row[q + 1] += tq.load_inertia_kgm2 * two_zw
+        a_size = spec.max_acceleration or unit * (total_s if q == 3 else 1.0)
+        scale[q:] = [a_size / w2, a_size / math.sqrt(w2)]
+        torque = (row, d)
+    return Chain(a, b, scale, 1, 2 if q == 3 else None, torque)
+
+
+def discretise(c: Chain, h: float) -> tuple[Array, Array]:
+    """Phi = e^(A h), Gamma = int_0^h e^(A s) ds B."""
+    n = c.a.shape[0]
+    big = np.zeros((n + 1, n + 1))
+    big[:n, :n] = c.a * h
+    big[:n, n] = c.b * h
+    e = expm(big)
+    return e[:n, :n], e[:n, n]
+
+
+@dataclass
+class _Lp:
+    """A sparse LP in x (N held values) then z_0..z_N (scaled states)."""
+
+    steps: int
+    states: int
+    extra: int = 0  # variables after the states (|x_k| of the weighted L1 objective)
+    lower: Array = field(init=False)
+    upper: Array = field(init=False)
+    eq: list[sp.coo_matrix] = field(default_factory=list)
+    eq_rhs: list[Array] = field(default_factory=list)
+    ub: list[sp.coo_matrix] = field(default_factory=list)
+    ub_rhs: list[Array] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        size = self.steps + (self.steps + 1) * self.states + self.extra
+        self.cost = np.zeros(size)
+        self.lower = np.full(size, -np.inf)
+        self.upper = np.full(size, np.inf)
+
+    def state(self, k: int | Array, i: int) -> int | Array:
+        return self.steps + np.asarray(k) * self.states + i
+
+    def dense_x_rows(self, rows: Array) -> sp.coo_matrix:
+        pad = sp.coo_matrix((rows.shape[0], self.lower.size - self.steps))
+        return sp.hstack([sp.coo_matrix(rows), pad]).tocoo()
+
+    def weighted_l1(self, weights: Array) -> None:
+        """Minimise sum_k weights_k |x_k| (a feasibility LP returns any vertex, often chattering): another
+        vertex, with another arc structure for the refinement to start from."""
+        n, first = self.steps, self.lower.size - self.extra
+        k = np.arange(n)
+        w = first + k
+        for sign in (1.0, -1.0):
+            m = sp.coo_matrix(
+                (np.concatenate([sign * np.ones(n), -np.ones(n)]), (np.concatenate([k, k]), np.concatenate([k, w]))),
+                shape=(n, self.lower.size),
+            )
+            self.add_ub(m, np.zeros(n))
+        self.lower[w] = 0.0
+        self.cost[w] = weights
+
+    def add_eq(self, m: sp.coo_matrix, rhs: Array) -> None:
+        self.eq.append(m)
+        self.eq_rhs.append(np.asarray(rhs, dtype=float))
+
+    def add_ub(self, m: sp.coo_matrix, rhs: Array) -> None:
+        self.ub.append(m)
+        self.ub_rhs.append(np.asarray(rhs, dtype=float))
+
+    def dynamics(self, c: Chain, h: float, unit: float) -> None:
+        """z_(k+1) - Phi z_k - Gamma U x_k = 0, in scaled states (row i divided by scale_i)."""
+        phi, gamma = discretise(c, h)
+        n, s = self.states, c.scale
+        phi_s = phi * s[None, :] / s[:, None]
+        gamma_s = gamma * unit / s
+        k = np.arange(self.steps)
+        rows, cols, vals = [], [], []
+        for i in range(n):
+            r = k * n + i
+            rows.append(r)
+            cols.append(self.state(k + 1, i))
+            vals.append(np.ones(k.size))
+            for j in range(n):
+                if phi_s[i, j] != 0.0:
+                    rows.append(r)
+                    cols.append(self.state(k, j))
+                    vals.append(np.full(k.size, -phi_s[i, j]))
+            if gamma_s[i] != 0.0:
+                rows.append(r)
+                cols.append(k)
+                vals.append(np.full(k.size, -gamma_s[i]))
+        m = sp.coo_matrix(
+            (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+            shape=(self.steps * n, self.lower.size),
+        )
+        self.add_eq(m, np.zeros(self.steps * n))
+
+    def output_rows(
+        self, c: Chain, row: Array, d: float, h: float, unit: float, points: tuple[float, ...]
+    ) -> sp.coo_matrix:
+        """Rows of row . z(t_k + theta h) + d u_k for each step and theta (scaled states)."""
+        mats = []
+        k = np.arange(self.steps)
+        for theta in points:
+            phi, gamma = discretise(c, theta * h) if theta > 0 else (np.eye(self.states), np.zeros(self.states))
+            cz = (row @ phi) * c.scale
+            du = float(row @ gamma) * unit + d * unit
+            rows = [k] * (self.states + 1)
+            cols = [self.state(k, j) for j in range(self.states)] + [k]
+            vals = [np.full(k.size, cz[j]) for j in range(self.states)] + [np.full(k.size, du)]
+            mats.append(
+                sp.coo_matrix(
+                    (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                    shape=(self.steps, self.lower.size),
+                )
+            )
+        return sp.vstack(mats).tocoo()
+
+
+def _polygon_rows(weights: CArray, bounds: Array, inscribed: bool) -> tuple[Array, Array]:
+    theta = 2 * math.pi * np.arange(POLYGON_SIDES) / POLYGON_SIDES
+    rot = np.exp(-1j * theta)
+    rows = np.real(rot[None, :, None] * weights[:, None, :]).reshape(-1, weights.shape[1])
+    factor = math.cos(math.pi / POLYGON_SIDES) if inscribed else 1.0
+    rhs = np.repeat(bounds * factor, POLYGON_SIDES)
+    return rows, rhs
+
+
+def _unit_rows(rows: Array, rhs: Array) -> tuple[Array, Array]:
+    scale = np.max(np.abs(rows), axis=1)
+    scale[scale == 0.0] = 1.0
+    return rows / scale[:, None], rhs / scale
+
+
+def grid_lp(
+    spec: Spec, steps: int, dt: float, cuts: list[Cut], counter: LpCounter, weights: Array | None = None
+) -> Array | None:
+    """A feasible x on N = ``steps`` steps of ``dt`` (u_k = spec.scale x_k), or None if none is found; with
+    ``weights`` the one of least weighted L1 norm (see _Lp.weighted_l1)."""
+    q, unit = spec.order, spec.scale
+    total = steps * dt
+    c = chain(spec, total)
+    lp = _Lp(steps, c.a.shape[0], 0 if weights is None else steps)
+    if weights is not None:
+        lp.weighted_l1(weights)
+    tight = 1.0 - MARGIN
+    box = spec.order == 3 or spec.max_acceleration is not None
+    if box:
+        lp.lower[:steps], lp.upper[:steps] = -tight, tight
+    lp.dynamics(c, dt, unit)
+    first, last = lp.state(0, np.arange(lp.states)), lp.state(steps, np.arange(lp.states))
+    lp.lower[first] = lp.upper[first] = 0.0
+    end_targets = {1: 0.0 if spec.rest_to_rest else spec.move}
+    if spec.rest_to_rest:
+        end_targets[0] = spec.move
+    if q == 3:
+        end_targets[2] = 0.0
+    for m, target in end_targets.items():
+        lp.lower[last[m]] = lp.upper[last[m]] = target / c.scale[m]
+    nodes = lp.state(np.arange(1, steps), 0)
+    if spec.max_velocity is not None:
+        bound = spec.max_velocity * tight / c.scale[1]
+        lp.lower[nodes + 1] = np.maximum(lp.lower[nodes + 1], -bound)
+        lp.upper[nodes + 1] = np.minimum(lp.upper[nodes + 1], bound)
+        if q == 3:  # mid-step velocity of a held jerk
+            e = np.zeros(lp.states)
+            e[1] = 1.0
+            rows = lp.output_rows(c, e, 0.0, dt, unit, (0.5,))
+            lp.add_ub(rows, np.full(steps, spec.max_velocity * tight))
+            lp.add_ub(-rows, np.full(steps, spec.max_velocity * tight))
+    if q == 3 and spec.max_acceleration is not None:
+        bound = spec.max_acceleration * tight / c.scale[2]
+        lp.lower[nodes + 2] = np.maximum(lp.lower[nodes + 2], -bound)
+        lp.upper[nodes + 2] = np.minimum(lp.upper[nodes + 2], bound)
+    if c.torque is not None and spec.torque is not None:
+        row, d = c.torque
+        rows = lp.output_rows(c, row, d, dt, unit, TORQUE_POINTS)
+        limit = np.full(rows.shape[0], spec.torque.max_torque_nm * tight)
+        lp.add_ub(rows, limit)
+        lp.add_ub(-rows, limit)
+    start, end = pieces(steps, dt)
+    if spec.zero_poles:
+        poles = np.asarray(spec.zero_poles)
+        dense = [unit * exponential_moment(poles, start, end, total, n) for n in range(spec.derivative_order + 1)]
+        w = np.vstack(dense)
+        rows_eq, rhs_eq = _unit_rows(np.vstack([w.real, w.imag]), np.zeros(2 * w.shape[0]))
+        lp.add_eq(lp.dense_x_rows(rows_eq), rhs_eq)
+    if cuts:
+        poles = np.array([cut.pole for cut in cuts])
+        w = unit * acceleration_moment(spec, poles, start, end, total, 0)
+        rows, rhs = _polygon_rows(w, np.array([cut.bound for cut in cuts]) * tight, inscribed=True)
+        rows, rhs = _unit_rows(rows, rhs)
+        lp.add_ub(lp.dense_x_rows(rows), rhs)
+    x, _ = _solve(lp, counter)
+    return None if x is None else x[:steps]
+
+
+def relaxed_lp(spec: Spec, total_s: float, steps: int, cuts: list[Cut], counter: LpCounter) -> bool:
+    """False only if HiGHS proves the relaxation of duration ``total_s`` infeasible (then no command of that
+    duration exists); x are step averages of the acceleration over max_acceleration."""
+    if spec.max_acceleration is None:
+        return True
+    accel = spec.max_acceleration
+    dt = total_s / steps
+    start, end = pieces(steps, dt)
+    lp = _Lp(steps, 1)  # the velocity at the nodes, exact for averages
+    lp.lower[:steps], lp.upper[:steps] = -1.0, 1.0
+    slack = 1e-9  # relative, against round-off (a wider relaxation stays valid)
+    v_scale = accel * total_s
+    k = np.arange(steps)
+    dyn = sp.coo_matrix(
+        (
+            np.concatenate([np.ones(steps), -np.ones(steps), -np.full(steps, dt / total_s)]),
+            (np.concatenate([k, k, k]), np.concatenate([lp.state(k + 1, 0), lp.state(k, 0), k])),
+        ),
+        shape=(steps, lp.lower.size),
+    )
+    lp.add_eq(dyn, np.zeros(steps))
+    lp.lower[lp.state(0, 0)] = lp.upper[lp.state(0, 0)] = 0.0
+    v_end = (0.0 if spec.rest_to_rest else spec.move) / v_scale
+    lp.lower[lp.state(steps, 0)], lp.upper[lp.state(steps, 0)] = v_end - slack, v_end + slack
+    if spec.max_velocity is not None:
+        nodes = lp.state(np.arange(1, steps), 0)
+        lp.lower[nodes], lp.upper[nodes] = -spec.max_velocity / v_scale * (1 + slack), spec.max_velocity / v_scale * (
+            1 + slack
+        )
+    ranged: list[tuple[Array, float, float]] = []  # row . x within target +- width
+    if spec.rest_to_rest:
+        row = accel * dt * (total_s - 0.5 * (start + end))
+        ranged.append((row, spec.move, accel * total_s * dt / 4 + slack * spec.move))
+    if spec.zero_poles:
+        poles = np.asarray(spec.zero_poles)
+        for n in range(spec.derivative_order + 1):
+            w = accel * exponential_moment(poles, start, end, total_s, n)
+            for pole, r in zip(poles, w, strict=True):
+                lipschitz = n * total_s ** max(n - 1, 0) + abs(pole) * total_s**n
+                width = accel * lipschitz * total_s * dt / 4 + slack * float(np.sum(np.abs(r)))
+                ranged += [(r.real, 0.0, width), (r.imag, 0.0, width)]
+    if ranged:
+        rows = np.vstack([r for r, _, _ in ranged])
+        hi = np.array([t + wd for _, t, wd in ranged])
+        lo = np.array([t - wd for _, t, wd in ranged])
+        scale = np.max(np.abs(rows), axis=1)
+        lp.add_ub(lp.dense_x_rows(rows / scale[:, None]), hi / scale)
+        lp.add_ub(lp.dense_x_rows(-rows / scale[:, None]), -lo / scale)
+    if spec.max_jerk is not None:
+        diff = sp.diags([np.ones(steps), -np.ones(steps)], [0, -1], shape=(steps + 1, steps)).tocoo()
+        limit = np.full(steps + 1, spec.max_jerk * dt / accel * (1 + slack))
+        limit[[0, -1]] /= 2.0  # the acceleration starts and ends at 0
+        pad = sp.coo_matrix((steps + 1, steps + 1))
+        m = sp.hstack([diff, pad]).tocoo()
+        lp.add_ub(m, limit)
+        lp.add_ub(-m, limit)
+    if cuts:
+        poles = np.array([cut.pole for cut in cuts])
+        w = accel * exponential_moment(poles, start, end, total_s, 0)
+        widths = np.abs(poles) * total_s * dt / 4 * accel + slack * np.sum(np.abs(w), axis=1)
+        rows, rhs = _polygon_rows(w, np.array([cut.bound for cut in cuts]) + widths, inscribed=False)
+        rows, rhs = _unit_rows(rows, rhs)
+        lp.add_ub(lp.dense_x_rows(rows), rhs)
+    x, status = _solve(lp, counter)
+    return not (x is None and status == 2)  # only HiGHS's proven infeasibility is a certificate
+
+
+def _solve(lp: _Lp, counter: LpCounter) -> tuple[Array | None, int]:
+    """HiGHS's solution (None unless optimal) and scipy's status (0 optimal, 2 infeasible, ...)."""
+    a_eq = sp.vstack(lp.eq).tocsr() if lp.eq else None
+    b_eq = np.concatenate(lp.eq_rhs) if lp.eq else None
+    a_ub = sp.vstack(lp.ub).tocsr() if lp.ub else None
+    b_ub = np.concatenate(lp.ub_rhs) if lp.ub else None
+    bounds = np.column_stack([lp.lower, lp.upper])
+    result = linprog(
+        lp.cost,
+        A_ub=a_ub,
+        b_ub=b_ub,
+        A_eq=a_eq,
+        b_eq=b_eq,
+        bounds=bounds,
+        method="highs",
+        options={"time_limit": counter.remaining_s(), "presolve": True},
+    )
+    counter.solves += 1
+    counter.iterations += int(getattr(result, "nit", 0) or 0)
+    if result.status == 0:
+        x: Array = np.asarray(result.x, dtype=float)
+        return x, 0
+    counter.remaining_s()  # raises if the time limit stopped it
+    return None, int(result.status)

@@ -1,0 +1,262 @@
+"""Refinement of the grid optimum: the switching times (and any free level) made exact.
+
+The grid solution fixes the arc structure (bang, coast, switch inside a step). With the durations
+(and the levels that are not saturated) as the unknowns, the shortest command of that structure is a
+small smooth problem: minimise sum d_j subject to the end state and the residual moments (equalities),
+the node bounds and the band points (|F_0|^2 <= c^2, true circles). It has a few to a few dozen
+unknowns and closed-form constraints, so scipy's SLSQP solves it in milliseconds with no build cost
+(a CasADi problem would have to be built for each structure); a Newton polish on the active
+constraints then brings the equalities to round-off. The caller keeps the result only if it checks
+out (limits, dense band) and is shorter than the grid's.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import minimize
+
+from optim.time_optimal.lp import Cut
+from optim.time_optimal.types import Arc, Spec
+
+Array = NDArray[np.float64]
+ACTIVE = 1e-7  # a scaled inequality within this of its bound is held as an equality by the polish
+
+
+@dataclass(frozen=True)
+class Refined:
+    arcs: tuple[Arc, ...]
+    status: str
+
+
+def _poly(r: int) -> tuple[Callable[[Array], Array], Callable[[Array], Array]]:
+    """phi(tau) = tau_+^r / r! and its derivative."""
+
+    def phi(t: Array) -> Array:
+        out: Array = np.maximum(t, 0.0) ** r / math.factorial(r)
+        return out
+
+    def dphi(t: Array) -> Array:
+        out: Array = np.maximum(t, 0.0) ** (r - 1) / math.factorial(r - 1) if r > 1 else (t > 0.0).astype(float)
+        return out
+
+    return phi, dphi
+
+
+def _coefficients(points: Array) -> tuple[Array, Array]:
+    """d tau1[p, j] / d d_i and d tau2[p, j] / d d_i for tau1 = t_p - s_j, tau2 = t_p - e_j."""
+    count = points.shape[1]
+    lower = np.tril(np.ones((count, count)), -1)
+    return points[:, None, :] - lower[None, :, :], points[:, None, :] - (lower + np.eye(count))[None, :, :]
+
+
+def _terms(
+    phi: Any, dphi: Any, coefficients: tuple[Array, Array], d: Array, lv: Array, jac: bool = True
+) -> tuple[Any, Any, Any]:
+    """sum_j lv_j (phi(tau1) - phi(tau2)) at each point p, tau1 = t_p - s_j, tau2 = t_p - e_j, with the times
+    linear in the durations (t_p = points[p] . d, s_j = L_j . d, e_j = (L + I)_j . d; ``coefficients`` from
+    _coefficients), and its Jacobians in d and in lv."""
+    c1, c2 = coefficients
+    tau1, tau2 = c1 @ d, c2 @ d
+    diff = phi(tau1) - phi(tau2)
+    value = diff @ lv
+    if not jac:
+        return value, None, diff
+    jac_d = np.einsum("pj,pji->pi", lv[None, :] * dphi(tau1), c1) - np.einsum("pj,pji->pi", lv[None, :] * dphi(tau2), c2)
+    return value, jac_d, diff
+
+
+def _end_moments(poles: NDArray[np.complex128], n: int, d: Array, lv: Array, jac: bool) -> tuple[Any, Any, Any]:
+    """F_n at the end for every pole (rows): sum_j lv_j (G_n(T - s_j) - G_n(T - e_j)), its Jacobian in d and
+    the per-arc differences (the Jacobian in lv)."""
+    c1, c2 = (c[0] for c in _coefficients(np.ones((1, d.size))))  # d(T - s_j)/d d_i, [j, i]
+    tau1, tau2 = c1 @ d, c2 @ d
+    lam = poles[:, None]
+
+    def g_big(t: Array) -> NDArray[np.complex128]:
+        acc = sum((-1) ** k * math.factorial(n) / math.factorial(n - k) * t ** (n - k) / lam ** (k + 1) for k in range(n + 1))
+        out: NDArray[np.complex128] = np.exp(lam * t) * acc
+        return out
+
+    diff = g_big(tau1[None, :]) - g_big(tau2[None, :])
+    value = diff @ lv
+    if not jac:
+        return value, None, diff
+    g1 = tau1[None, :] ** n * np.exp(lam * tau1[None, :])
+    g2 = tau2[None, :] ** n * np.exp(lam * tau2[None, :])
+    jac_d = (lv[None, :] * g1) @ c1 - (lv[None, :] * g2) @ c2
+    return value, jac_d, diff
+
+
+class _Model:
+    """The constraint functions of one arc structure and their Jacobians, in scaled variables
+    z = (d / T0, free levels)."""
+
+    def __init__(self, spec: Spec, durations: list[float], levels: list[float], free: list[bool], cuts: list[Cut]):
+        self.spec = spec
+        self.t0 = sum(durations)
+        self.levels = np.asarray(levels, dtype=float)
+        self.free = np.flatnonzero(np.asarray(free))
+        self.count = len(durations)
+        self.cuts = cuts
+        self.z0 = np.concatenate([np.asarray(durations) / self.t0, self.levels[self.free]])
+        q, u = spec.order, spec.scale
+        self.eq_scale = [spec.move] + [u * self.t0 ** (q - m) for m in range(1, q)]
+        self.ends = _coefficients(np.ones((1, self.count)))
+        self.moment_scales: dict[int, Array] = {}  # fixed at the first evaluation (z0)
+        arc_ends = np.tril(np.ones((self.count, self.count)))[:-1]  # e_b = sum_{i <= b} d_i, b < last
+        mid = np.tril(np.ones((self.count, self.count)), -1) + 0.5 * np.eye(self.count)
+        self.arc_ends = _coefficients(arc_ends)
+        self.arc_ends_mid = _coefficients(np.vstack([arc_ends, mid]))
+
+    def unpack(self, z: Array) -> tuple[Array, Array, Array]:
+        d = np.maximum(z[: self.count], 0.0) * self.t0
+        lv = self.levels.copy()
+        lv[self.free] = z[self.count :]
+        start = np.concatenate(([0.0], np.cumsum(d)[:-1]))
+        return start, start + d, lv
+
+    def _jac(self, jac_d: Any, diff: Any, scale: Any) -> Any:
+        """d/dz of value / scale: d = z T0 (durations) and the free levels."""
+        if jac_d is None:
+            return None
+        return np.hstack([jac_d * self.t0, diff[:, self.free]]) / np.asarray(scale).reshape(-1, 1)
+
+    def _parts(self, z: Array, kind: str, want_jac: bool = True) -> tuple[Array, Array]:
+        spec, q, u = self.spec, self.spec.order, self.spec.scale
+        d = np.maximum(z[: self.count], 0.0) * self.t0
+        lv = self.levels.copy()
+        lv[self.free] = z[self.count :]
+        values: list[Array] = []
+        jacs: list[Array] = []
+        if kind == "eq":
+            for m in range(q):
+                if m == 0 and not spec.rest_to_rest:
+                    continue
+                target = spec.move if (m == 0 or (m == 1 and not spec.rest_to_rest)) else 0.0
+                phi, dphi = _poly(q - m)
+                v, jd, diff = _terms(phi, dphi, self.ends, d, lv, want_jac)
+                values.append((u * v - target) / self.eq_scale[m])
+                if want_jac:
+                    jacs.append(self._jac(u * jd, u * diff, self.eq_scale[m]))
+            for n in range(spec.derivative_order + 1):
+                if not spec.zero_poles:
+                    break
+                v, jd, diff = _end_moments(np.asarray(spec.zero_poles), n, d, lv, want_jac)
+                scale = self.moment_scales.setdefault(n, np.sum(np.abs(diff), axis=1) + 1e-300)
+                values += [v.real / scale, v.imag / scale]
+                if want_jac:
+                    jac = self._jac(jd, diff, scale)
+                    jacs += [jac.real, jac.imag]
+            return np.concatenate(values), (np.vstack(jacs) if want_jac else np.zeros(0))
+        bounds = [(1, spec.max_velocity)] + ([(2, spec.max_acceleration)] if q == 3 else [])
+        for m, limit in bounds:
+            if limit is None or self.count < 2:
+                continue
+            points = self.arc_ends_mid if m == 1 and q == 3 else self.arc_ends
+            phi, dphi = _poly(q - m)
+            v, jd, diff = _terms(phi, dphi, points, d, lv, want_jac)
+            values += [1.0 - u * v / limit, 1.0 + u * v / limit]
+            if want_jac:
+                jac = self._jac(u * jd, u * diff, limit)
+                jacs += [-jac, jac]
+        if self.cuts:
+            poles = np.array([c.pole for c in self.cuts])
+            bound = np.array([c.bound for c in self.cuts])
+            v, jd, diff = _end_moments(poles, 0, d, lv, want_jac)
+            per = u / poles if spec.order == 3 else np.full(poles.size, complex(u))
+            f = per * v
+            values.append(1.0 - np.abs(f) ** 2 / bound**2)
+            if want_jac:
+                jac = self._jac(per[:, None] * jd, per[:, None] * diff, 1.0)
+                jacs.append(-2.0 * np.real(np.conj(f)[:, None] * jac) / bound[:, None] ** 2)
+        if not values:
+            return np.zeros(0), np.zeros((0, z.size))
+        return np.concatenate(values), (np.vstack(jacs) if want_jac else np.zeros(0))
+
+    def equalities(self, z: Array) -> Array:
+        return self._parts(z, "eq", False)[0]
+
+    def equality_jacobian(self, z: Array) -> Array:
+        return self._parts(z, "eq")[1]
+
+    def inequalities(self, z: Array) -> Array:
+        """>= 0 when met (scaled)."""
+        return self._parts(z, "ineq", False)[0]
+
+    def inequality_jacobian(self, z: Array) -> Array:
+        return self._parts(z, "ineq")[1]
+
+
+def refine(spec: Spec, durations: list[float], levels: list[float], free: list[bool], cuts: list[Cut]) -> Refined | None:
+    """The shortest command of the grid solution's structure, or None if SLSQP does not find one."""
+    model = _Model(spec, durations, levels, free, cuts)
+    n = model.z0.size
+    bounds = [(0.0, None)] * model.count + [(-1.0, 1.0)] * model.free.size
+    constraints: list[dict[str, object]] = [
+        {"type": "eq", "fun": model.equalities, "jac": model.equality_jacobian}
+    ]
+    if model.inequalities(model.z0).size:
+        constraints.append({"type": "ineq", "fun": model.inequalities, "jac": model.inequality_jacobian})
+    cost = np.concatenate([np.ones(model.count), np.zeros(n - model.count)])
+    result = minimize(
+        lambda z: float(cost @ z),
+        model.z0,
+        jac=lambda z: cost,
+        method="SLSQP",
+        bounds=bounds,
+        constraints=constraints,
+        options={"maxiter": 200, "ftol": 1e-10},
+    )
+    if not result.success:
+        return None
+    z = _polish(model, np.asarray(result.x, dtype=float))
+    if z is None:
+        return None
+    start, end, lv = model.unpack(z)
+    keep = end - start > 0.0
+    arcs = tuple(
+        Arc(float(s), float(e - s), float(level * spec.scale))
+        for s, e, level, k in zip(start, end, lv, keep, strict=True)
+        if k
+    )
+    return Refined(arcs, f"SLSQP converged in {result.nit} iterations; Newton polish on the active constraints")
+
+
+def _polish(model: _Model, z: Array, iterations: int = 20) -> Array | None:
+    """Newton (minimal-norm steps) on the equalities and the active inequalities, from SLSQP's point."""
+    z = z.copy()
+    z[: model.count] = np.where(z[: model.count] < 1e-8, 0.0, z[: model.count])
+    movable = np.flatnonzero(np.concatenate([z[: model.count] > 0.0, np.ones(model.free.size, dtype=bool)]))
+    ineq = model.inequalities(z)
+    active = np.flatnonzero(np.abs(ineq) < ACTIVE) if ineq.size else np.zeros(0, dtype=int)
+
+    def system(v: Array) -> Array:
+        parts = [model.equalities(v)]
+        if active.size:
+            parts.append(model.inequalities(v)[active])
+        return np.concatenate(parts)
+
+    def jacobian(v: Array) -> Array:
+        parts = [model.equality_jacobian(v)]
+        if active.size:
+            parts.append(model.inequality_jacobian(v)[active])
+        out: Array = np.vstack(parts)[:, movable]
+        return out
+
+    for _ in range(iterations):
+        g = system(z)
+        if np.max(np.abs(g)) < 1e-14:
+            return z
+        jac = jacobian(z)
+        step = np.linalg.lstsq(jac, g, rcond=None)[0]
+        z[movable] -= step
+        if np.any(z[: model.count] < -1e-12):
+            return None
+        z[: model.count] = np.maximum(z[: model.count], 0.0)
+    return z if np.max(np.abs(system(z))) < 1e-12 else None

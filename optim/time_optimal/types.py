@@ -1,0 +1,105 @@
+"""The time-optimal problem in the core's own terms, and its solution."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from models.commands import PiecewiseCommand
+
+MAX_MODES = 6  # modes cancelled at most: each adds 2 (x derivative order + 1) equalities
+DEFAULT_MAX_PERCENTAGE_VIBRATION = 5.0
+
+
+@dataclass(frozen=True)
+class Band:
+    """|residual| <= max_percentage_vibration % of the rigid reference's envelope for every natural
+    frequency in [low, high] (rad/s) and damping ratio in ``damping_ratios`` (a range: its ends and middle)."""
+
+    low_rad_s: float
+    high_rad_s: float
+    damping_ratios: tuple[float, ...]
+    max_percentage_vibration: float = DEFAULT_MAX_PERCENTAGE_VIBRATION
+    nominal_rad_s: float | None = None  # the mode it is a band around (for the ratios it is reported in)
+
+
+@dataclass(frozen=True)
+class Torque:
+    """The motor torque J_M a + J_L a_L of a two-inertia plant, a_L = G a with G's upper pole and residue."""
+
+    motor_inertia_kgm2: float
+    load_inertia_kgm2: float
+    max_torque_nm: float
+    pole: complex
+    residue: complex
+
+
+@dataclass(frozen=True)
+class Spec:
+    """A rest-to-rest move of ``move`` (> 0) or a rest-to-velocity ramp to ``move``, within the limits,
+    with zero residual at ``zero_poles`` (and its first ``derivative_order`` derivatives in frequency) and
+    below each band's bound over the band. ``reference`` is the rigid command V is measured against."""
+
+    move: float
+    rest_to_rest: bool
+    max_velocity: float | None
+    max_acceleration: float | None
+    max_jerk: float | None
+    torque: Torque | None
+    zero_poles: tuple[complex, ...]
+    derivative_order: int
+    bands: tuple[Band, ...]
+    reference: PiecewiseCommand
+    floor_s: float  # a proven lower bound on the duration (the rigid kinematics)
+    upper_guess_s: float  # a duration at which a command is expected to exist (the search starts there)
+    max_duration_s: float
+    wall_time_s: float = 10.0
+
+    @property
+    def order(self) -> int:
+        """q: the derivative held piecewise constant (2: acceleration, 3: jerk)."""
+        return 3 if self.max_jerk is not None else 2
+
+    @property
+    def scale(self) -> float:
+        """The unit of the decision variables: max_jerk, max_acceleration, or the torque's M / (J_M + J_L)."""
+        if self.max_jerk is not None:
+            return self.max_jerk
+        if self.max_acceleration is not None:
+            return self.max_acceleration
+        assert self.torque is not None
+        return self.torque.max_torque_nm / (self.torque.motor_inertia_kgm2 + self.torque.load_inertia_kgm2)
+
+
+@dataclass(frozen=True)
+class Arc:
+    start_s: float
+    duration_s: float
+    level: float  # the held derivative's value (acceleration or jerk)
+
+
+@dataclass(frozen=True)
+class GridSolution:
+    step_s: float
+    steps: int
+    values: NDArray[np.float64]  # the held derivative on each step
+    infeasible_steps: int  # the largest step count proven infeasible on this grid (bisection)
+
+
+@dataclass(frozen=True)
+class Solution:
+    arcs: tuple[Arc, ...]
+    order: int
+    duration_s: float
+    lower_bound_s: float
+    lower_bound_method: str
+    grid: GridSolution
+    refined: bool
+    refinement: str
+    lp_solves: int
+    lp_iterations: int
+    solve_time_s: float
+    cut_frequencies: int
+    notes: tuple[str, ...] = field(default=())
