@@ -26,6 +26,10 @@ CHROMIUM_ARGS = [
 ]
 
 
+def pytest_configure(config):
+    config.addinivalue_line("markers", "slow: a test of several seconds of solver time (deselect with -m 'not slow')")
+
+
 @pytest.fixture(scope="session")
 def live_server() -> Iterator[str]:
     with socket.socket() as s:
