@@ -74,7 +74,19 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.dependency_overrides[get_settings] = lambda: settings
     problems.install(app)
     app.add_middleware(problems.BodySizeLimit, max_bytes=settings.max_body_bytes)
-    routers = (health, plants, simulate, time_optimal, pseudo_polynomial, stap, smoothers, identify, shapers, compare, page)
+    routers = (
+        health,
+        plants,
+        simulate,
+        time_optimal,
+        pseudo_polynomial,
+        stap,
+        smoothers,
+        identify,
+        shapers,
+        compare,
+        page,
+    )
     for router in (*(r.router for r in routers), problems.router):
         app.include_router(router)
     app.mount("/static", page.static, name="static")

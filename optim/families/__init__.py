@@ -24,4 +24,11 @@ REGISTRY: dict[str, Family] = {
     )
 }
 
-__all__ = ["REGISTRY", "InputShapedFamily", "PseudoPolynomialFamily", "SmootherFamily", "StapFamily", "TimeOptimalFamily"]
+__all__ = [
+    "REGISTRY",
+    "InputShapedFamily",
+    "PseudoPolynomialFamily",
+    "SmootherFamily",
+    "StapFamily",
+    "TimeOptimalFamily",
+]

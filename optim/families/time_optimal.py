@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from functools import partial
 from typing import Any, ClassVar
 
 import numpy as np
@@ -18,12 +19,12 @@ from numpy.typing import NDArray
 
 from models.commands import PiecewiseCommand
 from models.errors import DomainError, InvalidParameter, SolverFailed
-from models.simulation import simulate
-from optim.solver import SolverReport
 from models.plant_base import Mode
 from models.sensitivity import band_below, residual_envelope, sensitivity
+from models.simulation import simulate
 from optim.family import BaseFamily, Candidate, Design, Run, SolverSummary
 from optim.problem import Problem
+from optim.solver import SolverReport
 from optim.synthesis import rigid_reference
 from optim.time_optimal import Arc, Band, Solution, Spec, Torque, command_of, solve
 from optim.time_optimal.types import DEFAULT_MAX_PERCENTAGE_VIBRATION, MAX_MODES
@@ -71,9 +72,7 @@ def selected_modes(problem: Problem, options: TimeOptimalOptions) -> tuple[tuple
     if options.modes is None:
         chosen = tuple(range(min(len(modes), MAX_MODES)))
         notes = (
-            (
-                f"the plant has {len(modes)} modes: the lowest {MAX_MODES} are cancelled (list others in modes)",
-            )
+            (f"the plant has {len(modes)} modes: the lowest {MAX_MODES} are cancelled (list others in modes)",)
             if len(modes) > MAX_MODES
             else ()
         )
@@ -136,7 +135,7 @@ def _torque(problem: Problem) -> Torque | None:
 def spec_of(problem: Problem, options: TimeOptimalOptions, chosen: tuple[int, ...]) -> Spec:
     modes = problem.plant.modes()
     robust = options.robustness
-    bands, covered = _bands(problem, robust, chosen)
+    bands, _covered = _bands(problem, robust, chosen)
     zero = tuple(modes[i].pole for i in chosen)  # a band keeps the nominal exact too: the load settles at the end
     order = 0 if robust is None else robust.derivative_order
     reference = rigid_reference(problem)
@@ -177,9 +176,7 @@ def limits_met(problem: Problem, spec: Spec, arcs: tuple[Arc, ...]) -> bool:
         if limit is not None and (peak is None or peak > limit * (1 + LIMIT_RTOL)):
             return False
     end = command.end_index()
-    if problem.rest_to_rest and abs(command.derivatives[0, end] - spec.move) > 1e-12 * spec.move:
-        return False
-    return True
+    return not (problem.rest_to_rest and abs(command.derivatives[0, end] - spec.move) > 1e-12 * spec.move)
 
 
 TIGHTENINGS = 3
@@ -207,7 +204,7 @@ def solve_within_limits(problem: Problem, spec: Spec) -> Solution:
     again (at most TIGHTENINGS times); the refined commands are checked exactly by limits_met."""
     current = spec
     for _ in range(TIGHTENINGS):
-        solution = solve(current, lambda arcs, s=current: limits_met(problem, s, arcs))
+        solution = solve(current, partial(limits_met, problem, current))
         over = excess(problem, spec, solution.arcs)
         if not over:
             return solution
@@ -215,7 +212,9 @@ def solve_within_limits(problem: Problem, spec: Spec) -> Solution:
         if "max_velocity" in over and current.max_velocity is not None:
             current = replace(current, max_velocity=current.max_velocity / over["max_velocity"] * margin)
         if "max_torque_nm" in over and current.torque is not None:
-            torque = replace(current.torque, max_torque_nm=current.torque.max_torque_nm / over["max_torque_nm"] * margin)
+            torque = replace(
+                current.torque, max_torque_nm=current.torque.max_torque_nm / over["max_torque_nm"] * margin
+            )
             current = replace(current, torque=torque)
     raise SolverFailed(
         SolverReport("limits_not_met", 0, 0.0),
@@ -243,7 +242,11 @@ class TimeOptimalFamily(BaseFamily):
     def not_applicable(self, problem: Problem) -> str | None:
         if not problem.plant.modes():
             return "the plant has no vibration mode to cancel: the rigid time-optimal move is the answer"
-        if problem.limits.max_acceleration is None and problem.limits.max_jerk is None and problem.limits.max_torque_nm is None:
+        if (
+            problem.limits.max_acceleration is None
+            and problem.limits.max_jerk is None
+            and problem.limits.max_torque_nm is None
+        ):
             return (
                 "the minimum-time command is impulsive without a bound on the acceleration: give "
                 "limits.max_acceleration (or limits.max_jerk, or limits.max_torque_nm on a two_inertia plant)"
@@ -310,7 +313,9 @@ class TimeOptimalFamily(BaseFamily):
                 (solved[w]["lower_bound_s"] for w in solved if w <= h and solved[w]["lower_bound_s"] is not None),
                 default=None,
             )
-            rows.append({"half_width": h, "frequency_ratio_range": [1.0 - h, 1.0 + h], **row, "from_half_width": source})
+            rows.append(
+                {"half_width": h, "frequency_ratio_range": [1.0 - h, 1.0 + h], **row, "from_half_width": source}
+            )
         return tuple(rows)
 
     def finish(self, problem: Problem, design: Design, run: Run) -> dict[str, Any]:
@@ -327,7 +332,9 @@ class TimeOptimalFamily(BaseFamily):
     def request_fields(self, options: Any) -> dict[str, Any]:
         out: dict[str, Any] = {}
         if options.robustness is not None:
-            out["robustness"] = {k: list(v) if isinstance(v, tuple) else v for k, v in vars(options.robustness).items() if v is not None}
+            out["robustness"] = {
+                k: list(v) if isinstance(v, tuple) else v for k, v in vars(options.robustness).items() if v is not None
+            }
         if options.modes is not None:
             out["modes"] = list(options.modes)
         if options.tradeoff is not None:
@@ -408,7 +415,12 @@ def robustness_report(problem: Problem, design: Design, detail: _Detail) -> dict
         lo, hi = robust.frequency_ratio_range or (1.0, 1.0)
         entries = [
             _band_entry(
-                problem, command, robust, i, lo * modes[i].natural_frequency_rad_s, hi * modes[i].natural_frequency_rad_s
+                problem,
+                command,
+                robust,
+                i,
+                lo * modes[i].natural_frequency_rad_s,
+                hi * modes[i].natural_frequency_rad_s,
             )
             for i in detail.modes
         ]

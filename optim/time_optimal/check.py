@@ -50,9 +50,7 @@ def band_grid(spec: Spec, band: Band, points: int) -> BandGrid:
     return BandGrid(band, omega, zeta, poles, bound)
 
 
-def worst_ratios(
-    spec: Spec, grid: BandGrid, start: Array, end: Array, level: Array, total_s: float
-) -> Array:
+def worst_ratios(spec: Spec, grid: BandGrid, start: Array, end: Array, level: Array, total_s: float) -> Array:
     """|F_0| / bound at every point of ``grid`` for the command holding ``level`` on [start, end)."""
     moment = acceleration_moment(spec, grid.poles, start, end, total_s, 0)
     ratios: Array = np.abs(moment @ level) / grid.bound

@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -168,8 +169,10 @@ class _Lp:
         self.lower = np.full(size, -np.inf)
         self.upper = np.full(size, np.inf)
 
-    def state(self, k: int | Array, i: int) -> int | Array:
-        return self.steps + np.asarray(k) * self.states + i
+    def state(self, k: int | NDArray[np.integer[Any]], i: int | NDArray[np.integer[Any]]) -> NDArray[np.intp]:
+        """The variable index of state i at node k (arrays broadcast)."""
+        out: NDArray[np.intp] = np.asarray(self.steps + np.asarray(k) * self.states + np.asarray(i), dtype=np.intp)
+        return out
 
     def dense_x_rows(self, rows: Array) -> sp.coo_matrix:
         pad = sp.coo_matrix((rows.shape[0], self.lower.size - self.steps))
@@ -369,8 +372,9 @@ def relaxed_lp(spec: Spec, total_s: float, steps: int, cuts: list[Cut], counter:
     lp.lower[lp.state(steps, 0)], lp.upper[lp.state(steps, 0)] = v_end - slack, v_end + slack
     if spec.max_velocity is not None:
         nodes = lp.state(np.arange(1, steps), 0)
-        lp.lower[nodes], lp.upper[nodes] = -spec.max_velocity / v_scale * (1 + slack), spec.max_velocity / v_scale * (
-            1 + slack
+        lp.lower[nodes], lp.upper[nodes] = (
+            -spec.max_velocity / v_scale * (1 + slack),
+            spec.max_velocity / v_scale * (1 + slack),
         )
     ranged: list[tuple[Array, float, float]] = []  # row . x within target +- width
     if spec.rest_to_rest:

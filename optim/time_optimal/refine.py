@@ -69,7 +69,9 @@ def _terms(
     value = diff @ lv
     if not jac:
         return value, None, diff
-    jac_d = np.einsum("pj,pji->pi", lv[None, :] * dphi(tau1), c1) - np.einsum("pj,pji->pi", lv[None, :] * dphi(tau2), c2)
+    jac_d = np.einsum("pj,pji->pi", lv[None, :] * dphi(tau1), c1) - np.einsum(
+        "pj,pji->pi", lv[None, :] * dphi(tau2), c2
+    )
     return value, jac_d, diff
 
 
@@ -81,7 +83,9 @@ def _end_moments(poles: NDArray[np.complex128], n: int, d: Array, lv: Array, jac
     lam = poles[:, None]
 
     def g_big(t: Array) -> NDArray[np.complex128]:
-        acc = sum((-1) ** k * math.factorial(n) / math.factorial(n - k) * t ** (n - k) / lam ** (k + 1) for k in range(n + 1))
+        acc = sum(
+            (-1) ** k * math.factorial(n) / math.factorial(n - k) * t ** (n - k) / lam ** (k + 1) for k in range(n + 1)
+        )
         out: NDArray[np.complex128] = np.exp(lam * t) * acc
         return out
 
@@ -195,14 +199,14 @@ class _Model:
         return self._parts(z, "ineq")[1]
 
 
-def refine(spec: Spec, durations: list[float], levels: list[float], free: list[bool], cuts: list[Cut]) -> Refined | None:
+def refine(
+    spec: Spec, durations: list[float], levels: list[float], free: list[bool], cuts: list[Cut]
+) -> Refined | None:
     """The shortest command of the grid solution's structure, or None if SLSQP does not find one."""
     model = _Model(spec, durations, levels, free, cuts)
     n = model.z0.size
     bounds = [(0.0, None)] * model.count + [(-1.0, 1.0)] * model.free.size
-    constraints: list[dict[str, object]] = [
-        {"type": "eq", "fun": model.equalities, "jac": model.equality_jacobian}
-    ]
+    constraints: list[dict[str, object]] = [{"type": "eq", "fun": model.equalities, "jac": model.equality_jacobian}]
     if model.inequalities(model.z0).size:
         constraints.append({"type": "ineq", "fun": model.inequalities, "jac": model.inequality_jacobian})
     cost = np.concatenate([np.ones(model.count), np.zeros(n - model.count)])

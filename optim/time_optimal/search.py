@@ -23,9 +23,15 @@ from numpy.typing import NDArray
 
 from models.errors import Infeasible, SolverFailed
 from optim.solver import SolverReport
-from optim.time_optimal import lp
 from optim.time_optimal.arcs import SNAP, arcs_of, merged, structure
-from optim.time_optimal.check import CHECK_MARGIN, DENSE_POINTS, INITIAL_POINTS, BandGrid, band_grid, violations, worst_ratios
+from optim.time_optimal.check import (
+    CHECK_MARGIN,
+    DENSE_POINTS,
+    INITIAL_POINTS,
+    band_grid,
+    violations,
+    worst_ratios,
+)
 from optim.time_optimal.lp import MARGIN, Cut, LpCounter, grid_lp, pieces, relaxed_lp
 from optim.time_optimal.refine import refine
 from optim.time_optimal.types import Arc, Band, GridSolution, Solution, Spec
@@ -89,7 +95,7 @@ class _Search:
             if upper >= spec.max_duration_s:
                 self.not_found()
             upper = min(2.0 * upper, spec.max_duration_s)
-        lo = min(int(math.floor(spec.floor_s / dt)), STEPS - 1)
+        lo = min(math.floor(spec.floor_s / dt), STEPS - 1)
         hi, best = STEPS, x
         while hi - lo > 1:
             mid = (lo + hi) // 2
@@ -305,7 +311,9 @@ def solve(spec: Spec, check_limits: Callable[[tuple[Arc, ...]], bool] | None = N
                 break
             best, how = better, note
         if best is None:
-            how = "the refined switching times did not converge or check out (limits, band): the grid optimum is returned"
+            how = (
+                "the refined switching times did not converge or check out (limits, band): the grid optimum is returned"
+            )
         else:
             arcs, refined = best, True
     if not refined:  # the grid optimum on a grid FALLBACK_FINER times finer, from the coarse bounds

@@ -178,7 +178,13 @@ def test_compare_forwards_sampling_settling_and_sensitivity_to_every_family(clie
             "include_curves": True,
         },
     ).json()
-    assert {row["family"] for row in body["rows"]} == {"time_optimal", "pseudo_polynomial", "stap", "smoother", "input_shaped"}
+    assert {row["family"] for row in body["rows"]} == {
+        "time_optimal",
+        "pseudo_polynomial",
+        "stap",
+        "smoother",
+        "input_shaped",
+    }
     for row in body["rows"]:
         request = row["request"]
         assert request["sample_period_s"] == 2e-3 and request["settling"] == {"position_tolerance": 0.01}

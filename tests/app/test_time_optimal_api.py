@@ -66,7 +66,9 @@ def test_bad_input_names_the_field(client, patch: dict, field: str | None) -> No
 
 
 def test_without_an_acceleration_bound_it_does_not_apply(client) -> None:
-    body = assert_problem(client.post(PATH, json={**KNOWN, "limits": {"max_velocity": 5.0}}), 422, slug="not-applicable")
+    body = assert_problem(
+        client.post(PATH, json={**KNOWN, "limits": {"max_velocity": 5.0}}), 422, slug="not-applicable"
+    )
     assert "max_acceleration" in body["detail"]
 
 

@@ -81,12 +81,17 @@ def test_known_answer_is_the_closed_form_three_switch_solution() -> None:
     assert abs(result.command.derivatives[1, end]) < 1e-12
 
 
-def test_known_answer_against_the_oracle_where_present() -> None:
-    oracle = pytest.importorskip("tests.time_optimal_oracle")
-    exact = oracle.minimum_time_s(0.12, 10.0, 5.0, 2 * math.pi * 40.0) if hasattr(oracle, "minimum_time_s") else None
-    if exact is None:
-        pytest.skip("the oracle has no minimum_time_s")
-    assert _design(KNOWN).summary["duration_s"] == pytest.approx(exact, rel=1e-4)
+@pytest.mark.parametrize(("frequency_hz", "displacement"), [(40.0, 0.12), (2.0, 0.3), (40.0, 0.02), (10.0, 0.05)])
+def test_nominal_matches_the_independent_oracle(frequency_hz: float, displacement: float) -> None:
+    """tests/time_optimal_oracle.py: the symmetric three-switch solution by brentq from its structure, proven
+    optimal by a maximum-principle check (no coast: the velocity limit is not reached here); 0.01 % is the
+    issue's tolerance on the known answer, applied to every such move."""
+    from tests import time_optimal_oracle as oracle
+
+    w = 2 * math.pi * frequency_hz
+    exact = oracle.minimum_time(w, 10.0, 5.0, displacement)
+    problem = Problem(ModePlant(frequency_hz, 0.0), displacement=displacement, limits=Limits(5.0, 10.0))
+    assert _design(problem).summary["duration_s"] == pytest.approx(exact, rel=1e-4)
 
 
 @pytest.mark.parametrize(
@@ -98,7 +103,9 @@ def test_known_answer_against_the_oracle_where_present() -> None:
     ],
     ids=["damped_cruise", "long_undamped", "jerk_limited"],
 )
-def test_nominal_designs_leave_no_residual_and_meet_the_limits(plant: ModePlant, displacement: float, limits: Limits) -> None:
+def test_nominal_designs_leave_no_residual_and_meet_the_limits(
+    plant: ModePlant, displacement: float, limits: Limits
+) -> None:
     problem = Problem(plant, displacement=displacement, limits=limits)
     result = _design(problem)
     mode = plant.modes()[0]
@@ -179,7 +186,9 @@ def test_every_mode_of_a_transfer_function_is_cancelled() -> None:
 
 def test_a_band_no_command_can_meet_within_the_cap_is_proven_infeasible() -> None:
     problem = Problem(ModePlant(5.0, 0.0), displacement=0.3, limits=Limits(max_velocity=1.0, max_acceleration=10.0))
-    options = TimeOptimalOptions(Robustness(frequency_ratio_range=(0.5, 2.0), max_percentage_vibration=0.01), max_duration_s=0.6)
+    options = TimeOptimalOptions(
+        Robustness(frequency_ratio_range=(0.5, 2.0), max_percentage_vibration=0.01), max_duration_s=0.6
+    )
     with pytest.raises(Infeasible, match="relaxation"):
         _design(problem, options)
 
