@@ -6,7 +6,9 @@
    Bands enter as cutting planes: each LP holds the band at the points found so far, the dense check
    (optim.time_optimal.check) adds the worst violating points until it passes.
 2. The grid optimum's structure is refined to exact switching times (optim.time_optimal.refine), kept
-   only if it meets every constraint on the dense check and is shorter.
+   only if it meets every constraint on the dense check and is shorter; a probe on a finer grid looks for
+   a better structure (see ``solve``). With a torque limit or a band, the grid optimum on a 4x finer grid
+   is the answer (within one of its steps of that grid's optimum).
 3. ``lower_bound_s``: the largest duration whose relaxed LP (optim.time_optimal.lp.relaxed_lp) HiGHS
    proves infeasible, found by bisection, or the rigid kinematic floor: no command at all (not only on
    the grid) that short meets the constraints.
@@ -41,11 +43,10 @@ FALLBACK_FINER = 4  # without a refinement, the grid optimum is sought again on 
 PROBES = 3
 PROBE_FINER = 4  # the probe's grid is this much finer than the search's
 PROBE_GAP = 0  # steps of the probe grid below the best refined duration it asks for (0: that duration)
-FINER = 2  # the second, finer grid's step is this fraction of the first's
 STEPS = 96  # steps over the search's upper duration
 CUT_ROUNDS = 12
 RELAXED_STEPS = 250
-BOUND_BISECTIONS = 4
+BOUND_BISECTIONS = 2
 PHASE_STEP = 0.15  # rad
 MAX_INITIAL_POINTS = 200
 MAX_ARCS = 16  # a grid solution with more arcs is not refined (it chatters: another start is tried)
@@ -57,7 +58,6 @@ class _Search:
         self.counter = LpCounter(deadline=time.perf_counter() + spec.wall_time_s)
         self.dense = [band_grid(spec, b, DENSE_POINTS) for b in spec.bands]
         self.cuts: list[Cut] = []
-        self.alternatives: list[tuple[Array, float]] = []  # other vertices (values, step): other arc structures
         for b in spec.bands:
             points = initial_points(b, spec.upper_guess_s)
             self.cuts += band_grid(spec, b, points).cuts(np.arange(points * len(b.damping_ratios)))
@@ -104,8 +104,7 @@ class _Search:
                 lo = mid
             else:
                 hi, best = mid, y
-        coarse = GridSolution(dt, hi, best, lo)
-        return coarse if spec.bands else self.finer(coarse)  # band structures are seldom refined: no other starts
+        return GridSolution(dt, hi, best, lo)
 
     def bisect(self, dt: float, lo: int, hi: int) -> GridSolution | None:
         """The least feasible step count in (lo, hi] on steps of dt (None if hi itself is not shown feasible)."""
@@ -121,16 +120,11 @@ class _Search:
                 hi, best = mid, y
         return GridSolution(dt, hi, best, lo)
 
-    def finer(self, coarse: GridSolution) -> GridSolution:
-        """Other vertices at the grid optimum's duration on steps FINER times shorter: those of two weighted-L1
-        objectives (acting early, and uniformly), starts for the refinement beside the coarse vertex."""
-        steps, dt = FINER * coarse.steps, coarse.step_s / FINER
+    def late_vertex(self, steps: int, dt: float) -> Array | None:
+        """The vertex of the weighted-L1 objective sum (0.01 + (k/N)^4) |x_k| on N steps of dt: it acts as early
+        as it can (a proxy for a shorter command), another arc structure than a feasibility vertex's."""
         k = np.arange(steps, dtype=float)
-        for weights in (0.01 + ((k + 1) / steps) ** 4, np.ones(steps)):
-            y = self.feasible(steps, dt, weights)
-            if y is not None:
-                self.alternatives.append((y, dt))
-        return coarse
+        return self.feasible(steps, dt, 0.01 + ((k + 1) / steps) ** 4)
 
     def not_found(self) -> None:
         spec = self.spec
@@ -149,30 +143,27 @@ class _Search:
 
     def lower_bound(self, found_s: float) -> tuple[float, str]:
         """(bound, method): the largest duration proven infeasible, by the relaxed LP or the kinematics. The
-        relaxation's gap is a few of its steps, so it is probed there first, then bisected below."""
+        relaxation's gap is a few of its steps: it is probed two steps below the duration found, then halfway
+        to the floor, then bisected BOUND_BISECTIONS times between the proven and the unproven (at most 4 LPs)."""
         spec = self.spec
         lo, hi = spec.floor_s, found_s
         method = "kinematic floor (the rigid time-optimal move within the limits)"
-        if spec.max_acceleration is None or hi <= lo:
+        step = found_s / RELAXED_STEPS
+        if spec.max_acceleration is None or hi - lo <= 4.0 * step:  # nothing the relaxation could prove
             return lo, method
         proven = "relaxed LP proven infeasible by HiGHS (no command of that duration exists)"
-        step = found_s / RELAXED_STEPS
-        if hi - lo <= 4.0 * step:  # within the relaxation's own gap of the floor: nothing more to prove
-            return lo, method
-        for gap in (2.0, 8.0):
-            probe = found_s - gap * step
-            if probe <= lo:
-                break
-            if not relaxed_lp(spec, probe, RELAXED_STEPS, self.cuts, self.counter):
-                lo, method = probe, proven
-                break
-            hi = probe
-        for _ in range(1 if method == proven else BOUND_BISECTIONS):
-            mid = 0.5 * (lo + hi)
-            if relaxed_lp(spec, mid, RELAXED_STEPS, self.cuts, self.counter):
-                hi = mid
-            else:
-                lo, method = mid, proven
+        for probe in (found_s - 2.0 * step, 0.5 * (lo + found_s - 2.0 * step)):
+            if relaxed_lp(spec, probe, RELAXED_STEPS, self.cuts, self.counter):
+                hi = probe
+                continue
+            lo, method = probe, proven
+            for _ in range(BOUND_BISECTIONS):
+                mid = 0.5 * (lo + hi)
+                if relaxed_lp(spec, mid, RELAXED_STEPS, self.cuts, self.counter):
+                    hi = mid
+                else:
+                    lo = mid
+            break
         return lo, method
 
     def verified(self, arcs: tuple[Arc, ...]) -> bool:
@@ -279,10 +270,11 @@ def solve(spec: Spec, check_limits: Callable[[tuple[Arc, ...]], bool] | None = N
     """The minimum-time command of ``spec`` (see the module's docstring). ``check_limits(arcs) -> bool``
     tells whether a refined command meets the limits exactly (the caller's independent check).
 
-    Without a torque limit or a band, the grid optimum's structures are refined to exact switching times;
-    then a probe asks a grid PROBE_FINER times finer for a command PROBE_GAP of its steps shorter: if one
-    exists, it is another structure, refined in turn (at most PROBES times), so that a local optimum of one
-    structure is not returned where a shorter one exists on the fine grid."""
+    Without a torque limit or a band, the grid optimum's structure is refined to exact switching times (or,
+    failing that, the structure of the early-acting weighted-L1 vertex); then a probe asks a grid PROBE_FINER
+    times finer for the early-acting vertex at the refined duration: if one exists, its structure is refined in
+    turn (at most PROBES times), so that a local optimum of one structure is not returned where a shorter one
+    exists on the fine grid."""
     began = time.perf_counter()
     search = _Search(spec)
     grid = search.grid_optimum()
@@ -295,15 +287,17 @@ def solve(spec: Spec, check_limits: Callable[[tuple[Arc, ...]], bool] | None = N
             "of its steps of it)"
         )
     else:
-        starts = [(values, grid.step_s)] + [(np.clip(y, -1, 1), h) for y, h in search.alternatives]
-        best, how = _refine_best(spec, search, starts, None, check_limits)
+        best, how = _refine_best(spec, search, [(values, grid.step_s)], None, check_limits)
+        if best is None:  # another vertex, another structure
+            late = search.late_vertex(grid.steps, grid.step_s)
+            if late is not None:
+                best, how = _refine_best(spec, search, [(_clip(spec, late), grid.step_s)], None, check_limits)
         for _ in range(PROBES if best is not None else 0):
             assert best is not None
             total = sum(a.duration_s for a in best)
             steps = PROBE_FINER * grid.steps
             dt = total / (steps + PROBE_GAP)
-            k = np.arange(steps, dtype=float)
-            probe = search.feasible(steps, dt, 0.01 + ((k + 1) / steps) ** 4)
+            probe = search.late_vertex(steps, dt)
             if probe is None:
                 break
             better, note = _refine_best(spec, search, [(np.clip(probe, -1, 1), dt)], best, check_limits)
