@@ -86,12 +86,14 @@ async def time_optimal_profile(
     Method (Singh and Vadali 1993; Pao and Singhose; the LP view of Dhanda, Vaughan and Singhose 2009): for a
     fixed duration on a grid with the acceleration (with max_jerk, the jerk) constant on each step, every
     constraint is linear: the end state, the velocity/acceleration bounds (exact at the nodes), the motor
-    torque J_M a + J_L a_L of a two-inertia plant (four points a step), the residual of each mode
+    torque J_M a + J_L a_L of a two-inertia plant (five points a step), the residual of each mode
     (Re F = Im F = 0, F = int a(t) exp(lambda (T - t)) dt), each band point |F| <= c by an inscribed 16-gon, the
-    points added as cutting planes until a dense check of 400 frequencies per damping ratio passes. Feasibility
-    is monotone in the number of steps, so bisection gives the grid's optimum (HiGHS); its switching times are
-    then made exact (SLSQP and a Newton polish), kept only if every limit and the dense band check hold and the
-    command is shorter.
+    points added as cutting planes until a dense check (at least 1500 frequencies per damping ratio, more for a
+    wide band) passes. Feasibility is monotone in the number of steps, so bisection gives the grid's optimum
+    (HiGHS); its switching times are then made exact (SLSQP and a Newton polish), kept only if every limit and
+    the dense band check hold and the command is shorter (nominal designs; with a band or a torque limit the
+    answer is the optimum of a 4x finer grid). A band also keeps exactly zero residual at the nominal modes
+    unless robustness.zero_residual_at_modes is false; lower_bound_s certifies the problem as asked.
 
     design: duration_s; lower_bound_s (a certificate: HiGHS proves infeasible a relaxation that every command of
     that duration satisfies, by its step averages, or the rigid kinematic floor; no command at all, on any grid,

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 from pydantic import Field, field_validator, model_validator
 
 from app.schemas.common import OutModel, StrictModel
@@ -57,6 +55,12 @@ class RobustnessIn(StrictModel):
         description="[lo, hi]: the band also holds for these true damping ratios (its ends and middle are checked); "
         "default: the mode's own.",
     )
+    zero_residual_at_modes: bool = Field(
+        True,
+        description="With a band: also exactly zero residual at the nominal modes (default), so that the load "
+        "settles when the command ends on the nominal plant; false: the band only (up to a few % shorter, "
+        "leaving up to max_percentage_vibration at the nominal frequency).",
+    )
     derivative_order: int | None = Field(
         None,
         ge=1,
@@ -88,6 +92,7 @@ class RobustnessIn(StrictModel):
             max_percentage_vibration=self.max_percentage_vibration,
             damping_ratio_range=pair(self.damping_ratio_range),
             derivative_order=self.derivative_order or 0,
+            zero_residual_at_modes=self.zero_residual_at_modes,
         )
 
 
@@ -164,7 +169,5 @@ class TradeoffRow(OutModel):
 class TimeOptimalOut(FamilyResponse):
     tradeoff: list[TradeoffRow] | None = Field(None, description="One row per requested half-width.")
 
-
-EXAMPLE_DESIGN_FIELDS: dict[str, Any] = {}  # the design block is documented in the endpoint's description
 
 __all__ = ["FAMILY", "RobustnessIn", "TimeOptimalIn", "TimeOptimalOut", "TradeoffRow"]

@@ -10,6 +10,7 @@ refinement of the switching times.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, replace
 from functools import partial
 from typing import Any, ClassVar
@@ -30,7 +31,8 @@ from optim.time_optimal import Arc, Band, Solution, Spec, Torque, command_of, so
 from optim.time_optimal.types import DEFAULT_MAX_PERCENTAGE_VIBRATION, MAX_MODES
 
 LIMIT_RTOL = 1e-10  # a refined command must meet its limits this tightly (the pipeline refuses above 1e-9)
-CHECK_POINTS = 2001  # the independent dense check of a band
+CHECK_POINTS = 2001  # the independent dense check of a band: at least this many frequencies,
+MAX_CHECK_POINTS = 40_001  # about 50 per radian of the residual's phase across it (T dw), at most this many
 MAX_TRADEOFF = 8
 SEARCH_PERIODS = 20.0  # default max_duration_s: 4 x the rigid time plus this many periods of the slowest mode
 
@@ -45,6 +47,7 @@ class Robustness:
     max_percentage_vibration: float = DEFAULT_MAX_PERCENTAGE_VIBRATION
     damping_ratio_range: tuple[float, float] | None = None
     derivative_order: int = 0
+    zero_residual_at_modes: bool = True  # a band keeps exactly zero residual at the nominal modes too
 
     @property
     def has_band(self) -> bool:
@@ -94,7 +97,7 @@ def _zetas(robust: Robustness | None, mode: Mode) -> tuple[float, ...]:
 
 
 def _bands(problem: Problem, robust: Robustness | None, chosen: tuple[int, ...]) -> tuple[tuple[Band, ...], set[int]]:
-    """The bands, and the chosen modes a band covers (no exact zero is required there)."""
+    """The bands, and the chosen modes a band covers (exact zero there only if zero_residual_at_modes)."""
     if robust is None or not robust.has_band:
         return (), set()
     modes = problem.plant.modes()
@@ -107,7 +110,6 @@ def _bands(problem: Problem, robust: Robustness | None, chosen: tuple[int, ...])
                 hi * modes[i].natural_frequency_rad_s,
                 _zetas(robust, modes[i]),
                 vmax,
-                modes[i].natural_frequency_rad_s,
             )
             for i in chosen
         )
@@ -117,7 +119,7 @@ def _bands(problem: Problem, robust: Robustness | None, chosen: tuple[int, ...])
     centre = math.sqrt(lo_w * hi_w)
     nearest = min(chosen, key=lambda i: abs(math.log(modes[i].natural_frequency_rad_s / centre)))
     covered = {i for i in chosen if lo_w <= modes[i].natural_frequency_rad_s <= hi_w}
-    band = Band(lo_w, hi_w, _zetas(robust, modes[nearest]), vmax, modes[nearest].natural_frequency_rad_s)
+    band = Band(lo_w, hi_w, _zetas(robust, modes[nearest]), vmax)
     return (band,), covered
 
 
@@ -125,25 +127,24 @@ def _torque(problem: Problem) -> Torque | None:
     inertias = problem.plant.torque_inertias()
     if problem.limits.max_torque_nm is None or inertias is None:
         return None
-    mode = problem.plant.modes()[0]
-    num, den = problem.plant.load_transfer_function()
-    pole = mode.pole
-    residue = complex(np.polyval(num, pole) / np.polyval(np.polyder(den), pole))
-    return Torque(inertias[0], inertias[1], problem.limits.max_torque_nm, pole, residue)
+    return Torque(inertias[0], inertias[1], problem.limits.max_torque_nm, problem.plant.modes()[0].pole)
 
 
-def spec_of(problem: Problem, options: TimeOptimalOptions, chosen: tuple[int, ...]) -> Spec:
+def spec_of(
+    problem: Problem, options: TimeOptimalOptions, chosen: tuple[int, ...], deadline_s: float | None = None
+) -> Spec:
     modes = problem.plant.modes()
     robust = options.robustness
-    bands, _covered = _bands(problem, robust, chosen)
-    zero = tuple(modes[i].pole for i in chosen)  # a band keeps the nominal exact too: the load settles at the end
+    bands, covered = _bands(problem, robust, chosen)
+    keep = robust is None or robust.zero_residual_at_modes  # by default the load settles when the command ends
+    zero = tuple(modes[i].pole for i in chosen if keep or i not in covered)
     order = 0 if robust is None else robust.derivative_order
     reference = rigid_reference(problem)
     floor = problem.kinematic_floor_s()
     rigid = float(reference.time_s[-1]) if problem.acceleration_limit is not None else floor
     periods = sum((0.5 + 0.5 * order) * modes[i].damped_period_s for i in chosen)
-    periods += sum(2 * math.pi / b.low_rad_s for b in bands)
     slowest = max(modes[i].natural_period_s for i in chosen)
+    periods += sum(min(2 * math.pi / b.low_rad_s, 2 * slowest) for b in bands)  # the search doubles it if short
     upper = max(rigid, floor) + periods
     cap = options.max_duration_s or 4.0 * max(rigid, floor) + SEARCH_PERIODS * slowest
     if cap <= floor:
@@ -165,6 +166,7 @@ def spec_of(problem: Problem, options: TimeOptimalOptions, chosen: tuple[int, ..
         upper_guess_s=min(upper, cap),
         max_duration_s=cap,
         wall_time_s=problem.solver.max_wall_time_s,
+        deadline_s=deadline_s,
     )
 
 
@@ -204,7 +206,7 @@ def solve_within_limits(problem: Problem, spec: Spec) -> Solution:
     again (at most TIGHTENINGS times); the refined commands are checked exactly by limits_met."""
     current = spec
     for _ in range(TIGHTENINGS):
-        solution = solve(current, partial(limits_met, problem, current))
+        solution = solve(current, partial(limits_met, problem, current), bound_spec=spec)
         over = excess(problem, spec, solution.arcs)
         if not over:
             return solution
@@ -264,12 +266,13 @@ class TimeOptimalFamily(BaseFamily):
 
     def design(self, problem: Problem, options: TimeOptimalOptions) -> Design:
         chosen, notes = selected_modes(problem, options)
-        spec = spec_of(problem, options, chosen)
+        deadline = time.perf_counter() + problem.solver.max_wall_time_s  # one budget for the design and its rows
+        spec = spec_of(problem, options, chosen, deadline)
         solution = solve_within_limits(problem, spec)
         sign = math.copysign(1.0, problem.move)
         arcs = tuple(replace(a, level=sign * a.level) for a in solution.arcs)
         command = command_of(arcs, spec.order, spec.rest_to_rest)
-        tradeoff = None if options.tradeoff is None else self._tradeoff(problem, options, chosen)
+        tradeoff = None if options.tradeoff is None else self._tradeoff(problem, options, chosen, deadline)
         detail = _Detail(solution, chosen, options.robustness, tradeoff)
         extra = () if solution.refined else (f"the switching times are the grid's ({solution.refinement})",)
         report = SolverSummary(
@@ -282,7 +285,7 @@ class TimeOptimalFamily(BaseFamily):
         return Design(command, block, (*notes, *extra), report, detail=detail)
 
     def _tradeoff(
-        self, problem: Problem, options: TimeOptimalOptions, chosen: tuple[int, ...]
+        self, problem: Problem, options: TimeOptimalOptions, chosen: tuple[int, ...], deadline: float
     ) -> tuple[dict[str, Any], ...]:
         """One row per half-width h: the minimum duration for the band [1 - h, 1 + h] (h = 0: zero residual).
         A design for a wider band meets every narrower one, so a row never shows more than a wider band's
@@ -295,7 +298,7 @@ class TimeOptimalFamily(BaseFamily):
                 max_percentage_vibration=robust.max_percentage_vibration,
                 damping_ratio_range=robust.damping_ratio_range,
             )
-            spec = spec_of(problem, replace(options, robustness=band, tradeoff=None), chosen)
+            spec = spec_of(problem, replace(options, robustness=band, tradeoff=None), chosen, deadline)
             try:
                 s = solve_within_limits(problem, spec)
             except DomainError as exc:
@@ -381,7 +384,7 @@ def _design_block(
             "step_s": grid.step_s,
             "steps": grid.steps,
             "duration_s": grid.steps * grid.step_s,
-            "longest_infeasible_s": grid.infeasible_steps * grid.step_s,
+            "longest_not_found_s": grid.infeasible_steps * grid.step_s,  # no command found on this grid (no proof)
         },
         "refined": solution.refined,
         "refinement": solution.refinement,
@@ -433,8 +436,9 @@ def robustness_report(problem: Problem, design: Design, detail: _Detail) -> dict
         "worst_percentage_vibration": max(e["worst_percentage_vibration"] for e in entries),
         "max_percentage_vibration": robust.max_percentage_vibration,
         "bands": entries,
-        "check": f"models.sensitivity on the exact command: {CHECK_POINTS} frequencies over each requested band x "
-        f"the damping ratios asked; the achieved band on {4 * CHECK_POINTS} more frequencies around it",
+        "check": f"models.sensitivity on the exact command: {CHECK_POINTS} to {MAX_CHECK_POINTS} frequencies over "
+        f"each requested band (50 per radian of the residual's phase) x the damping ratios asked (a range: its ends "
+        f"and middle); the achieved band on {4 * CHECK_POINTS} more frequencies around it",
     }
 
 
@@ -445,7 +449,9 @@ def _band_entry(
     omega, vmax = mode.natural_frequency_rad_s, robust.max_percentage_vibration
     zetas = np.asarray(_zetas(robust, mode))
     lo, hi = lo_w / omega, hi_w / omega
-    inside = np.linspace(lo, hi, CHECK_POINTS) if hi > lo else np.array([lo])
+    duration = float(command.time_s[command.end_index()] - command.time_s[0])
+    points = int(min(MAX_CHECK_POINTS, max(CHECK_POINTS, math.ceil((hi_w - lo_w) * duration * 50) + 1)))
+    inside = np.linspace(lo, hi, points) if hi > lo else np.array([lo])
     worst = float(np.max(_v(problem, command, omega, inside, zetas)))
     wide = np.union1d(np.linspace(max(0.02, lo / 3), min(50.0, max(3 * hi, 3.0)), 4 * CHECK_POINTS), inside)
     achieved = band_below(wide, np.max(_v(problem, command, omega, wide, zetas), axis=0), vmax, centre=0.5 * (lo + hi))

@@ -8,6 +8,7 @@ violating points become LP cuts) and on the final command.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -38,6 +39,13 @@ class BandGrid:
         return [Cut(complex(self.poles[i]), float(self.bound[i])) for i in index]
 
 
+def dense_points(band: Band, duration_s: float, per_radian: float = 20.0, cap: int = 20_000) -> int:
+    """Frequencies for a dense check of ``band``: at least DENSE_POINTS, and about ``per_radian`` per radian of
+    the residual's phase across it (the phase of F_0 turns by about T dw), capped."""
+    span = (band.high_rad_s - band.low_rad_s) * duration_s
+    return int(min(cap, max(DENSE_POINTS, math.ceil(span * per_radian) + 1)))
+
+
 def band_grid(spec: Spec, band: Band, points: int) -> BandGrid:
     omega1 = np.linspace(band.low_rad_s, band.high_rad_s, points)
     zetas = np.asarray(band.damping_ratios, dtype=float)
@@ -57,13 +65,16 @@ def worst_ratios(spec: Spec, grid: BandGrid, start: Array, end: Array, level: Ar
     return ratios
 
 
-def violations(ratios: Array, count: int = 40, near: float = 0.995) -> NDArray[np.intp]:
+def violations(ratios: Array, rows: int = 1, count: int = 40, near: float = 0.995) -> NDArray[np.intp]:
     """Where to add cuts when the check fails (some ratio > 1): every local maximum above ``near`` (the ones
-    about to fail next round too), the worst ``count`` of them; none when every ratio is <= 1."""
+    about to fail next round too) along each of the ``rows`` damping ratios, the worst ``count`` of them; none
+    when every ratio is <= 1."""
     if not np.any(ratios > 1.0):
         return np.zeros(0, dtype=np.intp)
-    padded = np.concatenate(([-np.inf], ratios, [-np.inf]))
-    peaks = np.flatnonzero((ratios > near) & (ratios >= padded[:-2]) & (ratios >= padded[2:]))
+    grid = ratios.reshape(rows, -1)
+    padded = np.pad(grid, ((0, 0), (1, 1)), constant_values=-np.inf)
+    local = (grid > near) & (grid >= padded[:, :-2]) & (grid >= padded[:, 2:])
+    peaks = np.flatnonzero(local.ravel())
     order = np.argsort(ratios[peaks])[::-1]
     out: NDArray[np.intp] = peaks[order[:count]]
     return out

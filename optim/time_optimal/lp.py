@@ -7,8 +7,9 @@ z_(k+1) = Phi z_k + Gamma u_k. The states are LP variables, so that the LP stays
 
 - the end state (position, velocity, acceleration) and the node bounds are bounds on the states
   (exact: between nodes the velocity of a held acceleration, and the acceleration of a held jerk, are
-  linear); the velocity of a jerk-limited command is also bounded mid-step, the torque
-  J_M a + J_L a_L at four points of every step (rows C z_k + D u_k);
+  linear); the velocity of a jerk-limited command is also bounded mid-step (not exact: it may exceed
+  the bound by up to J dt^2 / 32 between, which the family measures and tightens), the torque
+  J_M a + J_L a_L at five points of every step, both sides of each node (rows C z_k + D u_k);
 - zero residual at each cancelled pole: Re F_n = Im F_n = 0 (optim.time_optimal.weights), two dense rows;
 - each band point |F_0| <= (1 - BAND_MARGIN) c, by the 16-gon inscribed in that circle.
 
@@ -399,7 +400,7 @@ def relaxed_lp(spec: Spec, total_s: float, steps: int, cuts: list[Cut], counter:
         diff = sp.diags([np.ones(steps), -np.ones(steps)], [0, -1], shape=(steps + 1, steps)).tocoo()
         limit = np.full(steps + 1, spec.max_jerk * dt / accel * (1 + slack))
         limit[[0, -1]] /= 2.0  # the acceleration starts and ends at 0
-        pad = sp.coo_matrix((steps + 1, steps + 1))
+        pad = sp.coo_matrix((steps + 1, lp.lower.size - steps))  # the velocities and the band's variables
         m = sp.hstack([diff, pad]).tocoo()
         lp.add_ub(m, limit)
         lp.add_ub(-m, limit)

@@ -28,9 +28,9 @@ from optim.solver import SolverReport
 from optim.time_optimal.arcs import SNAP, arcs_of, merged, structure
 from optim.time_optimal.check import (
     CHECK_MARGIN,
-    DENSE_POINTS,
     INITIAL_POINTS,
     band_grid,
+    dense_points,
     violations,
     worst_ratios,
 )
@@ -42,7 +42,6 @@ Array = NDArray[np.float64]
 FALLBACK_FINER = 4  # without a refinement, the grid optimum is sought again on steps this much shorter
 PROBES = 3
 PROBE_FINER = 4  # the probe's grid is this much finer than the search's
-PROBE_GAP = 0  # steps of the probe grid below the best refined duration it asks for (0: that duration)
 STEPS = 96  # steps over the search's upper duration
 CUT_ROUNDS = 12
 RELAXED_STEPS = 250
@@ -55,8 +54,9 @@ MAX_ARCS = 16  # a grid solution with more arcs is not refined (it chatters: ano
 class _Search:
     def __init__(self, spec: Spec) -> None:
         self.spec = spec
-        self.counter = LpCounter(deadline=time.perf_counter() + spec.wall_time_s)
-        self.dense = [band_grid(spec, b, DENSE_POINTS) for b in spec.bands]
+        deadline = time.perf_counter() + spec.wall_time_s
+        self.counter = LpCounter(deadline=deadline if spec.deadline_s is None else min(deadline, spec.deadline_s))
+        self.dense = [band_grid(spec, b, dense_points(b, spec.upper_guess_s)) for b in spec.bands]
         self.cuts: list[Cut] = []
         for b in spec.bands:
             points = initial_points(b, spec.upper_guess_s)
@@ -78,7 +78,7 @@ class _Search:
         added = False
         for grid in self.dense:
             ratios = worst_ratios(self.spec, grid, start, end, level, total)
-            worst = violations(ratios / (1.0 - CHECK_MARGIN))
+            worst = violations(ratios / (1.0 - CHECK_MARGIN), len(grid.band.damping_ratios))
             if worst.size:
                 self.cuts += grid.cuts(worst)
                 added = True
@@ -104,10 +104,15 @@ class _Search:
                 lo = mid
             else:
                 hi, best = mid, y
+        if hi < STEPS // 2:  # the guess was far too long: search again on steps that fit the duration found
+            fine = self.bisect(hi * dt / STEPS, math.floor(spec.floor_s / (hi * dt / STEPS)), STEPS)
+            if fine is not None:
+                return fine
         return GridSolution(dt, hi, best, lo)
 
     def bisect(self, dt: float, lo: int, hi: int) -> GridSolution | None:
         """The least feasible step count in (lo, hi] on steps of dt (None if hi itself is not shown feasible)."""
+        lo = min(lo, hi - 1)
         best = self.feasible(hi, dt)
         if best is None:
             return None
@@ -141,11 +146,13 @@ class _Search:
             "(infeasibility is not proven); allow a longer max_duration_s",
         )
 
-    def lower_bound(self, found_s: float) -> tuple[float, str]:
+    def lower_bound(self, found_s: float, spec: Spec | None = None) -> tuple[float, str]:
         """(bound, method): the largest duration proven infeasible, by the relaxed LP or the kinematics. The
         relaxation's gap is a few of its steps: it is probed two steps below the duration found, then halfway
-        to the floor, then bisected BOUND_BISECTIONS times between the proven and the unproven (at most 4 LPs)."""
-        spec = self.spec
+        to the floor, then bisected BOUND_BISECTIONS times between the proven and the unproven (at most 4 LPs).
+        ``spec``: the problem it certifies (default the searched one; the caller's original when the search ran
+        with a limit tightened)."""
+        spec = spec or self.spec
         lo, hi = spec.floor_s, found_s
         method = "kinematic floor (the rigid time-optimal move within the limits)"
         step = found_s / RELAXED_STEPS
@@ -266,9 +273,12 @@ def _refine_best(
     return best, how
 
 
-def solve(spec: Spec, check_limits: Callable[[tuple[Arc, ...]], bool] | None = None) -> Solution:
+def solve(
+    spec: Spec, check_limits: Callable[[tuple[Arc, ...]], bool] | None = None, bound_spec: Spec | None = None
+) -> Solution:
     """The minimum-time command of ``spec`` (see the module's docstring). ``check_limits(arcs) -> bool``
-    tells whether a refined command meets the limits exactly (the caller's independent check).
+    tells whether a refined command meets the limits exactly (the caller's independent check); ``bound_spec``
+    is the problem lower_bound_s certifies (default ``spec``).
 
     Without a torque limit or a band, the grid optimum's structure is refined to exact switching times (or,
     failing that, the structure of the early-acting weighted-L1 vertex); then a probe asks a grid PROBE_FINER
@@ -296,7 +306,7 @@ def solve(spec: Spec, check_limits: Callable[[tuple[Arc, ...]], bool] | None = N
             assert best is not None
             total = sum(a.duration_s for a in best)
             steps = PROBE_FINER * grid.steps
-            dt = total / (steps + PROBE_GAP)
+            dt = total / steps
             probe = search.late_vertex(steps, dt)
             if probe is None:
                 break
@@ -318,7 +328,7 @@ def solve(spec: Spec, check_limits: Callable[[tuple[Arc, ...]], bool] | None = N
             grid = fine
             arcs = arcs_of(spec.scale * _clip(spec, project(spec, fine)), fine.step_s)
     duration = sum(a.duration_s for a in arcs)
-    bound, method = search.lower_bound(duration)
+    bound, method = search.lower_bound(duration, bound_spec)
     return Solution(
         arcs=arcs,
         order=spec.order,

@@ -22,18 +22,17 @@ class Band:
     high_rad_s: float
     damping_ratios: tuple[float, ...]
     max_percentage_vibration: float = DEFAULT_MAX_PERCENTAGE_VIBRATION
-    nominal_rad_s: float | None = None  # the mode it is a band around (for the ratios it is reported in)
 
 
 @dataclass(frozen=True)
 class Torque:
-    """The motor torque J_M a + J_L a_L of a two-inertia plant, a_L = G a with G's upper pole and residue."""
+    """The motor torque J_M a + J_L a_L of a two-inertia plant, a_L = G a, G = (2 zeta w s + w^2) / (s^2 +
+    2 zeta w s + w^2) given by its upper pole (Cusimano eq. 4)."""
 
     motor_inertia_kgm2: float
     load_inertia_kgm2: float
     max_torque_nm: float
     pole: complex
-    residue: complex
 
 
 @dataclass(frozen=True)
@@ -56,6 +55,7 @@ class Spec:
     upper_guess_s: float  # a duration at which a command is expected to exist (the search starts there)
     max_duration_s: float
     wall_time_s: float = 10.0
+    deadline_s: float | None = None  # time.perf_counter() by which the whole design must end (shared by its solves)
 
     @property
     def order(self) -> int:
@@ -85,7 +85,7 @@ class GridSolution:
     step_s: float
     steps: int
     values: NDArray[np.float64]  # the held derivative on each step
-    infeasible_steps: int  # the largest step count proven infeasible on this grid (bisection)
+    infeasible_steps: int  # the largest step count for which the bisection found no command (not a proof)
 
 
 @dataclass(frozen=True)

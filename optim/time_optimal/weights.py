@@ -75,15 +75,3 @@ def amplitude_gain(poles: CArray, natural_frequency_rad_s: Array, damping_ratio:
     residue = (2 * z * w * poles + w * w) / (2 * poles + 2 * z * w)
     gain: Array = np.abs(2.0 * residue * poles**derivative) / np.abs(poles) ** 2
     return gain
-
-
-def step_response_terms(pole: complex, residue: complex, tau: Array, r: int) -> Array:
-    """The r-fold integral of a strictly proper second-order G's impulse response, evaluated at tau >= 0
-    (0 before): r = 1 the step response 1 + 2 Re(res/lambda e^(lambda tau)), r = 2 the ramp response."""
-    t = np.maximum(tau, 0.0)
-    if r == 1:
-        out = 1.0 + 2.0 * np.real(residue / pole * np.exp(pole * t))
-    else:
-        out = t - 2.0 * np.real(residue / pole**2) + 2.0 * np.real(residue / pole**2 * np.exp(pole * t))
-    result: Array = np.where(tau > 0.0, out, 0.0)
-    return result

@@ -212,3 +212,33 @@ def test_tradeoff_rows_grow_with_the_band() -> None:
     assert durations[0] == pytest.approx(result.summary["duration_s"], rel=1e-12)
     assert durations[0] < durations[1] <= durations[2]
     assert all(r["lower_bound_s"] <= r["duration_s"] for r in rows)
+
+
+def test_jerk_limited_robust_band() -> None:
+    # Review finding: the relaxed LP's jerk rows were padded without the band's variables (a crash).
+    limits = Limits(max_velocity=1.0, max_acceleration=10.0, max_jerk=200.0)
+    problem = Problem(ModePlant(5.0, 0.05), displacement=0.3, limits=limits)
+    result = _design(problem, TimeOptimalOptions(Robustness(frequency_ratio_range=(0.9, 1.1))))
+    assert result.limit_violations == ()
+    assert float(np.max(_v(problem, result, np.linspace(0.9, 1.1, 3001), 0.05))) <= 5.0 * (1 + 1e-9)
+    assert result.summary["lower_bound_s"] <= result.summary["duration_s"]
+
+
+def test_band_only_is_no_longer_and_still_covers_the_band() -> None:
+    problem = Problem(ModePlant(5.0, 0.05), displacement=0.3, limits=Limits(max_velocity=1.0, max_acceleration=10.0))
+    both = _design(problem, TimeOptimalOptions(Robustness(frequency_ratio_range=(0.8, 1.2))))
+    band = _design(problem, TimeOptimalOptions(Robustness(frequency_ratio_range=(0.8, 1.2), zero_residual_at_modes=False)))
+    # Fewer constraints: no longer, up to one step of the 4x finer grid both are optima of.
+    assert band.summary["duration_s"] <= both.summary["duration_s"] + band.summary["grid"]["step_s"]
+    assert float(np.max(_v(problem, band, np.linspace(0.8, 1.2, 3001), 0.05))) <= 5.0 * (1 + 1e-9)
+    assert both.percentage_vibration is not None and both.percentage_vibration < 1e-6
+
+
+def test_a_band_reaching_low_frequencies_keeps_a_fine_grid() -> None:
+    # Review finding: a band edge at 1 mHz made the search's guess (and its step) huge under a large cap.
+    problem = Problem(ModePlant(5.0, 0.05), displacement=0.3, limits=Limits(max_velocity=1.0, max_acceleration=10.0))
+    options = TimeOptimalOptions(Robustness(frequency_range_hz=(0.001, 6.0)), max_duration_s=1e4)
+    result = _design(problem, options)
+    grid = result.summary["grid"]
+    assert grid["steps"] >= 48  # the grid fits the duration found, not the guess
+    assert result.summary["duration_s"] < 3.0
