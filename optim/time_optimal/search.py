@@ -326,7 +326,16 @@ def solve(
         )
         if fine is not None:
             grid = fine
-            arcs = arcs_of(spec.scale * _clip(spec, project(spec, fine)), fine.step_s)
+            values = _clip(spec, project(spec, fine))
+            arcs = arcs_of(spec.scale * values, fine.step_s)
+            if spec.torque is None and not spec.bands:  # the finer grid's structures, refined in turn
+                starts = [(values, fine.step_s)]
+                late = search.late_vertex(fine.steps, fine.step_s)
+                if late is not None:
+                    starts.append((_clip(spec, late), fine.step_s))
+                best, note = _refine_best(spec, search, starts, arcs, check_limits)
+                if best is not arcs and best is not None:
+                    arcs, refined, how = best, True, f"{note} (from the finer grid's structure)"
     duration = sum(a.duration_s for a in arcs)
     bound, method = search.lower_bound(duration, bound_spec)
     return Solution(
