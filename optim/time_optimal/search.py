@@ -37,6 +37,7 @@ from optim.time_optimal.check import (
 from optim.time_optimal.lp import MARGIN, Cut, LpCounter, grid_lp, pieces, relaxed_lp
 from optim.time_optimal.refine import refine
 from optim.time_optimal.types import Arc, Band, GridSolution, Solution, Spec
+from optim.time_optimal.weights import exponential_moment, integrated_box
 
 Array = NDArray[np.float64]
 FALLBACK_FINER = 4  # without a refinement, the grid optimum is sought again on steps this much shorter
@@ -220,8 +221,7 @@ def project_values(spec: Spec, grid: GridSolution, values: Array) -> Array:
 
 
 def equality_system(spec: Spec, steps: int, dt: float) -> tuple[Array, Array]:
-    from optim.time_optimal.weights import exponential_moment, integrated_box
-
+    """The LP's equalities (end state, residual moments) on the grid's values, each row scaled to max 1."""
     q, unit = spec.order, spec.scale
     start, end = pieces(steps, dt)
     total = steps * dt
@@ -247,7 +247,7 @@ def equality_system(spec: Spec, steps: int, dt: float) -> tuple[Array, Array]:
 
 
 def _clip(spec: Spec, values: Array) -> Array:
-    return np.clip(values, -1.0, 1.0) if (spec.order == 3 or spec.max_acceleration) else values
+    return np.clip(values, -1.0, 1.0) if (spec.order == 3 or spec.max_acceleration is not None) else values
 
 
 def _refine_best(
