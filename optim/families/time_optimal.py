@@ -185,13 +185,17 @@ TIGHTENINGS = 3
 
 
 def excess(problem: Problem, spec: Spec, arcs: tuple[Arc, ...]) -> dict[str, float]:
-    """peak / limit > 1 for every limit a grid command breaks between the LP's check points: the velocity of a
-    held jerk, the torque (simulated on 4000 points and the corners)."""
+    """peak / limit > 1 for every limit a grid command breaks beyond the LP's own check: the velocity of a held
+    jerk between nodes, the acceleration (a safety net: the nodes are checked), the torque (simulated on 4000
+    points and the corners)."""
     command = command_of(arcs, spec.order, spec.rest_to_rest)
     out: dict[str, float] = {}
     peak = command.peak_abs(1)
     if spec.max_velocity is not None and peak is not None and peak > spec.max_velocity * (1 + LIMIT_RTOL):
         out["max_velocity"] = peak / spec.max_velocity
+    accel = command.peak_abs(2)
+    if spec.max_acceleration is not None and accel is not None and accel > spec.max_acceleration * (1 + LIMIT_RTOL):
+        out["max_acceleration"] = accel / spec.max_acceleration
     if spec.torque is not None:
         fine = command.resampled(float(command.time_s[-1]) / 4000)
         torque = simulate(problem.plant, fine).motor_torque_nm
@@ -205,14 +209,16 @@ def solve_within_limits(problem: Problem, spec: Spec) -> Solution:
     """solve, with a limit the grid command breaks between its check points tightened by its excess and solved
     again (at most TIGHTENINGS times); the refined commands are checked exactly by limits_met."""
     current = spec
-    for _ in range(TIGHTENINGS):
+    for attempt in range(TIGHTENINGS):
         solution = solve(current, partial(limits_met, problem, current), bound_spec=spec)
         over = excess(problem, spec, solution.arcs)
         if not over:
             return solution
-        margin = 1.0 - 1e-6
+        margin = 1.0 - (1e-6, 1e-3, 1e-2)[attempt]  # a little more each time: the excess moves with the limit
         if "max_velocity" in over and current.max_velocity is not None:
             current = replace(current, max_velocity=current.max_velocity / over["max_velocity"] * margin)
+        if "max_acceleration" in over and current.max_acceleration is not None:
+            current = replace(current, max_acceleration=current.max_acceleration / over["max_acceleration"] * margin)
         if "max_torque_nm" in over and current.torque is not None:
             torque = replace(
                 current.torque, max_torque_nm=current.torque.max_torque_nm / over["max_torque_nm"] * margin

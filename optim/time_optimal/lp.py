@@ -46,6 +46,7 @@ MARGIN = 1e-7  # bounds tightened by this fraction so that HiGHS's feasibility t
 # rises by about (PHASE_STEP / 2)^2 / 2 = 0.28 % (its phase turns, its modulus is smooth), so the dense check
 # seldom adds a point.
 BAND_MARGIN = 0.003
+LP_TIME_LIMIT_S = 1.0  # one LP's cap (seconds), before the second method and then 'not found'
 TORQUE_POINTS = (0.0, 0.25, 0.5, 0.75, 1.0)  # 1.0: the left limit at the next node (the torque jumps)
 
 
@@ -420,20 +421,27 @@ def _solve(lp: _Lp, counter: LpCounter) -> tuple[Array | None, int]:
     a_ub = sp.vstack(lp.ub).tocsr() if lp.ub else None
     b_ub = np.concatenate(lp.ub_rhs) if lp.ub else None
     bounds = np.column_stack([lp.lower, lp.upper])
-    result = linprog(
-        lp.cost,
-        A_ub=a_ub,
-        b_ub=b_ub,
-        A_eq=a_eq,
-        b_eq=b_eq,
-        bounds=bounds,
-        method="highs",
-        options={"time_limit": counter.remaining_s(), "presolve": True},
-    )
-    counter.solves += 1
-    counter.iterations += int(getattr(result, "nit", 0) or 0)
-    if result.status == 0:
-        x: Array = np.asarray(result.x, dtype=float)
-        return x, 0
-    counter.remaining_s()  # raises if the time limit stopped it
-    return None, int(result.status)
+    status = 1
+    # HiGHS's simplex now and then stalls on one of these small LPs for seconds (seen: 316 steps, held jerk):
+    # each LP gets LP_TIME_LIMIT_S, then once more with the interior-point method, then counts as not found.
+    for method in ("highs", "highs-ipm"):
+        result = linprog(
+            lp.cost,
+            A_ub=a_ub,
+            b_ub=b_ub,
+            A_eq=a_eq,
+            b_eq=b_eq,
+            bounds=bounds,
+            method=method,
+            options={"time_limit": min(LP_TIME_LIMIT_S, counter.remaining_s()), "presolve": True},
+        )
+        counter.solves += 1
+        counter.iterations += int(getattr(result, "nit", 0) or 0)
+        if result.status == 0:
+            x: Array = np.asarray(result.x, dtype=float)
+            return x, 0
+        counter.remaining_s()  # raises if the request's time budget is spent
+        status = int(result.status)
+        if status != 1:  # proven infeasible, or a numerical failure: no second method
+            break
+    return None, status

@@ -215,9 +215,23 @@ def project_values(spec: Spec, grid: GridSolution, values: Array) -> Array:
     if free.size >= 2 * rows.shape[0]:
         x = snapped.copy()
         x[free] += np.linalg.lstsq(rows[:, free], rhs - rows @ snapped, rcond=None)[0]
-        if not boxed or np.max(np.abs(x[free])) <= 1.0 - 0.5 * MARGIN:
+        if (not boxed or np.max(np.abs(x[free])) <= 1.0 - 0.5 * MARGIN) and _nodes_within(spec, grid, x):
             return x
     return values + np.linalg.lstsq(rows, rhs - rows @ values, rcond=None)[0]
+
+
+def _nodes_within(spec: Spec, grid: GridSolution, values: Array) -> bool:
+    """The velocity (and, with a held jerk, the acceleration) of the grid command within its limits at the
+    nodes: snapping moves them by up to SNAP x the unit x the duration, more than the LP's margin."""
+    start, end = pieces(grid.steps, grid.step_s)
+    nodes = np.arange(1, grid.steps + 1, dtype=float) * grid.step_s
+    for m, limit in ((1, spec.max_velocity), (2, spec.max_acceleration if spec.order == 3 else None)):
+        if limit is None:
+            continue
+        peak = float(np.max(np.abs(spec.scale * integrated_box(nodes, start, end, spec.order - m) @ values)))
+        if peak > limit * (1.0 - 0.5 * MARGIN):
+            return False
+    return True
 
 
 def equality_system(spec: Spec, steps: int, dt: float) -> tuple[Array, Array]:

@@ -243,3 +243,24 @@ def test_a_band_reaching_low_frequencies_keeps_a_fine_grid() -> None:
     grid = result.summary["grid"]
     assert grid["steps"] >= 48  # the grid fits the duration found, not the guess
     assert result.summary["duration_s"] < 3.0
+
+
+def test_snapped_grid_commands_keep_the_acceleration_limit(monkeypatch: pytest.MonkeyPatch) -> None:
+    # Found with a coarser search grid: snapping a held jerk to its bang levels moved the acceleration at the
+    # nodes past max_acceleration by 4e-8 (the pipeline's hard check refused the design).
+    from optim.time_optimal import search
+
+    monkeypatch.setattr(search, "STEPS", 80)
+    limits = Limits(max_velocity=1.0, max_acceleration=20.0, max_jerk=1000.0)
+    result = _design(Problem(ModePlant(10.0, 0.0), displacement=0.53, limits=limits))
+    assert result.limit_violations == ()
+    assert result.metrics.peak_acceleration <= 20.0 * (1 + 1e-9)
+
+
+def test_a_stalling_lp_does_not_spend_the_request() -> None:
+    # This move's 4x-finer fallback grid once made HiGHS's simplex stall for 9.5 s (the whole budget): each LP
+    # is now capped, then retried with the interior-point method.
+    problem = Problem(ModePlant(3.0, 0.03), displacement=0.2, limits=Limits(None, 2.0, 100.0))
+    result = _design(problem)
+    assert result.limit_violations == ()
+    assert result.summary["lower_bound_s"] <= result.summary["duration_s"]
