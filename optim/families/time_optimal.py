@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from models.commands import PiecewiseCommand
-from models.errors import DomainError, InvalidParameter, SolverFailed
+from models.errors import DomainError, Infeasible, InvalidParameter, SolverFailed
 from models.plant_base import Mode
 from models.sensitivity import band_below, residual_envelope, sensitivity
 from models.simulation import simulate
@@ -34,7 +34,8 @@ LIMIT_RTOL = 1e-10  # a refined command must meet its limits this tightly (the p
 CHECK_POINTS = 2001  # the independent dense check of a band: at least this many frequencies,
 MAX_CHECK_POINTS = 40_001  # about 50 per radian of the residual's phase across it (T dw), at most this many
 MAX_TRADEOFF = 8
-SEARCH_PERIODS = 20.0  # default max_duration_s: 4 x the rigid time plus this many periods of the slowest mode
+SEARCH_PERIODS = 20.0  # default max_duration_s: 4 x the rigid time plus this many periods of the slowest mode,
+MAX_DURATION_S = 1e4  # and at most this (the schema's bound on max_duration_s)
 
 
 @dataclass(frozen=True)
@@ -146,10 +147,16 @@ def spec_of(
     slowest = max(modes[i].natural_period_s for i in chosen)
     periods += sum(min(2 * math.pi / b.low_rad_s, 2 * slowest) for b in bands)  # the search doubles it if short
     upper = max(rigid, floor) + periods
-    cap = options.max_duration_s or 4.0 * max(rigid, floor) + SEARCH_PERIODS * slowest
-    if cap <= floor:
+    cap = options.max_duration_s or min(MAX_DURATION_S, 4.0 * max(rigid, floor) + SEARCH_PERIODS * slowest)
+    if cap <= floor and options.max_duration_s is not None:
         raise InvalidParameter(
             "max_duration_s", cap, f"must exceed the rigid minimum time within the limits ({floor:.6g} s)"
+        )
+    if cap <= floor:
+        raise Infeasible(
+            f"the rigid minimum time within the limits is {floor:.6g} s, beyond the longest command searched "
+            f"({MAX_DURATION_S:g} s)",
+            problem.move_field,
         )
     return Spec(
         move=abs(problem.move),

@@ -114,6 +114,13 @@ def chain(spec: Spec, total_s: float) -> Chain:
         a[m, m + 1] = 1.0
     b[q - 1] = 1.0
     scale = np.array([unit * total_s ** (q - m) for m in range(q)] + [1.0] * (n - q))
+    # Each state in units of the size it can reach: its limit where that is smaller (a slow move over a
+    # long time would otherwise put the bound below HiGHS's feasibility tolerance in scaled units).
+    scale[0] = min(scale[0], spec.move) if spec.rest_to_rest else scale[0]
+    if spec.max_velocity is not None:
+        scale[1] = min(scale[1], spec.max_velocity)
+    if q == 3 and spec.max_acceleration is not None:
+        scale[2] = min(scale[2], spec.max_acceleration)
     torque = None
     if spec.torque is not None:
         tq = spec.torque

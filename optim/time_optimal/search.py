@@ -36,6 +36,7 @@ from optim.time_optimal.check import (
 )
 from optim.time_optimal.lp import MARGIN, Cut, LpCounter, grid_lp, pieces, relaxed_lp
 from optim.time_optimal.refine import refine
+from optim.time_optimal.shaped import shaped_start
 from optim.time_optimal.types import Arc, Band, GridSolution, Solution, Spec
 from optim.time_optimal.weights import exponential_moment, integrated_box
 
@@ -287,6 +288,34 @@ def _refine_best(
     return best, how
 
 
+def _shaped_best(
+    spec: Spec,
+    search: _Search,
+    best: tuple[Arc, ...] | None,
+    how: str,
+    check_limits: Callable[[tuple[Arc, ...]], bool] | None,
+) -> tuple[tuple[Arc, ...] | None, str]:
+    """The shaped rigid move (optim.time_optimal.shaped), refined, or as it is, where it is shorter than
+    ``best``: the answer is never longer than ZV shaping of the rigid move (ZV^(n+1) for derivative order n)."""
+    start = shaped_start(spec)
+    if start is None:
+        return best, how
+    durations, levels, free = start
+    edges = np.concatenate(([0.0], np.cumsum(durations)))
+    shaped = tuple(Arc(float(edges[k]), float(durations[k]), float(levels[k] * spec.scale)) for k in range(len(levels)))
+    candidates = [(merged(shaped), "the rigid move shaped by ZV per mode (no shorter command was found)")]
+    result = refine(spec, durations, levels, free, search.cuts) if len(durations) <= 4 * MAX_ARCS else None
+    if result is not None:
+        candidates.insert(0, (merged(result.arcs), f"{result.status} (from the shaped rigid move)"))
+    for arcs, note in candidates:
+        total = sum(a.duration_s for a in arcs)
+        if best is not None and total >= sum(a.duration_s for a in best):
+            continue
+        if (check_limits is None or check_limits(arcs)) and search.verified(arcs):
+            return arcs, note
+    return best, how
+
+
 def solve(
     spec: Spec, check_limits: Callable[[tuple[Arc, ...]], bool] | None = None, bound_spec: Spec | None = None
 ) -> Solution:
@@ -316,6 +345,7 @@ def solve(
             late = search.late_vertex(grid.steps, grid.step_s)
             if late is not None:
                 best, how = _refine_best(spec, search, [(_clip(spec, late), grid.step_s)], None, check_limits)
+        best, how = _shaped_best(spec, search, best, how, check_limits)
         for _ in range(PROBES if best is not None else 0):
             assert best is not None
             total = sum(a.duration_s for a in best)

@@ -264,3 +264,22 @@ def test_a_stalling_lp_does_not_spend_the_request() -> None:
     result = _design(problem)
     assert result.limit_violations == ()
     assert result.summary["lower_bound_s"] <= result.summary["duration_s"]
+
+
+@pytest.mark.parametrize(
+    ("frequency_hz", "displacement", "velocity", "acceleration"),
+    [(40.0, 0.3, 0.2, 30.0), (10.0, 2.0, 0.3, 5.0), (20.0, 1.0, 0.5, 10.0)],
+)
+def test_never_slower_than_zv_shaping_of_the_rigid_move(
+    frequency_hz: float, displacement: float, velocity: float, acceleration: float
+) -> None:
+    # Long cruises with short ramps (a ramp shorter than a search step) once came out slower than ZV shaping:
+    # the shaped rigid move is now a start of the refinement and a candidate itself. ZV ends half a damped
+    # period after the rigid trapezoid D/v + v/a.
+    plant = ModePlant(frequency_hz, 0.02)
+    limits = Limits(max_velocity=velocity, max_acceleration=acceleration)
+    result = _design(Problem(plant, displacement=displacement, limits=limits))
+    zv_end = displacement / velocity + velocity / acceleration + 0.5 * plant.modes()[0].damped_period_s
+    assert result.summary["duration_s"] <= zv_end * (1 + 1e-9)
+    assert result.limit_violations == ()
+    assert result.metrics.residual_amplitude < 1e-9 * displacement
