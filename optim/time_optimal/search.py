@@ -294,9 +294,11 @@ def _shaped_best(
     best: tuple[Arc, ...] | None,
     how: str,
     check_limits: Callable[[tuple[Arc, ...]], bool] | None,
+    grid_s: float,
 ) -> tuple[tuple[Arc, ...] | None, str]:
     """The shaped rigid move (optim.time_optimal.shaped), refined, or as it is, where it is shorter than
-    ``best``: the answer is never longer than ZV shaping of the rigid move (ZV^(n+1) for derivative order n)."""
+    ``best`` and than the grid optimum (``grid_s``): the answer is never longer than ZV shaping of the rigid
+    move (ZV^(n+1) for derivative order n)."""
     start = shaped_start(spec)
     if start is None:
         return best, how
@@ -304,12 +306,12 @@ def _shaped_best(
     edges = np.concatenate(([0.0], np.cumsum(durations)))
     shaped = tuple(Arc(float(edges[k]), float(durations[k]), float(levels[k] * spec.scale)) for k in range(len(levels)))
     candidates = [(merged(shaped), "the rigid move shaped by ZV per mode (no shorter command was found)")]
-    result = refine(spec, durations, levels, free, search.cuts) if len(durations) <= 4 * MAX_ARCS else None
+    result = refine(spec, durations, levels, free, search.cuts) if len(durations) <= MAX_ARCS else None
     if result is not None:
         candidates.insert(0, (merged(result.arcs), f"{result.status} (from the shaped rigid move)"))
     for arcs, note in candidates:
         total = sum(a.duration_s for a in arcs)
-        if best is not None and total >= sum(a.duration_s for a in best):
+        if total >= grid_s or (best is not None and total >= sum(a.duration_s for a in best)):
             continue
         if (check_limits is None or check_limits(arcs)) and search.verified(arcs):
             return arcs, note
@@ -345,7 +347,7 @@ def solve(
             late = search.late_vertex(grid.steps, grid.step_s)
             if late is not None:
                 best, how = _refine_best(spec, search, [(_clip(spec, late), grid.step_s)], None, check_limits)
-        best, how = _shaped_best(spec, search, best, how, check_limits)
+        best, how = _shaped_best(spec, search, best, how, check_limits, grid.steps * grid.step_s)
         for _ in range(PROBES if best is not None else 0):
             assert best is not None
             total = sum(a.duration_s for a in best)
