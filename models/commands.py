@@ -290,3 +290,19 @@ class PiecewiseCommand:
     def from_derivatives(cls, time_s: ArrayLike, derivatives: ArrayLike) -> PiecewiseCommand:
         """A command given exactly by its right-hand derivatives at its breakpoints."""
         return cls(check_time_grid(time_s), np.atleast_2d(np.asarray(derivatives, dtype=float)))
+
+    @classmethod
+    def from_held_steps(cls, time_s: ArrayLike, levels: ArrayLike, order: int) -> PiecewiseCommand:
+        """The command from rest whose derivative of ``order`` is ``levels[k]`` on [t_k, t_(k+1)) (the last
+        level holds after the last breakpoint), its lower derivatives integrated exactly: a bang-bang or
+        trapezoidal acceleration (order 2), a piecewise-constant jerk (order 3). Built directly: steps may be
+        shorter than a sampled grid allows."""
+        t = np.asarray(time_s, dtype=float)
+        held = np.asarray(levels, dtype=float)
+        h = np.diff(t)
+        state = np.zeros((order + 1, t.size))
+        state[order] = held
+        for m in range(order - 1, -1, -1):  # each derivative from the higher ones, exact over every step
+            step = sum(state[n, :-1] * h ** (n - m) / math.factorial(n - m) for n in range(m + 1, order + 1))
+            state[m, 1:] = np.cumsum(step)
+        return cls(t, state, continuous_orders=order)

@@ -225,16 +225,6 @@ def _check_sensitivity_work(
         )
 
 
-def _acceleration_steps(time_s: list[float], acceleration: list[float]) -> PiecewiseCommand:
-    """The exact command whose acceleration is ``acceleration[k]`` on [t_k, t_(k+1)), from rest (built
-    directly: a reference's phases may be shorter than a sampled grid allows)."""
-    t, a = np.asarray(time_s, dtype=float), np.asarray(acceleration, dtype=float)
-    h = np.diff(t)
-    v = np.concatenate(([0.0], np.cumsum(a[:-1] * h)))
-    p = np.concatenate(([0.0], np.cumsum(v[:-1] * h + 0.5 * a[:-1] * h * h)))
-    return PiecewiseCommand(t, np.vstack([p, v, a]), continuous_orders=2)
-
-
 def rigid_reference(problem: Problem) -> PiecewiseCommand:
     """The unshaped rigid command under the same limits: the time-optimal move at the acceleration
     limit (bang-bang, or a trapezoidal velocity at ``max_velocity``; jerk limits ignored), or without
@@ -244,13 +234,15 @@ def rigid_reference(problem: Problem) -> PiecewiseCommand:
         derivatives = [[0.0, move]] if problem.rest_to_rest else [[0.0, 0.0], [0.0, move]]
         return PiecewiseCommand.from_derivatives([0.0, 1.0], derivatives)
     if not problem.rest_to_rest:
-        return _acceleration_steps([0.0, move / accel], [accel, 0.0])
+        return PiecewiseCommand.from_held_steps([0.0, move / accel], [accel, 0.0], 2)
     ramp_s = math.sqrt(move / accel)
     if top is not None and accel * ramp_s > top:
         ramp_s = top / accel
         cruise_s = move / top - ramp_s
-        return _acceleration_steps([0.0, ramp_s, ramp_s + cruise_s, 2 * ramp_s + cruise_s], [accel, 0.0, -accel, 0.0])
-    return _acceleration_steps([0.0, ramp_s, 2 * ramp_s], [accel, -accel, 0.0])
+        return PiecewiseCommand.from_held_steps(
+            [0.0, ramp_s, ramp_s + cruise_s, 2 * ramp_s + cruise_s], [accel, 0.0, -accel, 0.0], 2
+        )
+    return PiecewiseCommand.from_held_steps([0.0, ramp_s, 2 * ramp_s], [accel, -accel, 0.0], 2)
 
 
 def reference_wording(problem: Problem) -> str:
@@ -269,10 +261,12 @@ def percentage_vibration(
     amplitude: NDArray[np.float64],
     ratios: NDArray[np.float64],
     zetas: NDArray[np.float64],
+    natural_frequency_rad_s: float | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """V = 100 x residual amplitude / the reference's residual envelope at the same true mode (one row
-    per damping ratio), and that envelope (on the unit-gain mode: times |G(0)| in the load's units)."""
-    omega = problem.plant.modes()[0].natural_frequency_rad_s
+    per damping ratio), and that envelope (on the unit-gain mode: times |G(0)| in the load's units). The
+    ratios are about ``natural_frequency_rad_s`` (default: the plant's first mode)."""
+    omega = natural_frequency_rad_s or problem.plant.modes()[0].natural_frequency_rad_s
     w = np.repeat(ratios[None, :] * omega, zetas.size, axis=0)
     z = np.repeat(zetas[:, None], ratios.size, axis=1)
     derivative = 0 if problem.rest_to_rest else 1

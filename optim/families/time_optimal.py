@@ -21,12 +21,12 @@ from numpy.typing import NDArray
 from models.commands import PiecewiseCommand
 from models.errors import DomainError, Infeasible, InvalidParameter, SolverFailed
 from models.plant_base import Mode
-from models.sensitivity import band_below, residual_envelope, sensitivity
+from models.sensitivity import band_below, sensitivity
 from models.simulation import simulate
 from optim.family import BaseFamily, Candidate, Design, Run, SolverSummary
 from optim.problem import Problem
 from optim.solver import SolverReport
-from optim.synthesis import rigid_reference
+from optim.synthesis import percentage_vibration, rigid_reference
 from optim.time_optimal import Arc, Band, Solution, Spec, Torque, command_of, solve
 from optim.time_optimal.types import DEFAULT_MAX_PERCENTAGE_VIBRATION, MAX_MODES
 
@@ -493,12 +493,6 @@ def _band_entry(
 def _v(
     problem: Problem, command: PiecewiseCommand, omega: float, ratios: NDArray[np.float64], zetas: NDArray[np.float64]
 ) -> NDArray[np.float64]:
-    """V (%) per (damping ratio, frequency ratio) around ``omega``: the same definition as
-    optim.synthesis.percentage_vibration, about any mode (that one is about the first)."""
+    """V (%) per (damping ratio, frequency ratio) around the mode ``omega`` (optim.synthesis's definition)."""
     amplitude = sensitivity(command, omega, ratios, zetas).amplitude
-    w = np.repeat(ratios[None, :] * omega, zetas.size, axis=0)
-    z = np.repeat(zetas[:, None], ratios.size, axis=1)
-    derivative = 0 if problem.rest_to_rest else 1
-    envelope = residual_envelope(rigid_reference(problem), w.ravel(), z.ravel(), derivative).reshape(w.shape)
-    out: NDArray[np.float64] = 100.0 * amplitude / envelope
-    return out
+    return percentage_vibration(problem, amplitude, ratios, zetas, omega)[0]

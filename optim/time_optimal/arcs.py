@@ -19,24 +19,14 @@ SNAP = 1e-5  # a step within this of +-1 or 0 (of the unit) is on that level
 
 
 def command_of(arcs: tuple[Arc, ...], order: int, rest_to_rest: bool) -> PiecewiseCommand:
-    """The exact command: p, v, a (and j) at each arc's start, integrated in closed form; at rest (or
+    """The exact command: the held derivative on each arc, integrated from rest in closed form; at rest (or
     cruising at the final speed) after the last arc."""
     starts = np.array([a.start_s for a in arcs])
-    durations = np.array([a.duration_s for a in arcs])
-    levels = np.array([a.level for a in arcs])
-    count = len(arcs)
-    state = np.zeros((order + 1, count + 1))  # rows: p, v, (a,) u at each breakpoint
-    for k in range(count):
-        h = durations[k]
-        held = np.append(state[:order, k], levels[k])
-        for m in range(order):  # Taylor step of each derivative below the held one
-            state[m, k + 1] = sum(held[n] * h ** (n - m) / math.factorial(n - m) for n in range(m, order + 1))
-        state[order, k] = levels[k]
-    state[order, count] = 0.0
-    time_s = np.append(starts, starts[-1] + durations[-1])
+    time_s = np.append(starts, starts[-1] + arcs[-1].duration_s)
+    command = PiecewiseCommand.from_held_steps(time_s, [*(a.level for a in arcs), 0.0], order)
     if not rest_to_rest and order == 3:
-        state[2, count] = 0.0  # the acceleration ends at 0 (to round-off)
-    return PiecewiseCommand(time_s, state, continuous_orders=order)
+        command.derivatives[2, -1] = 0.0  # the acceleration ends at 0 (to round-off)
+    return command
 
 
 def merged(arcs: tuple[Arc, ...]) -> tuple[Arc, ...]:

@@ -312,12 +312,7 @@ def grid_lp(
     lp.dynamics(c, dt, unit)
     first, last = lp.state(0, np.arange(lp.states)), lp.state(steps, np.arange(lp.states))
     lp.lower[first] = lp.upper[first] = 0.0
-    end_targets = {1: 0.0 if spec.rest_to_rest else spec.move}
-    if spec.rest_to_rest:
-        end_targets[0] = spec.move
-    if q == 3:
-        end_targets[2] = 0.0
-    for m, target in end_targets.items():
+    for m, target in spec.end_targets().items():
         lp.lower[last[m]] = lp.upper[last[m]] = target / c.scale[m]
     nodes = lp.state(np.arange(1, steps), 0)
     if spec.max_velocity is not None:

@@ -141,10 +141,7 @@ class _Model:
         values: list[Array] = []
         jacs: list[Array] = []
         if kind == "eq":
-            for m in range(q):
-                if m == 0 and not spec.rest_to_rest:
-                    continue
-                target = spec.move if (m == 0 or (m == 1 and not spec.rest_to_rest)) else 0.0
+            for m, target in spec.end_targets().items():
                 phi, dphi = _poly(q - m)
                 v, jd, diff = _terms(phi, dphi, self.ends, d, lv, want_jac)
                 values.append((u * v - target) / self.eq_scale[m])

@@ -97,27 +97,21 @@ class _Search:
             if upper >= spec.max_duration_s:
                 self.not_found()
             upper = min(2.0 * upper, spec.max_duration_s)
-        lo = min(math.floor(spec.floor_s / dt), STEPS - 1)
-        hi, best = STEPS, x
-        while hi - lo > 1:
-            mid = (lo + hi) // 2
-            y = self.feasible(mid, dt)
-            if y is None:
-                lo = mid
-            else:
-                hi, best = mid, y
+        coarse = self._narrow(dt, min(math.floor(spec.floor_s / dt), STEPS - 1), STEPS, x)
+        hi = coarse.steps
         if hi < STEPS // 2:  # the guess was far too long: search again on steps that fit the duration found
             fine = self.bisect(hi * dt / STEPS, math.floor(spec.floor_s / (hi * dt / STEPS)), STEPS)
             if fine is not None:
                 return fine
-        return GridSolution(dt, hi, best, lo)
+        return coarse
 
     def bisect(self, dt: float, lo: int, hi: int) -> GridSolution | None:
         """The least feasible step count in (lo, hi] on steps of dt (None if hi itself is not shown feasible)."""
-        lo = min(lo, hi - 1)
         best = self.feasible(hi, dt)
-        if best is None:
-            return None
+        return None if best is None else self._narrow(dt, min(lo, hi - 1), hi, best)
+
+    def _narrow(self, dt: float, lo: int, hi: int, best: Array) -> GridSolution:
+        """Bisection between ``lo`` (no command found) and ``hi`` (``best`` feasible) on steps of dt."""
         while hi - lo > 1:
             mid = (lo + hi) // 2
             y = self.feasible(mid, dt)
@@ -242,10 +236,7 @@ def equality_system(spec: Spec, steps: int, dt: float) -> tuple[Array, Array]:
     total = steps * dt
     rows: list[Array] = []
     rhs: list[float] = []
-    for m in range(q):
-        if m == 0 and not spec.rest_to_rest:
-            continue
-        target = spec.move if (m == 0 or (m == 1 and not spec.rest_to_rest)) else 0.0
+    for m, target in spec.end_targets().items():
         row = unit * integrated_box(np.array([total]), start, end, q - m)[0]
         scale = np.max(np.abs(row))
         rows.append(row / scale)

@@ -62,6 +62,15 @@ class Spec:
         """q: the derivative held piecewise constant (2: acceleration, 3: jerk)."""
         return 3 if self.max_jerk is not None else 2
 
+    def end_targets(self) -> dict[int, float]:
+        """The motor's derivatives fixed at the end, {order: value}, ascending: the position of a rest-to-rest
+        move, the velocity (0 or the target speed) and, with a held jerk, the acceleration (0)."""
+        targets = {0: self.move} if self.rest_to_rest else {}
+        targets[1] = 0.0 if self.rest_to_rest else self.move
+        if self.order == 3:
+            targets[2] = 0.0
+        return targets
+
     @property
     def scale(self) -> float:
         """The unit of the decision variables: max_jerk, max_acceleration, or the torque's M / (J_M + J_L)."""
