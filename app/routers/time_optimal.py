@@ -100,6 +100,9 @@ async def time_optimal_profile(
     is shorter); arcs (start, duration, level, bang/coast/partial); robustness (requested, achieved band and the
     worst V inside the request, by an independent dense check with models.sensitivity on the exact command);
     modes cancelled; the grid, the refinement and the search's LP counts. tradeoff: one row per half-width.
+    solver: status "refined" (exact switching times: the shortest command found, not proven globally optimal;
+    lower_bound_s bounds the gap) or "grid" (the search grid's optimum); solves, iterations and time count every
+    LP of the design, its tightenings and its trade-off rows.
     Infeasible within max_duration_s is a 422 /problems/infeasible only where proven; a search that found
     nothing without a proof is /problems/solver-failed; over the time limit, 504."""
     return negotiate(request, await services.profile(FAMILY, body, settings, pool), "time-optimal profile")

@@ -215,6 +215,9 @@ def test_tradeoff_rows_grow_with_the_band() -> None:
     assert durations[0] == pytest.approx(result.summary["duration_s"], rel=1e-12)
     assert durations[0] < durations[1] <= durations[2]
     assert all(r["lower_bound_s"] <= r["duration_s"] for r in rows)
+    # The solver report counts the rows' LPs too (each row is a search of its own).
+    assert result.solver is not None and result.solver.solves > result.summary["search"]["lp_solves"]
+    assert result.solver.status == "refined"
 
 
 def test_jerk_limited_robust_band() -> None:
