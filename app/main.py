@@ -96,7 +96,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
 
 def _declare_problem_schema(app: FastAPI) -> None:
-    """Add the Problem schema to the OpenAPI components, referenced by every error response."""
+    """Add the Problem schema to the OpenAPI components, and declare on every operation each problem
+    status it can answer with (``problems.declared_statuses``), whatever the route itself lists."""
     original = app.openapi
 
     def openapi() -> dict:
@@ -117,6 +118,14 @@ def _declare_problem_schema(app: FastAPI) -> None:
                         }
         for name in ("HTTPValidationError", "ValidationError"):
             components.pop(name, None)
+        for path_format, route in problems.api_routes(app):
+            for method in route.methods or ():
+                operation = schema.get("paths", {}).get(path_format, {}).get(method.lower())
+                if operation is None:
+                    continue
+                declared = operation.setdefault("responses", {})
+                for status, response in problems.responses(*problems.declared_statuses(route)).items():
+                    declared.setdefault(str(status), response)
         app.openapi_schema = schema
         return schema
 

@@ -30,6 +30,12 @@ PROBLEM_TYPES: dict[str, tuple[int, str, str]] = {
     "solver-failed": (422, "Solver failed", "The optimiser stopped without a valid design; no profile is returned."),
     "solve-timeout": (504, "Solve timed out", "The solve overran its time limit; no profile is returned."),
     "not-ready": (503, "Service not ready", "The solver workers are starting or restarting; retry shortly."),
+    "malformed-body": (400, "Malformed body", "The body cannot be parsed: it is not valid JSON (or not UTF-8)."),
+    "unsupported-media-type": (
+        415,
+        "Unsupported media type",
+        "The body must be JSON: send content-type application/json (or application/*+json).",
+    ),
     "body-too-large": (413, "Request body too large", "The body exceeds the configured size limit."),
     "not-found": (404, "Not found", "No such path."),
     "method-not-allowed": (405, "Method not allowed", "The path does not accept this method."),
@@ -67,30 +73,109 @@ class ProblemError(Exception):
         super().__init__(detail)
 
 
-def problem_response(slug: str, detail: str, *, field: str | None = None, **extra: Any) -> Response:
+# The largest problem body: echoed values, rules and details are truncated to fit, and ``errors``
+# beyond the budget are dropped (``errors_omitted`` counts them).
+PROBLEM_MAX_BYTES = 16 * 1024
+MAX_ECHO_CHARS = 200  # an echoed string value
+MAX_TEXT_CHARS = 1000  # a detail or a rule
+MAX_ECHO_ITEMS = 8  # a list echoed in full
+MAX_ECHO_KEYS = 16  # an object echoed in part
+MAX_ECHO_DEPTH = 3
+_INT_BITS = 63  # orjson writes 64-bit integers only
+
+
+def safe_text(text: str, limit: int = MAX_TEXT_CHARS) -> str:
+    """``text`` cut to ``limit`` characters, with lone surrogates (which no JSON encoder writes) escaped."""
+    if len(text) > limit:
+        text = text[:limit] + "..."
+    return text.encode("utf-8", "backslashreplace").decode("utf-8")
+
+
+def summarise(value: Any, depth: int = 0) -> Any:
+    """A value small enough to echo back, and always serialisable: long strings and lists are cut or
+    described, huge integers and bytes become text, NaN and infinities their names."""
+    if value is None or isinstance(value, bool):
+        return value
+    if isinstance(value, int):
+        if value.bit_length() <= _INT_BITS:
+            return value
+        return f"an integer of {value.bit_length()} bits"
+    if isinstance(value, float):
+        if value != value:
+            return "NaN"
+        if value in (float("inf"), float("-inf")):
+            return "Infinity" if value > 0 else "-Infinity"
+        return value
+    if isinstance(value, str):
+        return safe_text(value, MAX_ECHO_CHARS)
+    if isinstance(value, bytes | bytearray | memoryview):
+        raw = bytes(value[: MAX_ECHO_CHARS + 1])
+        return safe_text(f"{len(value)} bytes: {raw!r}", MAX_ECHO_CHARS)
+    if isinstance(value, list | tuple):
+        if len(value) > MAX_ECHO_ITEMS or depth >= MAX_ECHO_DEPTH:
+            return f"list of {len(value)} items"
+        return [summarise(v, depth + 1) for v in value]
+    if isinstance(value, dict):
+        if depth >= MAX_ECHO_DEPTH:
+            return f"object of {len(value)} fields"
+        items = list(value.items())[:MAX_ECHO_KEYS]
+        return {safe_text(str(k), MAX_ECHO_CHARS): summarise(v, depth + 1) for k, v in items}
+    return safe_text(repr(value), MAX_ECHO_CHARS)
+
+
+def _safe_error(error: dict[str, Any]) -> dict[str, Any]:
+    return {
+        "field": safe_text(str(error.get("field", "body")), MAX_ECHO_CHARS),
+        "value": summarise(error.get("value")),
+        "rule": safe_text(str(error.get("rule", "invalid"))),
+    }
+
+
+def render_problem(slug: str, detail: str, *, field: str | None = None, **extra: Any) -> tuple[int, bytes]:
+    """The status and body of a problem: never fails, never above ``PROBLEM_MAX_BYTES``.
+
+    Every echoed part is made safe (``summarise``, ``safe_text``); if the body is still above the
+    budget, the ``errors`` that do not fit are dropped, then every extra member."""
     from app.responses import dumps
 
     status, title, _ = PROBLEM_TYPES[slug]
-    body: dict[str, Any] = {"type": f"/problems/{slug}", "title": title, "status": status, "detail": detail}
+    head: dict[str, Any] = {"type": f"/problems/{slug}", "title": title, "status": status}
+    head["detail"] = safe_text(str(detail))
     if field is not None:
-        body["field"] = field
-    body.update(extra)
-    return Response(dumps(body), status_code=status, media_type=PROBLEM_MEDIA_TYPE)
+        head["field"] = safe_text(str(field), MAX_ECHO_CHARS)
+    errors = extra.pop("errors", None)
+    rest = {safe_text(str(k), MAX_ECHO_CHARS): summarise(v) for k, v in extra.items()}
+    try:
+        body = dumps({**head, **rest})
+        if len(body) > PROBLEM_MAX_BYTES:
+            raise ValueError("too large")
+    except (TypeError, ValueError):  # orjson.JSONEncodeError is a TypeError
+        rest, body = {}, dumps(head)
+    if errors is None:
+        return status, body
+    safe = [_safe_error(e) for e in errors]
+    kept: list[dict[str, Any]] = []
+    # each error costs its own size plus a comma; the members around them about 64 bytes
+    budget = PROBLEM_MAX_BYTES - len(body) - 64
+    for error in safe:
+        size = len(dumps(error)) + 1
+        if size > budget:  # a value too large to echo: the field and the rule still help
+            error = {**error, "value": "(too large to echo)"}
+            size = len(dumps(error)) + 1
+        if size > budget:
+            break
+        kept.append(error)
+        budget -= size
+    full: dict[str, Any] = {**head, **rest, "errors": kept}
+    if len(kept) < len(safe):
+        full["errors_omitted"] = len(safe) - len(kept)
+    return status, dumps(full)
 
 
-def summarise(value: Any) -> Any:
-    """A value small enough to echo back: long lists become a short description."""
-    if isinstance(value, (list, tuple)):
-        return value if len(value) <= 8 else f"list of {len(value)} items"
-    if isinstance(value, dict):
-        return {k: summarise(v) for k, v in list(value.items())[:16]}
-    if isinstance(value, str) and len(value) > 200:
-        return value[:200] + "..."
-    if isinstance(value, float) and value != value:
-        return "NaN"
-    if isinstance(value, float) and value in (float("inf"), float("-inf")):
-        return "Infinity" if value > 0 else "-Infinity"
-    return value
+def problem_response(slug: str, detail: str, *, field: str | None = None, **extra: Any) -> Response:
+    """The one place that renders a problem (see ``render_problem``)."""
+    status, body = render_problem(slug, detail, field=field, **extra)
+    return Response(body, status_code=status, media_type=PROBLEM_MEDIA_TYPE)
 
 
 # Discriminated unions put the tag in the error location (plant -> mode -> field); the user
@@ -166,11 +251,16 @@ def domain_problem(exc: DomainError) -> Response:
 
 
 def install(app: FastAPI) -> None:
-    """Register the handlers that turn every error into a problem."""
+    """Register the handlers that turn every error into a problem, and the JSON body guard."""
+    app.add_middleware(JSONBodyOnly)
 
     @app.exception_handler(RequestValidationError)
     async def _validation(_: Request, exc: RequestValidationError) -> Response:
-        return invalid_input(_validation_errors(exc), total=len(exc.errors()))
+        errors = _validation_errors(exc)
+        malformed = [e for e in errors if e["field"] == "body" and e["rule"].startswith("the body is not valid JSON")]
+        if malformed:
+            return problem_response("malformed-body", malformed[0]["rule"], field="body", errors=malformed[:1])
+        return invalid_input(errors, total=len(exc.errors()))
 
     @app.exception_handler(DomainError)
     async def _domain(_: Request, exc: DomainError) -> Response:
@@ -182,20 +272,25 @@ def install(app: FastAPI) -> None:
 
     @app.exception_handler(StarletteHTTPException)
     async def _http(_: Request, exc: StarletteHTTPException) -> Response:
-        slug = {404: "not-found", 405: "method-not-allowed", 406: "not-acceptable", 413: "body-too-large"}.get(
-            exc.status_code
-        )
+        slug = {
+            400: "malformed-body",
+            404: "not-found",
+            405: "method-not-allowed",
+            406: "not-acceptable",
+            413: "body-too-large",
+            415: "unsupported-media-type",
+        }.get(exc.status_code)
         if slug is None:
             from app.responses import dumps
 
-            body = {
-                "type": "about:blank",
-                "title": str(exc.detail),
-                "status": exc.status_code,
-                "detail": str(exc.detail),
-            }
+            text = safe_text(str(exc.detail))
+            body = {"type": "about:blank", "title": text, "status": exc.status_code, "detail": text}
             return Response(dumps(body), status_code=exc.status_code, media_type=PROBLEM_MEDIA_TYPE)
-        return problem_response(slug, str(exc.detail))
+        detail = str(exc.detail)
+        if slug == "malformed-body" and detail == "There was an error parsing the body":  # FastAPI's words
+            detail = "the body cannot be parsed as JSON: it is not UTF-8, or a number is beyond the parser's limits"
+            return problem_response(slug, detail, field="body")
+        return problem_response(slug, detail)
 
     @app.exception_handler(Exception)
     async def _unexpected(request: Request, exc: Exception) -> Response:
@@ -212,7 +307,43 @@ def responses(*statuses: int) -> dict[int | str, dict[str, Any]]:
             "description": "; ".join(f"{PROBLEM_TYPES[s][1]} (/problems/{s})" for s in slugs),
             "content": {PROBLEM_MEDIA_TYPE: {"schema": {"$ref": "#/components/schemas/Problem"}}},
         }
+        if status == 503:
+            out[status]["headers"] = {
+                "Retry-After": {"description": "Seconds to wait before retrying.", "schema": {"type": "integer"}}
+            }
     return out
+
+
+def declared_statuses(route: Any) -> tuple[int, ...]:
+    """Every problem status a route can answer with, from what it takes (the OpenAPI declares them all):
+
+    - any route: 500 (internal-error);
+    - a route with parameters or a body: 422 (invalid-input);
+    - a route with a body: 400 (malformed-body), 413 (body-too-large), 415 (unsupported-media-type);
+    - a route with a body that runs on the solver pool (``app.deps.get_pool``): 503 (not-ready, with
+      Retry-After) and 504 (solve-timeout);
+    - ``/problems/{slug}``: 404 (not-found).
+    """
+    from app.deps import get_pool
+
+    dependant = route.dependant
+    statuses = {500}
+    has_body = route.body_field is not None
+    if has_body or dependant.query_params or dependant.path_params or dependant.header_params:
+        statuses.add(422)
+    if has_body:
+        statuses.update({400, 413, 415})
+        calls = set()
+        stack = list(dependant.dependencies)
+        while stack:
+            dep = stack.pop()
+            calls.add(dep.call)
+            stack.extend(dep.dependencies)
+        if get_pool in calls:
+            statuses.update({503, 504})
+    if route.endpoint is problem_type:
+        statuses.add(404)
+    return tuple(sorted(statuses))
 
 
 class BodySizeLimit:
@@ -265,6 +396,73 @@ class BodySizeLimit:
             limit_bytes=self.max_bytes,
         )
         await response(scope, receive, send)
+
+
+def api_routes(app: Any) -> list[tuple[str, Any]]:
+    """(path, route) of every FastAPI route of the app, in included routers too."""
+    from fastapi import routing
+
+    iterate = getattr(routing, "iter_route_contexts", None)  # FastAPI >= 0.16x wraps included routers
+    contexts = list(iterate(app.routes)) if iterate is not None else list(app.routes)
+    out = []
+    for context in contexts:
+        route = getattr(context, "original_route", context)
+        path = getattr(context, "path_format", None) or getattr(route, "path_format", None)
+        if isinstance(route, routing.APIRoute) and path is not None:
+            out.append((path, route))
+    return out
+
+
+def is_json_media_type(content_type: str) -> bool:
+    """``application/json`` or ``application/*+json``, with any parameters (charset, ...)."""
+    media = content_type.split(";", 1)[0].strip().lower()
+    kind, _, subtype = media.partition("/")
+    return kind == "application" and (subtype == "json" or (subtype.endswith("+json") and len(subtype) > 5))
+
+
+class JSONBodyOnly:
+    """ASGI middleware: a 415 problem for a body that is not declared JSON, on a route that takes one.
+
+    The routes that read a JSON body are found from the app's own routes (so a new route is covered
+    without listing it). A body without a content-type is refused too (FastAPI would not parse it);
+    a request without a body goes on (and meets the route's own "field required" 422).
+    """
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+        self._routes: list[tuple[Any, set[str]]] | None = None
+
+    def _body_routes(self, scope: Scope) -> list[tuple[Any, set[str]]]:
+        if self._routes is None:
+            from starlette.routing import compile_path
+
+            self._routes = [
+                (compile_path(path)[0], set(route.methods or ()))
+                for path, route in api_routes(scope["app"])
+                if route.body_field is not None
+            ]
+        return self._routes
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http" or scope.get("method") in ("GET", "HEAD", "OPTIONS", "DELETE"):
+            await self.app(scope, receive, send)
+            return
+        headers = dict(scope.get("headers", []))
+        length = headers.get(b"content-length")
+        has_body = b"transfer-encoding" in headers or (length is not None and length.strip() not in (b"", b"0"))
+        content_type = headers.get(b"content-type", b"").decode("latin-1")
+        if has_body and not is_json_media_type(content_type):
+            path, method = scope.get("path", ""), scope.get("method", "")
+            if any(regex.match(path) and method in methods for regex, methods in self._body_routes(scope)):
+                sent = f"content-type {content_type!r}" if content_type else "no content-type"
+                response = problem_response(
+                    "unsupported-media-type",
+                    f"the body must be JSON (application/json or application/*+json); it was sent with {sent}",
+                    field="content-type",
+                )
+                await response(scope, receive, send)
+                return
+        await self.app(scope, receive, send)
 
 
 class _TooLarge(StarletteHTTPException):
