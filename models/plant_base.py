@@ -112,6 +112,19 @@ def check_positive(name: str, value: float, *, allow_zero: bool = False) -> floa
     return value
 
 
+def check_derived_frequency(field: str, omega_rad_s: float) -> float:
+    """A derived natural frequency (rad/s), checked against the frequency range before any use (a
+    division by it), blaming ``field``."""
+    f = omega_rad_s / (2.0 * math.pi)
+    if not (math.isfinite(f) and FREQUENCY_MIN_HZ <= f <= FREQUENCY_MAX_HZ):
+        raise InvalidParameter(
+            field,
+            f,
+            f"the derived natural frequency {f:.6g} Hz must lie in [{FREQUENCY_MIN_HZ:g}, {FREQUENCY_MAX_HZ:g}] Hz",
+        )
+    return omega_rad_s
+
+
 def check_modes(modes: Sequence[Mode], field: str) -> None:
     """Refuse derived modes outside the frequency range or not underdamped, blaming ``field``."""
     for mode in modes:

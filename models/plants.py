@@ -36,6 +36,7 @@ from models.plant_base import (
     Mode,
     Plant,
     StateSpace,
+    check_derived_frequency,
     check_modes,
     check_positive,
 )
@@ -130,7 +131,8 @@ class TwoInertiaPlant(Plant):
 
     def modes(self) -> tuple[Mode, ...]:
         k, j_l = self.stiffness_nm_per_rad, self.load_inertia_kgm2
-        return (Mode(math.sqrt(k / j_l), self.damping_nms_per_rad / (2.0 * math.sqrt(k * j_l))),)
+        omega = check_derived_frequency("stiffness_nm_per_rad", math.sqrt(k / j_l))
+        return (Mode(omega, self.damping_nms_per_rad / (2.0 * j_l * omega)),)
 
     def torque_inertias(self) -> tuple[float, float]:
         return self.motor_inertia_kgm2, self.load_inertia_kgm2
@@ -202,7 +204,7 @@ class BeltPlatformPlant(Plant):
             self.equivalent_stiffness_nm_per_rad,
             self.equivalent_damping_nms_per_rad,
         )
-        omega = math.sqrt(k_t / j)
+        omega = check_derived_frequency("branch_stiffness_n_per_m", math.sqrt(k_t / j))
         return (Mode(omega, c_t / (2.0 * j * omega)),)
 
     @property
@@ -287,6 +289,12 @@ class TransferFunctionPlant(Plant):
                 raise InvalidParameter(name, "non-finite coefficient", "every coefficient must be finite")
         if den[0] == 0.0:
             raise InvalidParameter("denominator", den.tolist(), "the leading coefficient must not be 0")
+        with np.errstate(all="ignore"):
+            monic = den / den[0]
+        if not np.all(np.isfinite(monic)) or np.any((monic != 0) & (np.abs(monic) < 1e-300)):
+            raise InvalidParameter(
+                "denominator", den.tolist(), "the coefficients span too wide a range for double precision"
+            )
         num = np.trim_zeros(num, "f")
         if num.size == 0:
             raise InvalidParameter("numerator", list(self.numerator), "must not be all zeros")

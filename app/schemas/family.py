@@ -9,12 +9,12 @@ use adds a line to ``warnings``.
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import Annotated, Any, ClassVar
 
 import numpy as np
 from pydantic import Field, PrivateAttr, model_validator
 
-from app.schemas.common import OutModel, StrictModel
+from app.schemas.common import TOLERANCE_MIN, DampingRatio, OutModel, StrictModel
 from app.schemas.plants import PlantIn, to_plant
 from app.schemas.simulate import LoadOut, MetricsOut, ProfileOut, SettlingIn
 from app.settings import Settings
@@ -22,21 +22,30 @@ from models.errors import InvalidParameter
 from optim.problem import MAX_MOVE, Limits, Problem, SensitivityGrid, Settling
 
 MAX_SENSITIVITY_POINTS = 4001
+# The smallest limit: a micrometre (or microradian) per second, per s^2, per s^3, a micronewton metre.
+LIMIT_MIN = 1e-6
+HORIZON_MIN_S = 1e-6
 
 
 class LimitsIn(StrictModel):
     """Bounds on the motor command along the whole motion (Ruckig's max_ names); all optional."""
 
-    max_velocity: float | None = Field(None, gt=0, le=1e12, description="Largest |motor velocity| (rad/s or m/s).")
-    max_acceleration: float | None = Field(None, gt=0, le=1e12, description="Largest |motor acceleration|.")
-    max_jerk: float | None = Field(None, gt=0, le=1e15, description="Largest |motor jerk|.")
-    max_torque_nm: float | None = Field(None, gt=0, le=1e12, description="Largest |motor torque| (two_inertia only).")
+    max_velocity: float | None = Field(
+        None, ge=LIMIT_MIN, le=1e12, description="Largest |motor velocity| (rad/s or m/s), 1e-6 to 1e12."
+    )
+    max_acceleration: float | None = Field(
+        None, ge=LIMIT_MIN, le=1e12, description="Largest |motor acceleration|, 1e-6 to 1e12."
+    )
+    max_jerk: float | None = Field(None, ge=LIMIT_MIN, le=1e15, description="Largest |motor jerk|, 1e-6 to 1e15.")
+    max_torque_nm: float | None = Field(
+        None, ge=LIMIT_MIN, le=1e12, description="Largest |motor torque| (two_inertia only), 1e-6 to 1e12 N m."
+    )
 
 
 class SensitivityIn(StrictModel):
     """Where to evaluate the residual vibration versus the true/estimated frequency ratio."""
 
-    frequency_ratios: list[float] | None = Field(
+    frequency_ratios: list[Annotated[float, Field(ge=0.01, le=100)]] | None = Field(
         None,
         min_length=1,
         max_length=MAX_SENSITIVITY_POINTS,
@@ -45,7 +54,7 @@ class SensitivityIn(StrictModel):
     min_ratio: float = Field(0.5, ge=0.01, le=100, description="Start of a uniform range of ratios (>= 0.01).")
     max_ratio: float = Field(1.5, ge=0.01, le=100, description="End of the range.")
     count: int = Field(201, ge=2, le=MAX_SENSITIVITY_POINTS, description="Points in the range.")
-    damping_ratios: list[float] | None = Field(
+    damping_ratios: list[DampingRatio] | None = Field(
         None,
         min_length=1,
         max_length=50,
@@ -149,7 +158,7 @@ class ProfileRequest(StrictModel):
     )
     horizon_s: float | None = Field(
         None,
-        gt=0,
+        ge=HORIZON_MIN_S,
         le=1e6,
         description="End of the returned series, s (>= the command's end). Default: the command's end plus 5 natural "
         "periods of the slowest mode.",
@@ -164,7 +173,7 @@ class ProfileRequest(StrictModel):
         "/problems/infeasible. With true, it is returned instead, with limits_met false and the violations listed.",
     )
     settling_tolerance: float | None = Field(
-        None, gt=0, le=1, deprecated=_deprecated("settling_tolerance", "settling.position_tolerance")
+        None, ge=TOLERANCE_MIN, le=1, deprecated=_deprecated("settling_tolerance", "settling.position_tolerance")
     )
 
     _deprecations: list[str] = PrivateAttr(default_factory=list)

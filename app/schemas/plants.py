@@ -20,8 +20,22 @@ from models.plants import (
     make_plant,
 )
 
-Positive = Annotated[float, Field(gt=0, le=PARAMETER_MAX)]
+# Physical lower bounds: far below any machine (a 1e-9 kg m^2 rotor is a watch's; a 1e-6 kg mass a grain of
+# sand), and high enough that every derived quantity (k/J, k J, c0 k, m0 m1, 2 k R^2) stays a normal double.
+INERTIA_MIN_KGM2 = 1e-9
+MASS_MIN_KG = 1e-6
+STIFFNESS_MIN = 1e-6  # N/m or N m/rad
+DAMPING_MIN = 1e-9  # N s/m, where a damping must be > 0
+RADIUS_MIN_M, RADIUS_MAX_M = 1e-4, 1e3
+GEAR_RATIO_MIN, GEAR_RATIO_MAX = 1e-6, 1e6
+COEFFICIENT_MAX = 1e100  # transfer-function coefficients: |c| <= 1e100 (s^20 of a 1e6 rad/s pole is 1e120 ...)
+
+Inertia = Annotated[float, Field(ge=INERTIA_MIN_KGM2, le=PARAMETER_MAX)]
+Mass = Annotated[float, Field(ge=MASS_MIN_KG, le=PARAMETER_MAX)]
+Stiffness = Annotated[float, Field(ge=STIFFNESS_MIN, le=PARAMETER_MAX)]
 NonNegative = Annotated[float, Field(ge=0, le=PARAMETER_MAX)]
+Radius = Annotated[float, Field(ge=RADIUS_MIN_M, le=RADIUS_MAX_M)]
+Coefficient = Annotated[float, Field(ge=-COEFFICIENT_MAX, le=COEFFICIENT_MAX)]
 
 
 class ModeIn(StrictModel):
@@ -38,9 +52,9 @@ class TwoInertiaIn(StrictModel):
     """Motor and load inertias on a compliant shaft (Cusimano Fig. 1); motor torque is defined."""
 
     kind: Literal["two_inertia"]
-    motor_inertia_kgm2: Positive = Field(description="Motor inertia J_M, kg m^2.")
-    load_inertia_kgm2: Positive = Field(description="Load inertia J_L, kg m^2.")
-    stiffness_nm_per_rad: Positive = Field(description="Shaft torsional stiffness k, N m/rad.")
+    motor_inertia_kgm2: Inertia = Field(description="Motor inertia J_M, kg m^2 (1e-9 to 1e12).")
+    load_inertia_kgm2: Inertia = Field(description="Load inertia J_L, kg m^2 (1e-9 to 1e12).")
+    stiffness_nm_per_rad: Stiffness = Field(description="Shaft torsional stiffness k, N m/rad (1e-6 to 1e12).")
     damping_nms_per_rad: NonNegative = Field(0.0, description="Shaft damping c, N m s/rad.")
 
 
@@ -51,12 +65,16 @@ class BeltPlatformIn(StrictModel):
     """
 
     kind: Literal["belt_platform"]
-    platform_inertia_kgm2: Positive = Field(description="Platform inertia J, kg m^2.")
-    branch_stiffness_n_per_m: Positive = Field(description="Stiffness k of each belt branch, N/m.")
+    platform_inertia_kgm2: Inertia = Field(description="Platform inertia J, kg m^2 (1e-9 to 1e12).")
+    branch_stiffness_n_per_m: Stiffness = Field(description="Stiffness k of each belt branch, N/m (1e-6 to 1e12).")
     branch_damping_ns_per_m: NonNegative = Field(description="Damping c of each belt branch, N s/m.")
-    motor_pulley_radius_m: Positive = Field(description="Radius r of pulley (1), on the reducer, m.")
-    platform_pulley_radius_m: Positive = Field(description="Radius R of pulley (2), on the platform, m.")
-    gear_ratio: Positive = Field(description="Reducer ratio z = pulley (1) speed / motor speed (0.1 for 1:10).")
+    motor_pulley_radius_m: Radius = Field(description="Radius r of pulley (1), on the reducer, m (1e-4 to 1e3).")
+    platform_pulley_radius_m: Radius = Field(description="Radius R of pulley (2), on the platform, m (1e-4 to 1e3).")
+    gear_ratio: float = Field(
+        ge=GEAR_RATIO_MIN,
+        le=GEAR_RATIO_MAX,
+        description="Reducer ratio z = pulley (1) speed / motor speed (0.1 for 1:10), 1e-6 to 1e6.",
+    )
 
 
 class RigidFlexibleIn(StrictModel):
@@ -68,12 +86,14 @@ class RigidFlexibleIn(StrictModel):
     """
 
     kind: Literal["rigid_flexible"]
-    drive_mass_kg: Positive = Field(description="Driving mass m0, kg.")
-    load_mass_kg: Positive = Field(description="Driven mass m1, kg.")
-    stiffness_n_per_m: Positive = Field(description="Spring stiffness k, N/m.")
+    drive_mass_kg: Mass = Field(description="Driving mass m0, kg (1e-6 to 1e12).")
+    load_mass_kg: Mass = Field(description="Driven mass m1, kg (1e-6 to 1e12).")
+    stiffness_n_per_m: Stiffness = Field(description="Spring stiffness k, N/m (1e-6 to 1e12).")
     damping_ns_per_m: NonNegative = Field(description="Spring damping c, N s/m.")
-    drive_damping_ns_per_m: Positive = Field(
-        description="Drive damping c0, N s/m (> 0: c0 k is eq. 3's constant term)."
+    drive_damping_ns_per_m: float = Field(
+        ge=DAMPING_MIN,
+        le=PARAMETER_MAX,
+        description="Drive damping c0, N s/m, 1e-9 to 1e12 (> 0: c0 k is eq. 3's constant term).",
     )
 
 
@@ -81,11 +101,15 @@ class TransferFunctionIn(StrictModel):
     """Any stable, proper transfer function from the motor command to the load."""
 
     kind: Literal["transfer_function"]
-    numerator: list[float] = Field(
-        min_length=1, max_length=MAX_TRANSFER_FUNCTION_ORDER + 1, description="Numerator, highest power of s first."
+    numerator: list[Coefficient] = Field(
+        min_length=1,
+        max_length=MAX_TRANSFER_FUNCTION_ORDER + 1,
+        description="Numerator, highest power of s first (each |c| <= 1e100).",
     )
-    denominator: list[float] = Field(
-        min_length=2, max_length=MAX_TRANSFER_FUNCTION_ORDER + 1, description="Denominator, highest power of s first."
+    denominator: list[Coefficient] = Field(
+        min_length=2,
+        max_length=MAX_TRANSFER_FUNCTION_ORDER + 1,
+        description="Denominator, highest power of s first (each |c| <= 1e100).",
     )
     command_input: Literal["position", "velocity"] = Field(
         "position", description="Whether the transfer function takes the motor position or velocity."

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Annotated, Any
 
 from pydantic import Field
 
@@ -35,8 +35,10 @@ class PseudoPolynomialIn(ProfileRequest):
     order: int = Field(
         2, ge=1, le=MAX_ORDER, description="n: derivatives up to n are null at both ends (n + 1 exponents)."
     )
-    initial_exponents: list[float] | None = Field(
-        None, description="Starting exponents; default n+1, ..., 2n+1, the classical polynomial ((3, 4, 5) for n = 2)."
+    initial_exponents: list[Annotated[float, Field(gt=1, le=MAX_EXPONENT)]] | None = Field(
+        None,
+        description="Starting exponents (each in (1, 80], above the order n); default n+1, ..., 2n+1, the classical "
+        "polynomial ((3, 4, 5) for n = 2).",
     )
     minimize_duration: bool = Field(
         False,
@@ -46,8 +48,10 @@ class PseudoPolynomialIn(ProfileRequest):
     )
     residual_tolerance: float | None = Field(
         None,
-        gt=0,
-        description="Residual load amplitude accepted by minimize_duration (default 1e-6 of the load's move).",
+        ge=1e-15,
+        le=1e9,
+        description="Residual load amplitude accepted by minimize_duration (default 1e-6 of the load's move), "
+        "1e-15 to 1e9 load units.",
     )
 
     def options(self, problem: Problem) -> PseudoPolynomialOptions:

@@ -7,7 +7,7 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
-from app.schemas.common import OutModel, StrictModel
+from app.schemas.common import TOLERANCE_MIN, OutModel, SampleTime, SampleValue, StrictModel
 from app.schemas.plants import PlantIn
 from models.commands import DERIVATIVE_NAMES, PiecewiseCommand
 from models.errors import InvalidParameter
@@ -20,11 +20,13 @@ _CONSISTENCY_TOLERANCE = 1e-6
 class ProfileIn(StrictModel):
     """A sampled motor command: a time grid and one or more of its derivatives."""
 
-    time_s: list[float] = Field(min_length=2, description="Strictly increasing sample times, s.")
-    position: list[float] | None = Field(None, description="Motor position (rad or m), one per time.")
-    velocity: list[float] | None = Field(None, description="Motor velocity, one per time.")
-    acceleration: list[float] | None = Field(None, description="Motor acceleration, one per time.")
-    jerk: list[float] | None = Field(None, description="Motor jerk, one per time.")
+    time_s: list[SampleTime] = Field(min_length=2, description="Strictly increasing sample times, s (|t| <= 1e6).")
+    position: list[SampleValue] | None = Field(
+        None, description="Motor position (rad or m), one per time (|x| <= 1e12)."
+    )
+    velocity: list[SampleValue] | None = Field(None, description="Motor velocity, one per time (|v| <= 1e12).")
+    acceleration: list[SampleValue] | None = Field(None, description="Motor acceleration, one per time (<= 1e12).")
+    jerk: list[SampleValue] | None = Field(None, description="Motor jerk, one per time (|j| <= 1e12).")
 
 
 class SettlingIn(StrictModel):
@@ -32,13 +34,13 @@ class SettlingIn(StrictModel):
 
     position_tolerance: float = Field(
         1e-3,
-        gt=0,
+        ge=TOLERANCE_MIN,
         le=1,
         description="|load - target| as a fraction of the load's move (velocity for rest-to-velocity).",
     )
     vibration_tolerance: float | None = Field(
         None,
-        gt=0,
+        ge=TOLERANCE_MIN,
         le=1e9,
         description="Bound on the amplitude of the load's vibration envelope, in the load's units (velocity units "
         "for rest-to-velocity): the free oscillation about its rigid motion plus, during the move, the quasi-static "
@@ -65,13 +67,16 @@ class SimulationOptions(StrictModel):
     )
     settling_tolerance: float = Field(
         1e-3,
-        gt=0,
+        ge=TOLERANCE_MIN,
         le=1,
         description="Settling band as a fraction of the load's displacement (or final speed).",
         deprecated="settling_tolerance is deprecated: use settling.position_tolerance",
     )
     settling_window: float | None = Field(
-        None, gt=0, description="Absolute settling band in load units; overrides settling_tolerance."
+        None,
+        ge=TOLERANCE_MIN,
+        le=1e9,
+        description="Absolute settling band in load units (1e-12 to 1e9); overrides settling_tolerance.",
     )
     settling: SettlingIn | None = Field(
         None,

@@ -6,7 +6,7 @@ from typing import Any, Literal
 
 from pydantic import Field
 
-from app.schemas.common import OutModel, StrictModel
+from app.schemas.common import OutModel, SampleTime, SampleValue, StrictModel
 from app.schemas.family import FamilyResponse, ProfileRequest
 from app.schemas.plants import ModeOut
 from models.commands import MIN_STEP_S
@@ -182,10 +182,13 @@ class SmootherResponse(FamilyResponse):
 
 
 class IdentifyRequest(StrictModel):
-    time_s: list[float] = Field(min_length=2, description="Strictly increasing sample times of the record, s.")
-    signal: list[float] = Field(
+    time_s: list[SampleTime] = Field(
+        min_length=2, description="Strictly increasing sample times of the record, s (|t| <= 1e6)."
+    )
+    signal: list[SampleValue] = Field(
         min_length=2,
-        description="The free vibration (e.g. the spring force or the load's deflection), any units and offset.",
+        description="The free vibration (e.g. the spring force or the load's deflection), any units and offset "
+        "(|x| <= 1e12).",
     )
 
 

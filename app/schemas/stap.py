@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import math
-from typing import Any, ClassVar, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
 from pydantic import Field, field_validator
 
-from app.schemas.common import OutModel, StrictModel
+from app.schemas.common import DampingRatio, OutModel, StrictModel
 from app.schemas.family import FamilyResponse, ProfileRequest, SensitivityOut, SolverOut
 from models.errors import InvalidParameter
 from optim.families.stap import AUTO_RULE, StapOptimization, StapOptions
@@ -34,7 +34,7 @@ class OptimizationIn(StrictModel):
         "closed-form t_a); worst_case: minimise the largest residual over the frequency band and damping ratios, t_a "
         "fixed; residual_and_time: the shortest t_a whose residual stays <= residual_tolerance over the band.",
     )
-    damping_ratios: list[float] | None = Field(
+    damping_ratios: list[DampingRatio] | None = Field(
         None,
         min_length=1,
         max_length=MAX_BAND_DAMPING_RATIOS,
@@ -66,7 +66,7 @@ class StapIn(ProfileRequest):
 
     LEGACY_LIMITS: ClassVar[dict[str, str]] = {"max_acceleration": "max_acceleration", "max_torque_nm": "max_torque_nm"}
 
-    jerk_periods: int | Literal["auto"] = Field(
+    jerk_periods: Annotated[int, Field(ge=0, le=MAX_JERK_PERIODS)] | Literal["auto"] = Field(
         "auto",
         description="k_j: t_j = (k_j + delta dec(f_n,e t_a))/f_n,e (eqs. 44, 49); 'auto' applies the flowchart "
         "(see design.rule).",
@@ -76,7 +76,7 @@ class StapIn(ProfileRequest):
     )
     acceleration_time_s: float | None = Field(
         None,
-        gt=0,
+        ge=1e-6,
         le=1e6,
         description="A caller-fixed t_a (>= t_a,min and >= 1/f_n,e, eq. 72); its zero-vibration jerk times are listed.",
     )
@@ -95,7 +95,7 @@ class StapIn(ProfileRequest):
     )
     residual_tolerance: float = Field(
         DEFAULT_RESIDUAL_TOLERANCE,
-        gt=0,
+        ge=1e-12,
         le=1,
         description="Residual vibration accepted over the band, a fraction of the move ('a few hundredths', Sec. 3).",
     )

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+from typing import Annotated
+
 from pydantic import Field, field_validator, model_validator
 
-from app.schemas.common import OutModel, StrictModel
+from app.schemas.common import DampingRatio, OutModel, StrictModel
 from app.schemas.family import FamilyResponse, ProfileRequest
+from models.plants import FREQUENCY_MAX_HZ, FREQUENCY_MIN_HZ
 from optim.families.time_optimal import MAX_TRADEOFF, Robustness, TimeOptimalOptions
 from optim.family import FAMILIES
 from optim.problem import Problem
@@ -27,14 +30,14 @@ class RobustnessIn(StrictModel):
     zero residual with zero derivatives in frequency at the nominal modes. Give at most one of
     frequency_ratio_range, frequency_range_hz and derivative_order."""
 
-    frequency_ratio_range: list[float] | None = Field(
+    frequency_ratio_range: list[Annotated[float, Field(ge=MIN_RATIO, le=MAX_RATIO)]] | None = Field(
         None,
         min_length=2,
         max_length=2,
         description=f"[lo, hi]: the true natural frequency over the plant's, for every cancelled mode "
         f"({MIN_RATIO:g} <= lo < hi <= {MAX_RATIO:g}); e.g. [0.9, 1.1] for +-10 %.",
     )
-    frequency_range_hz: list[float] | None = Field(
+    frequency_range_hz: list[Annotated[float, Field(ge=FREQUENCY_MIN_HZ, le=FREQUENCY_MAX_HZ)]] | None = Field(
         None,
         min_length=2,
         max_length=2,
@@ -48,7 +51,7 @@ class RobustnessIn(StrictModel):
         description="V_max, %: residual amplitude over the unshaped rigid command's residual envelope (see "
         "SensitivityOut), bounded over the whole band.",
     )
-    damping_ratio_range: list[float] | None = Field(
+    damping_ratio_range: list[DampingRatio] | None = Field(
         None,
         min_length=2,
         max_length=2,
@@ -105,14 +108,14 @@ class TimeOptimalIn(ProfileRequest):
     others are optional; all are hard."""
 
     robustness: RobustnessIn | None = Field(None, description="Default: exactly zero residual at the nominal modes.")
-    modes: list[int] | None = Field(
+    modes: list[Annotated[int, Field(ge=0, lt=1000)]] | None = Field(
         None,
         min_length=1,
         max_length=MAX_MODES,
         description=f"Indices of the plant's modes to cancel (0 = lowest, see /v1/plants/modes). Default: every mode, "
         f"at most the lowest {MAX_MODES} (a warning says so).",
     )
-    tradeoff: list[float] | None = Field(
+    tradeoff: list[Annotated[float, Field(ge=0, lt=0.9)]] | None = Field(
         None,
         min_length=1,
         max_length=MAX_TRADEOFF,
@@ -122,7 +125,7 @@ class TimeOptimalIn(ProfileRequest):
     )
     max_duration_s: float | None = Field(
         None,
-        gt=0,
+        ge=1e-6,
         le=1e4,
         description="The longest command searched (default: 4 x the rigid minimum time + 20 periods of the slowest "
         "cancelled mode). Infeasible within it is proven, or reported as not found.",
