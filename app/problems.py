@@ -289,7 +289,9 @@ def install(app: FastAPI) -> None:
         detail = str(exc.detail)
         if slug == "malformed-body" and detail == "There was an error parsing the body":  # FastAPI's words
             detail = "the body cannot be parsed as JSON: it is not UTF-8, or a number is beyond the parser's limits"
-            return problem_response(slug, detail, field="body")
+            return problem_response(
+                slug, detail, field="body", errors=[{"field": "body", "value": None, "rule": detail}]
+            )
         return problem_response(slug, detail)
 
     @app.exception_handler(Exception)
@@ -455,10 +457,12 @@ class JSONBodyOnly:
             path, method = scope.get("path", ""), scope.get("method", "")
             if any(regex.match(path) and method in methods for regex, methods in self._body_routes(scope)):
                 sent = f"content-type {content_type!r}" if content_type else "no content-type"
+                rule = "must be application/json or application/*+json (the body is JSON)"
                 response = problem_response(
                     "unsupported-media-type",
                     f"the body must be JSON (application/json or application/*+json); it was sent with {sent}",
                     field="content-type",
+                    errors=[{"field": "content-type", "value": content_type or None, "rule": rule}],
                 )
                 await response(scope, receive, send)
                 return

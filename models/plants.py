@@ -351,14 +351,21 @@ def _check_partial_fractions(
     """The simulation writes G(s) = D + sum r_j/(s - p_j); refuse a plant whose poles are so
     clustered that this form does not reproduce G (checked at s = 0 and at points of the right
     half-plane, where no pole lies)."""
-    residues = np.polyval(num, poles) / np.polyval(np.polyder(den), poles)
+    # Coefficients up to 1e100 (the schema's bound) can overflow here: a non-finite value is refused below.
+    with np.errstate(all="ignore"):
+        residues = np.polyval(num, poles) / np.polyval(np.polyder(den), poles)
     direct = num[0] / den[0] if num.size == den.size else 0.0
     top = float(np.max(np.abs(poles)))
     for s in (0.0, top * (0.5 + 0.5j), top * (0.2 + 1.3j), top * (1.0 + 0.1j)):
-        exact = np.polyval(num, s) / np.polyval(den, s)
-        rebuilt = direct + np.sum(residues / (s - poles))
-        size = float(np.sum(np.abs(residues / (s - poles)))) + abs(direct)
-        if not np.isfinite(rebuilt) or abs(rebuilt - exact) > 1e-4 * max(abs(exact), 1e-12 * size):
+        with np.errstate(all="ignore"):
+            exact = np.polyval(num, s) / np.polyval(den, s)
+            rebuilt = direct + np.sum(residues / (s - poles))
+            size = float(np.sum(np.abs(residues / (s - poles)))) + abs(direct)
+        if (
+            not np.isfinite(rebuilt)
+            or not np.isfinite(exact)
+            or abs(rebuilt - exact) > 1e-4 * max(abs(exact), 1e-12 * size)
+        ):
             raise InvalidParameter(
                 "denominator", den.tolist(), "the poles are too clustered for an accurate partial-fraction form"
             )
