@@ -17,7 +17,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.responses import Response
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from models.errors import DomainError, Infeasible, InvalidParameter, NotApplicable, PoolUnavailable, SolverFailed
+from models.errors import DomainError, Infeasible, InvalidParameter, NotApplicable, SolverFailed
 
 log = logging.getLogger(__name__)
 PROBLEM_MEDIA_TYPE = "application/problem+json"
@@ -81,6 +81,7 @@ MAX_TEXT_CHARS = 1000  # a detail or a rule
 MAX_ECHO_ITEMS = 8  # a list echoed in full
 MAX_ECHO_KEYS = 16  # an object echoed in part
 MAX_ECHO_DEPTH = 3
+RETRY_AFTER_S = 5  # every 503 (the pool starting, restarting or full) says when to come back
 _INT_BITS = 63  # orjson writes 64-bit integers only
 
 
@@ -173,9 +174,10 @@ def render_problem(slug: str, detail: str, *, field: str | None = None, **extra:
 
 
 def problem_response(slug: str, detail: str, *, field: str | None = None, **extra: Any) -> Response:
-    """The one place that renders a problem (see ``render_problem``)."""
+    """The one place that renders a problem (see ``render_problem``); a 503 says when to retry."""
     status, body = render_problem(slug, detail, field=field, **extra)
-    return Response(body, status_code=status, media_type=PROBLEM_MEDIA_TYPE)
+    headers = {"Retry-After": str(RETRY_AFTER_S)} if status == 503 else None
+    return Response(body, status_code=status, media_type=PROBLEM_MEDIA_TYPE, headers=headers)
 
 
 # Discriminated unions put the tag in the error location (plant -> mode -> field); the user
@@ -244,10 +246,7 @@ def domain_problem(exc: DomainError) -> Response:
         if hasattr(exc, "limit_s"):
             extra["limit_s"] = exc.limit_s
         return problem_response(slug, str(exc), **extra)
-    response = problem_response(slug, str(exc))
-    if isinstance(exc, PoolUnavailable):
-        response.headers["Retry-After"] = "5"
-    return response
+    return problem_response(slug, str(exc))  # a PoolUnavailable is a 503: it carries Retry-After
 
 
 def install(app: FastAPI) -> None:
@@ -311,7 +310,11 @@ def responses(*statuses: int) -> dict[int | str, dict[str, Any]]:
         }
         if status == 503:
             out[status]["headers"] = {
-                "Retry-After": {"description": "Seconds to wait before retrying.", "schema": {"type": "integer"}}
+                "Retry-After": {
+                    "description": "Seconds to wait before retrying.",
+                    "required": True,
+                    "schema": {"type": "integer"},
+                }
             }
     return out
 

@@ -14,7 +14,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from app.main import create_app
-from app.problems import PROBLEM_MAX_BYTES, PROBLEM_MEDIA_TYPE, render_problem
+from app.problems import PROBLEM_MAX_BYTES, PROBLEM_MEDIA_TYPE, RETRY_AFTER_S, problem_response, render_problem
 from app.settings import Settings
 from tests.app.test_errors import assert_problem
 
@@ -174,3 +174,41 @@ def test_a_problem_body_keeps_to_its_budget():
     assert status == 422 and len(body) <= PROBLEM_MAX_BYTES
     assert problem["errors_omitted"] == 20 - len(problem["errors"]) > 0
     assert problem["field"].startswith("\\ud800") and problem["huge"] == "an integer of 133 bits"
+
+
+# Operations that run designs on the solver pool (app/routers: they take PoolDep and a body).
+POOL_OPERATIONS = {
+    "/v1/profiles/time-optimal",
+    "/v1/profiles/pseudo-polynomial",
+    "/v1/profiles/stap",
+    "/v1/profiles/smoother",
+    "/v1/profiles/input-shaped",
+    "/v1/compare",
+}
+
+
+def test_every_status_is_declared_for_every_operation(client):
+    # The statuses of app/problems.py's declared_statuses, each a Problem; 503 with its Retry-After header
+    paths = client.get("/openapi.json").json()["paths"]
+    for path, ops in paths.items():
+        if path.startswith("/test/"):  # conftest.py's test-only routes
+            continue
+        for method, op in ops.items():
+            declared = set(op["responses"])
+            assert "500" in declared, (method, path)
+            if "requestBody" in op:
+                assert {"400", "413", "415", "422"} <= declared, (method, path)
+            if path in POOL_OPERATIONS:
+                assert {"503", "504"} <= declared, (method, path)
+                assert op["responses"]["503"]["headers"]["Retry-After"]["required"] is True
+            for status in declared - {"200"}:
+                content = op["responses"][status]["content"]
+                assert content == {PROBLEM_MEDIA_TYPE: {"schema": {"$ref": "#/components/schemas/Problem"}}}
+    assert "404" in paths["/problems/{slug}"]["get"]["responses"]
+    for slug in ("malformed-body", "unsupported-media-type"):
+        assert client.get(f"/problems/{slug}").status_code == 200
+
+
+def test_every_503_says_when_to_retry():
+    response = problem_response("not-ready", "the solver workers are starting")
+    assert response.status_code == 503 and response.headers["Retry-After"] == str(RETRY_AFTER_S)
