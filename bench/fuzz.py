@@ -1,6 +1,6 @@
 """A long fuzzing run of every operation: schemathesis cases (valid and invalid) through the app and its pool.
 
-    PYTHONPATH=. python bench/fuzz.py [--cases 2000] [--seed 0] [--only /v1/simulate]
+    python bench/fuzz.py [--cases 2000] [--seed 0] [--only /v1/simulate]
 
 For each operation: the cases run, the statuses answered, the server errors (a 5xx other than a declared
 504 solve-timeout) and the failed checks (undeclared status or content type, a body not matching its
@@ -14,15 +14,19 @@ import argparse
 import collections
 import sys
 import time
+from pathlib import Path
 from typing import Any
 
-from hypothesis import HealthCheck, Phase, given, settings
-from hypothesis import strategies as st
-from schemathesis import GenerationMode
-from schemathesis.python import asgi
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
 
-from app.main import create_app
-from tests.app.test_fuzz import CHECKS, FUZZ_SETTINGS, fuzz_schema, start_and_wait_ready
+from hypothesis import HealthCheck, Phase, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+from schemathesis import GenerationMode  # noqa: E402
+from schemathesis.python import asgi  # noqa: E402
+
+from app.main import create_app  # noqa: E402
+from tests.app.test_fuzz import CHECKS, FUZZ_SETTINGS, fuzz_schema, start_and_wait_ready  # noqa: E402
 
 
 def fuzz_operation(operation: Any, cases: int, seed: int) -> tuple[collections.Counter[int], list[str], float]:
