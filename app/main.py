@@ -55,6 +55,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             settings.workers,
             settings.worker_start_timeout_s,
             warm_up=functools.partial(warm_up_all, settings.solve_caps),
+            max_queued=settings.queue_limit,
+            niceness=settings.worker_niceness,
         )
         app.state.pool = pool
         pool.start_in_background()

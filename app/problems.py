@@ -29,7 +29,13 @@ PROBLEM_TYPES: dict[str, tuple[int, str, str]] = {
     "not-applicable": (422, "Family not applicable", "The family cannot design this move; detail says why."),
     "solver-failed": (422, "Solver failed", "The optimiser stopped without a valid design; no profile is returned."),
     "solve-timeout": (504, "Solve timed out", "The solve overran its time limit; no profile is returned."),
-    "not-ready": (503, "Service not ready", "The solver workers are starting or restarting; retry shortly."),
+    "not-ready": (503, "Service not ready", "The solver workers are starting or restarting; retry after Retry-After."),
+    "busy": (
+        503,
+        "Service busy",
+        "Every solver worker is busy and the queue is full (VIBFREE_MAX_QUEUED), or no worker became free within "
+        "the solve's deadline; retry after Retry-After seconds.",
+    ),
     "body-too-large": (413, "Request body too large", "The body exceeds the configured size limit."),
     "not-found": (404, "Not found", "No such path."),
     "method-not-allowed": (405, "Method not allowed", "The path does not accept this method."),
@@ -161,7 +167,7 @@ def domain_problem(exc: DomainError) -> Response:
         return problem_response(slug, str(exc), **extra)
     response = problem_response(slug, str(exc))
     if isinstance(exc, PoolUnavailable):
-        response.headers["Retry-After"] = "5"
+        response.headers["Retry-After"] = str(exc.retry_after_s)
     return response
 
 
