@@ -172,3 +172,17 @@ def test_a_worker_killed_during_warm_up_is_restarted_and_readiness_tells_the_tru
         ready = client.get("/readyz").json()
         assert ready["status"] == "ready" and ready["restarts"] == 1
         wait_ready(client)
+
+
+def test_a_compare_missing_rows_only_because_the_pool_refused_them_is_a_503_not_a_ranking():
+    from app.routers.compare import _raise_if_pool_refused
+    from models.errors import PoolUnavailable
+    from optim.compare import Unavailable
+    from optim.workers import PoolBusy
+
+    not_applicable = Unavailable("stap", "needs an acceleration limit", "/problems/not-applicable")
+    _raise_if_pool_refused([not_applicable])  # a family that does not apply is part of the answer
+    with pytest.raises(PoolBusy, match="queue"):
+        _raise_if_pool_refused([not_applicable, Unavailable("stap", "the queue is full", "/problems/busy")])
+    with pytest.raises(PoolUnavailable, match="starting"):
+        _raise_if_pool_refused([Unavailable("pseudo_polynomial", "workers starting", "/problems/not-ready")])
