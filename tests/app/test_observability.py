@@ -193,9 +193,14 @@ def test_metrics_count_requests_by_route_template(client):
     assert {"vibfree_http_requests", "vibfree_http_request_duration_seconds", "vibfree_solves"} <= families
 
 
-def test_metrics_read_the_pool_stats_at_scrape_time(client, monkeypatch):
-    monkeypatch.setattr(client.app.state, "pool", FakePool())  # the real pool is back after the test
-    values = samples(client)
+def test_metrics_read_the_pool_stats_at_scrape_time(client):
+    # Not monkeypatch.setattr: its undo deletes an attribute of starlette's State instead of restoring it.
+    real_pool = client.app.state.pool
+    client.app.state.pool = FakePool()
+    try:
+        values = samples(client)
+    finally:
+        client.app.state.pool = real_pool
     stats = POOL_STATS
     for state in ("ready", "busy", "starting"):
         assert values[("vibfree_pool_workers", (("state", state),))] == stats[state]

@@ -16,6 +16,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import pytest
 from fastapi.testclient import TestClient
+from prometheus_client.parser import text_string_to_metric_families
 
 from app.examples import INCERTI_TABLE_III
 from app.main import create_app
@@ -104,6 +105,14 @@ def test_an_idle_worker_killed_is_replaced_and_the_next_solve_is_correct(client)
     assert client.get("/readyz").status_code == 200  # the other worker was warm: never 503
     wait_all_warm(client)
     assert victim not in pool_of(client).pids()
+    # The replacement is counted where an operator looks: /readyz and the Prometheus scrape agree.
+    scraped = {
+        s.name: s.value
+        for family in text_string_to_metric_families(client.get("/metrics").text)
+        for s in family.samples
+        if s.name.startswith("vibfree_pool_") and not s.labels
+    }
+    assert scraped["vibfree_pool_restarts_total"] == client.get("/readyz").json()["restarts"] >= 1
 
 
 def test_a_busy_worker_killed_is_a_503_for_its_request_only(client):
