@@ -55,7 +55,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         pool = SolverPool(
             settings.workers,
             settings.worker_start_timeout_s,
-            warm_up=functools.partial(warm_up_all, settings.solve_caps),
+            warm_up=functools.partial(observability.start_worker, functools.partial(warm_up_all, settings.solve_caps)),
             max_queued=settings.queue_limit,
             niceness=settings.worker_niceness,
         )

@@ -105,6 +105,20 @@ def configure_logging(level: int | str = logging.INFO) -> None:
         logger.propagate = True
 
 
+def start_worker(warm_up: Callable[[], None]) -> None:
+    """A solver worker's start (run in the new process): JSON logs like the server's, then the warm-up.
+
+    A failed warm-up is logged as one JSON line with its traceback; the process then exits and the
+    pool retries with back-off.
+    """
+    configure_logging()
+    try:
+        warm_up()
+    except Exception:
+        logging.getLogger("app.worker").exception("solver worker warm-up failed")
+        raise SystemExit(1) from None
+
+
 access_log = structlog.stdlib.get_logger("app.access")
 solve_log = structlog.stdlib.get_logger("app.solves")
 
