@@ -75,7 +75,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     app.state.settings = settings
     observability.install(app)
-    app.dependency_overrides[get_settings] = lambda: settings
+
+    async def configured_settings() -> Settings:  # async: a plain def would cost a thread hop per request
+        return settings
+
+    app.dependency_overrides[get_settings] = configured_settings
     problems.install(app)
     app.add_middleware(problems.BodySizeLimit, max_bytes=settings.max_body_bytes)
     routers = (
