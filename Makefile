@@ -4,6 +4,9 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 HOST   ?= 127.0.0.1
 PORT   ?= 8000
+# README "Deployment": JSON logs are the app's (its own access line), limits on idle and slow clients.
+SERVE_FLAGS ?= --no-access-log --no-server-header --http h11 --timeout-keep-alive 5 \
+	--h11-max-incomplete-event-size 16384 --timeout-graceful-shutdown 30
 
 .PHONY: serve test bench clean
 
@@ -19,7 +22,7 @@ $(VENV)/.installed-test: pyproject.toml | $(BIN)/python
 	touch $@ $(VENV)/.installed-serve
 
 serve: $(VENV)/.installed-serve  ## run the service on http://$(HOST):$(PORT) (docs at /docs)
-	$(BIN)/uvicorn app.main:app --host $(HOST) --port $(PORT)
+	$(BIN)/uvicorn app.main:app --host $(HOST) --port $(PORT) $(SERVE_FLAGS)
 
 test: $(VENV)/.installed-test  ## lint, format and type gates, then the whole test suite (installs Debian's chromium)
 	$(BIN)/ruff check .

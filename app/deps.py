@@ -10,7 +10,7 @@ from app.settings import Settings, get_settings
 from optim.workers import SolverPool
 
 
-def get_pool(request: Request) -> SolverPool:
+async def get_pool(request: Request) -> SolverPool:  # async: FastAPI would run a plain def in a thread
     pool: SolverPool = request.app.state.pool
     return pool
 

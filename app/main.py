@@ -3,17 +3,17 @@
 from __future__ import annotations
 
 import functools
-import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
 from fastapi import FastAPI
 
-from app import problems
+from app import observability, problems
 from app.routers import (
     compare,
     health,
     identify,
+    metrics,
     page,
     plants,
     pseudo_polynomial,
@@ -48,13 +48,16 @@ that breaks one is a 422 `/problems/infeasible`, unless `allow_limit_violation` 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
     settings = settings or get_settings()
+    observability.configure_logging()
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         pool = SolverPool(
             settings.workers,
             settings.worker_start_timeout_s,
-            warm_up=functools.partial(warm_up_all, settings.solve_caps),
+            warm_up=functools.partial(observability.start_worker, functools.partial(warm_up_all, settings.solve_caps)),
+            max_queued=settings.queue_limit,
+            niceness=settings.worker_niceness,
         )
         app.state.pool = pool
         pool.start_in_background()
@@ -71,7 +74,12 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         generate_unique_id_function=lambda route: route.name,  # operation ids: stap_profile, compare, ...
     )
     app.state.settings = settings
-    app.dependency_overrides[get_settings] = lambda: settings
+    observability.install(app)
+
+    async def configured_settings() -> Settings:  # async: a plain def would cost a thread hop per request
+        return settings
+
+    app.dependency_overrides[get_settings] = configured_settings
     problems.install(app)
     app.add_middleware(problems.BodySizeLimit, max_bytes=settings.max_body_bytes)
     routers = (
@@ -85,13 +93,13 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         identify,
         shapers,
         compare,
+        metrics,
         page,
     )
     for router in (*(r.router for r in routers), problems.router):
         app.include_router(router)
     app.mount("/static", page.static, name="static")
     _declare_problem_schema(app)
-    logging.getLogger("vibfree").setLevel(logging.INFO)
     return app
 
 

@@ -17,7 +17,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.responses import Response
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from models.errors import DomainError, Infeasible, InvalidParameter, NotApplicable, SolverFailed
+from models.errors import DomainError, Infeasible, InvalidParameter, NotApplicable, PoolUnavailable, SolverFailed
 
 log = logging.getLogger(__name__)
 PROBLEM_MEDIA_TYPE = "application/problem+json"
@@ -29,7 +29,13 @@ PROBLEM_TYPES: dict[str, tuple[int, str, str]] = {
     "not-applicable": (422, "Family not applicable", "The family cannot design this move; detail says why."),
     "solver-failed": (422, "Solver failed", "The optimiser stopped without a valid design; no profile is returned."),
     "solve-timeout": (504, "Solve timed out", "The solve overran its time limit; no profile is returned."),
-    "not-ready": (503, "Service not ready", "The solver workers are starting or restarting; retry shortly."),
+    "not-ready": (503, "Service not ready", "The solver workers are starting or restarting; retry after Retry-After."),
+    "busy": (
+        503,
+        "Service busy",
+        "Every solver worker is busy and the queue is full (VIBFREE_MAX_QUEUED), or no worker became free within "
+        "the solve's deadline; retry after Retry-After seconds.",
+    ),
     "malformed-body": (400, "Malformed body", "The body cannot be parsed: it is not valid JSON (or not UTF-8)."),
     "unsupported-media-type": (
         415,
@@ -81,7 +87,7 @@ MAX_TEXT_CHARS = 1000  # a detail or a rule
 MAX_ECHO_ITEMS = 8  # a list echoed in full
 MAX_ECHO_KEYS = 16  # an object echoed in part
 MAX_ECHO_DEPTH = 3
-RETRY_AFTER_S = 5  # every 503 (the pool starting, restarting or full) says when to come back
+RETRY_AFTER_S = 5  # every 503 says when to come back (a PoolUnavailable gives its own estimate)
 _INT_BITS = 63  # orjson writes 64-bit integers only
 
 
@@ -246,7 +252,10 @@ def domain_problem(exc: DomainError) -> Response:
         if hasattr(exc, "limit_s"):
             extra["limit_s"] = exc.limit_s
         return problem_response(slug, str(exc), **extra)
-    return problem_response(slug, str(exc))  # a PoolUnavailable is a 503: it carries Retry-After
+    response = problem_response(slug, str(exc))  # every 503 carries a Retry-After: the pool's own estimate here
+    if isinstance(exc, PoolUnavailable):
+        response.headers["Retry-After"] = str(exc.retry_after_s)
+    return response
 
 
 def install(app: FastAPI) -> None:

@@ -6,10 +6,12 @@ thread-safe); the others run it in a thread, off the event loop.
 
 from __future__ import annotations
 
+import time
 from typing import Any
 
 from starlette.concurrency import run_in_threadpool
 
+from app.observability import record_solve
 from app.schemas.family import ProfileRequest
 from app.settings import Settings
 from models.errors import DomainError, Infeasible, InvalidParameter, NotApplicable
@@ -20,9 +22,22 @@ from optim.workers import SolverPool
 
 
 async def run(family: Family, problem: Problem, options: Any, settings: Settings, pool: SolverPool) -> Result:
-    if family.uses_solver(options):
-        return await pool.run(synthesize, family, problem, options, deadline_s=settings.solve_deadline_s)
-    return await run_in_threadpool(synthesize, family, problem, options)
+    uses_solver = family.uses_solver(options)
+    started = time.perf_counter()
+    try:
+        if uses_solver:
+            result = await pool.run(synthesize, family, problem, options, deadline_s=settings.solve_deadline_s)
+        else:
+            result = await run_in_threadpool(synthesize, family, problem, options)
+    except BaseException as exc:  # logged and counted, then raised as before (cancellation included)
+        record_solve(family.name, time.perf_counter() - started, error=exc, executor=_executor(uses_solver))
+        raise
+    record_solve(family.name, time.perf_counter() - started, result=result, executor=_executor(uses_solver))
+    return result
+
+
+def _executor(uses_solver: bool) -> str:
+    return "pool" if uses_solver else "thread"
 
 
 async def profile(family: Family, body: ProfileRequest, settings: Settings, pool: SolverPool) -> dict[str, Any]:

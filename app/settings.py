@@ -26,7 +26,13 @@ class Settings(BaseSettings):
     solve_max_iterations: int = Field(3000, ge=1, description="Iteration cap of one solve (IPOPT max_iter).")
     solve_grace_s: float = Field(5.0, ge=0, description="Extra time before a stuck worker is killed.")
     workers: int = Field(default_factory=_default_workers, ge=1, le=64, description="Solver worker processes.")
-    worker_start_timeout_s: float = Field(120.0, gt=0, description="Time allowed for the workers to start.")
+    worker_start_timeout_s: float = Field(120.0, gt=0, description="Time allowed for a worker's warm-up.")
+    max_queued: int | None = Field(
+        None, ge=0, le=10_000, description="Most solves waiting for a worker (503 beyond); default 4 per worker."
+    )
+    worker_niceness: int = Field(
+        5, ge=0, le=19, description="Niceness added to the solver workers, so the HTTP process stays responsive."
+    )
 
     @property
     def solve_caps(self) -> SolveCaps:
@@ -34,8 +40,12 @@ class Settings(BaseSettings):
         return SolveCaps(self.solve_max_iterations, self.solve_time_limit_s)
 
     @property
+    def queue_limit(self) -> int:
+        return 4 * self.workers if self.max_queued is None else self.max_queued
+
+    @property
     def solve_deadline_s(self) -> float:
-        """How long a request waits for its worker (a design may run several capped solves)."""
+        """A design's solving time in its worker (several capped solves), and the longest it may wait for one."""
         return 4.0 * self.solve_time_limit_s + self.solve_grace_s
 
 

@@ -90,6 +90,13 @@ class SolverTimedOut(SolverFailed):
 
 
 class PoolUnavailable(DomainError, RuntimeError):
-    """The solver pool is starting, restarting or broken: try again shortly."""
+    """The solver pool is starting, restarting or broken: try again in ``retry_after_s``."""
 
     problem_type = "not-ready"
+
+    def __init__(self, detail: str, retry_after_s: int = 5) -> None:
+        self.retry_after_s = retry_after_s
+        super().__init__(detail)
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (type(self), (str(self), self.retry_after_s))

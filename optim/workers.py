@@ -1,29 +1,55 @@
-"""The solver worker pool.
+"""The supervised solver worker pool.
 
 IPOPT with MUMPS is not thread-safe, so every CasADi solve runs in a worker process, never on the
-event loop or in a thread. Each worker builds its solvers once, when it starts (the
-families' warm-ups, ``optim.family.warm_up_all``), and
-keeps them in its module-level caches. Every call has a deadline: the solve's own cap (IPOPT's
-``max_wall_time``) plus a grace period; a worker that overruns it is killed and the pool is
-restarted, so one stuck solve cannot hold a worker forever.
+event loop or in a thread. Each worker builds its solvers once, when it starts (the families'
+warm-ups, ``optim.family.warm_up_all``), and keeps them in its module-level caches.
+
+The pool supervises its own processes, one pipe each, watched from the event loop
+(``loop.add_reader`` on the pipe and on the process sentinel), so that
+
+- any worker death (idle, busy or during its warm-up) is seen at once and that worker alone is
+  replaced; a warm-up that fails or overruns ``start_timeout_s`` is retried with exponential
+  back-off (0.5 s doubling to 30 s);
+- a solve that overruns its deadline kills only its own worker; the other solves continue;
+- the deadline counts solving time only: it starts when a worker takes the job;
+- admission is bounded: at most ``max_queued`` jobs wait for a worker, a job beyond that is refused
+  at once (``PoolBusy``, a 503 with Retry-After), and no job waits longer than its own deadline;
+- ``ready`` is true while at least one worker is warm, and ``stats()`` tells the rest.
+
+Why not ``pebble.ProcessPool`` (tried, 5.2.3): a worker that dies while no task runs makes it raise
+``BrokenProcessPool("All workers expired")`` and the whole pool stops for good; it has no signal of a
+worker's warm-up being done (readiness) and counts nothing we could export. ``concurrent.futures``
+cannot kill one worker at all. Supervising processes directly is about as long as the wrapper
+either would need.
 """
 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
+import math
 import multiprocessing
 import os
+import signal
 import time
+from collections import deque
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
-from concurrent.futures.process import BrokenProcessPool
-from typing import Any, TypeVar
+from dataclasses import dataclass, field
+from multiprocessing.connection import Connection
+from multiprocessing.process import BaseProcess
+from typing import Any, Literal, TypeVar
 
 from models.errors import PoolUnavailable, SolverTimedOut
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
+
+BACKOFF_FIRST_S = 0.5
+BACKOFF_MAX_S = 30.0
+RETRY_AFTER_MIN_S = 1
+RETRY_AFTER_MAX_S = 60
+STARTING_RETRY_AFTER_S = 5
 
 
 class SolveTimeout(SolverTimedOut):
@@ -37,108 +63,351 @@ class SolveTimeout(SolverTimedOut):
         return (type(self), (self.limit_s,))
 
 
-def _initialise_worker(warm_up: Callable[[], None] | None) -> None:
+class PoolBusy(PoolUnavailable):
+    """Every worker is busy and the queue is full, or a job waited its whole deadline for a worker."""
+
+    problem_type = "busy"
+
+
+# --- the worker process ---------------------------------------------------------------------
+
+
+def _worker_main(conn: Connection, warm_up: Callable[[], None] | None, niceness: int) -> None:
+    """A worker: warm up, say ready, then run ``(fn, args)`` jobs until told to stop (``None``)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C stops the server, which stops its workers
+    if niceness:
+        with contextlib.suppress(OSError):
+            os.nice(niceness)  # the HTTP process keeps answering while every worker computes
     if warm_up is not None:
-        warm_up()
+        warm_up()  # an exception ends the process: the pool sees a failed start and backs off
+    conn.send(("ready", os.getpid()))
+    while True:
+        try:
+            job = conn.recv()
+        except EOFError:
+            return
+        if job is None:
+            return
+        fn, args = job
+        try:
+            outcome: tuple[str, Any] = ("ok", fn(*args))
+        except Exception as exc:
+            outcome = ("error", exc)
+        try:
+            conn.send(outcome)  # pickled whole before any byte is written
+        except Exception as exc:
+            conn.send(("error", RuntimeError(f"the solve's {outcome[0]} could not be sent back: {exc!r}")))
 
 
-def _worker_pid() -> int:
-    time.sleep(0.05)  # long enough that concurrent pings land on different workers
-    return os.getpid()
+# --- the supervisor --------------------------------------------------------------------------
+
+
+@dataclass(eq=False)
+class _Job:
+    fn: Callable[..., Any]
+    args: tuple[Any, ...]
+    deadline_s: float
+    future: asyncio.Future[Any]
+    queued_at: float
+    timer: asyncio.TimerHandle | None = None
+
+
+@dataclass(eq=False)
+class _Worker:
+    process: BaseProcess
+    conn: Connection
+    state: Literal["starting", "idle", "busy", "gone"] = "starting"
+    job: _Job | None = None
+    started_at: float = 0.0
+    timer: asyncio.TimerHandle | None = None
+    killed_for: str = field(default="")
 
 
 class SolverPool:
-    """A process pool with readiness, deadlines and restart of stuck workers."""
+    """A supervised process pool with readiness, admission control and per-solve deadlines."""
 
-    def __init__(self, workers: int, start_timeout_s: float = 120.0, warm_up: Callable[[], None] | None = None) -> None:
+    def __init__(
+        self,
+        workers: int,
+        start_timeout_s: float = 120.0,
+        warm_up: Callable[[], None] | None = None,
+        *,
+        max_queued: int | None = None,
+        niceness: int = 0,
+    ) -> None:
         self.workers = workers
         self.warm_up = warm_up  # run once in every new worker (a picklable callable: the families' warm-ups)
         self.start_timeout_s = start_timeout_s
-        self._executor: ProcessPoolExecutor | None = None
-        self._ready = asyncio.Event()
-        self._starting: asyncio.Task[None] | None = None
+        self.max_queued = 4 * workers if max_queued is None else max_queued
+        self.niceness = niceness
+        self._context = multiprocessing.get_context("spawn")
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._workers: list[_Worker] = []
+        self._queue: deque[_Job] = deque()
+        self._ready_event = asyncio.Event()
+        self._closing = False
+        self._start_failures = 0
+        self._respawns: set[asyncio.TimerHandle] = set()
+        self._solve_s_estimate = 1.0  # running mean of solve times, for Retry-After
+        self.restarts = 0
+        self.timeouts = 0
+        self.rejected = 0
+
+    # --- state ---------------------------------------------------------------------------
 
     @property
     def ready(self) -> bool:
-        return self._ready.is_set()
+        """At least one worker is warm (idle or busy)."""
+        return any(w.state in ("idle", "busy") for w in self._workers)
 
-    def _new_executor(self) -> ProcessPoolExecutor:
-        return ProcessPoolExecutor(
-            max_workers=self.workers,
-            mp_context=multiprocessing.get_context("spawn"),
-            initializer=_initialise_worker,
-            initargs=(self.warm_up,),
-        )
+    def stats(self) -> dict[str, int]:
+        """Counts for /readyz and /metrics."""
+        states = [w.state for w in self._workers]
+        busy = states.count("busy")
+        return {
+            "workers": self.workers,
+            "ready": busy + states.count("idle"),
+            "busy": busy,
+            "starting": states.count("starting") + len(self._respawns),
+            "queued": len(self._queue),
+            "restarts": self.restarts,
+            "timeouts": self.timeouts,
+            "rejected": self.rejected,
+        }
 
-    async def start(self) -> None:
-        """Start the workers and wait until each has built its solvers."""
-        self._executor = self._new_executor()
-        await self._warm_up(self._executor)
+    def pids(self, state: Literal["starting", "idle", "busy"] | None = None) -> list[int]:
+        """Process ids of the live workers, or of those in one state (for tests and operators)."""
+        return [
+            w.process.pid
+            for w in self._workers
+            if w.state != "gone" and w.process.pid is not None and (state is None or w.state == state)
+        ]
+
+    # --- start and stop ------------------------------------------------------------------
 
     def start_in_background(self) -> None:
-        """Start without blocking: ``/readyz`` reports when the workers are up."""
-        self._executor = self._new_executor()
-        self._starting = asyncio.get_running_loop().create_task(self._warm_up(self._executor))
+        """Start every worker without blocking: ``ready`` tells when one is warm."""
+        self._loop = asyncio.get_running_loop()
+        self._closing = False
+        for _ in range(self.workers - len(self._workers)):
+            self._spawn()
 
-    async def _warm_up(self, executor: ProcessPoolExecutor) -> None:
-        loop = asyncio.get_running_loop()
-        deadline = loop.time() + self.start_timeout_s
-        pids: set[int] = set()
-        try:
-            while len(pids) < self.workers and loop.time() < deadline:
-                pings = [loop.run_in_executor(executor, _worker_pid) for _ in range(self.workers)]
-                pids.update(await asyncio.wait_for(asyncio.gather(*pings), max(0.0, deadline - loop.time())))
-        except (TimeoutError, BrokenProcessPool, OSError) as exc:
-            log.error("solver workers did not start: %r", exc)
-            return
-        if executor is self._executor and pids:
-            self._ready.set()
-            log.info("solver pool ready: %d workers", len(pids))
-
-    async def run(self, fn: Callable[..., T], *args: Any, deadline_s: float) -> T:
-        """Run ``fn(*args)`` in a worker; kill and restart the pool if it overruns ``deadline_s``."""
-        if not self.ready or self._executor is None:
-            raise PoolUnavailable("the solver workers are starting")
-        executor = self._executor
-        future = asyncio.get_running_loop().run_in_executor(executor, fn, *args)
-        try:
-            return await asyncio.wait_for(future, deadline_s)
-        except TimeoutError:
-            self._restart(executor)
-            raise SolveTimeout(deadline_s) from None
-        except BrokenProcessPool:
-            self._restart(executor)
-            raise PoolUnavailable("a solver worker stopped unexpectedly; the pool is restarting") from None
-
-    def _restart(self, broken: ProcessPoolExecutor) -> None:
-        if broken is not self._executor:
-            return  # another call already restarted it
-        self._ready.clear()
-        _kill(broken)
+    async def start(self) -> None:
+        """Start the workers and wait until one has built its solvers."""
         self.start_in_background()
+        await asyncio.wait_for(self._ready_event.wait(), self.start_timeout_s)
 
     async def close(self) -> None:
         """Stop the workers: let them exit (a second at most), then kill what is left."""
-        if self._starting is not None:
-            self._starting.cancel()
-            await asyncio.gather(self._starting, return_exceptions=True)
-        self._ready.clear()
-        executor, self._executor = self._executor, None
-        if executor is None:
+        self._closing = True
+        for handle in self._respawns:
+            handle.cancel()
+        self._respawns.clear()
+        while self._queue:
+            job = self._queue.popleft()
+            self._fail(job, PoolUnavailable("the service is shutting down"))
+        workers, self._workers = self._workers, []
+        for worker in workers:
+            self._detach(worker)
+            with contextlib.suppress(OSError, ValueError):
+                worker.conn.send(None)
+        deadline = time.monotonic() + 1.0
+        for worker in workers:
+            await asyncio.to_thread(worker.process.join, max(0.0, deadline - time.monotonic()))
+            if worker.process.is_alive():
+                worker.process.kill()
+                await asyncio.to_thread(worker.process.join, 1.0)
+            if worker.job is not None:
+                self._fail(worker.job, PoolUnavailable("the service is shutting down"))
+            with contextlib.suppress(OSError):
+                worker.conn.close()
+        self._ready_event.clear()
+
+    def _spawn(self) -> None:
+        assert self._loop is not None
+        parent, child = self._context.Pipe(duplex=True)
+        process = self._context.Process(
+            target=_worker_main, args=(child, self.warm_up, self.niceness), name="vibfree-solver", daemon=True
+        )
+        process.start()
+        child.close()
+        worker = _Worker(process, parent, started_at=time.monotonic())
+        self._workers.append(worker)
+        self._loop.add_reader(parent.fileno(), self._on_message, worker)
+        self._loop.add_reader(process.sentinel, self._on_exit, worker)
+        worker.timer = self._loop.call_later(self.start_timeout_s, self._kill, worker, "warm-up timed out")
+
+    def _respawn_later(self, delay_s: float) -> None:
+        assert self._loop is not None
+
+        def respawn() -> None:
+            self._respawns.discard(handle)
+            if not self._closing:
+                self._spawn()
+
+        handle = self._loop.call_later(delay_s, respawn)
+        self._respawns.add(handle)
+
+    # --- jobs ----------------------------------------------------------------------------
+
+    async def run(self, fn: Callable[..., T], *args: Any, deadline_s: float) -> T:
+        """Run ``fn(*args)`` in a worker, within ``deadline_s`` of solving (and of waiting for a worker)."""
+        if self._closing or self._loop is None:
+            raise PoolUnavailable("the solver pool is not running")
+        if not self.ready:
+            raise PoolUnavailable("the solver workers are starting", retry_after_s=STARTING_RETRY_AFTER_S)
+        idle = any(w.state == "idle" for w in self._workers)
+        if not idle and len(self._queue) >= self.max_queued:
+            self.rejected += 1
+            raise PoolBusy(
+                f"every solver worker is busy and {len(self._queue)} solves are waiting (the most allowed)",
+                retry_after_s=self.retry_after_s(),
+            )
+        job = _Job(fn, args, deadline_s, self._loop.create_future(), time.monotonic())
+        job.timer = self._loop.call_later(deadline_s, self._expire_queued, job)
+        self._queue.append(job)
+        self._dispatch()
+        try:
+            return await job.future  # type: ignore[no-any-return]
+        finally:
+            if not job.future.done():  # the caller went away: a queued job is dropped, a running one finishes
+                job.future.cancel()
+                if job in self._queue:
+                    self._queue.remove(job)
+                    self._cancel_timer(job)
+
+    def retry_after_s(self) -> int:
+        """When a slot is likely to free: the mean solve time times the jobs ahead per worker."""
+        ahead = (len(self._queue) + 1) / max(1, self.workers)
+        return int(min(RETRY_AFTER_MAX_S, max(RETRY_AFTER_MIN_S, math.ceil(self._solve_s_estimate * ahead))))
+
+    def _dispatch(self) -> None:
+        assert self._loop is not None
+        for worker in self._workers:
+            if not self._queue:
+                return
+            if worker.state != "idle":
+                continue
+            job = self._queue.popleft()
+            self._cancel_timer(job)
+            if job.future.done():
+                continue
+            try:
+                worker.conn.send((job.fn, job.args))
+            except Exception as exc:  # an argument that cannot be pickled, or a worker that just died
+                self._fail(job, exc if not isinstance(exc, OSError) else PoolUnavailable(str(exc)))
+                continue
+            worker.state, worker.job, worker.started_at = "busy", job, time.monotonic()
+            worker.timer = self._loop.call_later(job.deadline_s, self._on_deadline, worker, job)
+
+    def _expire_queued(self, job: _Job) -> None:
+        if job in self._queue:
+            self._queue.remove(job)
+            self.rejected += 1
+            waited = time.monotonic() - job.queued_at
+            self._fail(
+                job,
+                PoolBusy(
+                    f"no solver worker became free within the solve's deadline ({waited:.3g} s)",
+                    retry_after_s=self.retry_after_s(),
+                ),
+            )
+
+    def _on_deadline(self, worker: _Worker, job: _Job) -> None:
+        if worker.job is job and worker.state == "busy":
+            self.timeouts += 1
+            self._fail(job, SolveTimeout(job.deadline_s))
+            worker.job = None
+            self._kill(worker, f"solve overran its deadline of {job.deadline_s:g} s")
+
+    # --- worker events -------------------------------------------------------------------
+
+    def _on_message(self, worker: _Worker) -> None:
+        try:
+            message = worker.conn.recv()
+        except (EOFError, OSError):
+            self._on_exit(worker)
             return
-        processes = list((getattr(executor, "_processes", None) or {}).values())
-        executor.shutdown(wait=False, cancel_futures=True)
-        for process in processes:
-            await asyncio.get_running_loop().run_in_executor(None, process.join, 1.0)
-            if process.is_alive():
-                process.kill()
+        except Exception as exc:  # a result that cannot be unpickled here
+            message = ("error", RuntimeError(f"the solve's answer could not be read: {exc!r}"))
+        kind, payload = message
+        if kind == "ready":
+            self._cancel_timer(worker)
+            worker.state = "idle"
+            self._start_failures = 0
+            self._ready_event.set()
+            log.info("solver worker ready", extra={"pid": payload, "warm_up_s": time.monotonic() - worker.started_at})
+        elif worker.job is not None:
+            job, worker.job = worker.job, None
+            self._cancel_timer(worker)
+            worker.state = "idle"
+            elapsed = time.monotonic() - worker.started_at
+            self._solve_s_estimate += 0.2 * (elapsed - self._solve_s_estimate)
+            if kind == "ok":
+                if not job.future.done():
+                    job.future.set_result(payload)
+            else:
+                self._fail(job, payload)
+        self._dispatch()
 
+    def _on_exit(self, worker: _Worker) -> None:
+        if worker.state == "gone":
+            return
+        was = worker.state
+        worker.state = "gone"
+        self._detach(worker)
+        worker.process.join(0.5)  # its sentinel fired: it has exited, this only reaps it
+        code = worker.process.exitcode
+        with contextlib.suppress(OSError):
+            worker.conn.close()
+        if worker in self._workers:
+            self._workers.remove(worker)
+        if worker.job is not None:
+            self._fail(
+                worker.job,
+                PoolUnavailable(
+                    f"a solver worker stopped unexpectedly (exit code {code}); it is being replaced",
+                    retry_after_s=STARTING_RETRY_AFTER_S,
+                ),
+            )
+            worker.job = None
+        if not self.ready:
+            self._ready_event.clear()
+        if self._closing:
+            return
+        self.restarts += 1
+        reason = worker.killed_for or f"exit code {code}"
+        if was == "starting":
+            self._start_failures += 1
+            delay = min(BACKOFF_MAX_S, BACKOFF_FIRST_S * 2 ** (self._start_failures - 1))
+            log.error("solver worker failed to start; retrying", extra={"reason": reason, "retry_in_s": delay})
+            self._respawn_later(delay)
+        else:
+            log.warning("solver worker replaced", extra={"reason": reason, "state": was})
+            self._spawn()
+        self._dispatch()
 
-def _kill(executor: ProcessPoolExecutor) -> None:
-    # ProcessPoolExecutor cannot cancel a running call; terminating its processes is the only
-    # way to stop a stuck solve. ``_processes`` is private but stable since Python 3.2.
-    processes = list((getattr(executor, "_processes", None) or {}).values())
-    for process in processes:
-        if process.is_alive():
-            process.kill()
-    executor.shutdown(wait=False, cancel_futures=True)
+    def _kill(self, worker: _Worker, reason: str) -> None:
+        if worker.state != "gone" and worker.process.is_alive():
+            worker.killed_for = reason
+            worker.process.kill()  # its sentinel fires and _on_exit replaces it
+
+    def _detach(self, worker: _Worker) -> None:
+        self._cancel_timer(worker)
+        if self._loop is None:
+            return
+        with contextlib.suppress(ValueError, OSError):
+            self._loop.remove_reader(worker.conn.fileno())
+        with contextlib.suppress(ValueError, OSError):
+            self._loop.remove_reader(worker.process.sentinel)
+
+    @staticmethod
+    def _cancel_timer(item: _Worker | _Job) -> None:
+        if item.timer is not None:
+            item.timer.cancel()
+            item.timer = None
+
+    @staticmethod
+    def _fail(job: _Job, exc: BaseException) -> None:
+        if not job.future.done():
+            job.future.set_exception(exc)

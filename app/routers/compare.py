@@ -20,13 +20,14 @@ from app.responses import NumpyJSONResponse
 from app.schemas.common import OutModel
 from app.schemas.family import ProfileRequest, SensitivityIn, SensitivityOut
 from app.schemas.simulate import LoadOut, ProfileOut
-from models.errors import InvalidParameter
+from models.errors import InvalidParameter, PoolUnavailable
 from optim.compare import Row as ComparedRow
 from optim.compare import compare as compare_families
 from optim.families.pseudo_polynomial import PseudoPolynomialOptions
 from optim.family import Family
 from optim.problem import Problem
 from optim.synthesis import Result, load_arrays
+from optim.workers import PoolBusy
 
 router = APIRouter(prefix="/v1", tags=["compare"])
 FamilyName = Literal["time_optimal", "pseudo_polynomial", "stap", "smoother", "input_shaped"]
@@ -189,6 +190,7 @@ async def compare(
         return await services.run(family, p, options, settings, pool)
 
     rows, unavailable = await compare_families(problem, run, body.families, body.options(problem))
+    _raise_if_pool_refused(unavailable)
     common = body.common_body()
     answer_rows = [_row(body, common, row, problem.load_move) for row in rows]
     return NumpyJSONResponse(
@@ -198,3 +200,12 @@ async def compare(
             "unavailable": [vars(u) for u in unavailable],
         }
     )
+
+
+def _raise_if_pool_refused(unavailable: list[Any]) -> None:
+    """A ranking with rows missing only because the pool could not take them is not an answer: 503 it."""
+    refused = {u.problem_type: u.reason for u in unavailable}
+    if "/problems/busy" in refused:
+        raise PoolBusy(f"a family could not be run: {refused['/problems/busy']}")
+    if "/problems/not-ready" in refused:
+        raise PoolUnavailable(f"a family could not be run: {refused['/problems/not-ready']}")

@@ -27,3 +27,18 @@ def capped_ipopt(wall_time_s: float) -> SolverReport:
     start = time.perf_counter()
     solver(x0=-1.2)
     return report_of(solver, time.perf_counter() - start)
+
+
+def slow_warm_up(seconds: float = 1.5) -> None:
+    """A warm-up long enough to kill a worker in the middle of it."""
+    time.sleep(seconds)
+
+
+def failing_warm_up() -> None:
+    """A warm-up that always fails: the pool must retry it with back-off, never spin."""
+    raise RuntimeError("warm-up failed on purpose")
+
+
+def unpicklable_result() -> object:
+    """A result that cannot cross the process boundary (a lambda)."""
+    return lambda: None

@@ -1,19 +1,63 @@
-"""The solver worker pool: liveness while busy, capped solves, and killing a stuck worker.
+"""The solver worker pool through HTTP: liveness while busy, capped solves, worker deaths, admission.
 
-These use test-only routes (tests/app/conftest.py) that run deliberately slow solves in the
-app's own pool, through the same error handlers as the real endpoints.
+These use test-only routes (tests/app/conftest.py) that run deliberately slow solves in the app's
+own pool, through the same error handlers as the real endpoints, and a real solver request (Incerti's
+Table III move, whose residual the pseudo-polynomial tests pin) to show the service answers correctly
+after each failure. The pool itself is tested directly in tests/optim/test_workers.py.
 """
 
 from __future__ import annotations
 
+import math
+import os
+import signal
 import time
 from concurrent.futures import ThreadPoolExecutor
 
+import pytest
+from fastapi.testclient import TestClient
+from prometheus_client.parser import text_string_to_metric_families
+
+from app.examples import INCERTI_TABLE_III
+from app.main import create_app
+from app.settings import Settings
 from tests.app.conftest import wait_ready
 from tests.app.test_errors import assert_problem
 
+SOLVER_PATH = "/v1/profiles/pseudo-polynomial"
+SOLVER_MOVE = {"plant": INCERTI_TABLE_III, "displacement": 30 * math.pi, "duration_s": 1.0}
+RECOVERY_S = 15.0  # the issue's bound: the next solver request is answered correctly within 15 s
+
+
+def pool_of(client: TestClient):
+    return client.app.state.pool  # type: ignore[attr-defined]
+
+
+def wait_all_warm(client: TestClient, timeout_s: float = 60.0) -> None:
+    pool = pool_of(client)
+    deadline = time.monotonic() + timeout_s
+    while pool.stats()["ready"] < pool.workers:
+        assert time.monotonic() < deadline, pool.stats()
+        time.sleep(0.05)
+
+
+def solves_correctly_within(client: TestClient, bound_s: float) -> float:
+    """Seconds until the real solver request is a correct 200 (503s while the pool rebuilds are retried)."""
+    start = time.monotonic()
+    while True:
+        response = client.post(SOLVER_PATH, json=SOLVER_MOVE)
+        elapsed = time.monotonic() - start
+        if response.status_code == 200:
+            assert response.json()["design"]["residual_amplitude"] < 1e-6  # as in test_table_iii_acceptance
+            return elapsed
+        assert_problem(response, 503, slug="not-ready")
+        assert int(response.headers["retry-after"]) >= 1
+        assert elapsed < bound_s, "the pool did not recover in time"
+        time.sleep(0.2)
+
 
 def test_healthz_answers_while_every_worker_is_busy(client):
+    wait_all_warm(client)
     with ThreadPoolExecutor(max_workers=2) as threads:
         busy = [threads.submit(client.post, "/test/slow", params={"seconds": 2.0, "deadline_s": 30}) for _ in range(2)]
         time.sleep(0.5)  # both workers are now sleeping in their 'solve'
@@ -35,17 +79,119 @@ def test_ipopt_wall_time_cap_is_a_timeout_problem_without_a_result(client):
     assert "profile" not in problem
 
 
-def test_a_stuck_solve_is_killed_and_the_pool_recovers(client):
-    start = time.monotonic()
-    response = client.post("/test/slow", params={"seconds": 60.0, "deadline_s": 1.0})
-    assert time.monotonic() - start < 10
-    problem = assert_problem(response, 504, slug="solve-timeout")
-    assert problem["limit_s"] == 1.0
-    # Until the new workers are up the pool says so, with a problem and Retry-After.
-    during = client.post("/test/slow", params={"seconds": 0.0, "deadline_s": 30})
-    if during.status_code == 503:
-        assert_problem(during, 503, slug="not-ready")
-        assert during.headers["retry-after"]
-    wait_ready(client)
-    after = client.post("/test/slow", params={"seconds": 0.0, "deadline_s": 30})
-    assert after.status_code == 200
+def test_a_stuck_solve_is_killed_and_only_its_worker_replaced(client):
+    wait_all_warm(client)
+    restarts = pool_of(client).stats()["restarts"]
+    with ThreadPoolExecutor(max_workers=2) as threads:
+        stuck = threads.submit(client.post, "/test/slow", params={"seconds": 60.0, "deadline_s": 1.0})
+        time.sleep(0.2)
+        other = threads.submit(client.post, "/test/slow", params={"seconds": 2.0, "deadline_s": 30})
+        start = time.monotonic()
+        problem = assert_problem(stuck.result(), 504, slug="solve-timeout")
+        assert time.monotonic() - start < 10
+        assert problem["limit_s"] == 1.0
+        assert other.result().status_code == 200  # the other in-flight solve was not killed with it
+    assert client.get("/readyz").status_code == 200  # one worker stayed warm throughout
+    assert solves_correctly_within(client, RECOVERY_S) < RECOVERY_S
+    wait_all_warm(client)
+    assert pool_of(client).stats()["restarts"] == restarts + 1
+
+
+def test_an_idle_worker_killed_is_replaced_and_the_next_solve_is_correct(client):
+    wait_all_warm(client)
+    victim = pool_of(client).pids()[0]
+    os.kill(victim, signal.SIGKILL)
+    assert solves_correctly_within(client, RECOVERY_S) < RECOVERY_S
+    assert client.get("/readyz").status_code == 200  # the other worker was warm: never 503
+    wait_all_warm(client)
+    assert victim not in pool_of(client).pids()
+    # The replacement is counted where an operator looks: /readyz and the Prometheus scrape agree.
+    scraped = {
+        s.name: s.value
+        for family in text_string_to_metric_families(client.get("/metrics").text)
+        for s in family.samples
+        if s.name.startswith("vibfree_pool_") and not s.labels
+    }
+    assert scraped["vibfree_pool_restarts_total"] == client.get("/readyz").json()["restarts"] >= 1
+
+
+def test_a_busy_worker_killed_is_a_503_for_its_request_only(client):
+    wait_all_warm(client)
+    with ThreadPoolExecutor(max_workers=1) as threads:
+        doomed = threads.submit(client.post, "/test/slow", params={"seconds": 30.0, "deadline_s": 60})
+        deadline = time.monotonic() + 10
+        while not pool_of(client).pids("busy"):
+            assert time.monotonic() < deadline
+            time.sleep(0.02)
+        os.kill(pool_of(client).pids("busy")[0], signal.SIGKILL)
+        problem = assert_problem(doomed.result(timeout=10), 503, slug="not-ready")
+        assert "stopped unexpectedly" in problem["detail"]
+        assert int(doomed.result().headers["retry-after"]) >= 1
+    assert solves_correctly_within(client, RECOVERY_S) < RECOVERY_S
+    wait_all_warm(client)
+
+
+def test_twice_the_queue_the_excess_is_refused_at_once_and_the_rest_finish(client):
+    wait_all_warm(client)
+    pool = pool_of(client)
+    queue = pool.max_queued
+    requests = 2 * queue  # the issue's load: twice as many concurrent slow requests as the queue holds
+    admitted = pool.workers + queue
+    with ThreadPoolExecutor(max_workers=requests) as threads:
+        started = time.monotonic()
+        futures = [
+            threads.submit(
+                lambda: (client.post("/test/slow", params={"seconds": 0.5, "deadline_s": 30}), time.monotonic())
+            )
+            for _ in range(requests)
+        ]
+        outcomes = [f.result() for f in futures]
+    statuses = [r.status_code for r, _ in outcomes]
+    assert 500 not in statuses
+    assert statuses.count(200) == admitted, statuses
+    refused = [(r, at) for r, at in outcomes if r.status_code == 503]
+    assert len(refused) == requests - admitted
+    for response, at in refused:
+        assert_problem(response, 503, slug="busy")
+        assert int(response.headers["retry-after"]) >= 1
+        # At once: before the first queued solve could even have run (the workers need 0.5 s per solve).
+        assert at - started < 0.5
+    assert pool.stats()["queued"] == 0
+
+
+@pytest.fixture(scope="module")
+def fresh_app_settings() -> Settings:
+    return Settings(workers=1, max_samples=5000, max_body_bytes=2 * 1024 * 1024)
+
+
+def test_a_worker_killed_during_warm_up_is_restarted_and_readiness_tells_the_truth(fresh_app_settings):
+    app = create_app(fresh_app_settings)
+    with TestClient(app, raise_server_exceptions=False) as client:
+        pool = pool_of(client)
+        deadline = time.monotonic() + 10
+        while not pool.pids("starting"):
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        os.kill(pool.pids("starting")[0], signal.SIGKILL)  # its warm-up (the families' solvers) takes ~4 s
+        not_ready = client.get("/readyz")
+        assert_problem(not_ready, 503, slug="not-ready")
+        assert not_ready.json()["pool"]["ready"] == 0
+        elapsed = solves_correctly_within(client, RECOVERY_S)
+        assert elapsed < RECOVERY_S
+        ready = client.get("/readyz").json()
+        assert ready["status"] == "ready" and ready["restarts"] == 1
+        wait_ready(client)
+
+
+def test_a_compare_missing_rows_only_because_the_pool_refused_them_is_a_503_not_a_ranking():
+    from app.routers.compare import _raise_if_pool_refused
+    from models.errors import PoolUnavailable
+    from optim.compare import Unavailable
+    from optim.workers import PoolBusy
+
+    not_applicable = Unavailable("stap", "needs an acceleration limit", "/problems/not-applicable")
+    _raise_if_pool_refused([not_applicable])  # a family that does not apply is part of the answer
+    with pytest.raises(PoolBusy, match="queue"):
+        _raise_if_pool_refused([not_applicable, Unavailable("stap", "the queue is full", "/problems/busy")])
+    with pytest.raises(PoolUnavailable, match="starting"):
+        _raise_if_pool_refused([Unavailable("pseudo_polynomial", "workers starting", "/problems/not-ready")])

@@ -1,0 +1,396 @@
+"""Observability: JSON logs, request ids, Prometheus metrics and the security headers of every response.
+
+- ``configure_logging()`` makes every log line one JSON object on stderr (structlog, and the stdlib
+  records of ``app.*``, ``optim.*``, ``models.*`` and uvicorn through structlog's ``ProcessorFormatter``).
+- ``install(app)`` gives the app its own Prometheus registry (``app.state.metrics``) and wraps the
+  whole ASGI stack in ``ObservabilityMiddleware``: a request id, one access line, the request
+  metrics and the security headers on every response (problems, 500s and static files included).
+- ``record_solve(...)`` logs one design run by the service layer and counts it.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextvars
+import logging
+import re
+import sys
+import time
+import uuid
+from collections.abc import Callable, Iterable, Mapping
+from typing import Any, TextIO
+
+import structlog
+from fastapi import FastAPI
+from prometheus_client import CollectorRegistry, Counter, Histogram, PlatformCollector, ProcessCollector
+from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily, Metric
+from prometheus_client.registry import Collector
+from starlette.datastructures import MutableHeaders
+from starlette.routing import BaseRoute, Match, Router
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
+
+# --- logging -------------------------------------------------------------------------------------
+
+#: The service's own loggers, shown from INFO (everything else from WARNING, the root's level).
+APP_LOGGERS = ("app", "optim", "models", "vibfree")
+
+
+class _StderrHandler(logging.StreamHandler):  # type: ignore[type-arg]
+    """A handler writing to whatever ``sys.stderr`` is at the time of each record (test capture included)."""
+
+    @property  # type: ignore[override]
+    def stream(self) -> TextIO:
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, _value: TextIO) -> None:  # StreamHandler.__init__ assigns it
+        pass
+
+
+def _drop_color_message(_: Any, __: str, event_dict: structlog.typing.EventDict) -> structlog.typing.EventDict:
+    event_dict.pop("color_message", None)  # uvicorn's ANSI-coloured copy of its message
+    return event_dict
+
+
+def _formatter() -> structlog.stdlib.ProcessorFormatter:
+    """The formatter of every line: a stdlib record (foreign) or a structlog event, as one JSON object."""
+    return structlog.stdlib.ProcessorFormatter(
+        foreign_pre_chain=[
+            structlog.contextvars.merge_contextvars,  # the request id, in the thread that logs
+            structlog.stdlib.add_logger_name,
+            structlog.stdlib.add_log_level,
+            structlog.stdlib.ExtraAdder(),
+            _drop_color_message,
+            structlog.processors.TimeStamper(fmt="iso", utc=True),
+        ],
+        processors=[
+            structlog.stdlib.ProcessorFormatter.remove_processors_meta,
+            structlog.processors.format_exc_info,
+            structlog.processors.JSONRenderer(),
+        ],
+    )
+
+
+def configure_logging(level: int | str = logging.INFO) -> None:
+    """One JSON object per line on stderr for structlog and stdlib loggers alike. Idempotent."""
+    root = logging.getLogger()
+    if not any(isinstance(h, _StderrHandler) for h in root.handlers):
+        structlog.configure(
+            processors=[
+                structlog.contextvars.merge_contextvars,
+                structlog.stdlib.filter_by_level,
+                structlog.stdlib.add_logger_name,
+                structlog.stdlib.add_log_level,
+                structlog.stdlib.PositionalArgumentsFormatter(),
+                structlog.processors.TimeStamper(fmt="iso", utc=True),
+                structlog.processors.StackInfoRenderer(),
+                structlog.stdlib.ProcessorFormatter.wrap_for_formatter,
+            ],
+            logger_factory=structlog.stdlib.LoggerFactory(),
+            wrapper_class=structlog.stdlib.BoundLogger,
+            cache_logger_on_first_use=True,
+        )
+        handler = _StderrHandler()
+        handler.setFormatter(_formatter())
+        root.addHandler(handler)
+    for name in APP_LOGGERS:
+        logging.getLogger(name).setLevel(level)
+    # uvicorn configures its loggers (dictConfig) before it imports the app: route its error logger,
+    # and its access logger when it is on (it is off with --no-access-log), through the JSON handler.
+    for name in ("uvicorn", "uvicorn.error", "uvicorn.access"):
+        logger = logging.getLogger(name)
+        if name == "uvicorn.access" and not logger.handlers and not logger.propagate:
+            continue  # disabled by --no-access-log
+        logger.handlers.clear()
+        logger.propagate = True
+
+
+def start_worker(warm_up: Callable[[], None]) -> None:
+    """A solver worker's start (run in the new process): JSON logs like the server's, then the warm-up.
+
+    A failed warm-up is logged as one JSON line with its traceback; the process then exits and the
+    pool retries with back-off.
+    """
+    configure_logging()
+    try:
+        warm_up()
+    except Exception:
+        logging.getLogger("app.worker").exception("solver worker warm-up failed")
+        raise SystemExit(1) from None
+
+
+access_log = structlog.stdlib.get_logger("app.access")
+solve_log = structlog.stdlib.get_logger("app.solves")
+
+# --- metrics -------------------------------------------------------------------------------------
+
+LATENCY_BUCKETS_S = (0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0, 30.0, 60.0)
+METHODS = frozenset({"GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS"})
+UNMATCHED = "unmatched"
+
+
+class PoolCollector(Collector):
+    """The solver pool's state, read at scrape time from ``pool.stats()`` (skipped while it has none)."""
+
+    GAUGES = (
+        ("vibfree_pool_configured_workers", "workers", "Solver worker processes configured."),
+        ("vibfree_pool_queue_depth", "queued", "Solves waiting for a worker."),
+    )
+    COUNTERS = (
+        ("vibfree_pool_restarts", "restarts", "Worker processes replaced since start."),
+        ("vibfree_pool_timeouts", "timeouts", "Solves killed at their deadline."),
+        ("vibfree_pool_rejected", "rejected", "Solves refused by admission control."),
+    )
+
+    def __init__(self, pool: Callable[[], object | None]) -> None:
+        self._pool = pool
+
+    def collect(self) -> Iterable[Metric]:
+        stats_of = getattr(self._pool(), "stats", None)
+        if not callable(stats_of):
+            return []
+        try:
+            stats: Mapping[str, int] = stats_of()
+        except Exception:  # a scrape must not fail because the pool could not say
+            logging.getLogger(__name__).exception("the solver pool's stats() failed")
+            return []
+        metrics: list[Metric] = []
+        states = [s for s in ("ready", "busy", "starting") if s in stats]
+        if states:
+            workers = GaugeMetricFamily(
+                "vibfree_pool_workers",
+                "Solver worker processes by state (ready: warm, idle or busy).",
+                labels=["state"],
+            )
+            for state in states:
+                workers.add_metric([state], stats[state])
+            metrics.append(workers)
+        for name, key, doc in self.GAUGES:
+            if key in stats:
+                metrics.append(GaugeMetricFamily(name, doc, value=stats[key]))
+        for name, key, doc in self.COUNTERS:
+            if key in stats:
+                metrics.append(CounterMetricFamily(name, doc, value=stats[key]))  # exposed as <name>_total
+        return metrics
+
+
+class Metrics:
+    """One app's metrics, in a registry of its own (an app factory may run several times in a process)."""
+
+    def __init__(self, pool: Callable[[], object | None]) -> None:
+        self.registry = CollectorRegistry()
+        self.requests = Counter(
+            "vibfree_http_requests",
+            "HTTP requests by method, route template (or 'unmatched') and status.",
+            ["method", "route", "status"],
+            registry=self.registry,
+        )
+        self.latency = Histogram(
+            "vibfree_http_request_duration_seconds",
+            "Time from the request to the last byte of the response, by route template.",
+            ["route"],
+            buckets=LATENCY_BUCKETS_S,
+            registry=self.registry,
+        )
+        self.solves = Counter(
+            "vibfree_solves",
+            "Designs run by the service layer, by family and outcome ('ok' or the problem type).",
+            ["family", "outcome"],
+            registry=self.registry,
+        )
+        self.solve_duration = Histogram(
+            "vibfree_solve_duration_seconds",
+            "Wall time of one design in the service layer (waiting for a worker included), by family.",
+            ["family"],
+            buckets=LATENCY_BUCKETS_S,
+            registry=self.registry,
+        )
+        self.registry.register(PoolCollector(pool))
+        ProcessCollector(registry=self.registry)
+        PlatformCollector(registry=self.registry)
+
+
+# The metrics of the app serving the current request (set by the middleware), for record_solve.
+_current_metrics: contextvars.ContextVar[Metrics | None] = contextvars.ContextVar("vibfree_metrics", default=None)
+
+
+def record_solve(
+    family: str,
+    duration_s: float,
+    *,
+    result: Any = None,
+    error: BaseException | None = None,
+    executor: str = "thread",
+) -> None:
+    """Log one design (its family, outcome, solver status, iterations and time) and count it.
+
+    ``result`` is an ``optim.synthesis.Result`` (its ``solver`` summary, when a solver ran); ``error``
+    the exception that ended the design instead: its outcome is its problem type (``infeasible``,
+    ``solver-failed``, ``solve-timeout``, ``not-ready``, ...), ``cancelled`` or ``error``.
+    """
+    if error is None:
+        outcome = "ok"
+        solver = getattr(result, "solver", None)
+    elif isinstance(error, asyncio.CancelledError):
+        outcome, solver = "cancelled", None
+    else:
+        outcome = getattr(error, "problem_type", None) or "error"
+        solver = getattr(error, "report", None)
+    fields: dict[str, Any] = {
+        "family": family,
+        "outcome": outcome,
+        "executor": executor,
+        "duration_ms": round(duration_s * 1e3, 3),
+        "solver_status": getattr(solver, "status", None),
+        "iterations": getattr(solver, "iterations", None),
+        "solver_time_s": getattr(solver, "solve_time_s", None),
+    }
+    if solver is not None and hasattr(solver, "solves"):
+        fields["solves"] = solver.solves
+    if error is not None:
+        fields["error"] = str(error)[:500]
+        if hasattr(error, "limit_s"):
+            fields["limit_s"] = error.limit_s
+    if outcome in ("ok", "infeasible", "not-applicable", "invalid-input", "cancelled"):
+        solve_log.info("solve", **fields)
+    else:
+        solve_log.warning("solve", **fields)
+    metrics = _current_metrics.get()
+    if metrics is not None:
+        metrics.solves.labels(family, outcome).inc()
+        metrics.solve_duration.labels(family).observe(duration_s)
+
+
+# --- the middleware ------------------------------------------------------------------------------
+
+REQUEST_ID_HEADER = "x-request-id"
+_SANE_REQUEST_ID = re.compile(r"[A-Za-z0-9\-_.:]{1,128}")
+
+#: The page and the API use only the service's own assets (uPlot sets styles through the CSSOM, which
+#: style-src does not restrict; the page has no inline script or style).
+CONTENT_SECURITY_POLICY = (
+    "default-src 'self'; img-src 'self' data:; style-src 'self'; script-src 'self'; object-src 'none'; "
+    "base-uri 'none'; form-action 'self'; frame-ancestors 'none'"
+)
+#: FastAPI's /docs (Swagger UI) and /redoc load their bundles from cdn.jsdelivr.net and start them with an
+#: inline script (ReDoc also loads Google fonts, injects <style> elements and starts a blob: worker).
+#: This looser policy applies to those paths only, until another issue vendors the two UIs under /static.
+DOCS_CONTENT_SECURITY_POLICY = (
+    "default-src 'self'; "
+    "script-src 'self' 'unsafe-inline' https://cdn.jsdelivr.net; "
+    "style-src 'self' 'unsafe-inline' https://cdn.jsdelivr.net https://fonts.googleapis.com; "
+    "font-src 'self' data: https://fonts.gstatic.com; "
+    "img-src 'self' data: https://fastapi.tiangolo.com https://cdn.redoc.ly; "
+    "worker-src 'self' blob:; connect-src 'self'; object-src 'none'; base-uri 'none'; frame-ancestors 'none'"
+)
+DOCS_PATHS = frozenset({"/docs", "/docs/oauth2-redirect", "/redoc"})
+SECURITY_HEADERS = (
+    ("x-content-type-options", "nosniff"),
+    ("referrer-policy", "no-referrer"),
+)
+
+
+def request_id_of(headers: Iterable[tuple[bytes, bytes]]) -> str:
+    """The client's ``X-Request-ID`` if it is a sane token (1-128 ASCII letters, digits, ``-_.:``), else a uuid4 hex."""
+    for name, value in headers:
+        if name.lower() == b"x-request-id":
+            candidate = value.decode("latin-1")
+            if _SANE_REQUEST_ID.fullmatch(candidate):
+                return candidate
+            break
+    return uuid.uuid4().hex
+
+
+def route_template(scope: Scope, routes: Iterable[BaseRoute] = ()) -> str:
+    """The path template of the route that served ``scope`` (``/problems/{slug}``, ``/static/{path}``).
+
+    FastAPI records its own routes in ``scope["route"]``; its documentation routes and the static mount
+    are found in ``routes`` by the request's method and path. Anything else is ``unmatched``.
+    """
+    route = scope.get("route")
+    if route is None:
+        probe = {"type": "http", "path": scope.get("path", ""), "root_path": "", "method": scope.get("method", "")}
+        route = next((r for r in routes if r.matches(probe)[0] is not Match.NONE), None)
+    template = getattr(route, "path_format", None) or getattr(route, "path", None)
+    return template if isinstance(template, str) and template else UNMATCHED
+
+
+def _client(scope: Scope) -> str | None:
+    client = scope.get("client")
+    return f"{client[0]}:{client[1]}" if client else None
+
+
+class ObservabilityMiddleware:
+    """Pure ASGI middleware (streaming and contextvars intact), outside every other layer.
+
+    For each HTTP request: its id (bound in structlog's contextvars, echoed in ``X-Request-ID``), the
+    security headers, no ``server`` header, the request metrics and one access line.
+    """
+
+    def __init__(self, app: ASGIApp, metrics: Metrics, router: Router | None = None) -> None:
+        self.app = app
+        self.metrics = metrics
+        self.router = router
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        started = time.perf_counter()
+        request_id = request_id_of(scope.get("headers", []))
+        scope.setdefault("state", {})["request_id"] = request_id
+        csp = DOCS_CONTENT_SECURITY_POLICY if scope.get("path") in DOCS_PATHS else CONTENT_SECURITY_POLICY
+        status = 500  # if the app fails before it answers
+
+        async def send_with_headers(message: Message) -> None:
+            nonlocal status
+            if message["type"] == "http.response.start":
+                status = message["status"]
+                headers = MutableHeaders(scope=message)
+                headers[REQUEST_ID_HEADER] = request_id
+                headers.setdefault("content-security-policy", csp)
+                for name, value in SECURITY_HEADERS:
+                    headers.setdefault(name, value)
+                if "server" in headers:
+                    del headers["server"]
+            await send(message)
+
+        context = structlog.contextvars.bind_contextvars(request_id=request_id)
+        metrics_token = _current_metrics.set(self.metrics)
+        try:
+            await self.app(scope, receive, send_with_headers)
+        finally:
+            duration_s = time.perf_counter() - started
+            route = route_template(scope, self.router.routes if self.router is not None else ())
+            method = scope.get("method", "")
+            self.metrics.requests.labels(method if method in METHODS else "other", route, str(status)).inc()
+            self.metrics.latency.labels(route).observe(duration_s)
+            (access_log.warning if status >= 500 else access_log.info)(
+                "request",
+                method=method,
+                path=scope.get("path"),
+                route=route,
+                status=status,
+                duration_ms=round(duration_s * 1e3, 3),
+                request_id=request_id,
+                client=_client(scope),
+            )
+            _current_metrics.reset(metrics_token)
+            structlog.contextvars.reset_contextvars(**context)
+
+
+def install(app: FastAPI) -> Metrics:
+    """Give ``app`` its metrics (``app.state.metrics``) and wrap its whole middleware stack.
+
+    The wrapper goes outside Starlette's ``ServerErrorMiddleware`` (which ``add_middleware`` cannot
+    do), so that a 500 problem carries the request id and the security headers too.
+    """
+    metrics = Metrics(lambda: getattr(app.state, "pool", None))
+    app.state.metrics = metrics
+    build_stack = app.build_middleware_stack
+
+    def build_middleware_stack() -> ASGIApp:
+        return ObservabilityMiddleware(build_stack(), metrics, app.router)
+
+    app.build_middleware_stack = build_middleware_stack  # type: ignore[method-assign]
+    return metrics

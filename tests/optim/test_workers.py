@@ -1,0 +1,216 @@
+"""The supervised solver pool, driven directly (no HTTP): deaths, deadlines, admission, back-off.
+
+The jobs are deliberately slow functions (tests/app/slow_solves.py); times are wall-clock bounds with
+generous margins for a loaded 2-core machine, and each bound says which behaviour it separates
+(e.g. "refused at once" is < 1 s against the 3 s a queued job would wait).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import functools
+import os
+import signal
+import time
+from collections.abc import Awaitable, Callable
+from typing import Any
+
+import pytest
+
+from models.errors import PoolUnavailable
+from optim.workers import PoolBusy, SolverPool, SolveTimeout
+from tests.app import slow_solves
+
+
+def with_pool(workers: int = 1, **kwargs: Any) -> Callable[[Callable[[SolverPool], Awaitable[None]]], Any]:
+    """Run an async test body against a started pool, closed afterwards."""
+
+    def decorate(body: Callable[[SolverPool], Awaitable[None]]) -> Callable[[], None]:
+        def test() -> None:
+            async def main() -> None:
+                pool = SolverPool(workers, **kwargs)
+                try:
+                    await pool.start()
+                    await body(pool)
+                finally:
+                    await pool.close()
+
+            asyncio.run(main())
+
+        test.__name__, test.__doc__ = body.__name__, body.__doc__  # not functools.wraps: pytest would see `pool`
+        return test
+
+    return decorate
+
+
+async def until(condition: Callable[[], bool], timeout_s: float = 15.0) -> float:
+    """Seconds until ``condition()`` holds (fails after ``timeout_s``, the issue's recovery bound)."""
+    start = time.monotonic()
+    while not condition():
+        assert time.monotonic() - start < timeout_s, "condition not reached in time"
+        await asyncio.sleep(0.02)
+    return time.monotonic() - start
+
+
+def all_warm(pool: SolverPool) -> bool:
+    return pool.stats()["ready"] == pool.workers
+
+
+@with_pool(workers=2)
+async def test_an_idle_worker_that_dies_is_replaced_and_the_other_keeps_serving(pool: SolverPool) -> None:
+    await until(lambda: all_warm(pool))
+    victim, survivor = pool.pids()
+    os.kill(victim, signal.SIGKILL)
+    await until(lambda: victim not in pool.pids())
+    assert pool.ready  # the other worker is warm: the service can still solve
+    assert await pool.run(slow_solves.sleep_for, 0.0, deadline_s=10) in (survivor, *pool.pids())
+    await until(lambda: all_warm(pool))
+    assert pool.stats()["restarts"] == 1
+    assert victim not in pool.pids()
+
+
+@with_pool(workers=1, warm_up=functools.partial(slow_solves.slow_warm_up, 0.5))
+async def test_readiness_is_false_exactly_while_the_only_worker_is_rebuilt(pool: SolverPool) -> None:
+    (victim,) = pool.pids()
+    os.kill(victim, signal.SIGKILL)
+    await until(lambda: not pool.ready, timeout_s=2)
+    with pytest.raises(PoolUnavailable) as refused:  # not ready: refused at once with a Retry-After
+        await pool.run(slow_solves.sleep_for, 0.0, deadline_s=10)
+    assert refused.value.retry_after_s >= 1
+    rebuilt_s = await until(lambda: pool.ready)
+    assert rebuilt_s < 15
+    assert isinstance(await pool.run(slow_solves.sleep_for, 0.0, deadline_s=10), int)
+
+
+@with_pool(workers=2)
+async def test_a_busy_worker_that_dies_fails_only_its_own_solve(pool: SolverPool) -> None:
+    await until(lambda: all_warm(pool))
+    doomed = asyncio.ensure_future(pool.run(slow_solves.sleep_for, 30.0, deadline_s=60))
+    await until(lambda: pool.stats()["busy"] == 1)
+    (busy_pid,) = pool.pids("busy")
+    other = asyncio.ensure_future(pool.run(slow_solves.sleep_for, 1.0, deadline_s=60))
+    await until(lambda: pool.stats()["busy"] == 2)
+    os.kill(busy_pid, signal.SIGKILL)
+    with pytest.raises(PoolUnavailable, match="stopped unexpectedly"):
+        await asyncio.wait_for(doomed, 5)
+    assert await asyncio.wait_for(other, 10) != busy_pid  # the other solve finished on its own worker
+    await until(lambda: all_warm(pool))
+    assert isinstance(await pool.run(slow_solves.sleep_for, 0.0, deadline_s=10), int)
+
+
+@with_pool(workers=1, warm_up=functools.partial(slow_solves.slow_warm_up, 2.0), start_timeout_s=30)
+async def test_a_worker_killed_during_its_warm_up_is_restarted(pool: SolverPool) -> None:
+    (warm,) = pool.pids()
+    os.kill(warm, signal.SIGKILL)  # the replacement now warms up for 2 s
+    await until(lambda: pool.pids() and pool.pids() != [warm] and pool.stats()["starting"] == 1)
+    (warming,) = pool.pids()
+    os.kill(warming, signal.SIGKILL)
+    recovered_s = await until(lambda: pool.ready)
+    assert recovered_s < 15  # back-off 0.5 s, then 2 s of warm-up
+    assert pool.stats()["restarts"] == 2
+    assert await pool.run(slow_solves.sleep_for, 0.0, deadline_s=10) not in (warm, warming)
+
+
+def test_a_failing_warm_up_is_retried_with_back_off_and_never_ready() -> None:
+    async def main() -> None:
+        pool = SolverPool(1, warm_up=slow_solves.failing_warm_up)
+        pool.start_in_background()
+        try:
+            await asyncio.sleep(4.0)
+            stats = pool.stats()
+            assert not pool.ready
+            assert stats["starting"] == 1  # always either warming up or waiting to retry
+            # Back-off 0.5, 1, 2 s (plus each attempt's ~0.5 s start-up): at most 4 failures in 4 s,
+            # where a retry without back-off would fail ~8 times.
+            assert 1 <= stats["restarts"] <= 4, stats
+            with pytest.raises(PoolUnavailable):
+                await pool.run(slow_solves.sleep_for, 0.0, deadline_s=10)
+        finally:
+            await pool.close()
+
+    asyncio.run(main())
+
+
+@with_pool(workers=2)
+async def test_a_stuck_solve_kills_only_its_own_worker(pool: SolverPool) -> None:
+    await until(lambda: all_warm(pool))
+    stuck = asyncio.ensure_future(pool.run(slow_solves.sleep_for, 60.0, deadline_s=1.0))
+    await until(lambda: pool.stats()["busy"] == 1)
+    other = asyncio.ensure_future(pool.run(slow_solves.sleep_for, 2.5, deadline_s=30))
+    start = time.monotonic()
+    with pytest.raises(SolveTimeout):
+        await stuck
+    assert time.monotonic() - start < 3  # killed at its 1 s deadline, not after 60 s
+    assert isinstance(await other, int)  # the other solve was not touched
+    assert pool.stats()["timeouts"] == 1
+    await until(lambda: all_warm(pool))
+
+
+@with_pool(workers=1)
+async def test_the_deadline_counts_solving_time_not_waiting(pool: SolverPool) -> None:
+    first = asyncio.ensure_future(pool.run(slow_solves.sleep_for, 1.0, deadline_s=10))
+    await until(lambda: pool.stats()["busy"] == 1)
+    start = time.monotonic()
+    # Waits ~1 s for the worker, then solves for 0.8 s: 1.8 s in all, over its 1.5 s deadline, yet within it
+    # as solving time. (A deadline counted from submission would have killed it.)
+    second = await pool.run(slow_solves.sleep_for, 0.8, deadline_s=1.5)
+    assert time.monotonic() - start > 1.5
+    assert isinstance(second, int)
+    await first
+
+
+@with_pool(workers=1)
+async def test_a_queued_job_never_waits_past_its_deadline(pool: SolverPool) -> None:
+    busy = asyncio.ensure_future(pool.run(slow_solves.sleep_for, 3.0, deadline_s=10))
+    await until(lambda: pool.stats()["busy"] == 1)
+    start = time.monotonic()
+    with pytest.raises(PoolBusy) as refused:
+        await pool.run(slow_solves.sleep_for, 0.0, deadline_s=0.5)
+    assert 0.4 < time.monotonic() - start < 2  # its 0.5 s deadline, not the 3 s the worker stays busy
+    assert refused.value.retry_after_s >= 1
+    await busy
+
+
+@with_pool(workers=1, max_queued=2)
+async def test_beyond_the_queue_a_solve_is_refused_at_once(pool: SolverPool) -> None:
+    running = asyncio.ensure_future(pool.run(slow_solves.sleep_for, 1.0, deadline_s=10))
+    await until(lambda: pool.stats()["busy"] == 1)
+    queued = [asyncio.ensure_future(pool.run(slow_solves.sleep_for, 0.1, deadline_s=10)) for _ in range(2)]
+    await asyncio.sleep(0)
+    assert pool.stats()["queued"] == 2
+    start = time.monotonic()
+    with pytest.raises(PoolBusy) as refused:
+        await pool.run(slow_solves.sleep_for, 0.0, deadline_s=10)
+    assert time.monotonic() - start < 0.1  # at once: nothing is waited for
+    assert refused.value.retry_after_s >= 1
+    assert pool.stats()["rejected"] == 1
+    for result in await asyncio.gather(running, *queued):
+        assert isinstance(result, int)  # the queued ones finish
+
+
+@with_pool(workers=1)
+async def test_an_answer_that_cannot_cross_the_process_boundary_is_an_error_not_a_hang(pool: SolverPool) -> None:
+    with pytest.raises(RuntimeError, match="could not be sent back"):
+        await asyncio.wait_for(pool.run(slow_solves.unpicklable_result, deadline_s=10), 5)
+    assert isinstance(await pool.run(slow_solves.sleep_for, 0.0, deadline_s=10), int)  # the worker lives on
+
+
+def test_close_stops_busy_workers_within_seconds() -> None:
+    async def main() -> None:
+        pool = SolverPool(2)
+        await pool.start()
+        await until(lambda: all_warm(pool))
+        pids = pool.pids()
+        jobs = [asyncio.ensure_future(pool.run(slow_solves.sleep_for, 60.0, deadline_s=120)) for _ in range(2)]
+        await until(lambda: pool.stats()["busy"] == 2)
+        start = time.monotonic()
+        await pool.close()
+        assert time.monotonic() - start < 5  # a second's grace, then killed
+        for job in jobs:
+            with pytest.raises(PoolUnavailable):
+                await job
+        for pid in pids:
+            with pytest.raises(ProcessLookupError):
+                os.kill(pid, 0)
+
+    asyncio.run(main())
