@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import collections
+import logging
 import sys
 import time
 from pathlib import Path
@@ -26,6 +27,7 @@ from schemathesis import GenerationMode  # noqa: E402
 from schemathesis.python import asgi  # noqa: E402
 
 from app.main import create_app  # noqa: E402
+from app.observability import APP_LOGGERS  # noqa: E402
 from tests.app.test_fuzz import CHECKS, FUZZ_SETTINGS, fuzz_schema, start_and_wait_ready  # noqa: E402
 
 
@@ -71,6 +73,9 @@ def main() -> int:
     parser.add_argument("--only", default=None, help="only operations whose path contains this")
     args = parser.parse_args()
     app = create_app(FUZZ_SETTINGS)
+    # one access line per case would bury the figures: warnings and errors only (a 500 logs its traceback)
+    for name in APP_LOGGERS:
+        logging.getLogger(name).setLevel(logging.WARNING)
     schema = fuzz_schema(app)
     start_and_wait_ready(app)
     total_start = time.perf_counter()
