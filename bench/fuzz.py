@@ -56,7 +56,7 @@ def fuzz_operation(operation: Any, cases: int, seed: int) -> tuple[collections.C
             failures.append(f"server error {response.status_code}: {response.text[:300]}")
         try:
             case.validate_response(response, checks=CHECKS)
-        except Exception as exc:  # every failed check is recorded, the run goes on
+        except (Exception, BaseExceptionGroup) as exc:  # every failed check is recorded, the run goes on
             failures.append(f"{type(exc).__name__}: {str(exc)[:300]}")
 
     start = time.perf_counter()
