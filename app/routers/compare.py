@@ -20,6 +20,7 @@ from app.responses import NumpyJSONResponse
 from app.schemas.common import OutModel
 from app.schemas.family import ProfileRequest, SensitivityIn, SensitivityOut
 from app.schemas.simulate import LoadOut, ProfileOut
+from app.schemas.stap import StapSensitivityOut
 from models.errors import InvalidParameter, PoolUnavailable
 from optim.compare import Row as ComparedRow
 from optim.compare import compare as compare_families
@@ -57,7 +58,8 @@ class CompareIn(ProfileRequest):
 class Curves(OutModel):
     profile: ProfileOut
     load: LoadOut
-    sensitivity: SensitivityOut | None
+    # a STAP row's sensitivity also says which method computed each curve
+    sensitivity: SensitivityOut | StapSensitivityOut | None
 
 
 class Row(OutModel):
