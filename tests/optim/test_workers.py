@@ -13,6 +13,7 @@ import os
 import signal
 import time
 from collections.abc import Awaitable, Callable
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import pytest
@@ -20,6 +21,13 @@ import pytest
 from models.errors import PoolUnavailable
 from optim.workers import PoolBusy, SolverPool, SolveTimeout
 from tests.app import slow_solves
+
+
+def run_async(main: Callable[[], Awaitable[None]]) -> None:
+    """``asyncio.run`` in a thread of its own: the browser tests' Playwright (sync API) keeps an event loop
+    running in the main thread for the session, where asyncio.run would refuse to start."""
+    with ThreadPoolExecutor(max_workers=1) as thread:
+        thread.submit(asyncio.run, main()).result()
 
 
 def with_pool(workers: int = 1, **kwargs: Any) -> Callable[[Callable[[SolverPool], Awaitable[None]]], Any]:
@@ -35,7 +43,7 @@ def with_pool(workers: int = 1, **kwargs: Any) -> Callable[[Callable[[SolverPool
                 finally:
                     await pool.close()
 
-            asyncio.run(main())
+            run_async(main)
 
         test.__name__, test.__doc__ = body.__name__, body.__doc__  # not functools.wraps: pytest would see `pool`
         return test
@@ -128,7 +136,7 @@ def test_a_failing_warm_up_is_retried_with_back_off_and_never_ready() -> None:
         finally:
             await pool.close()
 
-    asyncio.run(main())
+    run_async(main)
 
 
 @with_pool(workers=2)
@@ -213,4 +221,4 @@ def test_close_stops_busy_workers_within_seconds() -> None:
             with pytest.raises(ProcessLookupError):
                 os.kill(pid, 0)
 
-    asyncio.run(main())
+    run_async(main)
