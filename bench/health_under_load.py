@@ -11,7 +11,7 @@ refused client waits its Retry-After (at most 1 s, to keep the queue full) and t
 in a process of their own; a probe thread in this one polls both endpoints every 50 ms. A 504 (a solve over
 its wall-time cap on a loaded machine) is an honest answer and is counted, not failed.
 
-    python bench/health_under_load.py [seconds]
+    python bench/health_under_load.py [seconds [clients]]
 """
 
 from __future__ import annotations
@@ -99,7 +99,7 @@ def summary(name: str, samples: list[float]) -> str:
     )
 
 
-def main(load_s: float = 30.0) -> int:
+def main(load_s: float = 30.0, clients: int | None = None) -> int:
     port = free_port()
     base = f"http://127.0.0.1:{port}"
     server = subprocess.Popen(
@@ -113,7 +113,7 @@ def main(load_s: float = 30.0) -> int:
             while True:
                 try:
                     ready = http.get("/readyz")
-                    if ready.status_code == 200 and ready.json()["ready"] == ready.json()["workers"]:
+                    if ready.status_code == 200 and ready.json().get("ready", 0) == ready.json()["workers"]:
                         break
                 except httpx.TransportError:
                     pass
@@ -122,7 +122,7 @@ def main(load_s: float = 30.0) -> int:
             stats = ready.json()
             http.post("/v1/profiles/time-optimal", json=SLOW_SOLVE)  # one warm call
         admitted = stats["workers"] + 4 * stats["workers"]
-        clients = 2 * admitted
+        clients = clients or 2 * admitted
 
         idle: dict[str, list[float]] = {"/healthz": [], "/readyz": []}
         probe_statuses: Counter[str] = Counter()
@@ -170,4 +170,4 @@ def main(load_s: float = 30.0) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main(float(sys.argv[1]) if len(sys.argv) > 1 else 30.0))
+    sys.exit(main(*(float(a) if i == 0 else int(a) for i, a in enumerate(sys.argv[1:3]))))
