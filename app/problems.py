@@ -223,7 +223,7 @@ def _validation_errors(exc: RequestValidationError) -> list[dict[str, Any]]:
             field = "body"
         if rule.startswith("Value error, "):
             rule = rule[len("Value error, ") :]
-        value = None if err.get("type") == "missing" else summarise(err.get("input"))
+        value = None if err.get("type") in ("missing", "json_invalid") else summarise(err.get("input"))
         out.append({"field": field, "value": value, "rule": rule})
     return out
 
@@ -444,14 +444,14 @@ class JSONBodyOnly:
 
     def __init__(self, app: ASGIApp) -> None:
         self.app = app
-        self._routes: list[tuple[Any, set[str]]] | None = None
+        self._routes: list[tuple[Any, set[str], Any]] | None = None
 
-    def _body_routes(self, scope: Scope) -> list[tuple[Any, set[str]]]:
+    def _body_routes(self, scope: Scope) -> list[tuple[Any, set[str], Any]]:
         if self._routes is None:
             from starlette.routing import compile_path
 
             self._routes = [
-                (compile_path(path)[0], set(route.methods or ()))
+                (compile_path(path)[0], set(route.methods or ()), route)
                 for path, route in api_routes(scope["app"])
                 if route.body_field is not None
             ]
@@ -467,7 +467,11 @@ class JSONBodyOnly:
         content_type = headers.get(b"content-type", b"").decode("latin-1")
         if has_body and not is_json_media_type(content_type):
             path, method = scope.get("path", ""), scope.get("method", "")
-            if any(regex.match(path) and method in methods for regex, methods in self._body_routes(scope)):
+            route = next(
+                (r for regex, methods, r in self._body_routes(scope) if regex.match(path) and method in methods), None
+            )
+            if route is not None:
+                scope["route"] = route  # the access line and the metrics name the route, as for any answer
                 sent = f"content-type {content_type!r}" if content_type else "no content-type"
                 rule = "must be application/json or application/*+json (the body is JSON)"
                 response = problem_response(

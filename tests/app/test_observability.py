@@ -303,3 +303,11 @@ def test_every_serve_flag_exists_in_the_installed_uvicorn():
     for command in serve_commands():
         for flag in (arg for arg in command if arg.startswith("--")):
             assert re.search(rf"(^|\s){re.escape(flag)}[\s/=]", help_text), flag
+
+
+def test_a_refused_content_type_is_counted_under_its_route(client):
+    # JSONBodyOnly answers before routing: it names the route itself, so the metric is not "unmatched".
+    before = requests_count(client, "POST", "/v1/profiles/stap", "415")
+    response = client.post("/v1/profiles/stap", content=b"hello", headers={"content-type": "text/plain"})
+    assert response.status_code == 415
+    assert requests_count(client, "POST", "/v1/profiles/stap", "415") == before + 1
