@@ -93,6 +93,7 @@ def configure_logging(level: int | str = logging.INFO) -> None:
         handler = _StderrHandler()
         handler.setFormatter(_formatter())
         root.addHandler(handler)
+    logging.captureWarnings(True)  # a numpy RuntimeWarning is a JSON line too (logger py.warnings), not raw stderr
     for name in APP_LOGGERS:
         logging.getLogger(name).setLevel(level)
     # uvicorn configures its loggers (dictConfig) before it imports the app: route its error logger,
