@@ -31,6 +31,10 @@ from typing import Any
 import httpx2 as httpx
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from app.settings import Settings  # noqa: E402  (bench/ scripts run from anywhere, like the others)
+
 SLOW_SOLVE = {
     "plant": {"kind": "mode", "natural_frequency_hz": 40},
     "displacement": 0.12,
@@ -121,7 +125,7 @@ def main(load_s: float = 30.0, clients: int | None = None) -> int:
                 time.sleep(0.2)
             stats = ready.json()
             http.post("/v1/profiles/time-optimal", json=SLOW_SOLVE)  # one warm call
-        admitted = stats["workers"] + 4 * stats["workers"]
+        admitted = stats["workers"] + Settings().queue_limit  # the server reads the same environment
         clients = clients or 2 * admitted
 
         idle: dict[str, list[float]] = {"/healthz": [], "/readyz": []}

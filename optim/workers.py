@@ -49,7 +49,6 @@ BACKOFF_FIRST_S = 0.5
 BACKOFF_MAX_S = 30.0
 RETRY_AFTER_MIN_S = 1
 RETRY_AFTER_MAX_S = 60
-STARTING_RETRY_AFTER_S = 5
 
 
 class SolveTimeout(SolverTimedOut):
@@ -255,7 +254,7 @@ class SolverPool:
         if self._closing or self._loop is None:
             raise PoolUnavailable("the solver pool is not running")
         if not self.ready:
-            raise PoolUnavailable("the solver workers are starting", retry_after_s=STARTING_RETRY_AFTER_S)
+            raise PoolUnavailable("the solver workers are starting")  # Retry-After: the default 5 s
         idle = any(w.state == "idle" for w in self._workers)
         if not idle and len(self._queue) >= self.max_queued:
             self.rejected += 1
@@ -365,10 +364,7 @@ class SolverPool:
         if worker.job is not None:
             self._fail(
                 worker.job,
-                PoolUnavailable(
-                    f"a solver worker stopped unexpectedly (exit code {code}); it is being replaced",
-                    retry_after_s=STARTING_RETRY_AFTER_S,
-                ),
+                PoolUnavailable(f"a solver worker stopped unexpectedly (exit code {code}); it is being replaced"),
             )
             worker.job = None
         if not self.ready:

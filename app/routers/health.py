@@ -6,7 +6,6 @@ from typing import Any, Literal
 
 from fastapi import APIRouter
 from pydantic import Field
-from starlette.responses import Response
 
 from app import problems
 from app.deps import PoolDep
@@ -44,9 +43,5 @@ async def readyz(pool: PoolDep) -> Any:
     `pool` and a Retry-After."""
     stats = pool.stats()
     if not pool.ready:
-        response: Response = problems.problem_response(
-            "not-ready", "the solver workers are starting or restarting", pool=stats
-        )
-        response.headers["Retry-After"] = "5"
-        return response
+        return problems.problem_response("not-ready", "the solver workers are starting or restarting", pool=stats)
     return {"status": "ready", **stats}
