@@ -210,7 +210,7 @@ def field_path(loc: tuple[Any, ...]) -> str:
 MAX_REPORTED_ERRORS = 20
 
 
-def _validation_errors(exc: RequestValidationError) -> list[dict[str, Any]]:
+def validation_errors(exc: RequestValidationError) -> list[dict[str, Any]]:
     out = []
     for err in exc.errors()[:MAX_REPORTED_ERRORS]:
         rule = str(err.get("msg", "invalid"))
@@ -264,7 +264,7 @@ def install(app: FastAPI) -> None:
 
     @app.exception_handler(RequestValidationError)
     async def _validation(_: Request, exc: RequestValidationError) -> Response:
-        errors = _validation_errors(exc)
+        errors = validation_errors(exc)
         malformed = [e for e in errors if e["field"] == "body" and e["rule"].startswith("the body is not valid JSON")]
         if malformed:
             return problem_response("malformed-body", malformed[0]["rule"], field="body", errors=malformed[:1])

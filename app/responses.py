@@ -1,13 +1,22 @@
-"""JSON bodies with numpy arrays, serialised by orjson without a Python loop over samples."""
+"""JSON bodies with numpy arrays (orjson, no Python loop over samples), and the profile routes' CSV tables."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from importlib.metadata import version
 from typing import Annotated, Any, Literal
 
 import numpy as np
 import orjson
-from fastapi import Query
+from fastapi import Depends, Query, Request
+from starlette.concurrency import run_in_threadpool
 from starlette.responses import Response
+
+from app.schemas.family import ProfileRequest
+from optim import tables
+from optim.synthesis import Result
+
+__version__ = version("vibfree")
 
 _OPTIONS = orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS
 
@@ -30,7 +39,11 @@ class NumpyJSONResponse(Response):
 
 
 CSV_MEDIA_TYPE = "text/csv"
-PROFILE_COLUMNS = ("time_s", "position", "velocity", "acceleration", "jerk")
+COLUMNS_DESCRIPTION = (
+    "CSV columns, comma-separated, time_s always first: any of " + ", ".join(tables.COLUMNS) + " (load_* and "
+    "deflection from the simulated load; motor_torque_nm on two_inertia plants), or `all` (every column this plant "
+    "defines). Default: " + ",".join(tables.PROFILE_COLUMNS) + "."
+)
 
 
 def wants_csv(request: Any) -> bool:
@@ -41,40 +54,94 @@ def wants_csv(request: Any) -> bool:
     return CSV_MEDIA_TYPE in accept and "application/json" not in accept.split(CSV_MEDIA_TYPE)[0]
 
 
-def profile_csv(profile: dict[str, Any], title: str) -> bytes:
-    """The profile as CSV for a drive's cam table: a comment line with the units, a header, rows.
+@dataclass(frozen=True)
+class Output:
+    """What a profile route answers with: JSON, or the CSV table with these columns (and comment lines)."""
 
-    Rows are written by orjson (shortest round-trip floats) as a 2-D array whose brackets become
-    line breaks: no Python loop over samples.
-    """
-    table = np.column_stack([np.asarray(profile[c], dtype=float) for c in PROFILE_COLUMNS])
-    body = orjson.dumps(table, option=orjson.OPT_SERIALIZE_NUMPY)[2:-2].replace(b"],[", b"\n")
-    header = (
-        f"# {title}; units: time_s in s; position in the motor's unit (rad or m); velocity per s; "
-        "acceleration per s^2; jerk per s^3 (right-hand values where it jumps)\n" + ",".join(PROFILE_COLUMNS) + "\n"
+    csv: bool
+    columns: tuple[str, ...] | None  # None: the default (profile) columns; () : every column the plant defines
+    comments: bool
+
+
+async def output(
+    request: Request,
+    format: Annotated[Literal["json", "csv"] | None, Query(description="csv: the profile as a CSV table")] = None,
+    columns: Annotated[str | None, Query(max_length=400, description=COLUMNS_DESCRIPTION)] = None,
+    comments: Annotated[
+        bool,
+        Query(
+            description="CSV: add `#` comment lines (units, plant, family, design, sample period) before the header."
+        ),
+    ] = False,
+) -> Output:
+    """The profile routes' output options, from the query (and the Accept header)."""
+    names: tuple[str, ...] | None = None
+    if columns is not None:
+        names = tuple(c.strip() for c in columns.split(",") if c.strip())
+        if names == ("all",):
+            names = ()
+        else:
+            tables.check_columns(names)  # 422 on columns before anything is designed
+    return Output(csv=wants_csv(request), columns=names, comments=comments)
+
+
+OutputDep = Annotated[Output, Depends(output)]
+
+
+def csv_body(table: tables.Table, comment_lines: list[str]) -> bytes:
+    """The header row, then one row per instant, written by orjson (shortest round-trip floats) as a 2-D
+    array whose brackets become line breaks: no Python loop over samples. Comment lines go first, when any."""
+    body = orjson.dumps(np.ascontiguousarray(table.values), option=orjson.OPT_SERIALIZE_NUMPY)[2:-2]
+    head = "".join(f"# {line}\n" for line in comment_lines) + ",".join(table.columns) + "\n"
+    return head.encode() + body.replace(b"],[", b"\n") + b"\n"
+
+
+def comment_lines(title: str, body: ProfileRequest, answer: dict[str, Any], table: tables.Table) -> list[str]:
+    """Units and metadata, one per line: what the table is, for whom and how it was sampled."""
+    request = body.common_body()
+    move = {k: request[k] for k in ("displacement", "target_velocity", "limits") if k in request}
+    design = {k: v for k, v in answer["design"].items() if not isinstance(v, np.ndarray)}
+    return [
+        f"{title}; vibfree {__version__}",
+        f"plant: {dumps(request['plant']).decode()}",
+        f"move: {dumps(move).decode()}",
+        f"design: {dumps(design).decode()}",
+        f"sample_period_s: {table.period_s!r}; rows: {table.values.shape[0]}; time_s = k * sample_period_s exactly",
+        "units: " + "; ".join(f"{c} in {tables.UNITS[c]}" for c in table.columns),
+    ]
+
+
+async def respond(output: Output, answer: dict[str, Any], result: Result, body: ProfileRequest, title: str) -> Response:
+    """JSON by default; the CSV table on the uniform grid when the client asks for it."""
+    if not output.csv:
+        return NumpyJSONResponse(answer)
+    columns = output.columns
+    if columns == ():
+        columns = tuple(c for c in tables.COLUMNS if _defined(result, c))
+    table = await run_in_threadpool(tables.table, result, columns or tables.PROFILE_COLUMNS)
+    lines = comment_lines(title, body, answer, table) if output.comments else []
+    return Response(
+        csv_body(table, lines),
+        media_type=CSV_MEDIA_TYPE,
+        headers={"content-disposition": 'attachment; filename="profile.csv"'},
     )
-    return header.encode() + body + b"\n"
 
 
-def negotiate(request: Any, body: dict[str, Any], title: str) -> Response:
-    """JSON by default; the profile as CSV when the client asks for it."""
-    if wants_csv(request):
-        return Response(
-            profile_csv(body["profile"], title),
-            media_type=CSV_MEDIA_TYPE,
-            headers={"content-disposition": 'attachment; filename="profile.csv"'},
-        )
-    return NumpyJSONResponse(body)
+def _defined(result: Result, column: str) -> bool:
+    if column == "deflection":
+        return result.response.deflection is not None
+    if column == "motor_torque_nm":
+        return result.response.motor_torque_nm is not None
+    return True
 
 
 CSV_RESPONSE_DOC: dict[int | str, dict[str, Any]] = {
     200: {
-        "description": "The design as JSON, or with `?format=csv` / `Accept: text/csv` the profile as CSV "
-        "(time_s,position,velocity,acceleration,jerk, units in the first comment line).",
+        "description": "The design as JSON, or with `?format=csv` / `Accept: text/csv` a CSV table for a drive: "
+        "the header row first (default columns time_s,position,velocity,acceleration,jerk; `columns=` chooses), then "
+        "one row per instant t_k = k * sample_period_s exactly, every value computed at that instant (no -0.0). "
+        "`comments=true` adds `#` lines with units and metadata before the header "
+        "(read them with `pandas.read_csv(f, comment='#')`).",
         "content": {CSV_MEDIA_TYPE: {"schema": {"type": "string"}}},
     }
 }
-
-
-# The ``format`` query parameter every profile route declares (negotiate() reads it).
-CsvFormat = Annotated[Literal["json", "csv"] | None, Query(description="csv: the profile only, as CSV")]

@@ -18,10 +18,10 @@ from models.errors import DomainError, Infeasible, InvalidParameter, NotApplicab
 from optim.family import Family
 from optim.problem import Problem
 from optim.synthesis import Result, synthesize
-from optim.workers import SolverPool
+from optim.workers import Executor
 
 
-async def run(family: Family, problem: Problem, options: Any, settings: Settings, pool: SolverPool) -> Result:
+async def run(family: Family, problem: Problem, options: Any, settings: Settings, pool: Executor) -> Result:
     uses_solver = family.uses_solver(options)
     started = time.perf_counter()
     try:
@@ -40,8 +40,16 @@ def _executor(uses_solver: bool) -> str:
     return "pool" if uses_solver else "thread"
 
 
-async def profile(family: Family, body: ProfileRequest, settings: Settings, pool: SolverPool) -> dict[str, Any]:
+async def profile(family: Family, body: ProfileRequest, settings: Settings, pool: Executor) -> dict[str, Any]:
     """The answer of a family endpoint: the pipeline's result, with a line per deprecated field used."""
+    answer, _ = await design(family, body, settings, pool)
+    return answer
+
+
+async def design(
+    family: Family, body: ProfileRequest, settings: Settings, pool: Executor
+) -> tuple[dict[str, Any], Result]:
+    """The answer of a family endpoint and the pipeline's ``Result`` it was made from (for the CSV table)."""
     try:
         problem = await run_in_threadpool(body.to_problem, settings)
         reason = family.not_applicable(problem)
@@ -52,7 +60,7 @@ async def profile(family: Family, body: ProfileRequest, settings: Settings, pool
         raise _as_sent(exc, body) from None
     answer = result.body()
     answer["warnings"] = [*body.deprecations, *answer["warnings"]]
-    return answer
+    return answer, result
 
 
 def _as_sent(exc: DomainError, body: ProfileRequest) -> DomainError:

@@ -172,6 +172,25 @@ class PiecewiseCommand:
             out[before] = self.derivatives[0, 0] if m == 0 else 0.0
         return out
 
+    def evaluate_at_instants(self, m: int, t: ArrayLike, snap_s: float = MIN_STEP_S) -> NDArray[np.float64]:
+        """p^(m) at instants ``t`` that are breakpoints, or lie within ``snap_s`` of one (a corner that replaced
+        a grid instant when the command was resampled): each instant is evaluated on the piece of its nearest
+        breakpoint (its Taylor polynomial, exact for the piece that starts there), so round-off in an instant's
+        time never evaluates the previous piece at its far end. Other instants: as ``evaluate``."""
+        t = np.asarray(t, dtype=float)
+        k = np.clip(np.searchsorted(self.time_s, t, side="right") - 1, 0, self.time_s.size - 1)
+        following = np.minimum(k + 1, self.time_s.size - 1)
+        ahead = (self.time_s[following] - t <= snap_s) & (following > k)
+        k = np.where(ahead, following, k)
+        tau = t - self.time_s[k]
+        out = np.zeros_like(tau)
+        for n in range(m, self.degree + 1):
+            out += self.derivatives[n, k] * tau ** (n - m) / math.factorial(n - m)
+        before = t < self.time_s[0] - snap_s
+        if np.any(before):
+            out[before] = self.derivatives[0, 0] if m == 0 else 0.0
+        return out
+
     def peak_abs(self, m: int) -> float | None:
         """max |p^(m)| over [t_0, t_{N-1}], including extrema inside the pieces.
 

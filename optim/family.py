@@ -120,6 +120,8 @@ class Family(Protocol):
 
     def profile(self, design: Design, sampled: PiecewiseCommand, grid: Grid) -> Profile | None: ...
 
+    def profile_at(self, design: Design, sampled: PiecewiseCommand, time_s: NDArray[np.float64]) -> Profile: ...
+
     def finish(self, problem: Problem, design: Design, run: Run) -> dict[str, Any]: ...
 
     def sensitivity(
@@ -161,6 +163,11 @@ class BaseFamily:
     def profile(self, design: Design, sampled: PiecewiseCommand, grid: Grid) -> Profile | None:
         """The returned profile when it is not the sampled command itself (default None: it is)."""
         return None
+
+    def profile_at(self, design: Design, sampled: PiecewiseCommand, time_s: NDArray[np.float64]) -> Profile:
+        """The returned profile at arbitrary instants (the uniform table of ``optim.tables``): the exact command
+        where the design has one, else the sampled one (whose samples hold the instants)."""
+        return profile_at_instants(design.command if design.command is not None else sampled, time_s)
 
     def finish(self, problem: Problem, design: Design, run: Run) -> dict[str, Any]:
         """Extra top-level blocks of the answer; the keys ``design`` (merged into the design block)
@@ -215,3 +222,11 @@ __all__ = [  # and FAMILIES, through __getattr__
     "SolverSummary",
     "warm_up_all",
 ]
+
+
+def profile_at_instants(command: PiecewiseCommand, time_s: NDArray[np.float64]) -> Profile:
+    """Position to jerk of ``command`` at ``time_s`` (``PiecewiseCommand.evaluate_at_instants``)."""
+    values: Profile = {"time_s": time_s}
+    for m, name in enumerate(("position", "velocity", "acceleration", "jerk")):
+        values[name] = command.evaluate_at_instants(m, time_s)
+    return values

@@ -38,7 +38,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
 from multiprocessing.process import BaseProcess
-from typing import Any, Literal, TypeVar
+from typing import Any, Literal, Protocol, TypeVar
 
 from models.errors import PoolUnavailable, SolverTimedOut
 
@@ -49,6 +49,22 @@ BACKOFF_FIRST_S = 0.5
 BACKOFF_MAX_S = 30.0
 RETRY_AFTER_MIN_S = 1
 RETRY_AFTER_MAX_S = 60
+
+
+class Executor(Protocol):
+    """Where the service layer runs a design: the supervised pool, or in-process (``InlineExecutor``)."""
+
+    async def run(self, fn: Callable[..., T], *args: Any, deadline_s: float) -> T: ...
+
+
+class InlineExecutor:
+    """Runs each job in the calling process, one at a time: the Python API and the CLI without a server.
+
+    One caller owns the process, so there is nothing to supervise; the deadline is not enforced (the solvers'
+    own caps, ``optim.solver.SolveCaps``, still bound every solve, and Ctrl-C stops the rest)."""
+
+    async def run(self, fn: Callable[..., T], *args: Any, deadline_s: float) -> T:
+        return fn(*args)
 
 
 class SolveTimeout(SolverTimedOut):

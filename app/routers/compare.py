@@ -21,6 +21,7 @@ from app.schemas.common import OutModel
 from app.schemas.family import ProfileRequest, SensitivityIn, SensitivityOut
 from app.schemas.simulate import LoadOut, ProfileOut
 from app.schemas.stap import StapSensitivityOut
+from app.settings import Settings
 from models.errors import InvalidParameter, PoolUnavailable
 from optim.compare import Row as ComparedRow
 from optim.compare import compare as compare_families
@@ -28,7 +29,7 @@ from optim.families.pseudo_polynomial import PseudoPolynomialOptions
 from optim.family import Family
 from optim.problem import Problem
 from optim.synthesis import Result, load_arrays
-from optim.workers import PoolBusy
+from optim.workers import Executor, PoolBusy
 
 router = APIRouter(prefix="/v1", tags=["compare"])
 FamilyName = Literal["time_optimal", "pseudo_polynomial", "stap", "smoother", "input_shaped"]
@@ -182,6 +183,11 @@ async def compare(
     one row per design sorted by the load's settling time. A family that does not apply or cannot meet the limits
     is listed in `unavailable` with its reason. `rows[].request` is the exact request to POST to
     `rows[].endpoint` to get the same design (add `?format=csv` for a cam table)."""
+    return NumpyJSONResponse(await answer(body, settings, pool))
+
+
+async def answer(body: CompareIn, settings: Settings, pool: Executor) -> dict[str, Any]:
+    """The compare answer (JSON-ready apart from numpy arrays), run on ``pool``: the route's and the Python API's."""
     if body.sensitivity is None:
         body = body.model_copy(update={"sensitivity": DEFAULT_SENSITIVITY})
     problem = await run_in_threadpool(body.to_problem, settings)
@@ -194,14 +200,11 @@ async def compare(
     rows, unavailable = await compare_families(problem, run, body.families, body.options(problem))
     _raise_if_pool_refused(unavailable)
     common = body.common_body()
-    answer_rows = [_row(body, common, row, problem.load_move) for row in rows]
-    return NumpyJSONResponse(
-        {
-            "move": "rest_to_rest" if problem.rest_to_rest else "rest_to_velocity",
-            "rows": answer_rows,
-            "unavailable": [vars(u) for u in unavailable],
-        }
-    )
+    return {
+        "move": "rest_to_rest" if problem.rest_to_rest else "rest_to_velocity",
+        "rows": [_row(body, common, row, problem.load_move) for row in rows],
+        "unavailable": [vars(u) for u in unavailable],
+    }
 
 
 def _raise_if_pool_refused(unavailable: list[Any]) -> None:

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Body, Request, Response
+from fastapi import APIRouter, Body, Response
 
 from app import problems, services
 from app.deps import PoolDep, SettingsDep
 from app.examples import CUSIMANO_8HZ, INCERTI_TABLE_III
-from app.responses import CSV_RESPONSE_DOC, CsvFormat, negotiate
+from app.responses import CSV_RESPONSE_DOC, OutputDep, respond
 from app.schemas.pseudo_polynomial import FAMILY, PseudoPolynomialIn, PseudoPolynomialOut
 
 router = APIRouter(prefix="/v1", tags=["pseudo-polynomial"])
@@ -45,10 +45,9 @@ EXAMPLES: dict[str, dict[str, Any]] = {
 )
 async def pseudo_polynomial_profile(
     body: Annotated[PseudoPolynomialIn, Body(openapi_examples=EXAMPLES)],
-    request: Request,
     settings: SettingsDep,
     pool: PoolDep,
-    format: CsvFormat = None,
+    output: OutputDep,
 ) -> Response:
     """Chooses the exponents of phi(t) = Phi [1 - sum C_i (1 - t/T)^gamma_i] so that the plant is left
     with no vibration energy when the move ends, within the limits, by IPOPT in a worker process.
@@ -56,5 +55,5 @@ async def pseudo_polynomial_profile(
     The returned profile holds the law's exact values at the sample times; the load response simulates
     the drive following them (velocity on the cubic Hermite curve through the sampled velocities and
     accelerations). A failed or timed-out solve is a problem, never a profile."""
-    answer = await services.profile(FAMILY, body, settings, pool)
-    return negotiate(request, answer, "pseudo-polynomial profile")
+    answer, result = await services.design(FAMILY, body, settings, pool)
+    return await respond(output, answer, result, body, "pseudo-polynomial profile")

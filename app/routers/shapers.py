@@ -5,12 +5,12 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Body, Query, Request, Response
+from fastapi import APIRouter, Body, Query, Response
 
 from app import problems, services
 from app.deps import PoolDep, SettingsDep
 from app.examples import CHATLATANAGULCHAI_EQ3
-from app.responses import CSV_RESPONSE_DOC, CsvFormat, NumpyJSONResponse, negotiate
+from app.responses import CSV_RESPONSE_DOC, NumpyJSONResponse, OutputDep, respond
 from app.schemas.shapers import FAMILY, InputShapedRequest, InputShapedResponse, ShaperCatalogue
 from optim.shapers import catalogue
 
@@ -61,10 +61,9 @@ INPUT_SHAPED_EXAMPLES: dict[str, dict[str, Any]] = {
 )
 async def input_shaped_profile(
     body: Annotated[InputShapedRequest, Body(openapi_examples=INPUT_SHAPED_EXAMPLES)],
-    request: Request,
     settings: SettingsDep,
     pool: PoolDep,
-    format: CsvFormat = None,
+    output: OutputDep,
 ) -> Response:
     """Shape a velocity step or a rest-to-rest move for the plant's mode(s) and keep it within the
     drive's acceleration limit.
@@ -84,8 +83,8 @@ async def input_shaped_profile(
     The load response and ``metrics`` simulate what the drive does, exactly; ``unmodified`` gives the
     metrics of the plain shaped step after the drive, for comparison.
     """
-    answer = await services.profile(FAMILY, body, settings, pool)
-    return negotiate(request, answer, "input-shaped profile (the shaped command sent to the drive)")
+    answer, result = await services.design(FAMILY, body, settings, pool)
+    return await respond(output, answer, result, body, "input-shaped profile (the shaped command sent to the drive)")
 
 
 # ------------------------------------------------------------------------------------------

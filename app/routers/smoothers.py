@@ -10,13 +10,13 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Body, Request
+from fastapi import APIRouter, Body
 from starlette.responses import Response
 
 from app import problems, services
 from app.deps import PoolDep, SettingsDep
 from app.examples import BIAGIOTTI_PLANT, T0_S
-from app.responses import CSV_RESPONSE_DOC, CsvFormat, negotiate
+from app.responses import CSV_RESPONSE_DOC, OutputDep, respond
 from app.schemas.smoothers import FAMILY, SmootherRequest, SmootherResponse
 
 router = APIRouter(prefix="/v1", tags=["smoothers"])
@@ -92,10 +92,9 @@ SMOOTHER_EXAMPLES: dict[str, dict[str, Any]] = {
 )
 async def smoother_profile(
     body: Annotated[SmootherRequest, Body(openapi_examples=SMOOTHER_EXAMPLES)],
-    request: Request,
     settings: SettingsDep,
     pool: PoolDep,
-    format: CsvFormat = None,
+    output: OutputDep,
 ) -> Response:
     """A step of ``displacement`` filtered by a chain of FIR smoothers (Biagiotti et al. 2020).
 
@@ -107,4 +106,5 @@ async def smoother_profile(
     the metrics use. ``design.residual_amplitude_closed_form`` gives the same residual from the chain's
     transfer function at the plant's poles.
     """
-    return negotiate(request, await services.profile(FAMILY, body, settings, pool), "smoother profile")
+    answer, result = await services.design(FAMILY, body, settings, pool)
+    return await respond(output, answer, result, body, "smoother profile")

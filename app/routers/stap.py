@@ -4,12 +4,12 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Body, Request, Response
+from fastapi import APIRouter, Body, Response
 
 from app import problems, services
 from app.deps import PoolDep, SettingsDep
 from app.examples import CUSIMANO_8HZ, CUSIMANO_40HZ
-from app.responses import CSV_RESPONSE_DOC, CsvFormat, negotiate
+from app.responses import CSV_RESPONSE_DOC, OutputDep, respond
 from app.schemas.stap import FAMILY, StapIn, StapOut
 
 router = APIRouter(prefix="/v1", tags=["stap"])
@@ -105,10 +105,9 @@ EXAMPLES: dict[str, dict[str, Any]] = {
 )
 async def stap_profile(
     body: Annotated[StapIn, Body(openapi_examples=EXAMPLES)],
-    request: Request,
     settings: SettingsDep,
     pool: PoolDep,
-    format: CsvFormat = None,
+    output: OutputDep,
 ) -> Response:
     """Designs t_a and t_j of a symmetric trapezoidal acceleration profile (rest-to-velocity, or a rest-to-rest
     move made of two of them and a cruise) so that the load is left without vibration at the estimated
@@ -124,4 +123,5 @@ async def stap_profile(
 
     The profile holds the exact STAP at the sample times (corners always included): with the acceleration
     held linearly between samples it is the designed command, which load and metrics simulate exactly."""
-    return negotiate(request, await services.profile(FAMILY, body, settings, pool), "STAP profile")
+    answer, result = await services.design(FAMILY, body, settings, pool)
+    return await respond(output, answer, result, body, "STAP profile")

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Body, Request, Response
+from fastapi import APIRouter, Body, Response
 
 from app import problems, services
 from app.deps import PoolDep, SettingsDep
-from app.responses import CSV_RESPONSE_DOC, CsvFormat, negotiate
+from app.responses import CSV_RESPONSE_DOC, OutputDep, respond
 from app.schemas.time_optimal import FAMILY, TimeOptimalIn, TimeOptimalOut
 
 router = APIRouter(prefix="/v1", tags=["time-optimal"])
@@ -72,10 +72,9 @@ EXAMPLES: dict[str, dict[str, Any]] = {
 )
 async def time_optimal_profile(
     body: Annotated[TimeOptimalIn, Body(openapi_examples=EXAMPLES)],
-    request: Request,
     settings: SettingsDep,
     pool: PoolDep,
-    format: CsvFormat = None,
+    output: OutputDep,
 ) -> Response:
     """The shortest motor command within the limits that leaves the load without residual vibration at the
     plant's modes (exactly zero), or whose percentage vibration V stays <= robustness.max_percentage_vibration
@@ -105,4 +104,5 @@ async def time_optimal_profile(
     LP of the design, its tightenings and its trade-off rows.
     Infeasible within max_duration_s is a 422 /problems/infeasible only where proven; a search that found
     nothing without a proof is /problems/solver-failed; over the time limit, 504."""
-    return negotiate(request, await services.profile(FAMILY, body, settings, pool), "time-optimal profile")
+    answer, result = await services.design(FAMILY, body, settings, pool)
+    return await respond(output, answer, result, body, "time-optimal profile")

@@ -21,12 +21,13 @@ from dataclasses import dataclass, replace
 from typing import Any, ClassVar, Literal
 
 import numpy as np
+from numpy.typing import NDArray
 
 from models.commands import PiecewiseCommand
 from models.errors import Infeasible, InvalidParameter
 from models.shapers import ImpulseSequence, RampTrain, follow_position, percentage_vibration, rate_limit
 from models.simulation import simulate
-from optim.family import BaseFamily, Candidate, Design, Grid, Profile, Run
+from optim.family import BaseFamily, Candidate, Design, Grid, Profile, Run, profile_at_instants
 from optim.problem import TAIL_PERIODS, Problem
 from optim.shapers import (
     DEFAULT_VIBRATION_TOLERANCE,
@@ -459,6 +460,10 @@ class InputShapedFamily(BaseFamily):
         from optim.synthesis import profile_arrays
 
         return profile_arrays(design.detail.shaped.resampled(grid.period_s, grid.horizon_s))
+
+    def profile_at(self, design: Design, sampled: PiecewiseCommand, time_s: NDArray[np.float64]) -> Profile:
+        """The shaped command sent to the drive (as ``profile``), at the instants."""
+        return profile_at_instants(design.detail.shaped, time_s)
 
     def finish(self, problem: Problem, design: Design, run: Run) -> dict[str, Any]:
         from optim.synthesis import metrics_block, profile_arrays

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
+from numpy.typing import NDArray
 
 from models.errors import InvalidParameter
 from models.pseudo_polynomial import PseudoPolynomial
@@ -178,6 +179,9 @@ class PseudoPolynomialFamily(BaseFamily):
     def profile(self, design: Design, sampled: Any, grid: Grid) -> Profile:
         """The law's exact values at the sample times, for the drive."""
         return design.detail.law.samples(sampled.time_s)  # type: ignore[no-any-return]
+
+    def profile_at(self, design: Design, sampled: Any, time_s: NDArray[np.float64]) -> Profile:
+        return design.detail.law.samples(time_s)  # type: ignore[no-any-return]
 
     def finish(self, problem: Problem, design: Design, run: Run) -> dict[str, Any]:
         """The initial design's profile, load response and metrics on the same sampling."""

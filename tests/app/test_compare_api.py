@@ -153,14 +153,18 @@ def test_invalid_compare_requests(client, request_body, field):
     ],
 )
 def test_every_profile_endpoint_answers_csv(client, endpoint, request_body):
+    # The CSV is the JSON profile at the uniform instants t_k = k * period (issue 14): the header first, the
+    # first row equal to the JSON's first sample, and as many rows as whole periods in the horizon.
     json_profile = client.post(endpoint, json=request_body).json()["profile"]
     response = client.post(endpoint, json=request_body, params={"format": "csv"})
     assert response.status_code == 200 and response.headers["content-type"].startswith("text/csv")
     lines = response.text.strip().splitlines()
-    assert lines[1] == "time_s,position,velocity,acceleration,jerk"
-    first = [float(x) for x in lines[2].split(",")]
+    assert lines[0] == "time_s,position,velocity,acceleration,jerk"
+    first = [float(x) for x in lines[1].split(",")]
     assert first == [json_profile[k][0] for k in ("time_s", "position", "velocity", "acceleration", "jerk")]
-    assert len(lines) - 2 == len(json_profile["time_s"])
+    times = np.asarray(json_profile["time_s"])
+    period = float(np.median(np.diff(times)))
+    assert len(lines) - 1 == int(times[-1] / period + 1e-9) + 1
 
 
 def test_compare_forwards_sampling_settling_and_sensitivity_to_every_family(client):

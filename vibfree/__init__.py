@@ -1,0 +1,17 @@
+"""vibfree: vibration-free motion profiles for elastic machines.
+
+The Python API runs the service's own pipeline in-process, without a server::
+
+    from vibfree import synthesize
+    design = synthesize("stap", {"plant": {"kind": "mode", "natural_frequency_hz": 40},
+                                 "target_velocity": 150, "limits": {"max_acceleration": 1000}})
+    design.answer["metrics"]["settling_time_s"]      # the JSON answer of POST /v1/profiles/stap
+    design.csv(columns=["time_s", "position", "load_position"])   # the cam table, as ?format=csv
+
+Requests and answers are the HTTP API's bodies (see /docs); errors are ``VibfreeError`` carrying the same
+problem+json the service would answer with.
+"""
+
+from vibfree.api import FAMILIES, Synthesis, VibfreeError, compare, synthesize
+
+__all__ = ["FAMILIES", "Synthesis", "VibfreeError", "compare", "synthesize"]

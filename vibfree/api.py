@@ -1,0 +1,126 @@
+"""The Python API: the family endpoints and compare, in-process, over the service's own pipeline.
+
+The same request schemas validate the request, the same service layer (``app.services``) runs it, on an
+``InlineExecutor`` instead of the solver pool (one caller owns the process, so IPOPT runs here), and the
+same code writes the CSV. An error is a ``VibfreeError`` holding the problem+json the HTTP service answers.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import orjson
+from fastapi.exceptions import RequestValidationError
+from pydantic import ValidationError
+
+from app import problems, services
+from app.responses import comment_lines, csv_body, dumps
+from app.routers import compare as compare_route
+from app.schemas.family import ProfileRequest
+from app.schemas.pseudo_polynomial import PseudoPolynomialIn
+from app.schemas.shapers import InputShapedRequest
+from app.schemas.smoothers import SmootherRequest
+from app.schemas.stap import StapIn
+from app.schemas.time_optimal import TimeOptimalIn
+from app.settings import Settings, get_settings
+from models.errors import DomainError
+from optim import tables
+from optim.families import REGISTRY
+from optim.synthesis import Result
+from optim.workers import InlineExecutor
+
+# family name -> its request schema; the names of /v1/compare's rows (``-`` may stand for ``_``)
+FAMILIES: dict[str, type[ProfileRequest]] = {
+    "time_optimal": TimeOptimalIn,
+    "pseudo_polynomial": PseudoPolynomialIn,
+    "stap": StapIn,
+    "smoother": SmootherRequest,
+    "input_shaped": InputShapedRequest,
+}
+
+
+class VibfreeError(Exception):
+    """A request the service would refuse: ``problem`` is its problem+json body (type, title, status, detail,
+    field, errors)."""
+
+    def __init__(self, problem: dict[str, Any]) -> None:
+        self.problem = problem
+        self.status = int(problem.get("status", 500))
+        super().__init__(f"{problem.get('title', 'error')}: {problem.get('detail', '')}")
+
+
+@dataclass(frozen=True)
+class Synthesis:
+    """One design: ``answer`` is the JSON answer of the family endpoint (numpy arrays for the series),
+    ``result`` the pipeline's result it was made from."""
+
+    family: str
+    request: ProfileRequest
+    answer: dict[str, Any]
+    result: Result = field(repr=False)
+
+    def json(self) -> bytes:
+        """The answer as the endpoint's JSON bytes."""
+        return dumps(self.answer)
+
+    def csv(self, columns: Iterable[str] | None = None, comments: bool = False) -> str:
+        """The cam table of ``?format=csv[&columns=...][&comments=true]``: t_k = k * sample period exactly."""
+        names = tables.PROFILE_COLUMNS if columns is None else tuple(columns)
+        table = _guard(lambda: tables.table(self.result, names))
+        lines = comment_lines(_title(self.family), self.request, self.answer, table) if comments else []
+        return csv_body(table, lines).decode()
+
+
+def synthesize(family: str, request: Mapping[str, Any] | str | bytes, *, settings: Settings | None = None) -> Synthesis:
+    """Design ``family``'s command for ``request`` (a dict, or its JSON text), as ``POST /v1/profiles/<family>``."""
+    name, model = _family(family)
+    body = _validate(model, request)
+    answer, result = _run(services.design(REGISTRY[name], body, settings or get_settings(), InlineExecutor()))
+    return Synthesis(name, body, answer, result)
+
+
+def compare(request: Mapping[str, Any] | str | bytes, *, settings: Settings | None = None) -> dict[str, Any]:
+    """Every family on one plant, move and limits, as ``POST /v1/compare`` (its JSON answer)."""
+    body = _validate(compare_route.CompareIn, request)
+    return _run(compare_route.answer(body, settings or get_settings(), InlineExecutor()))
+
+
+def _family(family: str) -> tuple[str, type[ProfileRequest]]:
+    name = family.replace("-", "_")
+    if name not in FAMILIES:
+        raise VibfreeError(_problem("not-found", f"no family {family!r}; one of {', '.join(FAMILIES)}", "family"))
+    return name, FAMILIES[name]
+
+
+def _title(family: str) -> str:
+    return f"{family.replace('_', '-')} profile"
+
+
+def _validate(model: type[Any], request: Mapping[str, Any] | str | bytes) -> Any:
+    try:
+        data = orjson.loads(request) if isinstance(request, str | bytes) else dict(request)
+    except orjson.JSONDecodeError as exc:
+        raise VibfreeError(_problem("malformed-body", f"the request is not valid JSON ({exc})")) from None
+    try:
+        return model.model_validate(data)
+    except ValidationError as exc:
+        response = problems.invalid_input(problems.validation_errors(RequestValidationError(exc.errors())))
+        raise VibfreeError(orjson.loads(response.body)) from None
+
+
+def _run(coroutine: Any) -> Any:
+    return _guard(lambda: asyncio.run(coroutine))
+
+
+def _guard(call: Any) -> Any:
+    try:
+        return call()
+    except DomainError as exc:
+        raise VibfreeError(orjson.loads(problems.domain_problem(exc).body)) from None
+
+
+def _problem(slug: str, detail: str, field: str | None = None) -> dict[str, Any]:
+    return orjson.loads(problems.render_problem(slug, detail, field=field)[1])  # type: ignore[no-any-return]
