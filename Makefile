@@ -28,7 +28,7 @@ test: $(VENV)/.installed-test  ## lint, format and type gates, then the whole te
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 	$(BIN)/mypy --strict models optim
-	$(BIN)/mypy app
+	$(BIN)/mypy app vibfree
 	bash scripts/ensure-chromium.sh
 	$(BIN)/python -m pytest
 

@@ -59,7 +59,7 @@ class Output:
     """What a profile route answers with: JSON, or the CSV table with these columns (and comment lines)."""
 
     csv: bool
-    columns: tuple[str, ...] | None  # None: the default (profile) columns; () : every column the plant defines
+    columns: tuple[str, ...] | None  # None: the default (profile) columns; ('all',): every column
     comments: bool
 
 
@@ -78,10 +78,7 @@ async def output(
     names: tuple[str, ...] | None = None
     if columns is not None:
         names = tuple(c.strip() for c in columns.split(",") if c.strip())
-        if names == ("all",):
-            names = ()
-        else:
-            tables.check_columns(names)  # 422 on columns before anything is designed
+        tables.check_columns(names)  # 422 on columns before anything is designed
     return Output(csv=wants_csv(request), columns=names, comments=comments)
 
 
@@ -115,24 +112,13 @@ async def respond(output: Output, answer: dict[str, Any], result: Result, body: 
     """JSON by default; the CSV table on the uniform grid when the client asks for it."""
     if not output.csv:
         return NumpyJSONResponse(answer)
-    columns = output.columns
-    if columns == ():
-        columns = tuple(c for c in tables.COLUMNS if _defined(result, c))
-    table = await run_in_threadpool(tables.table, result, columns or tables.PROFILE_COLUMNS)
+    table = await run_in_threadpool(tables.table, result, output.columns or tables.PROFILE_COLUMNS)
     lines = comment_lines(title, body, answer, table) if output.comments else []
     return Response(
         csv_body(table, lines),
         media_type=CSV_MEDIA_TYPE,
         headers={"content-disposition": 'attachment; filename="profile.csv"'},
     )
-
-
-def _defined(result: Result, column: str) -> bool:
-    if column == "deflection":
-        return result.response.deflection is not None
-    if column == "motor_torque_nm":
-        return result.response.motor_torque_nm is not None
-    return True
 
 
 CSV_RESPONSE_DOC: dict[int | str, dict[str, Any]] = {

@@ -61,7 +61,9 @@ def uniform_times(period_s: float, horizon_s: float) -> NDArray[np.float64]:
 
 
 def check_columns(columns: tuple[str, ...]) -> tuple[str, ...]:
-    """The requested columns, time_s first; an unknown name is a 422 on ``columns``."""
+    """The requested columns, time_s first (``all`` alone: every column); an unknown name is a 422 on ``columns``."""
+    if columns == ("all",):
+        return columns
     unknown = [c for c in columns if c not in COLUMNS]
     if unknown:
         raise InvalidParameter("columns", ",".join(unknown), f"each column must be one of {', '.join(COLUMNS)}")
@@ -70,10 +72,15 @@ def check_columns(columns: tuple[str, ...]) -> tuple[str, ...]:
 
 
 def table(result: Result, columns: tuple[str, ...] = PROFILE_COLUMNS) -> Table:
-    """The design's profile (and load columns when asked) at t_k = k * grid period up to the horizon."""
+    """The design's profile (and load columns when asked; ``all``: every column the plant defines) at
+    t_k = k * grid period up to the horizon."""
     from optim.families import REGISTRY  # the registry imports every family: not at module load
 
     columns = check_columns(columns)
+    if columns == ("all",):
+        response = result.response
+        undefined = {"deflection": response.deflection, "motor_torque_nm": response.motor_torque_nm}
+        columns = tuple(c for c in COLUMNS if c not in undefined or undefined[c] is not None)
     grid = result.run.grid
     t = uniform_times(grid.period_s, grid.horizon_s)
     family = REGISTRY[result.family]

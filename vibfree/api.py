@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import orjson
+import structlog
 from fastapi.exceptions import RequestValidationError
 from pydantic import ValidationError
 
@@ -31,6 +32,13 @@ from optim import tables
 from optim.families import REGISTRY
 from optim.synthesis import Result
 from optim.workers import InlineExecutor
+
+if not structlog.is_configured():  # the service's log lines go to stdlib logging: the caller's config decides
+    structlog.configure(
+        processors=[structlog.stdlib.filter_by_level, structlog.stdlib.render_to_log_kwargs],
+        logger_factory=structlog.stdlib.LoggerFactory(),
+        wrapper_class=structlog.stdlib.BoundLogger,
+    )
 
 # family name -> its request schema; the names of /v1/compare's rows (``-`` may stand for ``_``)
 FAMILIES: dict[str, type[ProfileRequest]] = {

@@ -1,0 +1,143 @@
+"""The Python API and the CLI (issue 14): the service's pipeline in-process, the same answers as over HTTP."""
+
+from __future__ import annotations
+
+import os
+import re
+import shlex
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import orjson
+import pandas as pd
+import pytest
+
+import vibfree
+from tests.app.conftest import TEST_SETTINGS
+from vibfree import cli
+
+ROOT = Path(__file__).resolve().parents[2]
+STAP = {
+    "plant": {"kind": "mode", "natural_frequency_hz": 40.0},
+    "target_velocity": 150.0,
+    "limits": {"max_acceleration": 1000.0},
+    "sensitivity": {"min_ratio": 0.5, "max_ratio": 1.5, "count": 201},
+}
+
+
+def _numbers(body):
+    return orjson.loads(orjson.dumps(body, option=orjson.OPT_SERIALIZE_NUMPY))
+
+
+def test_synthesize_gives_the_endpoints_answer_and_csv_byte_for_byte(client):
+    # The same schemas, service layer and CSV writer: in-process and over HTTP agree exactly.
+    design = vibfree.synthesize("stap", STAP, settings=TEST_SETTINGS)
+    assert _numbers(design.answer) == client.post("/v1/profiles/stap", json=STAP).json()
+    over_http = client.post("/v1/profiles/stap", json=STAP, params={"format": "csv", "columns": "all"}).text
+    assert design.csv(columns=["all"]) == over_http
+    # Cusimano Sec. 3: t_a = 0.175 s (eq. 61) for k_j = 1 at 40 Hz and a_Max = 1000 rad/s^2
+    assert design.answer["design"]["acceleration_time_s"] == pytest.approx(0.175, rel=1e-12)
+
+
+def test_synthesize_raises_the_services_problem(client):
+    bad = {**STAP, "plant": {"kind": "mode", "natural_frequency_hz": -4.0}}
+    with pytest.raises(vibfree.VibfreeError) as caught:
+        vibfree.synthesize("stap", bad, settings=TEST_SETTINGS)
+    assert caught.value.status == 422
+    assert caught.value.problem == client.post("/v1/profiles/stap", json=bad).json()
+    with pytest.raises(vibfree.VibfreeError) as caught:  # a refusal of the pipeline, not of the schema
+        vibfree.synthesize("smoother", STAP, settings=TEST_SETTINGS)  # smoothers need a rest-to-rest move
+    assert caught.value.problem["type"] == "/problems/not-applicable"
+    assert caught.value.problem == client.post("/v1/profiles/smoother", json=STAP).json()
+    with pytest.raises(vibfree.VibfreeError, match="no family"):
+        vibfree.synthesize("bang-bang", STAP)
+
+
+def test_compare_in_process_equals_the_endpoint(client):
+    body = {**STAP, "families": ["stap", "input_shaped"]}
+    assert _numbers(vibfree.compare(body, settings=TEST_SETTINGS)) == client.post("/v1/compare", json=body).json()
+
+
+def _vibfree() -> list[str]:
+    script = shutil.which("vibfree", path=str(Path(sys.executable).parent)) or shutil.which("vibfree")
+    if script is None:
+        if os.environ.get("CI"):
+            raise AssertionError("the vibfree console script is not installed (pyproject [project.scripts])")
+        pytest.skip("the vibfree console script is not installed (pip install -e .)")
+    return [script]
+
+
+def test_console_script_help_lists_the_commands():
+    out = subprocess.run([*_vibfree(), "--help"], capture_output=True, text=True, check=True).stdout
+    for command in ("design", "compare", "identify", "serve"):
+        assert re.search(rf"^\s+{command}\s", out, re.MULTILINE), command
+
+
+def test_console_script_designs_without_a_server(tmp_path):
+    request = tmp_path / "request.json"
+    request.write_bytes(orjson.dumps(STAP))
+    out = tmp_path / "out.csv"
+    run = subprocess.run(
+        [*_vibfree(), "design", "stap", str(request), "--csv", str(out), "--json", str(tmp_path / "a.json")],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        env={k: v for k, v in os.environ.items() if k != "PYTHONPATH"},
+    )
+    assert run.returncode == 0, run.stderr
+    assert "settling  0.175 s" in run.stdout and "band 5 %" in run.stdout
+    frame = pd.read_csv(out)
+    assert list(frame.columns) == ["time_s", "position", "velocity", "acceleration", "jerk"]
+    answer = orjson.loads((tmp_path / "a.json").read_bytes())
+    assert frame["velocity"].iloc[-1] == pytest.approx(150.0, rel=1e-12)
+    assert answer["metrics"]["settling_time_s"] == pytest.approx(0.175, rel=1e-9)
+
+
+def test_cli_refusal_prints_the_field_and_exits_1(tmp_path, capsys):
+    request = tmp_path / "bad.json"
+    request.write_bytes(orjson.dumps({**STAP, "plant": {"kind": "mode", "natural_frequency_hz": -4.0}}))
+    assert cli.main(["design", "stap", str(request)]) == 1
+    assert "plant.natural_frequency_hz" in capsys.readouterr().err
+    request.write_text("{not json")
+    assert cli.main(["design", "stap", str(request)]) == 2
+    assert "not valid JSON" in capsys.readouterr().err
+
+
+def test_cli_compare_prints_a_ranking(tmp_path, capsys):
+    request = tmp_path / "compare.json"
+    request.write_bytes(orjson.dumps({**STAP, "families": ["stap", "input_shaped"]}))
+    assert cli.main(["compare", str(request), "--json", "-"]) == 0
+    captured = capsys.readouterr()
+    ranking = orjson.loads(captured.out)
+    assert captured.err.splitlines()[0].split()[:2] == ["design", "settling"]
+    assert ranking["rows"][0]["label"] in captured.err.splitlines()[1]
+    settling = [row["settling_time_s"] for row in ranking["rows"] if row["settling_time_s"] is not None]
+    assert settling == sorted(settling)
+
+
+def test_vibfree_serve_uses_the_flags_of_make_serve():
+    dry_run = subprocess.run(["make", "-n", "serve"], capture_output=True, text=True, check=True, cwd=ROOT).stdout
+    (line,) = [line for line in dry_run.splitlines() if "uvicorn app.main:app" in line]
+    words = shlex.split(line[line.index("uvicorn app.main:app") :])
+    flags = words[words.index("--port") + 2 :]
+    assert tuple(flags) == cli.SERVE_FLAGS
+
+
+def test_summaries_of_a_never_settling_row_and_an_empty_band():
+    assert cli._band(None) == "none"
+    assert "never" in cli.compare_summary(
+        {
+            "rows": [
+                {
+                    "label": "x",
+                    "settling_time_s": None,
+                    "motion_time_s": 1.0,
+                    "percentage_vibration": 50.0,
+                    "band_5_percent": None,
+                }
+            ],
+            "unavailable": [],
+        }
+    )

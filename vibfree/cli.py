@@ -1,0 +1,336 @@
+"""``vibfree``: design, compare and identify from the command line, in-process or against a server (``--url``).
+
+Each command prints a short summary for a person (stderr when the data itself goes to stdout) and writes the
+answer as JSON (``--json FILE``, ``-`` for stdout) or the profile as CSV (``--csv FILE``). Exit status: 0 done,
+1 the design was refused (the problem+json is printed), 2 bad usage or an unreadable file.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import logging
+import os
+import sys
+import urllib.error
+import urllib.parse
+import urllib.request
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import Any, TextIO
+
+import orjson
+
+# The flags of ``make serve`` (README "Deployment" says why each); tests check they match the Makefile's.
+SERVE_FLAGS = (
+    "--no-access-log",
+    "--no-server-header",
+    "--http",
+    "h11",
+    "--timeout-keep-alive",
+    "5",
+    "--h11-max-incomplete-event-size",
+    "16384",
+    "--timeout-graceful-shutdown",
+    "30",
+)
+FAMILY_NAMES = ("time-optimal", "pseudo-polynomial", "stap", "smoother", "input-shaped")
+HTTP_TIMEOUT_S = 300.0
+
+
+class Refused(Exception):
+    """The service (or the in-process pipeline) refused the request: ``problem`` is its problem+json."""
+
+    def __init__(self, problem: dict[str, Any]) -> None:
+        self.problem = problem
+        super().__init__(problem.get("detail", ""))
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = _parser()
+    args = parser.parse_args(argv)
+    try:
+        with _quiet_service_logs():
+            return int(args.run(args))
+    except Refused as exc:
+        _print_problem(exc.problem)
+        return 1
+    except (OSError, ValueError) as exc:  # unreadable files, bad JSON, an unreachable server
+        print(f"vibfree: {exc}", file=sys.stderr)
+        return 2
+
+
+@contextlib.contextmanager
+def _quiet_service_logs() -> Iterator[None]:
+    """The service's info lines (one per solve) are for servers: a person sees the summary, and warnings."""
+    loggers = [logging.getLogger(name) for name in ("app", "optim", "models")]
+    levels = [logger.level for logger in loggers]
+    for logger in loggers:
+        logger.setLevel(logging.WARNING)
+    try:
+        yield
+    finally:
+        for logger, level in zip(loggers, levels, strict=True):
+            logger.setLevel(level)
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="vibfree",
+        description="Vibration-free motion profiles for elastic machines: the service's designs, in-process or "
+        "against a running server (--url).",
+    )
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    design = commands.add_parser("design", help="design one family's command (POST /v1/profiles/FAMILY)")
+    design.add_argument("family", choices=FAMILY_NAMES, help="the family")
+    design.add_argument("request", help="the request body, a JSON file (- for stdin)")
+    design.add_argument("--csv", metavar="FILE", help="write the profile as CSV (- for stdout)")
+    design.add_argument("--columns", help="CSV columns, comma-separated (e.g. time_s,position,load_position; all)")
+    design.add_argument("--comments", action="store_true", help="CSV: add # lines with units and metadata")
+    _common(design)
+    design.set_defaults(run=_design)
+
+    compare = commands.add_parser("compare", help="every family side by side (POST /v1/compare)")
+    compare.add_argument("request", help="the request body, a JSON file (- for stdin)")
+    _common(compare)
+    compare.set_defaults(run=_compare)
+
+    identify = commands.add_parser(
+        "identify", help="the modes of a recorded vibration and the recommended design (POST /v1/identify)"
+    )
+    identify.add_argument("record", help="a CSV file: a header, a time_s column, one or more signal columns")
+    move = identify.add_mutually_exclusive_group()
+    move.add_argument("--displacement", type=float, help="the move to recommend a design for (rest-to-rest)")
+    move.add_argument("--target-velocity", type=float, help="or the final speed (rest-to-velocity)")
+    identify.add_argument("--max-velocity", type=float)
+    identify.add_argument("--max-acceleration", type=float)
+    identify.add_argument("--max-jerk", type=float)
+    _common(identify)
+    identify.set_defaults(run=_identify)
+
+    serve = commands.add_parser("serve", help="run the HTTP service (uvicorn, the flags of make serve)")
+    serve.add_argument("--host", default="127.0.0.1")
+    serve.add_argument("--port", type=int, default=8000)
+    serve.set_defaults(run=_serve)
+    return parser
+
+
+def _common(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--json", metavar="FILE", help="write the whole answer as JSON (- for stdout)")
+    parser.add_argument("--url", help="a running service (e.g. http://127.0.0.1:8000); default: in-process")
+
+
+# --- commands ----------------------------------------------------------------------------------
+
+
+def _design(args: argparse.Namespace) -> int:
+    request = _read(args.request)
+    columns = None if args.columns is None else [c.strip() for c in args.columns.split(",") if c.strip()]
+    if args.url:
+        path = f"/v1/profiles/{args.family}"
+        answer = orjson.loads(_post(args.url, path, request))
+        csv = None
+        if args.csv:
+            query = {"format": "csv", **({"columns": ",".join(columns)} if columns else {})}
+            if args.comments:
+                query["comments"] = "true"
+            csv = _post(args.url, path, request, query).decode()
+    else:
+        from vibfree.api import synthesize
+
+        synthesis = _in_process(lambda: synthesize(args.family, request))
+        answer = orjson.loads(synthesis.json())
+        csv = None
+        if args.csv:
+            csv = _in_process(lambda: synthesis.csv(columns=columns, comments=args.comments))
+    out = _summary_stream(args.json, args.csv)
+    print(design_summary(args.family, answer), file=out)
+    _write(args.json, orjson.dumps(answer, option=orjson.OPT_INDENT_2).decode() + "\n")
+    if csv is not None:
+        _write(args.csv, csv)
+    return 0
+
+
+def _compare(args: argparse.Namespace) -> int:
+    request = _read(args.request)
+    if args.url:
+        answer = orjson.loads(_post(args.url, "/v1/compare", request))
+    else:
+        from vibfree.api import compare
+
+        answer = orjson.loads(orjson.dumps(_in_process(lambda: compare(request)), option=orjson.OPT_SERIALIZE_NUMPY))
+    print(compare_summary(answer), file=_summary_stream(args.json))
+    _write(args.json, orjson.dumps(answer, option=orjson.OPT_INDENT_2).decode() + "\n")
+    return 0
+
+
+def _identify(args: argparse.Namespace) -> int:
+    record = Path(args.record).read_bytes()
+    query = {
+        name: value
+        for name, value in (
+            ("displacement", args.displacement),
+            ("target_velocity", args.target_velocity),
+            ("max_velocity", args.max_velocity),
+            ("max_acceleration", args.max_acceleration),
+            ("max_jerk", args.max_jerk),
+        )
+        if value is not None
+    }
+    if args.url:
+        answer = orjson.loads(_post(args.url, "/v1/identify", record, query, content_type="text/csv"))
+    else:
+        from vibfree.api import identify
+
+        answer = _in_process(lambda: identify(record, **query))
+    print(identify_summary(answer), file=_summary_stream(args.json))
+    _write(args.json, orjson.dumps(answer, option=orjson.OPT_INDENT_2 | orjson.OPT_SERIALIZE_NUMPY).decode() + "\n")
+    return 0
+
+
+def _serve(args: argparse.Namespace) -> int:
+    command = [sys.executable, "-m", "uvicorn", "app.main:app", "--host", args.host, "--port", str(args.port)]
+    os.execv(sys.executable, [*command, *SERVE_FLAGS])  # replaces this process: signals reach uvicorn
+
+
+# --- summaries ---------------------------------------------------------------------------------
+
+
+def _number(value: Any, unit: str = "") -> str:
+    if value is None:
+        return "-"
+    text = f"{value:.4g}"
+    return f"{text} {unit}".rstrip()
+
+
+def _band(band: Any) -> str:
+    if not band:
+        return "none"
+    lo, hi = band
+    return f"{_number(lo)}..{_number(hi)} x f_n"
+
+
+def design_summary(family: str, answer: dict[str, Any]) -> str:
+    """Duration, settling, residual and band of one design, a line each."""
+    m = answer["metrics"]
+    sensitivity = answer.get("sensitivity") or {}
+    broken = "; ".join(answer.get("limit_violations", []))
+    settling = _number(m.get("settling_time_s"), "s") if m.get("settled") else "never (an undamped mode rings)"
+    percent = _number(m.get("percentage_vibration"), "%")
+    band = _band(sensitivity.get("band_5_percent")) if sensitivity else "(ask sensitivity to compute it)"
+    lines = [
+        f"{family}: {'limits met' if answer.get('limits_met') else 'LIMITS BROKEN: ' + broken}",
+        f"  duration  {_number(m.get('motion_time_s'), 's')}",
+        f"  settling  {settling}",
+        f"  residual  {_number(m.get('residual_amplitude'))} (load units), V = {percent}",
+        f"  band 5 %  {band}",
+    ]
+    lines += [f"  warning: {w}" for w in answer.get("warnings", [])]
+    return "\n".join(lines)
+
+
+def compare_summary(answer: dict[str, Any]) -> str:
+    """One line per row, in the ranking's order, then what could not run."""
+    head = f"{'design':28s} {'settling':>11s} {'duration':>11s} {'V %':>9s}  band 5 %"
+    lines = [head]
+    for row in answer["rows"]:
+        settling = _number(row["settling_time_s"], "s") if row["settling_time_s"] is not None else "never"
+        lines.append(
+            f"{row['label']:28s} {settling:>11s} {_number(row['motion_time_s'], 's'):>11s} "
+            f"{_number(row['percentage_vibration']):>9s}  {_band(row['band_5_percent'])}"
+        )
+    lines += [f"unavailable: {u['family']}: {u['reason']}" for u in answer.get("unavailable", [])]
+    return "\n".join(lines)
+
+
+def identify_summary(answer: dict[str, Any]) -> str:
+    """The modes with their 95 % intervals, and the recommendation."""
+    lines = []
+    for mode in answer.get("modes") or []:
+        lo, hi = mode.get("natural_frequency_ci_hz") or (None, None)
+        zlo, zhi = mode.get("damping_ratio_ci") or (None, None)
+        lines.append(
+            f"mode {_number(mode['natural_frequency_hz'], 'Hz')} (95 %: {_number(lo)}..{_number(hi)} Hz), "
+            f"zeta {_number(mode['damping_ratio'])} (95 %: {_number(zlo)}..{_number(zhi)})"
+        )
+    recommended = answer.get("recommended")
+    if recommended:
+        lines.append(f"recommended: POST {recommended['endpoint']} with")
+        lines.append("  " + orjson.dumps(recommended["request"]).decode())
+    else:
+        reason = (
+            answer.get("recommendation_note") or "give the move and limits (--displacement, --max-acceleration, ...)"
+        )
+        lines.append(f"no recommendation: {reason}")
+    return "\n".join(lines)
+
+
+# --- I/O ---------------------------------------------------------------------------------------
+
+
+def _read(path: str) -> bytes:
+    data = sys.stdin.buffer.read() if path == "-" else Path(path).read_bytes()
+    try:
+        orjson.loads(data)
+    except orjson.JSONDecodeError as exc:
+        raise ValueError(f"{path}: not valid JSON ({exc})") from None
+    return data
+
+
+def _write(path: str | None, text: str) -> None:
+    if path is None:
+        return
+    if path == "-":
+        sys.stdout.write(text)
+    else:
+        Path(path).write_text(text)
+
+
+def _summary_stream(*outputs: str | None) -> TextIO:
+    """stderr when the data goes to stdout, else stdout."""
+    return sys.stderr if "-" in outputs else sys.stdout
+
+
+def _in_process(call: Any) -> Any:
+    from vibfree.api import VibfreeError
+
+    try:
+        return call()
+    except VibfreeError as exc:
+        raise Refused(exc.problem) from None
+
+
+def _post(
+    url: str, path: str, body: bytes, query: dict[str, Any] | None = None, content_type: str = "application/json"
+) -> bytes:
+    target = url.rstrip("/") + path + (f"?{urllib.parse.urlencode(query)}" if query else "")
+    request = urllib.request.Request(target, data=body, method="POST", headers={"content-type": content_type})
+    try:
+        with urllib.request.urlopen(request, timeout=HTTP_TIMEOUT_S) as response:
+            return bytes(response.read())
+    except urllib.error.HTTPError as exc:
+        payload = exc.read()
+        try:
+            problem = orjson.loads(payload)
+        except orjson.JSONDecodeError:
+            problem = {"status": exc.code, "title": exc.reason, "detail": payload.decode(errors="replace")[:500]}
+        if exc.code == 503 and exc.headers.get("Retry-After"):
+            problem.setdefault("detail", "")
+            problem["detail"] += f" (retry after {exc.headers['Retry-After']} s)"
+        raise Refused(problem) from None
+    except urllib.error.URLError as exc:
+        raise OSError(f"cannot reach {url}: {exc.reason}") from None
+
+
+def _print_problem(problem: dict[str, Any]) -> None:
+    print(
+        f"vibfree: {problem.get('status', '')} {problem.get('title', 'refused')}: {problem.get('detail', '')}",
+        file=sys.stderr,
+    )
+    for error in problem.get("errors") or []:
+        print(f"  {error.get('field')}: {error.get('rule')} (got {error.get('value')!r})", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
