@@ -21,7 +21,8 @@ router = APIRouter(include_in_schema=False)
 SWAGGER_UI = "/static/vendor/swagger-ui"
 REDOC = "/static/vendor/redoc"
 OAUTH2_REDIRECT_PATH = "/docs/oauth2-redirect"
-#: Swagger UI would ask validator.swagger.io to check the spec (a badge) for a non-local host: never.
+#: Swagger UI's validator badge (its OnlineValidatorBadge, in the standalone layout) defaults to an image
+#: from validator.swagger.io for a spec not on localhost; ``validatorUrl: null`` turns it off whatever the layout.
 SWAGGER_UI_PARAMETERS = {"validatorUrl": None}
 
 
