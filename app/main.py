@@ -11,6 +11,7 @@ from fastapi import FastAPI
 from app import observability, problems
 from app.routers import (
     compare,
+    docs,
     health,
     identify,
     metrics,
@@ -71,6 +72,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         version="0.1.0",
         description=DESCRIPTION,
         lifespan=lifespan,
+        docs_url=None,  # /docs and /redoc come from app.routers.docs, on the vendored bundles
+        redoc_url=None,
         generate_unique_id_function=lambda route: route.name,  # operation ids: stap_profile, compare, ...
     )
     app.state.settings = settings
@@ -95,6 +98,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         compare,
         metrics,
         page,
+        docs,
     )
     for router in (*(r.router for r in routers), problems.router):
         app.include_router(router)
