@@ -248,7 +248,10 @@ function applyPreset() {
   $("plant-kind").value = v.plant.kind;
   renderPlantFields(v.plant.kind, v.plant);
   if (v.plant.kind === "mode") {
-    $("coordinate").value = /\brad\b|rad\/s/.test(`${preset.summary} ${preset.description}`) ? "rad" : "m";
+    // A mode has no coordinate of its own: the example's text says it (150 rad/s, 0.12 m, 30 mm), else unchanged.
+    const text = `${preset.summary} ${preset.description}`;
+    if (/\brad\b|rad\/s/.test(text)) $("coordinate").value = "rad";
+    else if (/\d\s*(m|mm|m\/s)\b/.test(text)) $("coordinate").value = "m";
   }
   const velocityMove = v.target_velocity !== undefined;
   form.elements.move.value = velocityMove ? "target_velocity" : "displacement";
@@ -575,16 +578,17 @@ function drawResidual() {
     width: plotWidth(el), height: 220,
     legend: { live: false },
     scales: { x: { time: false }, y: { range: [-half, half] } },
-    axes: [{ label: "time (s)", values: tickValues }, { label: `load − rigid target (${scale.unit})`, values: tickValues, size: 60 }],
+    axes: [{ label: "time (s)", values: tickValues }, { label: `load − target (${scale.unit})`, values: tickValues, size: 70 }],
     series: [{ label: "t (s)" }, { label: `load − rigid target (${scale.unit})`, stroke: LOAD_COLOUR, width: 1.5 }],
   }, [t, r.map((v) => v * scale.factor)], el);
   residualPlot.unitScale = scale;
   const window = row.settling_vibration_window;
   $("residual-title").textContent = `Residual vibration after the move: ${designName(row)}`;
-  $("residual-note").textContent = `Zoomed to t ≥ ${fmt(t[0])} s, after the command ends: peak |load − rigid target| `
-    + `${fmt(peak * scale.factor)} ${scale.unit}.`
-    + (window ? ` Settling needs the vibration envelope below ${fmt(window)} ${coordinate()}.` : "")
-    + (peak > 0 && peak < 1e-12 * Math.max(1, maxAbs(row.curves.load.position)) ? " This is rounding noise: no residual." : "");
+  const tiny = peak > 0 && peak < 1e-12 * Math.max(1, maxAbs(row.curves.load.position));
+  $("residual-note").textContent = `Zoomed to t ≥ ${fmt(t[0])} s, after the command ends: `
+    + (peak === 0 ? "the load is exactly at its target (no residual to plot)."
+      : `peak |load − rigid target| ${fmt(peak * scale.factor)} ${scale.unit}${tiny ? ": rounding noise, no residual" : ""}.`)
+    + (window ? ` Settling needs the vibration envelope below ${fmt(window)} ${coordinate()}.` : "");
 }
 
 function drawSensitivity() {
@@ -695,6 +699,7 @@ function clearResults() {
   $("compare-table").querySelector("tbody").innerHTML = "";
   $("unavailable").innerHTML = "";
   $("residual-title").textContent = "Residual vibration after the move";
+  $("plant-modes").textContent = "";
   selectRow(null);
 }
 
@@ -851,7 +856,7 @@ async function design(event) {
     const first = jobs.filter((j) => j.phase === 1).map((job) => ({ job, outcome: launch(job) }));
     const analysis = await analysing;
     if (!current()) return;
-    if (!analysis.ok) { fail(analysis.body, "Plant: "); return; }
+    if (!analysis.ok) { fail(analysis.body, ""); return; }
     lastPlant = plantReference(analysis.body);
     describeModes(lastPlant);
     await Promise.all(first.map(async ({ job, outcome }) => accept(job, await outcome)));
