@@ -1,4 +1,4 @@
-// The design page. Design sends the closed-form families first (one POST /v1/compare for the input
+// The design page. Design sends the closed-form families first (a POST /v1/compare each for the input
 // shapers, STAP and the smoothers, with POST /v1/plants/analyze for the plant's modes and G(0)), plots
 // the first row as soon as it arrives, then runs the solver families (time-optimal, pseudo-polynomial),
 // the robust time-optimal design, a chosen shaper and a paper's example in parallel, each row filled in
@@ -249,9 +249,11 @@ function applyPreset() {
   renderPlantFields(v.plant.kind, v.plant);
   if (v.plant.kind === "mode") {
     // A mode has no coordinate of its own: the example's text says it (150 rad/s, 0.12 m, 30 mm), else unchanged.
-    const text = `${preset.summary} ${preset.description}`;
-    if (/\brad\b|rad\/s/.test(text)) $("coordinate").value = "rad";
-    else if (/\d\s*(m|mm|m\/s)\b/.test(text)) $("coordinate").value = "m";
+    for (const text of [preset.summary, preset.description]) {
+      const rad = /\brad\b|rad\/s/.test(text);
+      const metre = /\d\s*(m|mm|m\/s)\b/.test(text);
+      if (rad !== metre) { $("coordinate").value = rad ? "rad" : "m"; break; }
+    }
   }
   const velocityMove = v.target_velocity !== undefined;
   form.elements.move.value = velocityMove ? "target_velocity" : "displacement";
@@ -567,7 +569,8 @@ function drawResidual() {
   const time = row.curves.profile.time_s;
   const residual = residualOf(row);
   const end = row.motion_time_s + time[0];
-  let first = time.findIndex((t) => t >= end - 1e-12);
+  // Strictly after the end: the sample at the end itself can carry the move's last value.
+  let first = time.findIndex((t) => t > end + 1e-9 * Math.max(1, Math.abs(end)));
   if (first < 0 || time.length - first < 5) first = 0; // no samples after the command: show it all
   const t = time.slice(first);
   const r = residual.slice(first);
@@ -765,7 +768,8 @@ function planJobs(common, band) {
     },
   });
   const fast = wanted.filter((f) => FAST_FAMILIES.includes(f) && !(f === "input_shaped" && shaper));
-  if (fast.length) jobs.push(compareJob(fast, 1, fast.map((f) => FAMILIES[f]).join(", ")));
+  // One compare per family: the quickest (STAP's closed form, about 0.1 s) is plotted while the others run.
+  for (const f of fast) jobs.push(compareJob([f], 1, FAMILIES[f]));
   if (shaper && wanted.includes("input_shaped")) {
     const request = { ...common, shaper, sensitivity: { ...SENSITIVITY } };
     jobs.push(endpointJob("shaper", `Input shaping: ${shaperName(shaper)}`, 1, "/v1/profiles/input-shaped", request,
@@ -981,20 +985,35 @@ async function computeTradeoff() {
   }
 }
 
+// The CSV is the row's endpoint answering the row's request again: a solver row takes as long as its design,
+// so the button shows a progress bar while it runs.
 async function downloadCsv() {
   const row = selected;
   if (!row) return;
-  const response = await fetch(row.endpoint + "?format=csv", {
-    method: "POST", headers: { "content-type": "application/json" }, body: JSON.stringify(row.request),
-  });
-  if (!response.ok) { showProblem(await response.json()); return; }
-  const blob = await response.blob();
-  const link = document.createElement("a");
-  link.href = URL.createObjectURL(blob);
-  link.download = `${(row.label || row.family).replace(/[/ ]/g, "-")}-profile.csv`;
-  document.body.appendChild(link);
-  link.click();
-  link.remove();
+  const button = $("csv-button");
+  const bar = $("design-progress");
+  button.disabled = true;
+  const timer = setTimeout(() => { bar.hidden = false; $("status").textContent = `Preparing the CSV of ${designName(row)}…`; }, 300);
+  try {
+    const response = await fetch(row.endpoint + "?format=csv", {
+      method: "POST", headers: { "content-type": "application/json" }, body: JSON.stringify(row.request),
+    });
+    if (!response.ok) { showProblem(await response.json(), "CSV: "); return; }
+    const blob = await response.blob();
+    const link = document.createElement("a");
+    link.href = URL.createObjectURL(blob);
+    link.download = `${(row.label || row.family).replace(/[/ ]/g, "-")}-profile.csv`;
+    document.body.appendChild(link);
+    link.click();
+    link.remove();
+    if (!bar.hidden) $("status").textContent = `CSV of ${designName(row)} downloaded.`;
+  } catch (error) {
+    $("form-error").textContent = "The service did not answer: " + error;
+  } finally {
+    clearTimeout(timer);
+    if (!pending.size) bar.hidden = true;
+    button.disabled = !selected;
+  }
 }
 
 function syncForm() {
