@@ -137,6 +137,36 @@ def test_default_design_appears_fast_with_units_residual_and_sensitivity(page, s
     assert sorted(widths)[-1] == 3 and widths.count(3) == 1
 
 
+def test_solver_rows_show_progress_while_the_closed_forms_are_plotted(page):
+    # Hold the solver families' answers (time-optimal, pseudo-polynomial) until the test lets them through:
+    # the closed-form rows must be plotted meanwhile, with a progress line per held row.
+    held = []
+
+    def hold_solver_compares(route):
+        body = route.request.post_data_json or {}
+        if set(body.get("families") or []) & {"time_optimal", "pseudo_polynomial"}:
+            held.append(route)
+        else:
+            route.continue_()
+
+    page.route("**/v1/compare", hold_solver_compares)
+    page.goto("/")
+    page.get_by_role("button", name="Design").click()
+    expect(page.locator("#motion-plot canvas")).to_have_count(1, timeout=SLOW_MS)
+    progress = page.locator("#pending li")
+    expect(progress).to_have_count(2)
+    expect(progress.filter(has_text="Time-optimal: designing")).to_have_count(1)
+    expect(progress.locator("progress")).to_have_count(2)
+    expect(page.locator("#design-progress")).to_be_visible()
+    expect(page.locator("#compare-table tbody tr")).to_have_count(6)  # ZV, MZV, ZVD, EI, STAP, smoother
+    assert len(held) == 2
+    for route in held:
+        route.continue_()
+    expect(progress).to_have_count(0, timeout=SLOW_MS)
+    expect(page.locator("#design-progress")).to_be_hidden()
+    expect(page.locator("#compare-table tbody tr")).to_have_count(8)
+
+
 def test_design_plot_compare_and_csv(page, tmp_path):
     page.goto("/")
     expect(page.get_by_role("heading", name="Vibration-free motion profiles")).to_be_visible()
