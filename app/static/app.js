@@ -605,6 +605,7 @@ function drawSensitivity() {
   const shown = rows.filter((r) => r.curves.sensitivity.frequency_ratio.length === x.length);
   let top = 10;
   for (const row of shown) top = Math.max(top, maxAbs(row.curves.sensitivity.percentage_vibration));
+  const clipped = top > 100;
   top = Math.min(100, top * 1.05);
   const series = [{ label: "fn / fn,e" }];
   const data = [x];
@@ -628,7 +629,8 @@ function drawSensitivity() {
   }, data, el);
   $("sensitivity-legend").textContent = `Every design's V (the residual over the unshaped rigid command's, %); `
     + `the selected one (${selected ? designName(selected) : "none"}) drawn thick; dashed red: V = 5 %; `
-    + "vertical line: ratio 1, the design frequency.";
+    + "vertical line: ratio 1, the design frequency."
+    + (clipped ? " The V axis stops at 100 %: a curve above it leaves more vibration than the unshaped command." : "");
   if (selected) describeBands(selected, achieved);
 }
 
