@@ -83,6 +83,16 @@ def browser():
         instance.close()
 
 
+# Screenshots of the default design, a preset and a bad input, saved by every run for review (gitignored).
+SCREENSHOTS = ROOT / "test-artifacts" / "screenshots"
+
+
+@pytest.fixture(scope="session")
+def screenshots() -> Path:
+    SCREENSHOTS.mkdir(parents=True, exist_ok=True)
+    return SCREENSHOTS
+
+
 @pytest.fixture
 def page(browser, live_server, tmp_path):
     context = browser.new_context(accept_downloads=True, viewport={"width": 1366, "height": 900}, base_url=live_server)
