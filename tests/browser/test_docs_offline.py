@@ -17,7 +17,7 @@ import httpx2 as httpx
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-SCREENSHOT_DIR = Path(os.environ.get("VIBFREE_SCREENSHOT_DIR", ROOT / "build" / "screenshots"))
+SCREENSHOT_DIR = Path(os.environ.get("VIBFREE_SCREENSHOT_DIR", ROOT / "test-artifacts" / "screenshots"))
 # The summary the stap router declares for POST /v1/profiles/stap (app/routers/stap.py).
 STAP_SUMMARY = "Symmetric trapezoidal acceleration profile without residual vibration (Cusimano)"
 # Collects every CSP violation the page reports (the securitypolicyviolation event of CSP Level 3).
