@@ -24,9 +24,17 @@ import numpy as np
 
 from models.commands import PiecewiseCommand
 from models.errors import Infeasible, InvalidParameter
-from models.shapers import ImpulseSequence, RampTrain, follow_position, percentage_vibration, rate_limit
+from models.shapers import (
+    ImpulseSequence,
+    RampTrain,
+    follow_position,
+    percentage_vibration,
+    rate_limit,
+    shape_command,
+)
 from models.simulation import simulate
 from optim.family import BaseFamily, Candidate, Design, Grid, Profile, Run
+from optim.firmware import ResidualPercent, firmware_block, shaper_residual_percent
 from optim.problem import TAIL_PERIODS, Problem
 from optim.shapers import (
     DEFAULT_VIBRATION_TOLERANCE,
@@ -371,6 +379,25 @@ def _baseline_block(chosen: Plan, requested: str) -> dict[str, Any]:
     }
 
 
+def firmware_residual(problem: Problem, commands: Commands) -> ResidualPercent:
+    """The percentage vibration a firmware's impulses leave at the plant's first mode with this design's
+    baseline (the baseline shaped by them, exactly: models.shapers.shape_command), in the definition of
+    metrics.percentage_vibration; 100 V of the impulses alone (its value on a step) where that is not
+    representable."""
+    from optim.synthesis import nominal_percentage_vibration
+
+    mode = problem.plant.modes()[0]
+
+    def residual(impulses: ImpulseSequence) -> float:
+        try:
+            value = nominal_percentage_vibration(problem, shape_command(commands.baseline, impulses))
+        except InvalidParameter:
+            value = None
+        return shaper_residual_percent(impulses, mode) if value is None else value
+
+    return residual
+
+
 def shaper_design(problem: Problem, options: InputShapedOptions) -> ShaperDesign:
     modes = problem.plant.modes()
     if not modes:
@@ -450,6 +477,7 @@ class InputShapedFamily(BaseFamily):
             "shaped_peak_acceleration": None if steps_in_command else commands.shaped_train.max_slope(),
             "passes_limiter_unchanged": unchanged,
             "duration_s": commands.end_s,
+            "firmware": firmware_block(design, firmware_residual(problem, commands)),
         }
         end_s = max(commands.end_s, float(commands.plain_limited.time_s[-1]))
         return Design(commands.limited, summary, tuple(warnings), end_s=end_s, detail=commands)
