@@ -387,13 +387,17 @@ def firmware_residual(problem: Problem, commands: Commands) -> ResidualPercent:
     from optim.synthesis import nominal_percentage_vibration
 
     mode = problem.plant.modes()[0]
+    seen: dict[bytes, float] = {}  # the firmwares often apply the same impulses (a named ZVD, a custom one)
 
     def residual(impulses: ImpulseSequence) -> float:
-        try:
-            value = nominal_percentage_vibration(problem, shape_command(commands.baseline, impulses))
-        except InvalidParameter:
-            value = None
-        return shaper_residual_percent(impulses, mode) if value is None else value
+        key = impulses.amplitudes.tobytes() + impulses.times_s.tobytes()
+        if key not in seen:
+            try:
+                value = nominal_percentage_vibration(problem, shape_command(commands.baseline, impulses))
+            except InvalidParameter:
+                value = None
+            seen[key] = shaper_residual_percent(impulses, mode) if value is None else value
+        return seen[key]
 
     return residual
 
