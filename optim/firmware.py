@@ -7,9 +7,10 @@ from the firmware's own source, so that what differs from the design is measured
 - Klipper: an ``[input_shaper]`` section (the X axis lines) with the closest built-in type. Types
   and formulas from klippy/extras/shaper_defs.py at Klipper3d/klipper commit 84104bbbd (master of
   2026-08-07); zv, mzv and zvd are the same in v0.13.0, whose ei, 2hump_ei and 3hump_ei (the
-  undamped forms scaled by K) were replaced by damped polynomial fits in April 2026; the amplitudes
-  are normalised to sum 1 as klippy/chelper/kin_shaper.c does. Syntax: docs/Config_Reference.md,
-  ``[input_shaper]`` (https://www.klipper3d.org/Config_Reference.html#input_shaper).
+  undamped forms scaled by K) became damped polynomial fits in 5da026a (2025-09-22; the 3hump_ei fit
+  had a typo until 0d1445a, 2026-03-31); the amplitudes are normalised to sum 1 as
+  klippy/chelper/kin_shaper.c does. Syntax: docs/Config_Reference.md, ``[input_shaper]``
+  (https://www.klipper3d.org/Config_Reference.html#input_shaper).
 - RepRapFirmware: ``M593`` (https://docs.duet3d.com/User_manual/Reference/Gcodes#m593-configure-input-shaping).
   A named type where RRF's own impulses are ours (zvd, zvdd, zvddd), else ``P"custom"`` with the
   amplitudes and delays, at most 5 impulses (src/Movement/AxisShaper.{h,cpp}: MaxImpulses = 5). The
@@ -39,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from models.errors import InvalidParameter
 from models.plants import Mode
 from models.shapers import ImpulseSequence, percentage_vibration
 from optim.shapers import ShaperDesign
@@ -71,7 +73,7 @@ RRF_MAX_DAMPING = 0.99  # M593 S is limited to [0, 0.99]
 MARLIN_MODES = {"zv": 1, "zvd": 2, "zvdd": 3, "zvddd": 4, "ei": 5, "2hump_ei": 6, "3hump_ei": 7, "mzv": 8}
 MARLIN_FTM_FS_HZ = 1000.0  # FTM_FS, the trajectory rate (Configuration_adv.h default)
 MARLIN_MIN_SHAPE_FREQ_HZ = 20.0  # FTM_MIN_SHAPE_FREQ (Configuration_adv.h default; a build may lower it)
-MARLIN_ZETA = (0.01, 1.0)  # M493 I
+MARLIN_ZETA = (0.01, 0.99)  # M493 I takes [0.01, 1]; at 1 shaping.cpp divides by sqrt(1 - zeta^2) = 0
 RRF_NAMES = {"zvd": "zvd", "zvdd": "zvdd", "zvddd": "zvddd", "mzv": "mzv", "2hump_ei": "ei2", "3hump_ei": "ei3"}
 SAME_TOLERANCE = 1e-7  # impulses equal to this (amplitudes; times relative to the duration): the same shaper
 SIGNIFICANT_DIGITS = 10  # of every number written (relative error <= 5e-10, well inside SAME_TOLERANCE)
@@ -265,6 +267,20 @@ def closest(options: dict[str, ImpulseSequence], ours: ImpulseSequence, mode: Mo
     return min(options, key=lambda kind: curve_distance(options[kind], ours, mode))
 
 
+def valid_options(build: Callable[[str], ImpulseSequence], kinds: tuple[str, ...]) -> dict[str, ImpulseSequence]:
+    """The firmware types that are shapers at these settings: increasing times (which Klipper's kin_shaper.c
+    checks) and positive amplitudes; the hump fits break down at their largest dampings."""
+    options = {}
+    for kind in kinds:  # a loop over six types
+        try:
+            impulses = build(kind)
+        except InvalidParameter:
+            continue
+        if np.all(impulses.amplitudes > 0.0):
+            options[kind] = impulses
+    return options
+
+
 def shaper_residual_percent(impulses: ImpulseSequence, mode: Mode) -> float:
     """100 V(omega_n, zeta) of the impulses alone (Sec. 3.1): the percentage vibration on a plain step."""
     return 100.0 * float(percentage_vibration(impulses, mode.natural_frequency_rad_s, mode.damping_ratio))
@@ -301,9 +317,10 @@ def klipper_block(design: ShaperDesign, residual: ResidualPercent) -> dict[str, 
     mode = design.modes[0]
     frequency = _rounded(mode.natural_frequency_hz)
     zeta = mode.damping_ratio
-    options = {
-        kind: klipper_impulses(kind, frequency, min(_rounded(zeta), top)) for kind, top in KLIPPER_MAX_DAMPING.items()
-    }
+    options = valid_options(
+        lambda kind: klipper_impulses(kind, frequency, min(_rounded(zeta), KLIPPER_MAX_DAMPING[kind])),
+        tuple(KLIPPER_MAX_DAMPING),
+    )
     kind = design.name if design.name in options else closest(options, design.impulses, mode)
     damping = min(_rounded(zeta), KLIPPER_MAX_DAMPING[kind])
     settings = Settings(kind, frequency, damping, options[kind])
@@ -323,7 +340,12 @@ def klipper_block(design: ShaperDesign, residual: ResidualPercent) -> dict[str, 
         **_residuals(settings, design, residual),
     }
     notes = []
-    if kind != design.name:
+    if kind != design.name and design.name in KLIPPER_MAX_DAMPING:
+        notes.append(
+            f"Klipper's {design.name} is no shaper at this damping (its fit's times or amplitudes break down): "
+            f"{kind} is the built-in type whose V curve is nearest."
+        )
+    elif kind != design.name:
         notes.append(f"Klipper has no {design.name} shaper: {kind} is the built-in type whose V curve is nearest.")
     elif not block["exact"] and len(design.modes) == 1:
         notes.append(f"Klipper's {kind} is a polynomial fit in the damping ratio, not the designed {kind}.")
@@ -335,7 +357,7 @@ def klipper_block(design: ShaperDesign, residual: ResidualPercent) -> dict[str, 
             "(not v0.13.0)."
         )
     if kind == "3hump_ei":
-        notes.append("3hump_ei needs Klipper after 0d1445a (2026-03-31): before it its damped fit had a typo.")
+        notes.append("3hump_ei as here needs Klipper from 0d1445a (2026-03-31): its damped fit had a typo before.")
     notes.append(_multi_mode_note(design))
     block["note"] = " ".join(n for n in notes if n) or None
     return block
@@ -366,7 +388,9 @@ def reprapfirmware_block(design: ShaperDesign, residual: ResidualPercent) -> tup
             f"M593 F takes {low:g} to {high:g} Hz (RRF 3.6); the design frequency is {mode.natural_frequency_hz:.6g} Hz"
         )
     frequency, zeta = _rounded(mode.natural_frequency_hz), min(_rounded(mode.damping_ratio), RRF_MAX_DAMPING)
-    options = {kind: rrf_impulses(kind, frequency, zeta) for kind in ("zvd", "zvdd", "zvddd", "mzv", "ei2", "ei3")}
+    options = valid_options(
+        lambda kind: rrf_impulses(kind, frequency, zeta), ("zvd", "zvdd", "zvddd", "mzv", "ei2", "ei3")
+    )
     named = [kind for kind, impulses in options.items() if same(impulses, design.impulses)]
     note = None
     if named and zeta == _rounded(mode.damping_ratio):
@@ -380,7 +404,7 @@ def reprapfirmware_block(design: ShaperDesign, residual: ResidualPercent) -> tup
         note = f"RRF's own {RRF_NAMES[design.name]} differs from the design here." if design.name in RRF_NAMES else None
     else:
         mapped = RRF_NAMES.get(design.name)
-        kind = mapped if mapped is not None else closest(options, design.impulses, mode)
+        kind = mapped if mapped in options else closest(options, design.impulses, mode)
         command = command_35 = f'M593 P"{kind}" F{fixed(frequency)} S{fixed(zeta)}'
         settings = Settings(kind, frequency, zeta, options[kind])
         note = (
@@ -434,7 +458,10 @@ def marlin_block(design: ShaperDesign, residual: ResidualPercent) -> tuple[dict[
         f"{', '.join(fixed(1e3 * t) for t in impulses.times_s)} ms."
     ]
     if zeta != _rounded(mode.damping_ratio):
-        notes.append(f"M493 I takes {low:g} to {high:g}; the design's damping ratio is {mode.damping_ratio:.6g}.")
+        notes.append(
+            f"I is written within {low:g} to {high:g} (M493 takes 0.01 to 1; at 1 Marlin's shaper divides by zero); "
+            f"the design's damping ratio is {mode.damping_ratio:.6g}."
+        )
     if design.name in ("mzv", "ei", "2hump_ei", "3hump_ei") and mode.damping_ratio > 0.0:
         notes.append(f"Marlin's damped {design.name} scales the undamped amplitudes by powers of K.")
     block = {

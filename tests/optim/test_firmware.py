@@ -305,3 +305,28 @@ def test_numbers_are_fixed_point():
         "123456.7891",
         "0.0000000000025",
     ]
+
+
+@pytest.mark.parametrize("name", ["zv", "mzv", "zvd", "zvdd", "zvdddddddd", "ei", "2hump_ei", "3hump_ei"])
+def test_every_shaper_at_any_damping_and_frequency_gives_finite_settings(name):
+    # Bounded sweep over the plant ranges (0.01 Hz .. 5 kHz; damping up to 0.9999, which the damping bounds
+    # of the firmwares must absorb without dividing by sqrt(1 - zeta^2) = 0; every design also evaluates
+    # all of Klipper's and RRF's types there, whose hump fits break down at high damping). The EI shapers
+    # exist up to zeta ~0.3-0.45 only (their root-finding to that end is slow, so two dampings).
+    from models.errors import Infeasible
+
+    dampings = (0.0, 0.2) if "ei" in name else (0.0, 0.3, 0.95, 0.9999)
+    for frequency in (0.05, 3.0, 40.0, 700.0, 5000.0):
+        for zeta in dampings:
+            try:
+                design = design_shaper(name, mode(frequency, zeta))
+            except Infeasible:  # EI shapers end where their conditions have no solution
+                continue
+            block = firmware_block(design)
+            for key in ("klipper", "reprapfirmware", "marlin"):
+                item = block[key]
+                assert (item is None) == (block.get(f"{key}_reason") is not None) or key == "klipper"
+                if item is not None:
+                    assert math.isfinite(item["residual_percent"]) and math.isfinite(item["shaper_residual_percent"])
+                    text = item.get("section") or item["command"]
+                    assert "e-" not in text and "nan" not in text and "inf" not in text, text
