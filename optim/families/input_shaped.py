@@ -17,6 +17,7 @@ for a command within the limit; the load is simulated with its output.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any, ClassVar, Literal
 
@@ -34,7 +35,6 @@ from models.shapers import (
 )
 from models.simulation import simulate
 from optim.family import BaseFamily, Candidate, Design, Grid, Profile, Run
-from optim.firmware import ResidualPercent, firmware_block, shaper_residual_percent
 from optim.problem import TAIL_PERIODS, Problem
 from optim.shapers import (
     DEFAULT_VIBRATION_TOLERANCE,
@@ -379,11 +379,12 @@ def _baseline_block(chosen: Plan, requested: str) -> dict[str, Any]:
     }
 
 
-def firmware_residual(problem: Problem, commands: Commands) -> ResidualPercent:
+def firmware_residual(problem: Problem, commands: Commands) -> Callable[[ImpulseSequence], float]:
     """The percentage vibration a firmware's impulses leave at the plant's first mode with this design's
     baseline (the baseline shaped by them, exactly: models.shapers.shape_command), in the definition of
     metrics.percentage_vibration; 100 V of the impulses alone (its value on a step) where that is not
     representable."""
+    from optim.firmware import shaper_residual_percent
     from optim.synthesis import nominal_percentage_vibration
 
     mode = problem.plant.modes()[0]
@@ -441,6 +442,8 @@ class InputShapedFamily(BaseFamily):
         )
 
     def design(self, problem: Problem, options: InputShapedOptions) -> Design:
+        from optim.firmware import firmware_block
+
         design = shaper_design(problem, options)
         shaper, limit = design.impulses, problem.acceleration_limit
         steps = options.baseline_steps if options.baseline == "multi_step" else 2
