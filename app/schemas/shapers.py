@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import ClassVar, Literal
 
-from pydantic import Field
+from pydantic import ConfigDict, Field
 
 from app.schemas.common import OutModel
 from app.schemas.family import FamilyResponse, ProfileRequest
@@ -12,6 +12,7 @@ from app.schemas.simulate import MetricsOut, ProfileOut
 from models.errors import InvalidParameter
 from optim.families.input_shaped import MAX_SHAPED_MODES, InputShapedOptions
 from optim.family import FAMILIES
+from optim.firmware import KLIPPER_VERSION, MARLIN_VERSION, RRF_VERSION
 from optim.problem import MAX_MOVE, Problem
 from optim.shapers import CATALOGUE_NAMES, DEFAULT_VIBRATION_TOLERANCE, MAX_DERIVATIVE_ORDER
 
@@ -94,11 +95,190 @@ class ImpulsesOut(OutModel):
     times_s: list[float] = Field(description="t_i, s; t_1 = 0 (eq. 7).")
 
 
+_EXACT = (
+    "True where the firmware's impulses are the designed ones (amplitudes to 1e-7, times to 1e-7 of the duration; "
+    "numbers are written to 10 significant digits)."
+)
+_RESIDUAL = (
+    "Percentage vibration, %, that the firmware's shaper leaves at the design frequency (the plant's first mode, "
+    "its damping): this design's baseline shaped by the firmware's impulses, over the unshaped rigid command, the "
+    "definition of metrics.percentage_vibration and sensitivity.percentage_vibration (where that is not "
+    "representable, shaper_residual_percent)."
+)
+_SHAPER_RESIDUAL = "100 V of the firmware's impulses alone (Sec. 3.1), %: the percentage vibration on a plain step."
+_OTHERS = "Multi-mode designs: 100 V of the firmware's impulses at each further designed mode, %."
+
+
+class KlipperOut(OutModel):
+    """Klipper's ``[input_shaper]`` section for the X axis."""
+
+    firmware: Literal["Klipper"]
+    version: str = Field(description=f"The Klipper whose shaper definitions this uses: {KLIPPER_VERSION}.")
+    documentation: list[str] = Field(description="The configuration reference and the shaper definitions used.")
+    axis: Literal["x"] = Field(description="The lines set the X axis; for Y write them with _y.")
+    shaper_type: str = Field(
+        description="Klipper's built-in type: the design's own where Klipper has it (zv, mzv, zvd, ei, 2hump_ei, "
+        "3hump_ei), else the one whose V curve over 0.25..1.75 f_n is nearest."
+    )
+    shaper_freq_hz: float = Field(description="shaper_freq_x: the design mode's undamped natural frequency, Hz.")
+    damping_ratio: float = Field(
+        description="damping_ratio_x: the design mode's (always written: Klipper's default is 0.1), capped at the "
+        "type's maximum (ei 0.4, 2hump_ei 0.3, 3hump_ei 0.2)."
+    )
+    section: str = Field(description="The text to paste into printer.cfg.")
+    exact: bool = Field(description=_EXACT)
+    residual_percent: float = Field(description=_RESIDUAL)
+    shaper_residual_percent: float = Field(description=_SHAPER_RESIDUAL)
+    other_modes_shaper_residual_percent: list[float] = Field(description=_OTHERS)
+    note: str | None = Field(description="Why the type or its impulses differ from the design; null where not.")
+
+
+class RepRapFirmwareOut(OutModel):
+    """RepRapFirmware's ``M593``; one shaper for all axes."""
+
+    firmware: Literal["RepRapFirmware"]
+    version: str = Field(description=f"{RRF_VERSION}: the meaning of H and T changed in 3.6.0.")
+    documentation: list[str] = Field(description="The G-code dictionary's M593 and the firmware source read.")
+    shaper_type: str = Field(
+        description="A named type (zvd, zvdd, zvddd, mzv, ei2, ei3) where RRF's impulses are the design's, else "
+        '"custom" with the design\'s own impulses (at most 5), else the nearest named type.'
+    )
+    frequency_hz: float = Field(description="F: the design mode's undamped natural frequency, Hz.")
+    damping_ratio: float = Field(description="S: the design mode's damping ratio (M593 takes 0 to 0.99).")
+    command: str = Field(
+        description='For RRF 3.6: P"custom" with H the individual amplitudes of every impulse but the last (RRF sets '
+        "the last to 1 minus their sum) and T the cumulative delays of every impulse but the first, s."
+    )
+    command_3_5: str = Field(
+        description='For RRF 3.4 and 3.5: P"custom" with H the cumulative amplitudes and T the durations between '
+        "impulses, s; a named type is the same command."
+    )
+    exact: bool = Field(description=_EXACT)
+    residual_percent: float = Field(description=_RESIDUAL)
+    shaper_residual_percent: float = Field(description=_SHAPER_RESIDUAL)
+    other_modes_shaper_residual_percent: list[float] = Field(description=_OTHERS)
+    note: str | None = Field(description="Why the type or its impulses differ from the design; null where not.")
+
+
+class MarlinOut(OutModel):
+    """Marlin's ``M493`` (Fixed-Time Motion) for the X axis."""
+
+    firmware: Literal["Marlin"]
+    version: str = Field(description=f"{MARLIN_VERSION}.")
+    documentation: list[str] = Field(description="The M493 page and the shaper definitions read.")
+    axis: Literal["x"] = Field(description="The X flag: A, I and Q apply to X (write Y for the Y axis).")
+    shaper_mode: int = Field(description="C: 1 ZV, 2 ZVD, 3 ZVDD, 4 ZVDDD, 5 EI, 6 2HEI, 7 3HEI, 8 MZV.")
+    frequency_hz: float = Field(description="A: the design mode's undamped natural frequency, Hz.")
+    damping_ratio: float = Field(description="I: the design mode's damping ratio, within M493's [0.01, 1].")
+    vibration_tolerance: float | None = Field(description="Q: the EI types' tolerance (the design's); null otherwise.")
+    command: str = Field(description="The G-code line (S1 turns Fixed-Time Motion on).")
+    exact: bool = Field(description=_EXACT)
+    residual_percent: float = Field(description=_RESIDUAL)
+    shaper_residual_percent: float = Field(description=_SHAPER_RESIDUAL)
+    other_modes_shaper_residual_percent: list[float] = Field(description=_OTHERS)
+    note: str | None = Field(description="What differs from the design: the 1 ms delay grid, the damping bound.")
+
+
+class FirmwareOut(OutModel):
+    """The designed shaper as firmware settings (input-shaped designs only; other families have no firmware
+    block)."""
+
+    model_config = ConfigDict(
+        extra="forbid",
+        json_schema_extra={
+            "examples": [
+                {
+                    "axis": "x",
+                    "design_frequency_hz": 40.0,
+                    "design_damping_ratio": 0.0,
+                    "klipper": {
+                        "firmware": "Klipper",
+                        "version": KLIPPER_VERSION,
+                        "documentation": ["https://www.klipper3d.org/Config_Reference.html#input_shaper"],
+                        "axis": "x",
+                        "shaper_type": "zvd",
+                        "shaper_freq_hz": 40.0,
+                        "damping_ratio": 0.0,
+                        "section": "[input_shaper]\nshaper_type_x: zvd\nshaper_freq_x: 40\ndamping_ratio_x: 0\n",
+                        "exact": True,
+                        "residual_percent": 1.5e-14,
+                        "shaper_residual_percent": 0.0,
+                        "other_modes_shaper_residual_percent": [],
+                        "note": None,
+                    },
+                    "reprapfirmware": {
+                        "firmware": "RepRapFirmware",
+                        "version": RRF_VERSION,
+                        "documentation": [
+                            "https://docs.duet3d.com/User_manual/Reference/Gcodes#m593-configure-input-shaping"
+                        ],
+                        "shaper_type": "zvd",
+                        "frequency_hz": 40.0,
+                        "damping_ratio": 0.0,
+                        "command": 'M593 P"zvd" F40 S0',
+                        "command_3_5": 'M593 P"zvd" F40 S0',
+                        "exact": True,
+                        "residual_percent": 1.5e-14,
+                        "shaper_residual_percent": 0.0,
+                        "other_modes_shaper_residual_percent": [],
+                        "note": None,
+                    },
+                    "reprapfirmware_reason": None,
+                    "marlin": {
+                        "firmware": "Marlin",
+                        "version": MARLIN_VERSION,
+                        "documentation": ["https://marlinfw.org/docs/gcode/M493.html"],
+                        "axis": "x",
+                        "shaper_mode": 2,
+                        "frequency_hz": 40.0,
+                        "damping_ratio": 0.01,
+                        "vibration_tolerance": None,
+                        "command": "M493 S1 X C2 A40 I0.01",
+                        "exact": False,
+                        "residual_percent": 0.0136,
+                        "shaper_residual_percent": 0.419,
+                        "other_modes_shaper_residual_percent": [],
+                        "note": "Marlin delays the impulses by whole 1 ms samples (FTM_FS = 1000 Hz): 0, 13, 26 ms. "
+                        "M493 I takes 0.01 to 1; the design's damping ratio is 0.",
+                    },
+                    "marlin_reason": None,
+                }
+            ]
+        },
+    )
+
+    axis: Literal["x"] = Field(description="The axis the Klipper and Marlin lines set (RRF's M593 sets every axis).")
+    design_frequency_hz: float = Field(description="The design (first shaped) mode's undamped natural frequency, Hz.")
+    design_damping_ratio: float = Field(description="Its damping ratio.")
+    klipper: KlipperOut
+    reprapfirmware: RepRapFirmwareOut | None = Field(
+        description="null where M593 cannot take the design frequency (4 to 1000 Hz); see reprapfirmware_reason."
+    )
+    reprapfirmware_reason: str | None = Field(description="Why reprapfirmware is null.")
+    marlin: MarlinOut | None = Field(
+        description="null where Fixed-Time Motion has no such shaper (a multi-mode design, ZV-D beyond ZVDDD) or "
+        "the frequency is outside FTM_MIN_SHAPE_FREQ (20 Hz by default) to FTM_FS / 2 (500 Hz); see marlin_reason."
+    )
+    marlin_reason: str | None = Field(description="Why marlin is null.")
+
+
+class InputShapedDesignOut(OutModel):
+    """The design block of an input-shaped answer: the shaper, the baseline, the drive and ``firmware``."""
+
+    model_config = ConfigDict(extra="allow")
+
+    firmware: FirmwareOut = Field(
+        description="The designed shaper as Klipper, RepRapFirmware and Marlin settings, with the residual each "
+        "firmware's shaper leaves at the design frequency."
+    )
+
+
 class InputShapedResponse(FamilyResponse):
     """``profile`` is the shaped command sent to the drive (v_s); ``rate_limited`` is what the drive
     makes of it (v_a), which ``load`` and ``metrics`` simulate; ``unmodified`` gives the metrics of
     the plain shaped step (or pulse) after the limiter, for comparison."""
 
+    design: InputShapedDesignOut  # type: ignore[assignment]
     impulses: ImpulsesOut
     ramp_time_s: float | None = Field(description="Delta, the baseline's ramp rise time (null for the step baseline).")
     baseline: ProfileOut = Field(description="The baseline command v_b, before shaping.")

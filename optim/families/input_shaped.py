@@ -17,6 +17,7 @@ for a command within the limit; the load is simulated with its output.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any, ClassVar, Literal
 
@@ -25,7 +26,14 @@ from numpy.typing import NDArray
 
 from models.commands import PiecewiseCommand
 from models.errors import Infeasible, InvalidParameter
-from models.shapers import ImpulseSequence, RampTrain, follow_position, percentage_vibration, rate_limit
+from models.shapers import (
+    ImpulseSequence,
+    RampTrain,
+    follow_position,
+    percentage_vibration,
+    rate_limit,
+    shape_command,
+)
 from models.simulation import simulate
 from optim.family import BaseFamily, Candidate, Design, Grid, Profile, Run, profile_at_instants
 from optim.problem import TAIL_PERIODS, Problem
@@ -372,6 +380,30 @@ def _baseline_block(chosen: Plan, requested: str) -> dict[str, Any]:
     }
 
 
+def firmware_residual(problem: Problem, commands: Commands) -> Callable[[ImpulseSequence], float]:
+    """The percentage vibration a firmware's impulses leave at the plant's first mode with this design's
+    baseline (the baseline shaped by them, exactly: models.shapers.shape_command), in the definition of
+    metrics.percentage_vibration; 100 V of the impulses alone (its value on a step) where that is not
+    representable."""
+    from optim.firmware import shaper_residual_percent
+    from optim.synthesis import nominal_percentage_vibration
+
+    mode = problem.plant.modes()[0]
+    seen: dict[bytes, float] = {}  # the firmwares often apply the same impulses (a named ZVD, a custom one)
+
+    def residual(impulses: ImpulseSequence) -> float:
+        key = impulses.amplitudes.tobytes() + impulses.times_s.tobytes()
+        if key not in seen:
+            try:
+                value = nominal_percentage_vibration(problem, shape_command(commands.baseline, impulses))
+            except InvalidParameter:
+                value = None
+            seen[key] = shaper_residual_percent(impulses, mode) if value is None else value
+        return seen[key]
+
+    return residual
+
+
 def shaper_design(problem: Problem, options: InputShapedOptions) -> ShaperDesign:
     modes = problem.plant.modes()
     if not modes:
@@ -411,6 +443,8 @@ class InputShapedFamily(BaseFamily):
         )
 
     def design(self, problem: Problem, options: InputShapedOptions) -> Design:
+        from optim.firmware import firmware_block
+
         design = shaper_design(problem, options)
         shaper, limit = design.impulses, problem.acceleration_limit
         steps = options.baseline_steps if options.baseline == "multi_step" else 2
@@ -451,6 +485,7 @@ class InputShapedFamily(BaseFamily):
             "shaped_peak_acceleration": None if steps_in_command else commands.shaped_train.max_slope(),
             "passes_limiter_unchanged": unchanged,
             "duration_s": commands.end_s,
+            "firmware": firmware_block(design, firmware_residual(problem, commands)),
         }
         end_s = max(commands.end_s, float(commands.plain_limited.time_s[-1]))
         return Design(commands.limited, summary, tuple(warnings), end_s=end_s, detail=commands)
