@@ -143,7 +143,9 @@ class ModalIdentification:
 # --- the record ---------------------------------------------------------------------------------------------
 
 
-def uniform_record(time_s: NDArray[np.float64], signals: NDArray[np.float64]) -> tuple[float, NDArray[np.float64], bool]:
+def uniform_record(
+    time_s: NDArray[np.float64], signals: NDArray[np.float64]
+) -> tuple[float, NDArray[np.float64], bool]:
     """(sample period, signals on the uniform grid t_0 + k dt, whether they were interpolated).
 
     dt is the median step. Steps within 1e-6 of it are taken as uniform; a record with jitter up to 50 %
@@ -173,7 +175,9 @@ def uniform_record(time_s: NDArray[np.float64], signals: NDArray[np.float64]) ->
     return dt, resampled, True
 
 
-def free_vibration_start(record: Record, dt: float, signals: NDArray[np.float64], start_s: float | None) -> tuple[int, str]:
+def free_vibration_start(
+    record: Record, dt: float, signals: NDArray[np.float64], start_s: float | None
+) -> tuple[int, str]:
     """Index where the free vibration starts, and why: the first sample at or after ``start_s``; else
     where the known command last changes; else the record's largest excursion (the sum over the signals
     of the squared deviation from their medians, each over its own variance)."""
@@ -210,9 +214,7 @@ def record_spectrum(signals: NDArray[np.float64], sample_rate_hz: float) -> Spec
     (impact testing: a Hann window would weight the record's start, where the vibration is, by ~0 and hide
     the fast-decaying modes); the decay itself keeps the leakage low."""
     segment = int(min(signals.shape[1], MAX_SEGMENT))
-    frequency, psd = welch(
-        signals, fs=sample_rate_hz, window="boxcar", nperseg=segment, detrend="constant", axis=-1
-    )
+    frequency, psd = welch(signals, fs=sample_rate_hz, window="boxcar", nperseg=segment, detrend="constant", axis=-1)
     total = np.sum(np.atleast_2d(psd), axis=0)
     return Spectrum(np.asarray(frequency, float), np.asarray(total, float), sample_rate_hz / segment, segment)
 
@@ -533,5 +535,7 @@ def _mode_warnings(mode: IdentifiedMode, nyquist: float) -> list[str]:
     elif mode.samples_per_period < 10:
         out.append(f"{name}: only {mode.samples_per_period:.2g} samples per period (10 or more advised)")
     if mode.decay_rate_1_s < 0:
-        out.append(f"{name}: the fitted envelope grows (decay rate {mode.decay_rate_1_s:.3g} 1/s): not a free vibration")
+        out.append(
+            f"{name}: the fitted envelope grows (decay rate {mode.decay_rate_1_s:.3g} 1/s): not a free vibration"
+        )
     return out
