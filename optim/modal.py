@@ -169,7 +169,7 @@ def uniform_record(
         )
     if deviation[worst] <= JITTER_RTOL:
         return dt, signals, False
-    n = int(math.floor((time_s[-1] - time_s[0]) / dt + 1e-9)) + 1
+    n = math.floor((time_s[-1] - time_s[0]) / dt + 1e-9) + 1
     grid = time_s[0] + dt * np.arange(n)
     resampled = np.vstack([np.interp(grid, time_s, row) for row in signals])
     return dt, resampled, True
@@ -183,7 +183,7 @@ def free_vibration_start(
     of the squared deviation from their medians, each over its own variance)."""
     n = signals.shape[1]
     if start_s is not None:
-        k = int(math.ceil((start_s - float(record.time_s[0])) / dt - 1e-9))
+        k = math.ceil((start_s - float(record.time_s[0])) / dt - 1e-9)
         if not 0 <= k < n:
             raise InvalidParameter("start_s", start_s, "must lie within the record's times")
         return k, "start_s"
@@ -304,7 +304,7 @@ def _projected_fit(
 
     def solve(params: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         basis = _basis(t, params)
-        coef, *_ = np.linalg.lstsq(basis, y.T, rcond=None)
+        coef = np.asarray(np.linalg.lstsq(basis, y.T, rcond=None)[0], dtype=np.float64)
         return basis, coef
 
     def residual(params: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -336,7 +336,7 @@ def _covariance(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], float, int]:
     """(linear coefficients (basis, signals), covariance of (s_k, w_k), pooled residual variance, dof)."""
     basis = _basis(t, params)
-    coef, *_ = np.linalg.lstsq(basis, y.T, rcond=None)
+    coef = np.asarray(np.linalg.lstsq(basis, y.T, rcond=None)[0], dtype=np.float64)
     res = basis @ coef - y.T
     signals = y.shape[0]
     dof = max(1, y.size - params.size - signals * basis.shape[1])
@@ -385,7 +385,7 @@ def identify_modes(record: Record, *, max_modes: int = 4, start_s: float | None 
     live = spread > 0
     if not np.any(live):
         raise InvalidParameter(names[0], "constant", "every signal is constant: the record holds no vibration")
-    t = dt * np.arange(n)
+    t = np.arange(n, dtype=np.float64) * dt
     spectrum = record_spectrum(window, rate)
     peaks = spectral_peaks(spectrum, max_modes)
     if not peaks:
@@ -514,7 +514,7 @@ def _fit(
     lower[1::2], upper[1::2] = 0.5 * w0, np.minimum(1.5 * w0, 2 * math.pi * nyquist)
     params = _projected_fit(t, y, x0, lower, upper)
     basis = _basis(t, params)
-    coef, *_ = np.linalg.lstsq(basis, y.T, rcond=None)
+    coef = np.asarray(np.linalg.lstsq(basis, y.T, rcond=None)[0], dtype=np.float64)
     std = np.std(basis @ coef - y.T, axis=0)
     weights = 1.0 / np.where(std > 0, std, 1.0)
     if y.shape[0] > 1:

@@ -179,6 +179,7 @@ async def identify_csv(
     (returns the endpoint's response body or raises a DomainError). The HTTP route runs them through
     app.services.profile; a caller without a server (the CLI) passes its own runner, or None for no
     recommendation."""
+    params.check()
     result, samples = await run_in_threadpool(identify_record_csv, text, params, max_rows)
     body = _measurement_body(result, samples)
     mode, interval = plant_interval(result.modes)

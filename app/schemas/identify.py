@@ -5,10 +5,11 @@ from __future__ import annotations
 
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field
 
 from app.schemas.common import OutModel
 from app.schemas.smoothers import IdentifyRequest, IdentifyResponse
+from models.errors import InvalidParameter
 from optim.modal import MAX_MODES
 from optim.problem import MAX_MOVE
 
@@ -53,11 +54,12 @@ class MeasurementParams(BaseModel):
         "starts where it last changes.",
     )
 
-    @model_validator(mode="after")
-    def _one_move(self) -> MeasurementParams:
+    def check(self) -> None:
+        """At most one move (an InvalidParameter naming target_velocity otherwise)."""
         if self.displacement is not None and self.target_velocity is not None:
-            raise ValueError("give at most one of displacement or target_velocity")
-        return self
+            raise InvalidParameter(
+                "target_velocity", self.target_velocity, "give at most one of displacement or target_velocity"
+            )
 
     def has_move(self) -> bool:
         return self.displacement is not None or self.target_velocity is not None
