@@ -249,12 +249,10 @@ def spectral_peaks(spectrum: Spectrum, max_modes: int) -> list[tuple[float, floa
             shift = float(np.clip(0.5 * (a - c) / denom, -0.5, 0.5)) if denom < 0 else 0.0
         frequency = float(f[k] + shift * df)
         half = p[k] / 2.0
-        left = k
-        while left > 0 and p[left] > half:
-            left -= 1
-        right = k
-        while right < p.size - 1 and p[right] > half:
-            right += 1
+        below_left = np.flatnonzero(p[:k] <= half)
+        below_right = np.flatnonzero(p[k:] <= half)
+        left = int(below_left[-1]) if below_left.size else 0
+        right = k + int(below_right[0]) if below_right.size else p.size - 1
         width = float(f[right] - f[left])
         zeta = float(np.clip(width / (2.0 * frequency), 0.002, 0.3)) if frequency > 0 else 0.05
         out.append((frequency, zeta))

@@ -32,7 +32,7 @@ from app.schemas.smoothers import IdentifyRequest, IdentifyResponse, SmootherReq
 from app.schemas.stap import StapIn
 from app.schemas.time_optimal import TimeOptimalIn
 from app.settings import Settings
-from models.errors import InvalidParameter
+from models.errors import InvalidParameter, NotApplicable
 from models.plants import FREQUENCY_MAX_HZ, FREQUENCY_MIN_HZ
 from optim.family import FAMILIES
 from optim.modal import CONFIDENCE, ModalIdentification, identify_modes
@@ -128,6 +128,25 @@ def parse_family_request(family: str, body: Mapping[str, Any]) -> ProfileRequest
     except ValidationError as exc:
         err = exc.errors()[0]
         raise InvalidParameter(problems.field_path(tuple(err["loc"])), None, str(err["msg"])) from None
+
+
+def in_process_runner(settings: Settings) -> RunOne:
+    """A ``run_one`` without a server or a solver pool (for the CLI): each candidate runs the family's whole
+    pipeline (optim.synthesis) in this process, one after the other (IPOPT is not thread-safe), as
+    app.services.profile does in the service."""
+    from optim.synthesis import synthesize
+
+    async def run_one(family: str, body: dict[str, Any]) -> dict[str, Any]:
+        parsed = parse_family_request(family, body)
+        problem = parsed.to_problem(settings)
+        reason = FAMILIES[family].not_applicable(problem)
+        if reason is not None:
+            raise NotApplicable(reason)
+        answer: dict[str, Any] = synthesize(FAMILIES[family], problem, parsed.options(problem)).body()
+        answer["warnings"] = [*parsed.deprecations, *answer["warnings"]]
+        return answer
+
+    return run_one
 
 
 def _mode_dict(mode: Any) -> dict[str, Any]:

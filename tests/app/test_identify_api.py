@@ -150,3 +150,23 @@ def test_a_known_command_column_starts_the_fit_where_the_command_ends(client):
     assert body["quality"]["signals"] == ["load"]
     (mode,) = body["modes"]
     assert mode["natural_frequency_ci_hz"][0] <= f <= mode["natural_frequency_ci_hz"][1]
+
+
+def test_the_in_process_runner_recommends_the_same_request_as_the_service(client, record_csv):
+    # What the CLI runs without a server: the same candidates through optim.synthesis in-process.
+    import asyncio
+
+    from app.routers.identify import identify_csv, in_process_runner
+    from app.schemas.identify import MeasurementParams
+
+    served = client.post(URL, content=record_csv, headers=CSV, params=MOVE).json()
+    local = asyncio.run(
+        identify_csv(record_csv, MeasurementParams(**MOVE), in_process_runner(TEST_SETTINGS), max_rows=5000)
+    )
+    assert local["recommended"]["request"] == served["recommended"]["request"]
+    assert local["recommended"]["settling_time_s"] == pytest.approx(served["recommended"]["settling_time_s"])
+
+
+def test_a_body_above_the_size_limit_is_a_413(client):
+    body = b"time_s,a\n" + b"0,0\n" * (TEST_SETTINGS.max_body_bytes // 4 + 1)
+    assert_problem(client.post(URL, content=body, headers=CSV), 413, slug="body-too-large")
