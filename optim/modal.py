@@ -55,8 +55,8 @@ MAX_MODES = 6
 MAX_SPECTRUM_POINTS = 2049  # welch's one-sided spectrum of at most 4096-sample segments
 MAX_SEGMENT = 4096
 MIN_FIT_SAMPLES = 32
-MIN_R_SQUARED = 0.5
-MIN_MODE_SNR = 3.0  # a mode's amplitude over the noise's standard deviation
+LOW_R_SQUARED = 0.5  # below: a warning
+MIN_DETECTION_SNR = 10.0  # a mode's energy over the noise's, in rms (20 dB): weaker modes are dropped
 FEW_PERIODS = 5.0
 PEAK_FLOOR_FACTOR = 30.0  # a peak stands 15 dB above the spectrum's median (noise bins exceed it w.p. 1e-9)
 PEAK_RELATIVE = 1e-3  # and at most 30 dB below the highest peak
@@ -98,6 +98,7 @@ class IdentifiedMode:
     peak_frequency_hz: float  # the Welch peak that started the fit
     amplitude: tuple[float, ...]  # per signal, at the fit window's start (signal units)
     signal_to_noise: float  # sqrt(sum_c (A_c / sigma_c)^2): the amplitude over the noise's std
+    detection_snr: float  # sqrt(the mode's energy in the window / the noise variance)
     periods: float  # damped periods in the fit window
     periods_above_noise: float  # damped periods until the envelope falls to the noise's std
     samples_per_period: float
@@ -115,6 +116,7 @@ class IdentifiedMode:
             "peak_frequency_hz": self.peak_frequency_hz,
             "amplitude": list(self.amplitude),
             "signal_to_noise": self.signal_to_noise,
+            "detection_snr": self.detection_snr,
             "periods": self.periods,
             "periods_above_noise": self.periods_above_noise,
             "samples_per_period": self.samples_per_period,
@@ -409,14 +411,24 @@ def identify_modes(record: Record, *, max_modes: int = 4, start_s: float | None 
             s, w = float(params[2 * k]), float(params[2 * k + 1])
             a, b = coef[2 * k, :], coef[2 * k + 1, :]
             snr = float(math.sqrt(float(np.sum(a * a + b * b)) / variance))
-            modes_stats.append((s, w, snr))
-        weak = [k for k, (_, _, snr) in enumerate(modes_stats) if snr < MIN_MODE_SNR]
-        if not weak or len(peaks) == 1:
+            # the mode's energy in the window over the noise variance: sum_t A^2 e^(-2 s t) / 2 / variance
+            energy = 0.5 * snr**2 * float(np.sum(np.exp(np.clip(-2.0 * s * t, -700.0, 700.0))))
+            modes_stats.append((s, w, snr, math.sqrt(energy)))
+        weak = [k for k, stats in enumerate(modes_stats) if stats[3] < MIN_DETECTION_SNR]
+        if not weak:
             break
+        if len(peaks) == 1:
+            raise InvalidParameter(
+                "signals",
+                f"{len(names)} signals",
+                f"the best damped sinusoid ({modes_stats[0][1] / (2 * math.pi):.4g} Hz) carries an energy only "
+                f"{modes_stats[0][3]:.2g} times the noise's (in rms, over the record; at least {MIN_DETECTION_SNR:g} "
+                "needed): no free vibration clearly above the noise",
+            )
         dropped = peaks[weak[0]]
         warnings.append(
             f"the spectral peak at {dropped[0]:.4g} Hz fits no mode clearly above the noise "
-            f"(SNR {modes_stats[weak[0]][2]:.2g} < {MIN_MODE_SNR:g}): dropped"
+            f"(detection SNR {modes_stats[weak[0]][3]:.2g} < {MIN_DETECTION_SNR:g}): dropped"
         )
         peaks = [p for i, p in enumerate(peaks) if i != weak[0]]
     fitted = _basis(t, params) @ coef
@@ -424,12 +436,10 @@ def identify_modes(record: Record, *, max_modes: int = 4, start_s: float | None 
     yw = (y * weights[:, None]).T
     ss_tot = float(np.sum((yw - np.mean(yw, axis=0)) ** 2))
     r2 = 1.0 - float(np.sum(res**2)) / ss_tot if ss_tot > 0 else 0.0
-    if r2 < MIN_R_SQUARED:
-        raise InvalidParameter(
-            "signals",
-            f"{len(names)} signals",
-            f"the damped sinusoids explain {100 * max(r2, 0.0):.3g} % of the record's variance (at least "
-            f"{100 * MIN_R_SQUARED:g} % needed): no free vibration clearly above the noise",
+    if r2 < LOW_R_SQUARED:
+        warnings.append(
+            f"the fit explains {100 * max(r2, 0.0):.3g} % of the record's (noise-weighted) variance: the record is "
+            "mostly noise (a shorter record after the vibration, or a stronger excitation, helps)"
         )
     quantile = float(student_t.ppf(0.5 + CONFIDENCE / 2.0, dof))
     live_scale = scale[live, 0]
@@ -439,7 +449,7 @@ def identify_modes(record: Record, *, max_modes: int = 4, start_s: float | None 
     offsets[live] += coef[-1, :] * live_scale / weights
     modes: list[IdentifiedMode] = []
     duration = n * dt
-    for k, (s, w, snr) in enumerate(modes_stats):
+    for k, (s, w, snr, detection) in enumerate(modes_stats):
         fn, zeta, std_fn, std_zeta = _mode_statistics(s, w, cov[2 * k : 2 * k + 2, 2 * k : 2 * k + 2])
         amp = np.zeros(len(names))
         amp[live] = np.hypot(coef[2 * k, :], coef[2 * k + 1, :]) * live_scale / weights
@@ -457,6 +467,7 @@ def identify_modes(record: Record, *, max_modes: int = 4, start_s: float | None 
             peak_frequency_hz=peaks[k][0],
             amplitude=tuple(float(v) for v in amp),
             signal_to_noise=snr,
+            detection_snr=detection,
             periods=fd * duration,
             periods_above_noise=min(above, fd * duration),
             samples_per_period=rate / fn,

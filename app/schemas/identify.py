@@ -77,6 +77,9 @@ class ModalModeOut(OutModel):
     peak_frequency_hz: float = Field(description="The Welch spectrum's peak that started the fit.")
     amplitude: list[float] = Field(description="Per signal, at the fit window's start (signal units).")
     signal_to_noise: float = Field(description="sqrt(sum over signals of (amplitude / noise std)^2).")
+    detection_snr: float = Field(
+        description="sqrt(the mode's energy over the fit window / the noise variance): modes below 10 are dropped."
+    )
     periods: float = Field(description="Damped periods in the fit window.")
     periods_above_noise: float = Field(description="Damped periods until the envelope falls to the noise's std.")
     samples_per_period: float

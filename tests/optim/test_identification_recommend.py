@@ -36,6 +36,7 @@ def mode(f: float, ci: tuple[float, float], zeta: float = 0.03) -> IdentifiedMod
         peak_frequency_hz=f,
         amplitude=(1.0,),
         signal_to_noise=50.0,
+        detection_snr=500.0,
         periods=40.0,
         periods_above_noise=20.0,
         samples_per_period=80.0,
