@@ -40,7 +40,8 @@ PROBLEM_TYPES: dict[str, tuple[int, str, str]] = {
     "unsupported-media-type": (
         415,
         "Unsupported media type",
-        "The body must be JSON: send content-type application/json (or application/*+json).",
+        "The body must be JSON: send content-type application/json (or application/*+json); POST /v1/identify also "
+        "takes text/csv.",
     ),
     "body-too-large": (413, "Request body too large", "The body exceeds the configured size limit."),
     "not-found": (404, "Not found", "No such path."),

@@ -150,8 +150,8 @@ def uniform_record(
 ) -> tuple[float, NDArray[np.float64], bool]:
     """(sample period, signals on the uniform grid t_0 + k dt, whether they were interpolated).
 
-    dt is the median step. Steps within 1e-6 of it are taken as uniform; a record with jitter up to 50 %
-    is linearly interpolated onto the grid (numpy.interp); a larger gap or a step <= 0 is refused."""
+    dt is the median step. Steps within 1e-6 of it are taken as uniform (dt: their mean); a record with jitter up
+    to 50 % is linearly interpolated onto the grid (numpy.interp); a larger gap or a step <= 0 is refused."""
     steps = np.diff(time_s)
     if steps.size == 0:
         raise InvalidParameter("time_s", f"{time_s.size} samples", "needs at least 2 samples")
@@ -169,8 +169,8 @@ def uniform_record(
             f"a step of {steps[worst]:.6g} s against the median {dt:.6g} s: the record has a gap "
             f"(steps must stay within {100 * GAP_RTOL:g} % of the median)",
         )
-    if deviation[worst] <= JITTER_RTOL:
-        return dt, signals, False
+    if deviation[worst] <= JITTER_RTOL:  # uniform: the mean step, free of the median's rounding
+        return float(time_s[-1] - time_s[0]) / steps.size, signals, False
     n = math.floor((time_s[-1] - time_s[0]) / dt + 1e-9) + 1
     grid = time_s[0] + dt * np.arange(n)
     resampled = np.vstack([np.interp(grid, time_s, row) for row in signals])
