@@ -404,7 +404,12 @@ def identify_modes(record: Record, *, max_modes: int = 4, start_s: float | None 
         )
     nyquist = rate / 2.0
     while True:
-        params, weights = _fit(t, y, peaks, nyquist)
+        try:
+            params, weights = _fit(t, y, peaks, nyquist)
+        except (ValueError, np.linalg.LinAlgError, FloatingPointError) as exc:  # a degenerate record
+            raise InvalidParameter(
+                "signals", f"{len(names)} signals", f"the fit failed on this record ({exc})"
+            ) from None
         coef, cov, variance, dof = _covariance(t, y * weights[:, None], params)
         modes_stats = []
         for k in range(len(peaks)):
@@ -451,6 +456,12 @@ def identify_modes(record: Record, *, max_modes: int = 4, start_s: float | None 
     duration = n * dt
     for k, (s, w, snr, detection) in enumerate(modes_stats):
         fn, zeta, std_fn, std_zeta = _mode_statistics(s, w, cov[2 * k : 2 * k + 2, 2 * k : 2 * k + 2])
+        if not all(math.isfinite(v) for v in (fn, zeta, std_fn, std_zeta)):
+            raise InvalidParameter(
+                "signals",
+                f"{len(names)} signals",
+                f"the fit's covariance is singular near {fn:.4g} Hz: the modes cannot be told apart in this record",
+            )
         amp = np.zeros(len(names))
         amp[live] = np.hypot(coef[2 * k, :], coef[2 * k + 1, :]) * live_scale / weights
         fd = w / (2 * math.pi)
@@ -519,7 +530,8 @@ def _fit(
     w0 = x0[1::2]
     lower = np.empty_like(x0)
     upper = np.empty_like(x0)
-    lower[0::2], upper[0::2] = -0.05 * w0, 2.0 * w0
+    # a growing envelope is allowed (and reported), but at most e^20 over the window: no overflow
+    lower[0::2], upper[0::2] = -np.minimum(0.05 * w0, 20.0 / max(float(t[-1]), 1e-300)), 2.0 * w0
     lower[1::2], upper[1::2] = 0.5 * w0, np.minimum(1.5 * w0, 2 * math.pi * nyquist)
     params = _projected_fit(t, y, x0, lower, upper)
     basis = _basis(t, params)
