@@ -40,7 +40,8 @@ PROBLEM_TYPES: dict[str, tuple[int, str, str]] = {
     "unsupported-media-type": (
         415,
         "Unsupported media type",
-        "The body must be JSON: send content-type application/json (or application/*+json).",
+        "The body must be JSON: send content-type application/json (or application/*+json); POST /v1/identify also "
+        "takes text/csv.",
     ),
     "body-too-large": (413, "Request body too large", "The body exceeds the configured size limit."),
     "not-found": (404, "Not found", "No such path."),
@@ -434,12 +435,21 @@ def is_json_media_type(content_type: str) -> bool:
     return kind == "application" and (subtype == "json" or (subtype.endswith("+json") and len(subtype) > 5))
 
 
+def extra_media_types(route: Any) -> frozenset[str]:
+    """The non-JSON media types a route's OpenAPI ``requestBody`` declares (``openapi_extra``): the one way a
+    route accepts another body (POST /v1/identify takes text/csv); none for every other route."""
+    extra = getattr(route, "openapi_extra", None) or {}
+    content = (extra.get("requestBody") or {}).get("content") or {}
+    return frozenset(m.lower() for m in content if not is_json_media_type(m))
+
+
 class JSONBodyOnly:
     """ASGI middleware: a 415 problem for a body that is not declared JSON, on a route that takes one.
 
     The routes that read a JSON body are found from the app's own routes (so a new route is covered
     without listing it). A body without a content-type is refused too (FastAPI would not parse it);
-    a request without a body goes on (and meets the route's own "field required" 422).
+    a request without a body goes on (and meets the route's own "field required" 422). A route that
+    declares another media type in its requestBody (``extra_media_types``) also takes that one.
     """
 
     def __init__(self, app: ASGIApp) -> None:
@@ -470,13 +480,17 @@ class JSONBodyOnly:
             route = next(
                 (r for regex, methods, r in self._body_routes(scope) if regex.match(path) and method in methods), None
             )
-            if route is not None:
+            extra = extra_media_types(route) if route is not None else frozenset()
+            if route is not None and content_type.split(";", 1)[0].strip().lower() not in extra:
                 scope["route"] = route  # the access line and the metrics name the route, as for any answer
                 sent = f"content-type {content_type!r}" if content_type else "no content-type"
-                rule = "must be application/json or application/*+json (the body is JSON)"
+                accepted = "application/json or application/*+json" + "".join(f" or {m}" for m in sorted(extra))
+                rule = f"must be {accepted} (the body is JSON)" if not extra else f"must be {accepted}"
                 response = problem_response(
                     "unsupported-media-type",
-                    f"the body must be JSON (application/json or application/*+json); it was sent with {sent}",
+                    f"the body must be {accepted}; it was sent with {sent}"
+                    if extra
+                    else f"the body must be JSON (application/json or application/*+json); it was sent with {sent}",
                     field="content-type",
                     errors=[{"field": "content-type", "value": content_type or None, "rule": rule}],
                 )

@@ -1,0 +1,150 @@
+"""POST /v1/identify: the JSON free vibration (one damped sinusoid; app.schemas.smoothers) and the measured
+record in CSV (modes with 95 % intervals, spectrum, quality, recommended design)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from app.schemas.common import OutModel
+from app.schemas.smoothers import IdentifyRequest, IdentifyResponse
+from models.errors import InvalidParameter
+from optim.modal import MAX_MODES
+from optim.problem import MAX_MOVE
+
+__all__ = [
+    "IdentifyMeasurementResponse",
+    "IdentifyRequest",
+    "IdentifyResponse",
+    "MeasurementParams",
+]
+
+
+class MeasurementParams(BaseModel):
+    """The query parameters of a CSV record: the move and limits a design is recommended for, and the fit's
+    options. Without displacement or target_velocity, ``recommended`` is null. (Query strings are text: the
+    numbers are parsed from it, unlike a JSON body's strict types; unknown parameters, NaN and infinities
+    are refused.)"""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+    displacement: float | None = Field(
+        None, ge=-MAX_MOVE, le=MAX_MOVE, description="Rest-to-rest move to recommend a design for (rad or m)."
+    )
+    target_velocity: float | None = Field(
+        None, ge=-MAX_MOVE, le=MAX_MOVE, description="Rest-to-velocity move to recommend a design for."
+    )
+    max_velocity: float | None = Field(None, ge=1e-6, le=1e12, description="limits.max_velocity of the design.")
+    max_acceleration: float | None = Field(None, ge=1e-6, le=1e12, description="limits.max_acceleration.")
+    max_jerk: float | None = Field(None, ge=1e-6, le=1e15, description="limits.max_jerk.")
+    max_modes: int = Field(4, ge=1, le=MAX_MODES, description="The most modes fitted (the strongest peaks).")
+    start_s: float | None = Field(
+        None,
+        ge=-1e9,
+        le=1e9,
+        description="Where the free vibration starts, s (default: where the command column last changes, else "
+        "the record's largest excursion).",
+    )
+    command_column: str = Field(
+        "command",
+        min_length=1,
+        max_length=64,
+        description="The CSV column holding the known command the record responds to (when present): the fit "
+        "starts where it last changes.",
+    )
+
+    def check(self) -> None:
+        """At most one move (an InvalidParameter naming target_velocity otherwise)."""
+        if self.displacement is not None and self.target_velocity is not None:
+            raise InvalidParameter(
+                "target_velocity", self.target_velocity, "give at most one of displacement or target_velocity"
+            )
+
+    def has_move(self) -> bool:
+        return self.displacement is not None or self.target_velocity is not None
+
+
+class ModalModeOut(OutModel):
+    natural_frequency_hz: float
+    damping_ratio: float
+    natural_frequency_ci_hz: list[float] = Field(description="95 % interval [lo, hi]: estimate +- t(0.975, dof) SE.")
+    damping_ratio_ci: list[float] = Field(description="95 % interval [lo, hi] (lo clipped at 0).")
+    natural_frequency_std_hz: float = Field(description="Standard error of f_n (from the fit's covariance).")
+    damping_ratio_std: float
+    damped_frequency_hz: float
+    decay_rate_1_s: float = Field(description="zeta omega_n: the envelope decays as exp(-rate t).")
+    peak_frequency_hz: float = Field(description="The Welch spectrum's peak that started the fit.")
+    amplitude: list[float] = Field(description="Per signal, at the fit window's start (signal units).")
+    signal_to_noise: float = Field(description="sqrt(sum over signals of (amplitude / noise std)^2).")
+    detection_snr: float = Field(
+        description="sqrt(the mode's energy over the fit window / the noise variance): modes below 10 are dropped."
+    )
+    periods: float = Field(description="Damped periods in the fit window.")
+    periods_above_noise: float = Field(description="Damped periods until the envelope falls to the noise's std.")
+    samples_per_period: float
+
+
+class SpectrumOut(OutModel):
+    frequency_hz: list[float]
+    psd: list[float] = Field(description="Welch PSD summed over the signals, (signal units)^2/Hz.")
+    resolution_hz: float
+    segment_samples: int
+    window: str = Field(description="The Welch window (boxcar: the free vibration decays within a segment).")
+
+
+class QualityOut(OutModel):
+    sample_rate_hz: float
+    nyquist_hz: float
+    samples: int = Field(description="Samples in the record.")
+    signals: list[str]
+    fit_start_s: float = Field(description="Where the fitted free vibration starts.")
+    fit_start_source: str = Field(description="command_end, start_s or largest_excursion.")
+    fit_samples: int
+    r_squared: float = Field(description="Share of the (noise-weighted) variance the fit explains.")
+    noise_rms: list[float] = Field(description="Per signal: the fit's residual rms (signal units).")
+    offsets: list[float] = Field(description="Per signal: the fitted constant.")
+    degrees_of_freedom: int
+    confidence: float
+    t_quantile: float = Field(description="Student t quantile of the intervals.")
+    alias_energy_fraction: float = Field(description="Share of the spectrum's power above 0.8 f_Nyquist.")
+    resampled: bool = Field(description="Whether the times were not uniform and the signals were interpolated.")
+
+
+class RecommendedOut(OutModel):
+    endpoint: str
+    request: dict[str, Any] = Field(description="POST it to endpoint to get the design.")
+    family: str
+    label: str
+    settling_time_s: float | None
+    band_5_percent: list[float | None] | None
+    frequency_ratio_interval: list[float] = Field(description="The interval the band covers, f/f_estimated.")
+
+
+class CandidateOut(OutModel):
+    family: str
+    label: str
+    endpoint: str
+    settling_time_s: float | None
+    motion_time_s: float | None
+    band_5_percent: list[float | None] | None
+    covers: bool
+    reason: str | None
+
+
+class RecommendationOut(OutModel):
+    plant: dict[str, Any] | None = Field(description="The plant designed for: the lowest identified mode.")
+    frequency_ratio_interval: list[float] | None = Field(description="Its 95 % interval of f_n over f_n.")
+    reason: str = Field(description="Why this design, or why none.")
+    candidates: list[CandidateOut]
+
+
+class IdentifyMeasurementResponse(OutModel):
+    modes: list[ModalModeOut] = Field(description="Lowest frequency first.")
+    spectrum: SpectrumOut
+    quality: QualityOut
+    recommended: RecommendedOut | None = Field(
+        description="The fastest design whose 5 % band covers the lowest mode's interval (null: see recommendation)."
+    )
+    recommendation: RecommendationOut
+    warnings: list[str]
