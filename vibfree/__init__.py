@@ -12,6 +12,6 @@ Requests and answers are the HTTP API's bodies (see /docs); errors are ``Vibfree
 problem+json the service would answer with.
 """
 
-from vibfree.api import FAMILIES, Synthesis, VibfreeError, compare, synthesize
+from vibfree.api import FAMILIES, Synthesis, VibfreeError, compare, identify, synthesize
 
-__all__ = ["FAMILIES", "Synthesis", "VibfreeError", "compare", "synthesize"]
+__all__ = ["FAMILIES", "Synthesis", "VibfreeError", "compare", "identify", "synthesize"]

@@ -96,6 +96,26 @@ def compare(request: Mapping[str, Any] | str | bytes, *, settings: Settings | No
     return _run(compare_route.answer(body, settings or get_settings(), InlineExecutor()))
 
 
+def identify(record: str | bytes, *, settings: Settings | None = None, **params: Any) -> dict[str, Any]:
+    """The modes of a measured record (CSV text: a header, a time column, signal columns) and, given the move
+    and limits (``displacement`` or ``target_velocity``, ``max_velocity``, ``max_acceleration``, ``max_jerk``),
+    the recommended design, as ``POST /v1/identify`` with ``text/csv`` (its JSON answer). The candidates run
+    here, one after the other."""
+    from app.routers.identify import identify_csv, in_process_runner
+    from app.schemas.identify import MeasurementParams
+
+    settings = settings or get_settings()
+    text = record.decode() if isinstance(record, bytes) else record
+    try:
+        query = MeasurementParams.model_validate(params)
+    except ValidationError as exc:
+        response = problems.invalid_input(problems.validation_errors(RequestValidationError(exc.errors())))
+        raise VibfreeError(orjson.loads(response.body)) from None
+    coroutine = identify_csv(text, query, in_process_runner(settings), max_rows=settings.max_samples)
+    answer: dict[str, Any] = _run(coroutine)
+    return answer
+
+
 def _family(family: str) -> tuple[str, type[ProfileRequest]]:
     name = family.replace("-", "_")
     if name not in FAMILIES:

@@ -251,19 +251,27 @@ def identify_summary(answer: dict[str, Any]) -> str:
         lo, hi = mode.get("natural_frequency_ci_hz") or (None, None)
         zlo, zhi = mode.get("damping_ratio_ci") or (None, None)
         lines.append(
-            f"mode {_number(mode['natural_frequency_hz'], 'Hz')} (95 %: {_number(lo)}..{_number(hi)} Hz), "
-            f"zeta {_number(mode['damping_ratio'])} (95 %: {_number(zlo)}..{_number(zhi)})"
+            f"mode {_precise(mode['natural_frequency_hz'])} Hz (95 %: {_precise(lo)}..{_precise(hi)} Hz), "
+            f"zeta {_precise(mode['damping_ratio'])} (95 %: {_precise(zlo)}..{_precise(zhi)})"
         )
+    lines += [f"warning: {w}" for w in answer.get("warnings", [])]
     recommended = answer.get("recommended")
+    reason = (answer.get("recommendation") or {}).get("reason", "")
     if recommended:
-        lines.append(f"recommended: POST {recommended['endpoint']} with")
+        lines.append(
+            f"recommended: {recommended.get('label', recommended['endpoint'])}, settling "
+            f"{_number(recommended.get('settling_time_s'), 's')}, band 5 % {_band(recommended.get('band_5_percent'))}"
+        )
+        lines.append(f"  ({reason})")
+        lines.append(f"  POST {recommended['endpoint']}")
         lines.append("  " + orjson.dumps(recommended["request"]).decode())
     else:
-        reason = (
-            answer.get("recommendation_note") or "give the move and limits (--displacement, --max-acceleration, ...)"
-        )
-        lines.append(f"no recommendation: {reason}")
+        lines.append(f"no recommendation: {reason or 'give the move (--displacement or --target-velocity)'}")
     return "\n".join(lines)
+
+
+def _precise(value: Any) -> str:
+    return "-" if value is None else f"{value:.6g}"
 
 
 # --- I/O ---------------------------------------------------------------------------------------

@@ -141,3 +141,24 @@ def test_summaries_of_a_never_settling_row_and_an_empty_band():
             "unavailable": [],
         }
     )
+
+
+def test_cli_identify_prints_the_modes_and_the_recommended_request(tmp_path, capsys):
+    # tests/optim/test_identification_modal's record: 23 Hz (zeta 0.03) and 61 Hz (zeta 0.05), noise std 0.02
+    from tests.optim.test_identification_modal import accelerometer_record, to_csv
+
+    record = tmp_path / "record.csv"
+    record.write_text(to_csv(*accelerometer_record(seed=3)))
+    argv = ["identify", str(record), "--displacement", "0.05", "--max-velocity", "0.5", "--max-acceleration", "5"]
+    assert cli.main([*argv, "--json", str(tmp_path / "answer.json")]) == 0
+    out = capsys.readouterr().out
+    answer = orjson.loads((tmp_path / "answer.json").read_bytes())
+    found = [m["natural_frequency_hz"] for m in answer["modes"]]
+    assert found == pytest.approx([23.0, 61.0], rel=0.01)  # the acceptance: within 1 %
+    assert out.startswith(f"mode {found[0]:.6g} Hz") and "recommended:" in out
+    request = orjson.loads(out.splitlines()[-1])
+    assert request == answer["recommended"]["request"]
+    design = vibfree.synthesize(answer["recommended"]["endpoint"].rsplit("/", 1)[1], request)
+    lo, hi = design.answer["sensitivity"]["band_5_percent"]  # the design's band covers the mode's 95 % interval
+    interval = answer["recommended"]["frequency_ratio_interval"]
+    assert lo <= interval[0] and interval[1] <= hi
