@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import asyncio
 from collections.abc import Iterable, Mapping
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -140,7 +141,14 @@ def _validate(model: type[Any], request: Mapping[str, Any] | str | bytes) -> Any
 
 
 def _run(coroutine: Any) -> Any:
-    return _guard(lambda: asyncio.run(coroutine))
+    """The coroutine's result, on a new event loop: here, or in a thread of its own where this thread already
+    runs one (a notebook, an async caller), since asyncio.run cannot start inside a running loop."""
+    try:
+        asyncio.get_running_loop()
+    except RuntimeError:
+        return _guard(lambda: asyncio.run(coroutine))
+    with ThreadPoolExecutor(max_workers=1) as thread:
+        return _guard(lambda: thread.submit(asyncio.run, coroutine).result())
 
 
 def _guard(call: Any) -> Any:

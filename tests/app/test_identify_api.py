@@ -12,6 +12,7 @@ import pytest
 
 from app.routers.identify import REQUEST_SCHEMAS
 from optim.recommend import band_covers
+from tests import aio
 from tests.app.conftest import TEST_SETTINGS
 from tests.app.test_errors import assert_problem
 from tests.optim.test_identification_modal import NAMES, TRUTH, accelerometer_record, to_csv
@@ -154,13 +155,11 @@ def test_a_known_command_column_starts_the_fit_where_the_command_ends(client):
 
 def test_the_in_process_runner_recommends_the_same_request_as_the_service(client, record_csv):
     # What the CLI runs without a server: the same candidates through optim.synthesis in-process.
-    import asyncio
-
     from app.routers.identify import identify_csv, in_process_runner
     from app.schemas.identify import MeasurementParams
 
     served = client.post(URL, content=record_csv, headers=CSV, params=MOVE).json()
-    local = asyncio.run(
+    local = aio.run(
         identify_csv(record_csv, MeasurementParams(**MOVE), in_process_runner(TEST_SETTINGS), max_rows=5000)
     )
     assert local["recommended"]["request"] == served["recommended"]["request"]

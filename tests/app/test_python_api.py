@@ -15,6 +15,7 @@ import pandas as pd
 import pytest
 
 import vibfree
+from tests import aio
 from tests.app.conftest import TEST_SETTINGS
 from vibfree import cli
 
@@ -162,3 +163,12 @@ def test_cli_identify_prints_the_modes_and_the_recommended_request(tmp_path, cap
     lo, hi = design.answer["sensitivity"]["band_5_percent"]  # the design's band covers the mode's 95 % interval
     interval = answer["recommended"]["frequency_ratio_interval"]
     assert lo <= interval[0] and interval[1] <= hi
+
+
+def test_the_python_api_works_inside_a_running_event_loop():
+    # A notebook or an async caller already runs a loop in this thread: asyncio.run would refuse to start.
+
+    async def inside() -> float:
+        return vibfree.synthesize("stap", STAP, settings=TEST_SETTINGS).answer["metrics"]["settling_time_s"]
+
+    assert aio.run(inside()) == pytest.approx(0.175, rel=1e-9)

@@ -6,8 +6,6 @@ candidates whose returned band covers the interval; failures and uncovered bands
 
 from __future__ import annotations
 
-import asyncio
-
 import pytest
 
 from models.errors import Infeasible, PoolUnavailable
@@ -21,6 +19,7 @@ from optim.recommend import (
     recommend,
     recommendation_candidates,
 )
+from tests import aio
 
 
 def mode(f: float, ci: tuple[float, float], zeta: float = 0.03) -> IdentifiedMode:
@@ -105,12 +104,12 @@ def test_the_choice_is_the_least_settling_time_among_covering_bands():
             raise Infeasible("no STAP within the limits")
         return table[(family, body.get("shaper"))]
 
-    chosen, outcomes = asyncio.run(recommend(candidates, run_one, (0.98, 1.02)))
+    chosen, outcomes = aio.run(recommend(candidates, run_one, (0.98, 1.02)))
     assert chosen is candidates[2]
     assert [o["covers"] for o in outcomes] == [False, True, True, False]
     assert outcomes[3]["reason"].startswith("infeasible: no STAP")
     # none covers: no choice
-    chosen, _ = asyncio.run(recommend(candidates[:1], run_one, (0.98, 1.02)))
+    chosen, _ = aio.run(recommend(candidates[:1], run_one, (0.98, 1.02)))
     assert chosen is None
 
 
@@ -119,4 +118,4 @@ def test_a_pool_that_cannot_take_work_is_raised():
         raise PoolUnavailable("starting")
 
     with pytest.raises(PoolUnavailable):
-        asyncio.run(recommend([RecommendationCandidate("stap", "/c", {})], run_one, (0.98, 1.02)))
+        aio.run(recommend([RecommendationCandidate("stap", "/c", {})], run_one, (0.98, 1.02)))

@@ -12,22 +12,19 @@ import functools
 import os
 import signal
 import time
-from collections.abc import Awaitable, Callable
-from concurrent.futures import ThreadPoolExecutor
+from collections.abc import Awaitable, Callable, Coroutine
 from typing import Any
 
 import pytest
 
 from models.errors import PoolUnavailable
 from optim.workers import PoolBusy, SolverPool, SolveTimeout
+from tests import aio
 from tests.app import slow_solves
 
 
-def run_async(main: Callable[[], Awaitable[None]]) -> None:
-    """``asyncio.run`` in a thread of its own: the browser tests' Playwright (sync API) keeps an event loop
-    running in the main thread for the session, where asyncio.run would refuse to start."""
-    with ThreadPoolExecutor(max_workers=1) as thread:
-        thread.submit(asyncio.run, main()).result()
+def run_async(main: Callable[[], Coroutine[Any, Any, None]]) -> None:
+    aio.run(main())
 
 
 def with_pool(workers: int = 1, **kwargs: Any) -> Callable[[Callable[[SolverPool], Awaitable[None]]], Any]:
