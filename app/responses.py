@@ -86,11 +86,22 @@ OutputDep = Annotated[Output, Depends(output)]
 
 
 def csv_body(table: tables.Table, comment_lines: list[str]) -> bytes:
-    """The header row, then one row per instant, written by orjson (shortest round-trip floats) as a 2-D
-    array whose brackets become line breaks: no Python loop over samples. Comment lines go first, when any."""
-    body = orjson.dumps(np.ascontiguousarray(table.values), option=orjson.OPT_SERIALIZE_NUMPY)[2:-2]
+    """The header row, then one row per instant (``csv_rows``: no Python loop over samples). Comment lines go
+    first, when any."""
     head = "".join(f"# {line}\n" for line in comment_lines) + ",".join(table.columns) + "\n"
-    return head.encode() + body.replace(b"],[", b"\n") + b"\n"
+    return head.encode() + csv_rows(table.values)
+
+
+def csv_rows(values: np.ndarray) -> bytes:
+    """Rows of a 2-D array as CSV lines: orjson writes the flat array (shortest round-trip floats; twice as fast
+    as its nested form), then every n-th comma becomes a line break, found by numpy."""
+    rows, columns = values.shape
+    text = bytearray(orjson.dumps(np.ascontiguousarray(values).ravel(), option=orjson.OPT_SERIALIZE_NUMPY)[1:-1])
+    chars = np.frombuffer(text, dtype=np.uint8)
+    if columns > 1:
+        commas = np.flatnonzero(chars == ord(","))
+        chars[commas[columns - 1 :: columns]] = ord("\n")
+    return bytes(text) + b"\n" if rows else b""
 
 
 def comment_lines(title: str, body: ProfileRequest, answer: dict[str, Any], table: tables.Table) -> list[str]:

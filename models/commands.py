@@ -172,23 +172,31 @@ class PiecewiseCommand:
             out[before] = self.derivatives[0, 0] if m == 0 else 0.0
         return out
 
-    def evaluate_at_instants(self, m: int, t: ArrayLike, snap_s: float = MIN_STEP_S) -> NDArray[np.float64]:
-        """p^(m) at instants ``t`` that are breakpoints, or lie within ``snap_s`` of one (a corner that replaced
-        a grid instant when the command was resampled): each instant is evaluated on the piece of its nearest
-        breakpoint (its Taylor polynomial, exact for the piece that starts there), so round-off in an instant's
-        time never evaluates the previous piece at its far end. Other instants: as ``evaluate``."""
+    def evaluate_at_instants(self, t: ArrayLike, orders: int = 4, snap_s: float = MIN_STEP_S) -> NDArray[np.float64]:
+        """p, p', ... p^(orders - 1) at instants ``t`` (one row per order) that are breakpoints, or lie within
+        ``snap_s`` of one (a corner that replaced a grid instant when the command was resampled): each instant
+        is evaluated on the piece of its nearest breakpoint (its Taylor polynomial, exact for the piece that
+        starts there), so round-off in an instant's time never evaluates the previous piece at its far end.
+        Other instants: as ``evaluate``. One search and one table of tau^j / j! serve every order."""
         t = np.asarray(t, dtype=float)
         k = np.clip(np.searchsorted(self.time_s, t, side="right") - 1, 0, self.time_s.size - 1)
         following = np.minimum(k + 1, self.time_s.size - 1)
         ahead = (self.time_s[following] - t <= snap_s) & (following > k)
         k = np.where(ahead, following, k)
         tau = t - self.time_s[k]
-        out = np.zeros_like(tau)
-        for n in range(m, self.degree + 1):
-            out += self.derivatives[n, k] * tau ** (n - m) / math.factorial(n - m)
+        degree = self.degree
+        powers = np.empty((degree + 1, t.size))
+        powers[0] = 1.0
+        for j in range(1, degree + 1):  # tau^j / j!, by the recurrence (degree <= 7: a loop over orders only)
+            powers[j] = powers[j - 1] * tau / j
+        at = self.derivatives[:, k]
+        out = np.zeros((orders, t.size))
+        for m in range(min(orders, degree + 1)):
+            out[m] = np.einsum("ji,ji->i", at[m:], powers[: degree + 1 - m])
         before = t < self.time_s[0] - snap_s
         if np.any(before):
-            out[before] = self.derivatives[0, 0] if m == 0 else 0.0
+            out[:, before] = 0.0
+            out[0, before] = self.derivatives[0, 0]
         return out
 
     def peak_abs(self, m: int) -> float | None:

@@ -227,6 +227,7 @@ __all__ = [  # and FAMILIES, through __getattr__
 def profile_at_instants(command: PiecewiseCommand, time_s: NDArray[np.float64]) -> Profile:
     """Position to jerk of ``command`` at ``time_s`` (``PiecewiseCommand.evaluate_at_instants``)."""
     values: Profile = {"time_s": time_s}
+    rows = command.evaluate_at_instants(time_s, orders=4)
     for m, name in enumerate(("position", "velocity", "acceleration", "jerk")):
-        values[name] = command.evaluate_at_instants(m, time_s)
+        values[name] = rows[m]
     return values
