@@ -12,6 +12,20 @@ Requests and answers are the HTTP API's bodies (see /docs); errors are ``Vibfree
 problem+json the service would answer with.
 """
 
-from vibfree.api import FAMILIES, Synthesis, VibfreeError, compare, identify, synthesize
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from vibfree.api import FAMILIES, Synthesis, VibfreeError, compare, identify, synthesize
 
 __all__ = ["FAMILIES", "Synthesis", "VibfreeError", "compare", "identify", "synthesize"]
+
+
+def __getattr__(name: str) -> Any:
+    """The API on first use: ``vibfree.cli`` (``--help``, ``--url``) starts without the solvers' imports."""
+    if name in __all__:
+        from vibfree import api
+
+        return getattr(api, name)
+    raise AttributeError(f"module 'vibfree' has no attribute {name!r}")
