@@ -37,6 +37,7 @@ bench: $(VENV)/.installed-test  ## run the benchmarks whose figures are in READM
 	$(BIN)/python bench/pseudo_polynomial.py
 	$(BIN)/python bench/compare.py  # includes bench/pseudo_polynomial_duration.py
 	$(BIN)/python bench/time_optimal.py  # needs pip install ruckig for part c (skipped without it)
+	$(BIN)/python bench/csv_export.py  # the CSV table beside the JSON answer
 	$(BIN)/python bench/health_under_load.py  # /healthz and /readyz while slow solves saturate the pool
 	$(BIN)/python bench/fuzz.py  # 2000 schemathesis cases per operation (--cases N)
 
