@@ -109,7 +109,16 @@ _SHAPER_RESIDUAL = "100 V of the firmware's impulses alone (Sec. 3.1), %: the pe
 _OTHERS = "Multi-mode designs: 100 V of the firmware's impulses at each further designed mode, %."
 
 
-class KlipperOut(OutModel):
+class _FirmwareTargetOut(OutModel):
+    """What every firmware's block says of its shaper against the design."""
+
+    exact: bool = Field(description=_EXACT)
+    residual_percent: float = Field(description=_RESIDUAL)
+    shaper_residual_percent: float = Field(description=_SHAPER_RESIDUAL)
+    other_modes_shaper_residual_percent: list[float] = Field(description=_OTHERS)
+
+
+class KlipperOut(_FirmwareTargetOut):
     """Klipper's ``[input_shaper]`` section for the X axis."""
 
     firmware: Literal["Klipper"]
@@ -126,14 +135,10 @@ class KlipperOut(OutModel):
         "type's maximum (ei 0.4, 2hump_ei 0.3, 3hump_ei 0.2)."
     )
     section: str = Field(description="The text to paste into printer.cfg.")
-    exact: bool = Field(description=_EXACT)
-    residual_percent: float = Field(description=_RESIDUAL)
-    shaper_residual_percent: float = Field(description=_SHAPER_RESIDUAL)
-    other_modes_shaper_residual_percent: list[float] = Field(description=_OTHERS)
     note: str | None = Field(description="Why the type or its impulses differ from the design; null where not.")
 
 
-class RepRapFirmwareOut(OutModel):
+class RepRapFirmwareOut(_FirmwareTargetOut):
     """RepRapFirmware's ``M593``; one shaper for all axes."""
 
     firmware: Literal["RepRapFirmware"]
@@ -153,14 +158,10 @@ class RepRapFirmwareOut(OutModel):
         description='For RRF 3.4 and 3.5: P"custom" with H the cumulative amplitudes and T the durations between '
         "impulses, s; a named type is the same command."
     )
-    exact: bool = Field(description=_EXACT)
-    residual_percent: float = Field(description=_RESIDUAL)
-    shaper_residual_percent: float = Field(description=_SHAPER_RESIDUAL)
-    other_modes_shaper_residual_percent: list[float] = Field(description=_OTHERS)
     note: str | None = Field(description="Why the type or its impulses differ from the design; null where not.")
 
 
-class MarlinOut(OutModel):
+class MarlinOut(_FirmwareTargetOut):
     """Marlin's ``M493`` (Fixed-Time Motion) for the X axis."""
 
     firmware: Literal["Marlin"]
@@ -172,10 +173,6 @@ class MarlinOut(OutModel):
     damping_ratio: float = Field(description="I: the design mode's damping ratio, within M493's [0.01, 1].")
     vibration_tolerance: float | None = Field(description="Q: the EI types' tolerance (the design's); null otherwise.")
     command: str = Field(description="The G-code line (S1 turns Fixed-Time Motion on).")
-    exact: bool = Field(description=_EXACT)
-    residual_percent: float = Field(description=_RESIDUAL)
-    shaper_residual_percent: float = Field(description=_SHAPER_RESIDUAL)
-    other_modes_shaper_residual_percent: list[float] = Field(description=_OTHERS)
     note: str | None = Field(description="What differs from the design: the 1 ms delay grid, the damping bound.")
 
 
