@@ -66,7 +66,8 @@ def check_columns(columns: tuple[str, ...]) -> tuple[str, ...]:
         return columns
     unknown = [c for c in columns if c not in COLUMNS]
     if unknown:
-        raise InvalidParameter("columns", ",".join(unknown), f"each column must be one of {', '.join(COLUMNS)}")
+        rule = f"each column must be one of {', '.join(COLUMNS)} (or all, alone)"
+        raise InvalidParameter("columns", ",".join(unknown), rule)
     rest = tuple(dict.fromkeys(c for c in columns if c != "time_s"))
     return ("time_s", *rest)
 
