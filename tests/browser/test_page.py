@@ -368,3 +368,13 @@ def test_tradeoff_button_draws_what_robustness_costs(page):
     table = page.locator("#tradeoff-table tbody").inner_text()
     assert all(d is not None and b is not None and 0 < b <= d for d, b in zip(duration, bound, strict=True)), table
     expect(rows.first).to_contain_text("ok")
+
+
+def test_the_page_loads_without_console_errors_or_failed_requests(page):
+    # Every asset the page asks for is served (its icon included: browsers ask /favicon.ico without one).
+    errors, failed = [], []
+    page.on("console", lambda message: errors.append(message.text) if message.type == "error" else None)
+    page.on("response", lambda response: failed.append(response.url) if response.status >= 400 else None)
+    page.goto("/")
+    page.wait_for_load_state("networkidle")
+    assert not errors and not failed, (errors, failed)
