@@ -11,6 +11,7 @@ COPY pyproject.toml README.md ./
 COPY models ./models
 COPY optim ./optim
 COPY app ./app
+COPY vibfree ./vibfree
 RUN pip install --no-cache-dir . \
     && groupadd --gid 10001 vibfree \
     && useradd --create-home --uid 10001 --gid 10001 --shell /usr/sbin/nologin vibfree

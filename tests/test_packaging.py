@@ -31,6 +31,16 @@ def test_dockerfile_runs_uvicorn_as_non_root_with_a_healthcheck():
     assert '"app.main:app", "--host", "0.0.0.0", "--port", "8000"' in text
 
 
+def test_the_image_holds_every_package_the_project_installs():
+    # pip install . in the image finds only what was copied: a package left out would install the vibfree
+    # console script without its module.
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    packages = [p.rstrip("*") for p in config["tool"]["setuptools"]["packages"]["find"]["include"]]
+    copied = set(re.findall(r"^COPY (\w+) \./\1$", (ROOT / "Dockerfile").read_text(), re.M))
+    assert set(packages) == copied
+    assert config["project"]["scripts"]["vibfree"].split(":")[0].split(".")[0] in copied
+
+
 def test_ci_runs_the_readme_test_command():
     readme = (ROOT / "README.md").read_text()
     ci = (ROOT / ".ci" / "run").read_text()
