@@ -4,8 +4,9 @@ Each family offers its ``candidates`` (its best within the limits, or the caller
 run through the same pipeline as the family's endpoint, so a row's numbers are the endpoint's
 answer to the request the row echoes. Of the candidates in one group only the one that settles
 first is kept. A family that does not apply, or whose designs all fail, is listed with the reason
-and its problem type. The runner is injected (the pool for solver families, a thread otherwise),
-so this module does no I/O.
+and its problem type. A family the pool could not take (PoolUnavailable: starting or busy) is no part of
+an answer: compare raises it, once every run has ended. The runner is injected (the pool for solver
+families, a thread otherwise), so this module does no I/O.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from collections.abc import Awaitable, Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from models.errors import DomainError, Infeasible, InvalidParameter
+from models.errors import DomainError, Infeasible, InvalidParameter, PoolUnavailable
 from optim.family import FAMILIES, Candidate, Family
 from optim.problem import Problem
 from optim.synthesis import Result
@@ -62,6 +63,8 @@ async def _one(family: Family, problem: Problem, candidate: Candidate, run: Runn
             if fallback is None:
                 raise
             return Row(family, fallback, await run(family, problem, fallback), candidate.label)
+    except PoolUnavailable:
+        raise
     except DomainError as exc:
         return Unavailable(family.name, reason_of(exc), f"/problems/{exc.problem_type}")
 
@@ -96,7 +99,13 @@ async def compare(
             unavailable.append(Unavailable(family.name, reason_of(exc), f"/problems/{exc.problem_type}"))
             continue
         plans.append((family, candidates))
-    outcomes = await asyncio.gather(*(_one(f, problem, c, run) for f, cands in plans for c in cands))
+    runs = await asyncio.gather(
+        *(_one(f, problem, c, run) for f, cands in plans for c in cands), return_exceptions=True
+    )
+    refused = next((o for o in runs if isinstance(o, BaseException)), None)
+    if refused is not None:  # a ranking with rows missing because the pool refused them is not an answer
+        raise refused
+    outcomes = [o for o in runs if not isinstance(o, BaseException)]
     kept: list[Row | Unavailable] = []
     start = 0
     for _, cands in plans:

@@ -22,14 +22,14 @@ from app.schemas.family import ProfileRequest, SensitivityIn, SensitivityOut
 from app.schemas.simulate import LoadOut, ProfileOut
 from app.schemas.stap import StapSensitivityOut
 from app.settings import Settings
-from models.errors import InvalidParameter, PoolUnavailable
+from models.errors import InvalidParameter
 from optim.compare import Row as ComparedRow
 from optim.compare import compare as compare_families
 from optim.families.pseudo_polynomial import PseudoPolynomialOptions
 from optim.family import Family
 from optim.problem import Problem
 from optim.synthesis import Result, load_arrays
-from optim.workers import Executor, PoolBusy
+from optim.workers import Executor
 
 router = APIRouter(prefix="/v1", tags=["compare"])
 FamilyName = Literal["time_optimal", "pseudo_polynomial", "stap", "smoother", "input_shaped"]
@@ -198,19 +198,9 @@ async def answer(body: CompareIn, settings: Settings, pool: Executor) -> dict[st
         return await services.run(family, p, options, settings, pool)
 
     rows, unavailable = await compare_families(problem, run, body.families, body.options(problem))
-    _raise_if_pool_refused(unavailable)
     common = body.common_body()
     return {
         "move": "rest_to_rest" if problem.rest_to_rest else "rest_to_velocity",
         "rows": [_row(body, common, row, problem.load_move) for row in rows],
         "unavailable": [vars(u) for u in unavailable],
     }
-
-
-def _raise_if_pool_refused(unavailable: list[Any]) -> None:
-    """A ranking with rows missing only because the pool could not take them is not an answer: 503 it."""
-    refused = {u.problem_type: u.reason for u in unavailable}
-    if "/problems/busy" in refused:
-        raise PoolBusy(f"a family could not be run: {refused['/problems/busy']}")
-    if "/problems/not-ready" in refused:
-        raise PoolUnavailable(f"a family could not be run: {refused['/problems/not-ready']}")

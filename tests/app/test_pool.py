@@ -184,14 +184,33 @@ def test_a_worker_killed_during_warm_up_is_restarted_and_readiness_tells_the_tru
 
 
 def test_a_compare_missing_rows_only_because_the_pool_refused_them_is_a_503_not_a_ranking():
-    from app.routers.compare import _raise_if_pool_refused
-    from models.errors import PoolUnavailable
-    from optim.compare import Unavailable
-    from optim.workers import PoolBusy
+    import asyncio
 
-    not_applicable = Unavailable("stap", "needs an acceleration limit", "/problems/not-applicable")
-    _raise_if_pool_refused([not_applicable])  # a family that does not apply is part of the answer
+    from app.routers.compare import CompareIn
+    from models.errors import PoolUnavailable
+    from optim.compare import compare
+    from optim.synthesis import synthesize
+    from optim.workers import PoolBusy
+    from tests import aio
+    from tests.app.conftest import TEST_SETTINGS
+
+    # A rest-to-velocity move without an acceleration limit: STAP does not apply, which is part of the answer.
+    body = {"plant": {"kind": "mode", "natural_frequency_hz": 8.0, "damping_ratio": 0.05}, "target_velocity": 1.0}
+    problem = CompareIn.model_validate(body).to_problem(TEST_SETTINGS)
+
+    def refusing(error: Exception, family_name: str):
+        async def run(family, p, options):
+            await asyncio.sleep(0)
+            if family.name == family_name:
+                raise error
+            return synthesize(family, p, options)
+
+        return run
+
+    families = ["stap", "input_shaped"]
+    rows, unavailable = aio.run(compare(problem, refusing(PoolBusy("x"), "pseudo_polynomial"), families))
+    assert rows and [u.problem_type for u in unavailable] == ["/problems/not-applicable"]
     with pytest.raises(PoolBusy, match="queue"):
-        _raise_if_pool_refused([not_applicable, Unavailable("stap", "the queue is full", "/problems/busy")])
+        aio.run(compare(problem, refusing(PoolBusy("the queue is full"), "input_shaped"), families))
     with pytest.raises(PoolUnavailable, match="starting"):
-        _raise_if_pool_refused([Unavailable("pseudo_polynomial", "workers starting", "/problems/not-ready")])
+        aio.run(compare(problem, refusing(PoolUnavailable("workers starting"), "input_shaped"), ["input_shaped"]))
