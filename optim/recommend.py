@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 from models.errors import DomainError, InvalidParameter, PoolUnavailable
+from optim.family import FAMILIES
 from optim.modal import IdentifiedMode
 from optim.shapers import CATALOGUE_NAMES
 
@@ -41,12 +42,6 @@ __all__ = [
 
 SENSITIVITY_COUNT = 401
 SENSITIVITY_MARGIN = 0.05  # the grid runs this far past the interval (frequency ratio)
-ENDPOINTS = {
-    "time_optimal": "/v1/profiles/time-optimal",
-    "input_shaped": "/v1/profiles/input-shaped",
-    "stap": "/v1/profiles/stap",
-    "smoother": "/v1/profiles/smoother",
-}
 
 
 @dataclass(frozen=True)
@@ -123,7 +118,7 @@ def recommendation_candidates(
     out: list[RecommendationCandidate] = []
 
     def add(family: str, extra: dict[str, Any]) -> None:
-        out.append(RecommendationCandidate(family, ENDPOINTS[family], {**common, **extra}))
+        out.append(RecommendationCandidate(family, FAMILIES[family].endpoint, {**common, **extra}))
 
     if limits.max_acceleration is not None or limits.max_jerk is not None:
         # the band a little wider than the interval: its V <= 5 % then holds at the interval's ends with margin

@@ -22,11 +22,7 @@ from app import problems, services
 from app.responses import comment_lines, csv_body, dumps
 from app.routers import compare as compare_route
 from app.schemas.family import ProfileRequest
-from app.schemas.pseudo_polynomial import PseudoPolynomialIn
-from app.schemas.shapers import InputShapedRequest
-from app.schemas.smoothers import SmootherRequest
-from app.schemas.stap import StapIn
-from app.schemas.time_optimal import TimeOptimalIn
+from app.schemas.registry import REQUEST_SCHEMAS
 from app.settings import Settings, get_settings
 from models.errors import DomainError
 from optim import tables
@@ -41,14 +37,7 @@ if not structlog.is_configured():  # the service's log lines go to stdlib loggin
         wrapper_class=structlog.stdlib.BoundLogger,
     )
 
-# family name -> its request schema; the names of /v1/compare's rows (``-`` may stand for ``_``)
-FAMILIES: dict[str, type[ProfileRequest]] = {
-    "time_optimal": TimeOptimalIn,
-    "pseudo_polynomial": PseudoPolynomialIn,
-    "stap": StapIn,
-    "smoother": SmootherRequest,
-    "input_shaped": InputShapedRequest,
-}
+FAMILIES = REQUEST_SCHEMAS  # family name -> its request schema; the names of /v1/compare's rows ("-" for "_")
 
 
 class VibfreeError(Exception):
@@ -107,11 +96,7 @@ def identify(record: str | bytes, *, settings: Settings | None = None, **params:
 
     settings = settings or get_settings()
     text = record.decode() if isinstance(record, bytes) else record
-    try:
-        query = MeasurementParams.model_validate(params)
-    except ValidationError as exc:
-        response = problems.invalid_input(problems.validation_errors(RequestValidationError(exc.errors())))
-        raise VibfreeError(orjson.loads(response.body)) from None
+    query = _validate(MeasurementParams, params)
     coroutine = identify_csv(text, query, in_process_runner(settings), max_rows=settings.max_samples)
     answer: dict[str, Any] = _run(coroutine)
     return answer

@@ -26,19 +26,18 @@ from app.examples import OMEGA_RAD_S, SIGMA_1_S
 from app.responses import NumpyJSONResponse
 from app.schemas.family import ProfileRequest
 from app.schemas.identify import IdentifyMeasurementResponse, MeasurementParams
-from app.schemas.shapers import InputShapedRequest
+from app.schemas.registry import REQUEST_SCHEMAS
 from app.schemas.simulate import check_sample_count
-from app.schemas.smoothers import IdentifyRequest, IdentifyResponse, SmootherRequest
-from app.schemas.stap import StapIn
-from app.schemas.time_optimal import TimeOptimalIn
+from app.schemas.smoothers import IdentifyRequest, IdentifyResponse
 from app.settings import Settings
-from models.errors import InvalidParameter, NotApplicable
+from models.errors import InvalidParameter
 from models.plants import FREQUENCY_MAX_HZ, FREQUENCY_MIN_HZ
 from optim.family import FAMILIES
 from optim.modal import CONFIDENCE, ModalIdentification, identify_modes
 from optim.recommend import Move, MoveLimits, RunOne, plant_interval, recommend, recommendation_candidates
 from optim.record_csv import parse_record_csv
 from optim.smoothers import identify, tuned_duration_s, vibration_free_durations_s
+from optim.workers import Executor, InlineExecutor
 
 router = APIRouter(prefix="/v1", tags=["smoothers"])
 
@@ -113,13 +112,6 @@ def identify_respond(request: IdentifyRequest, settings: Settings) -> dict[str, 
 
 # --- the measured record (text/csv) ---------------------------------------------------------------------
 
-REQUEST_SCHEMAS: dict[str, type[ProfileRequest]] = {
-    "time_optimal": TimeOptimalIn,
-    "input_shaped": InputShapedRequest,
-    "stap": StapIn,
-    "smoother": SmootherRequest,
-}
-
 
 def parse_family_request(family: str, body: Mapping[str, Any]) -> ProfileRequest:
     """A recommended request parsed by its endpoint's schema (an InvalidParameter naming the field if not)."""
@@ -130,23 +122,20 @@ def parse_family_request(family: str, body: Mapping[str, Any]) -> ProfileRequest
         raise InvalidParameter(problems.field_path(tuple(err["loc"])), None, str(err["msg"])) from None
 
 
-def in_process_runner(settings: Settings) -> RunOne:
-    """A ``run_one`` without a server or a solver pool (for the CLI): each candidate runs the family's whole
-    pipeline (optim.synthesis) in this process, one after the other (IPOPT is not thread-safe), as
-    app.services.profile does in the service."""
-    from optim.synthesis import synthesize
+def runner(settings: Settings, executor: Executor) -> RunOne:
+    """A ``run_one``: each candidate through the family endpoints' service layer (app.services.profile) on
+    ``executor``: the route's solver pool, or in-process."""
 
     async def run_one(family: str, body: dict[str, Any]) -> dict[str, Any]:
-        parsed = parse_family_request(family, body)
-        problem = parsed.to_problem(settings)
-        reason = FAMILIES[family].not_applicable(problem)
-        if reason is not None:
-            raise NotApplicable(reason)
-        answer: dict[str, Any] = synthesize(FAMILIES[family], problem, parsed.options(problem)).body()
-        answer["warnings"] = [*parsed.deprecations, *answer["warnings"]]
-        return answer
+        return await services.profile(FAMILIES[family], parse_family_request(family, body), settings, executor)
 
     return run_one
+
+
+def in_process_runner(settings: Settings) -> RunOne:
+    """A ``run_one`` without a server or a solver pool (for the CLI): the candidates run in this process, the
+    solver ones one after the other (IPOPT is not thread-safe)."""
+    return runner(settings, InlineExecutor())
 
 
 def _mode_dict(mode: Any) -> dict[str, Any]:
@@ -343,8 +332,5 @@ async def identify_mode(
         return NumpyJSONResponse(await run_in_threadpool(identify_respond, record, settings))
     text = _decode(body if isinstance(body, bytes) else str(body).encode())
 
-    async def run_one(family: str, candidate: dict[str, Any]) -> dict[str, Any]:
-        parsed = parse_family_request(family, candidate)
-        return await services.profile(FAMILIES[family], parsed, settings, pool)
-
-    return NumpyJSONResponse(await identify_csv(text, params, run_one, max_rows=settings.max_samples))
+    answer = await identify_csv(text, params, runner(settings, pool), max_rows=settings.max_samples)
+    return NumpyJSONResponse(answer)
