@@ -112,6 +112,18 @@ def test_a_single_signal_record_and_a_known_command():
     assert mode.damping_ratio_ci[0] <= zeta <= mode.damping_ratio_ci[1]
 
 
+def test_quoted_cells_read_as_the_plain_record():
+    # Plain numbers go through numpy's reader, a quoted cell through the csv module: the same record either way.
+    t, signals = accelerometer_record(seed=7)
+    plain = to_csv(t, signals)
+    lines = plain.splitlines()
+    time_cell, rest = lines[1].split(",", 1)
+    quoted = "\n".join([lines[0], f'"{time_cell}",{rest}', *lines[2:]]) + "\n"  # the first data row's time quoted
+    a, b = parse_record_csv(plain, max_rows=10_000), parse_record_csv(quoted, max_rows=10_000)
+    np.testing.assert_array_equal(a.time_s, b.time_s)
+    np.testing.assert_array_equal(a.signals, b.signals)
+
+
 def test_csv_rules_name_the_column_and_row():
     good = "time_s,accel_x\n0,1\n0.001,2\n0.002,3\n"
     assert parse_record_csv(good, max_rows=10).signals.shape == (1, 3)
