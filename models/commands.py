@@ -159,7 +159,7 @@ class PiecewiseCommand:
     @cached_property
     def _jumps(self) -> NDArray[np.float64]:
         d = self.degree
-        jumps = np.zeros_like(self.derivatives)
+        jumps = np.zeros(self.derivatives.shape)  # calloc: rows that stay zero are never written
         # Leaving rest at t_0; values at round-off level of their own row count as zero.
         first = self.derivatives[1:, 0]
         row_scale = np.max(np.abs(self.derivatives[1:]), axis=1)
@@ -334,6 +334,7 @@ class PiecewiseCommand:
         command = cls(t, der, continuous_orders=continuous)
         h.setflags(write=False)
         command.__dict__["steps_s"] = h  # computed by the grid check
+        command.__dict__["_max_abs_cache"] = {order: max(float(u.max()), -float(u.min()))} if hold != "cubic" else {}
         return command
 
     def resampled(self, period_s: float, end_s: float | None = None) -> PiecewiseCommand:

@@ -152,6 +152,7 @@ class FreeResponse:
         h: NDArray[np.complex128] = self.gain * (self.s - self.decay.conjugate() * shifted)
         return h
 
+    @cached_property
     def bound(self) -> float:
         """An upper bound of max_k |h_k|; for the s representation also the scale of its round-off."""
         if self.values is not None:
@@ -238,7 +239,7 @@ def _pair_roundoff(free: FreeResponse, weighted: complex, samples: int) -> float
     eps = float(np.finfo(float).eps)
     memory = min(float(samples), 1.0 / max(1.0 - abs(free.decay), eps))
     angle = abs(1.0 - free.decay) * memory / abs(free.decay.imag)
-    return abs(weighted) * free.bound() * eps * (angle + math.sqrt(memory) + 4.0)
+    return abs(weighted) * free.bound * eps * (angle + math.sqrt(memory) + 4.0)
 
 
 def _single_order_free(
@@ -263,13 +264,6 @@ def simulate(plant: Plant, command: PiecewiseCommand) -> Response:
     """The exact response of ``plant`` to ``command`` (see the module docstring)."""
     degree = command.degree
     modal = plant_modal_form(plant, degree + 1)
-    g = modal.taylor
-    der = command.derivatives
-    position = g[: degree + 1] @ der  # quasi-static motion: sum_m g_m p^(m)
-    velocity = g[:degree] @ der[1:]
-    acceleration = g[: max(degree - 1, 0)] @ der[2:] if degree >= 2 else np.zeros_like(position)
-    outputs = (position, velocity, acceleration)
-
     jumps = command.jumps()
     uniform = command.is_uniform
     first = jumps[:, 0]
@@ -279,9 +273,8 @@ def simulate(plant: Plant, command: PiecewiseCommand) -> Response:
     samples = command.time_s.size
     step = float(command.steps_s[0]) if uniform else 0.0
     quasi_static_size = _quasi_static_size(command, modal)
-    scratch = np.empty(samples)
     free: list[FreeResponse] = []
-    for j, pole in enumerate(modal.poles):  # a loop over poles, not samples
+    for pole, w in zip(modal.poles, weighted, strict=True):  # a loop over poles, not samples
         p = complex(pole)
         start = complex(sum(first[m] * p ** -(m + 1) for m in range(degree + 1) if first[m] != 0.0))
         if not active and start == 0.0:
@@ -293,19 +286,48 @@ def simulate(plant: Plant, command: PiecewiseCommand) -> Response:
             decay = complex(np.exp(p * step))
             rest = start - first[m] * p ** -(m + 1)  # d_0 without the active order, carried by zi
             pole_free = _single_order_free(p, decay, jumps[m], m, rest)
-            if decay.imag != 0.0 and _pair_roundoff(pole_free, weighted[j], samples) > (
+            if decay.imag != 0.0 and _pair_roundoff(pole_free, w, samples) > (
                 _PAIR_ROUNDOFF_RELATIVE * quasi_static_size
             ):
                 pole_free = None  # the real form would lose accuracy: the complex recurrence instead
-        if pole_free is None:
-            pole_free = _complex_free(p, command, jumps, active, start, uniform)
-        free.append(pole_free)
-        for k, out in enumerate(outputs):
-            _add_real_part(out, complex(weighted[j] * p**k), pole_free, scratch)
+        free.append(pole_free or _complex_free(p, command, jumps, active, start, uniform))
+    position, velocity, acceleration = _load_motion(command, modal, free)
     response = Response(plant, command, modal, position, velocity, acceleration, tuple(free))
     _check_finite(response)
     _check_conditioning(command, modal, response.free, position, quasi_static_size)
     return response
+
+
+def _load_motion(
+    command: PiecewiseCommand, modal: ModalForm, free: list[FreeResponse]
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Load position, velocity and acceleration: sum_m g_m p^(m+k) + Re sum_j w_j r_j p_j^k h_j (k = 0, 1, 2).
+
+    Sums in place through one scratch row (no temporaries of the samples' size; no matrix product, which
+    BLAS would spread over threads). A pole held as a real sequence s adds alpha s_k - beta s_(k-1)."""
+    degree = command.degree
+    g = modal.taylor
+    der = command.derivatives
+    position = g[: degree + 1] @ der  # quasi-static motion: sum_m g_m p^(m)
+    velocity = g[:degree] @ der[1:]
+    acceleration = g[: max(degree - 1, 0)] @ der[2:] if degree >= 2 else np.zeros(der.shape[1])
+    weighted = modal.weights * modal.residues
+    scratch = np.empty(der.shape[1])
+    for j, f in enumerate(free):  # a loop over poles
+        for k, out in enumerate((position, velocity, acceleration)):
+            c = complex(weighted[j] * modal.poles[j] ** k)
+            if f.s is None:
+                assert f.values is not None
+                out += c.real * f.values.real - c.imag * f.values.imag  # Re(c h), no complex product
+                continue
+            alpha, beta = f.combination(c)
+            np.multiply(f.s, alpha, out=scratch)
+            out += scratch
+            if beta != 0.0:
+                np.multiply(f.s[:-1], beta, out=scratch[1:])
+                out[1:] -= scratch[1:]
+                out[0] -= beta * f.s_before
+    return position, velocity, acceleration
 
 
 def plant_modal_form(plant: Plant, taylor_count: int) -> ModalForm:
@@ -320,27 +342,12 @@ def plant_modal_form(plant: Plant, taylor_count: int) -> ModalForm:
     return cache[taylor_count]
 
 
-def _add_real_part(out: NDArray[np.float64], c: complex, free: FreeResponse, scratch: NDArray[np.float64]) -> None:
-    """out += Re(c h) in place, through ``scratch`` (no temporaries of the samples' size)."""
-    if free.values is not None:
-        out += c.real * free.values.real - c.imag * free.values.imag
-        return
-    assert free.s is not None
-    alpha, beta = free.combination(c)
-    np.multiply(free.s, alpha, out=scratch)
-    out += scratch
-    if beta != 0.0:
-        np.multiply(free.s[:-1], beta, out=scratch[1:])
-        out[1:] -= scratch[1:]
-        out[0] -= beta * free.s_before
-
-
 def _check_finite(response: Response) -> None:
     """Refuse a load motion that overflows double precision. A bound on every output (the quasi-static
     sizes plus each pole's |c| max|h|) below 1e300 proves them finite without looking at the samples."""
     modal, cmd = response.modal, response.command
     weighted = np.abs(modal.weights * modal.residues)
-    bounds = [f.bound() for f in response.free]
+    bounds = [f.bound for f in response.free]
     for k, (name, arr) in enumerate(
         (
             ("load position", response.load_position),
@@ -394,7 +401,7 @@ def _check_conditioning(
     """
     eps = np.finfo(float).eps
     size = quasi_static_size + sum(
-        abs(float(w)) * f.bound() for w, f in zip(np.abs(modal.weights * modal.residues), free, strict=True)
+        abs(float(w)) * f.bound for w, f in zip(np.abs(modal.weights * modal.residues), free, strict=True)
     )
     scale = max(float(position.max()), -float(position.min()), abs(modal.taylor[0]) * command.max_abs(0), 1e-300)
     if 16 * eps * size > _RELIABLE_RELATIVE * scale:
