@@ -99,7 +99,8 @@ def main() -> None:
     recurrence_pos = signal.lfilter(b, a, pos)
     scale = float(np.max(np.abs(lsim_pos)))
     print(
-        f"{SAMPLES} samples, one mode (5 Hz, zeta 0.05), medians of {REPEATS} interleaved repeats (lsim {LSIM_REPEATS}):"
+        f"{SAMPLES} samples, one mode (5 Hz, zeta 0.05), "
+        f"medians of {REPEATS} interleaved repeats (lsim {LSIM_REPEATS}):"
     )
     rows = [
         ("ours, first-order hold on position (pos, vel, acc)", fast["ours"]),

@@ -189,10 +189,14 @@ class PiecewiseCommand:
         """
         return self._jumps
 
-    def end_index(self) -> int:
-        """Index of the last breakpoint where the command changes (its end, for residual metrics)."""
+    @cached_property
+    def _end_index(self) -> int:
         changed = np.flatnonzero(np.any(self.jumps() != 0.0, axis=0))
         return int(changed[-1]) if changed.size else 0
+
+    def end_index(self) -> int:
+        """Index of the last breakpoint where the command changes (its end, for residual metrics)."""
+        return self._end_index
 
     def evaluate(self, m: int, t: ArrayLike) -> NDArray[np.float64]:
         """p^(m)(t) at arbitrary times (right-continuous)."""
@@ -353,8 +357,24 @@ class PiecewiseCommand:
         t = np.union1d(grid[~near], inside)
         if t[-1] < stop:
             t = np.append(t, stop)
-        derivatives = np.array([self.evaluate(m, t) for m in range(self.degree + 1)])
-        return PiecewiseCommand(t, derivatives, self.continuous_orders)
+        return PiecewiseCommand(t, self._evaluate_orders(t), self.continuous_orders)
+
+    def _evaluate_orders(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``evaluate(m, t)`` for every order m (one row each), with one search and one set of powers of
+        tau shared by the orders (the same operations per order, so the same numbers)."""
+        k = np.clip(np.searchsorted(self.time_s, t, side="right") - 1, 0, self.time_s.size - 1)
+        tau = t - self.time_s[k]
+        at = self.derivatives[:, k]
+        powers = [tau**j for j in range(self.degree + 1)]
+        before = t < self.time_s[0]
+        out = np.zeros((self.degree + 1, t.size))
+        for m in range(self.degree + 1):  # a loop over orders
+            row = out[m]
+            for n in range(m, self.degree + 1):
+                row += at[n] * powers[n - m] / math.factorial(n - m)
+            if np.any(before):
+                row[before] = self.derivatives[0, 0] if m == 0 else 0.0
+        return out
 
     @classmethod
     def from_derivatives(cls, time_s: ArrayLike, derivatives: ArrayLike) -> PiecewiseCommand:
