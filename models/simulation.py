@@ -311,12 +311,10 @@ def _load_motion(
     g = modal.taylor
     der = command.derivatives
     samples = der.shape[1]
-    # Quasi-static motion sum_m g_m p^(m+k); None where it is zero (the first pole then writes the row).
-    outputs: list[NDArray[np.float64] | None] = [
-        g[: degree + 1 - k] @ der[k:] if k <= degree else None for k in range(3)
-    ]
-    weighted = modal.weights * modal.residues
     scratch = np.empty(samples)
+    # Quasi-static motion sum_m g_m p^(m+k); None where it is zero (the first pole then writes the row).
+    outputs = [_weighted_rows(g[: max(degree + 1 - k, 0)], der[k:], scratch) for k in range(3)]
+    weighted = modal.weights * modal.residues
     for j, f in enumerate(free):  # a loop over poles
         for k in range(3):
             c = complex(weighted[j] * modal.poles[j] ** k)
@@ -339,6 +337,23 @@ def _load_motion(
                 out[0] -= beta * f.s_before
     position, velocity, acceleration = (np.zeros(samples) if out is None else out for out in outputs)
     return position, velocity, acceleration
+
+
+def _weighted_rows(
+    coefficients: NDArray[np.float64], rows: NDArray[np.float64], scratch: NDArray[np.float64]
+) -> NDArray[np.float64] | None:
+    """sum_i coefficients[i] rows[i] as a new array (None when every coefficient is zero), by in-place
+    multiply-adds that skip zero coefficients (a vector-matrix product of few rows is slower)."""
+    out: NDArray[np.float64] | None = None
+    for c, row in zip(coefficients, rows, strict=True):  # a loop over derivative orders
+        if c == 0.0:
+            continue
+        if out is None:
+            out = row * c
+        else:
+            np.multiply(row, c, out=scratch)
+            out += scratch
+    return out
 
 
 def plant_modal_form(plant: Plant, taylor_count: int) -> ModalForm:
