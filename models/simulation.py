@@ -15,6 +15,14 @@ which is exact for piecewise-polynomial commands and needs only one first-order 
 pole: ``scipy.signal.lfilter`` on a uniform grid, a log-depth associative scan otherwise (no
 Python loop over samples). At the end of the command, h_j is the state of the load's free
 oscillation, from which the residual envelope, energy and settling time follow in closed form.
+
+On a uniform grid where a single derivative order jumps after t_0 (every first- or zero-order hold of
+samples), the drive of a complex pole is a J_k with one complex a = lambda^-(m+1) and real J, so
+h = a (1 - conj(z) q^-1) s with s = J / ((1 - z q^-1)(1 - conj(z) q^-1)): one real second-order
+``lfilter`` (2.4 times cheaper than the complex one) gives h_k = a (s_k - conj(z) s_(k-1)) and every
+output as alpha s_k - beta s_(k-1). Its direct form rounds the pole's angle by about eps / Im(z) per
+step (Oppenheim & Schafer, Discrete-Time Signal Processing, 3rd ed., Sec. 6.8-6.9); where the estimated
+round-off over the mode's memory exceeds 1e-12 of the motion, the complex recurrence runs instead.
 """
 
 from __future__ import annotations
