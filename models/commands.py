@@ -51,32 +51,42 @@ def _check_samples(values: ArrayLike, t: NDArray[np.float64], field: str) -> NDA
     u = np.asarray(values, dtype=float)
     if u.shape != t.shape:
         raise InvalidParameter(field, f"{u.size} samples", f"must have as many samples as time_s ({t.size})")
+    # Two reductions decide (NaN propagates through min and max); the mask only names the first bad sample.
+    low, high = float(u.min()), float(u.max())
+    if low >= -MAX_ABS_VALUE and high <= MAX_ABS_VALUE:
+        return u
     bad = ~np.isfinite(u) | (np.abs(u) > MAX_ABS_VALUE)
-    if np.any(bad):
-        k = int(np.argmax(bad))
-        raise InvalidParameter(f"{field}[{k}]", str(u[k]), f"must be finite and within +-{MAX_ABS_VALUE:g}")
-    return u
+    k = int(np.argmax(bad))
+    raise InvalidParameter(f"{field}[{k}]", str(u[k]), f"must be finite and within +-{MAX_ABS_VALUE:g}")
 
 
 def check_time_grid(time_s: ArrayLike, field: str = "time_s") -> NDArray[np.float64]:
     """A finite, strictly increasing grid of at least two samples."""
+    return _checked_grid(time_s, field)[0]
+
+
+def _checked_grid(time_s: ArrayLike, field: str) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``check_time_grid`` and the steps it computed. A grid whose smallest step is at least MIN_STEP_S
+    (NaN fails the comparison) is increasing, so its ends bound it: two passes (diff, min) accept it."""
     t = np.asarray(time_s, dtype=float)
     if t.ndim != 1 or t.size < 2:
         raise InvalidParameter(field, f"{t.size} samples", "needs at least 2 samples")
+    steps = np.diff(t)
+    smallest = float(steps.min())
+    ends = max(abs(float(t[0])), abs(float(t[-1])))
+    if smallest >= MIN_STEP_S and ends <= MAX_ABS_TIME_S:
+        return t, steps
     if not np.all(np.isfinite(t)):
         raise InvalidParameter(field, "non-finite value", "every time must be finite")
     if np.max(np.abs(t)) > MAX_ABS_TIME_S:
         raise InvalidParameter(field, float(np.max(np.abs(t))), f"times must lie within +-{MAX_ABS_TIME_S:g} s")
-    steps = np.diff(t)
     if np.any(steps <= 0.0):
         k = int(np.argmax(steps <= 0.0))
         raise InvalidParameter(
             f"{field}[{k + 1}]", float(t[k + 1]), f"times must be strictly increasing (previous is {float(t[k])!r})"
         )
-    if np.any(steps < MIN_STEP_S):
-        k = int(np.argmax(steps < MIN_STEP_S))
-        raise InvalidParameter(f"{field}[{k + 1}]", float(t[k + 1]), f"samples must be at least {MIN_STEP_S:g} s apart")
-    return t
+    k = int(np.argmax(steps < MIN_STEP_S))
+    raise InvalidParameter(f"{field}[{k + 1}]", float(t[k + 1]), f"samples must be at least {MIN_STEP_S:g} s apart")
 
 
 @dataclass(frozen=True)
@@ -94,17 +104,23 @@ class PiecewiseCommand:
     def degree(self) -> int:
         return int(self.derivatives.shape[0]) - 1
 
-    @property
+    @cached_property
     def steps_s(self) -> NDArray[np.float64]:
-        return np.diff(self.time_s)
+        steps = np.diff(self.time_s)
+        steps.setflags(write=False)
+        return steps
 
     @cached_property
     def is_uniform(self) -> bool:
         """True when t_k = t_0 + k h to within round-off (then one recurrence step fits all)."""
         t = self.time_s
-        span = t[-1] - t[0]
-        ideal = np.linspace(t[0], t[-1], t.size)
-        return bool(np.max(np.abs(t - ideal)) <= _UNIFORM_GRID_TOLERANCE * span)
+        span = float(t[-1] - t[0])
+        deviation = np.arange(t.size, dtype=float)  # t_0 + k h - t_k, in place
+        deviation *= span / (t.size - 1)
+        deviation += float(t[0])
+        deviation -= t
+        largest = max(float(deviation.max()), -float(deviation.min()))
+        return largest <= _UNIFORM_GRID_TOLERANCE * span
 
     def derivative(self, m: int) -> NDArray[np.float64]:
         """p^(m) at the breakpoints (right-hand values); zero above the degree."""
@@ -112,6 +128,14 @@ class PiecewiseCommand:
             row: NDArray[np.float64] = self.derivatives[m]
             return row
         return np.zeros_like(self.time_s)
+
+    def max_abs(self, m: int) -> float:
+        """max_k |p^(m)(t_k+)| (0 above the degree), computed once per order."""
+        cache: dict[int, float] = self.__dict__.setdefault("_max_abs_cache", {})
+        if m not in cache:
+            row = self.derivative(m)
+            cache[m] = max(float(row.max()), -float(row.min())) if m <= self.degree else 0.0
+        return cache[m]
 
     def left_limits(self) -> NDArray[np.float64]:
         """p^(m)(t_k-), from the piece before each breakpoint; rest at p(t_0) before t_0."""
@@ -124,7 +148,10 @@ class PiecewiseCommand:
             d = self.degree
             left = np.empty_like(self.time_s)
             left[0] = self.derivatives[0, 0] if m == 0 else 0.0
-            left[1:] = _taylor_step(self.derivatives[:, :-1], self.steps_s, m, d)
+            if m == d:  # the top order is constant on each piece
+                left[1:] = self.derivatives[d, :-1]
+            else:
+                left[1:] = _taylor_step(self.derivatives[:, :-1], self.steps_s, m, d)
             left.setflags(write=False)
             cache[m] = left
         return cache[m]
@@ -132,17 +159,25 @@ class PiecewiseCommand:
     @cached_property
     def _jumps(self) -> NDArray[np.float64]:
         d = self.degree
-        jumps = np.zeros_like(self.derivatives)
+        jumps = np.zeros(self.derivatives.shape)  # calloc: rows that stay zero are never written
         # Leaving rest at t_0; values at round-off level of their own row count as zero.
         first = self.derivatives[1:, 0]
         row_scale = np.max(np.abs(self.derivatives[1:]), axis=1)
         jumps[1:, 0] = np.where(np.abs(first) <= _JUMP_RELATIVE_TOLERANCE * row_scale, 0.0, first)
         for m in range(self.continuous_orders, d + 1):  # loop over derivative orders
-            left = self.left_limit(m)[1:]
+            # The top order is constant on each piece: its left limit is the previous right value.
+            left = self.derivatives[d, :-1] if m == d else self.left_limit(m)[1:]
             right = self.derivatives[m, 1:]
-            diff = right - left
-            noise = _JUMP_RELATIVE_TOLERANCE * (np.abs(right) + np.abs(left))
-            jumps[m, 1:] = np.where(np.abs(diff) <= noise, 0.0, diff)
+            diff = jumps[m, 1:]
+            np.subtract(right, left, out=diff)
+            # |diff| <= noise = tol (|right| + |left|) can only hold where |diff| <= 2 tol max(|right|, |left|):
+            # the exact test runs on those candidates only (no temporary of the samples' size in floats).
+            largest = self.max_abs(m) if m == d else max(self.max_abs(m), float(left.max()), -float(left.min()))
+            bound = 2.0 * _JUMP_RELATIVE_TOLERANCE * largest
+            candidates = np.flatnonzero((diff <= bound) & (diff >= -bound))
+            if candidates.size:
+                noise = _JUMP_RELATIVE_TOLERANCE * (np.abs(right[candidates]) + np.abs(left[candidates]))
+                diff[candidates[np.abs(diff[candidates]) <= noise]] = 0.0
         jumps.setflags(write=False)
         return jumps
 
@@ -154,10 +189,14 @@ class PiecewiseCommand:
         """
         return self._jumps
 
-    def end_index(self) -> int:
-        """Index of the last breakpoint where the command changes (its end, for residual metrics)."""
+    @cached_property
+    def _end_index(self) -> int:
         changed = np.flatnonzero(np.any(self.jumps() != 0.0, axis=0))
         return int(changed[-1]) if changed.size else 0
+
+    def end_index(self) -> int:
+        """Index of the last breakpoint where the command changes (its end, for residual metrics)."""
+        return self._end_index
 
     def evaluate(self, m: int, t: ArrayLike) -> NDArray[np.float64]:
         """p^(m)(t) at arbitrary times (right-continuous)."""
@@ -261,19 +300,21 @@ class PiecewiseCommand:
 
         After the last sample the held quantity keeps its last value.
         """
-        t = check_time_grid(time_s, f"{field}.time_s")
+        t, h = _checked_grid(time_s, f"{field}.time_s")
         u = _check_samples(values, t, f"{field}.{DERIVATIVE_NAMES[order]}")
         for m, value in enumerate(initial):
             if not (math.isfinite(value) and abs(value) <= MAX_ABS_VALUE):
                 raise InvalidParameter(
                     f"{field}.{DERIVATIVE_NAMES[m]}[0]", value, f"must be finite and within +-{MAX_ABS_VALUE:g}"
                 )
-        h = np.diff(t)
         degree = {"linear": order + 1, "zero": order, "cubic": order + 3}[hold]
-        der = np.zeros((degree + 1, t.size))
+        der = np.zeros((degree + 1, t.size)) if hold == "cubic" else np.empty((degree + 1, t.size))
         der[order] = u
         if hold == "linear":
-            der[order + 1, :-1] = np.diff(u) / h
+            slope = der[order + 1, :-1]
+            np.subtract(u[1:], u[:-1], out=slope)
+            slope /= h
+            der[order + 1, -1] = 0.0
         elif hold == "cubic":
             if slopes is None:
                 raise InvalidParameter(
@@ -288,11 +329,17 @@ class PiecewiseCommand:
             increments = _taylor_step(der[:, :-1], h, m, degree, start=m + 1)
             start = initial[m] if m < len(initial) else 0.0
             der[m, 0] = start
-            der[m, 1:] = start + np.cumsum(increments)
+            np.cumsum(increments, out=der[m, 1:])
+            if start != 0.0:
+                der[m, 1:] += start
         # Orders that cannot jump after t_0. The cubic hold's slope is continuous inside but drops
         # to zero after the last sample, so its jumps are computed (round-off is zeroed there).
         continuous = {"linear": order + 1, "zero": order, "cubic": order + 1}[hold]
-        return cls(t, der, continuous_orders=continuous)
+        command = cls(t, der, continuous_orders=continuous)
+        h.setflags(write=False)
+        command.__dict__["steps_s"] = h  # computed by the grid check
+        command.__dict__["_max_abs_cache"] = {order: max(float(u.max()), -float(u.min()))} if hold != "cubic" else {}
+        return command
 
     def resampled(self, period_s: float, end_s: float | None = None) -> PiecewiseCommand:
         """The same command on a uniform grid of ``period_s`` from t_0 to ``end_s`` (default: the
@@ -310,8 +357,24 @@ class PiecewiseCommand:
         t = np.union1d(grid[~near], inside)
         if t[-1] < stop:
             t = np.append(t, stop)
-        derivatives = np.array([self.evaluate(m, t) for m in range(self.degree + 1)])
-        return PiecewiseCommand(t, derivatives, self.continuous_orders)
+        return PiecewiseCommand(t, self._evaluate_orders(t), self.continuous_orders)
+
+    def _evaluate_orders(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``evaluate(m, t)`` for every order m (one row each), with one search and one set of powers of
+        tau shared by the orders (the same operations per order, so the same numbers)."""
+        k = np.clip(np.searchsorted(self.time_s, t, side="right") - 1, 0, self.time_s.size - 1)
+        tau = t - self.time_s[k]
+        at = self.derivatives[:, k]
+        powers = [tau**j for j in range(self.degree + 1)]
+        before = t < self.time_s[0]
+        out = np.zeros((self.degree + 1, t.size))
+        for m in range(self.degree + 1):  # a loop over orders
+            row = out[m]
+            for n in range(m, self.degree + 1):
+                row += at[n] * powers[n - m] / math.factorial(n - m)
+            if np.any(before):
+                row[before] = self.derivatives[0, 0] if m == 0 else 0.0
+        return out
 
     @classmethod
     def from_derivatives(cls, time_s: ArrayLike, derivatives: ArrayLike) -> PiecewiseCommand:

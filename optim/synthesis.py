@@ -228,7 +228,15 @@ def _check_sensitivity_work(
 def rigid_reference(problem: Problem) -> PiecewiseCommand:
     """The unshaped rigid command under the same limits: the time-optimal move at the acceleration
     limit (bang-bang, or a trapezoidal velocity at ``max_velocity``; jerk limits ignored), or without
-    an acceleration limit the step itself (of position, or of velocity for rest-to-velocity)."""
+    an acceleration limit the step itself (of position, or of velocity for rest-to-velocity). Built once per
+    problem (its jumps and end serve every percentage of the answer)."""
+    cache: dict[str, PiecewiseCommand] = problem.__dict__.setdefault("_rigid_reference", {})
+    if "command" not in cache:
+        cache["command"] = _rigid_reference(problem)
+    return cache["command"]
+
+
+def _rigid_reference(problem: Problem) -> PiecewiseCommand:
     move, accel, top = abs(problem.move), problem.acceleration_limit, problem.limits.max_velocity
     if accel is None:
         derivatives = [[0.0, move]] if problem.rest_to_rest else [[0.0, 0.0], [0.0, move]]

@@ -273,7 +273,10 @@ class StapFamily(BaseFamily):
             return None
         mode = problem.plant.modes()[0]
         closed = (zetas == 0.0) & (detail.move is None)
-        grid = sensitivity(design.command, mode.natural_frequency_rad_s, ratios, zetas).residual.copy()
+        grid = np.empty((zetas.size, ratios.size))
+        if not np.all(closed):  # the free state only for the rows the closed form does not give
+            free = ~closed
+            grid[free] = sensitivity(design.command, mode.natural_frequency_rad_s, ratios, zetas[free]).residual
         if np.any(closed):
             grid[closed] = stap_sensitivity(detail.stap, mode.natural_frequency_hz, ratios)
         curve = sensitivity_curve(problem, design.command, ratios, zetas, rows=grid)
