@@ -12,7 +12,7 @@ from app.examples import CUSIMANO_8HZ, INCERTI_TABLE_III
 from app.responses import CSV_RESPONSE_DOC, OutputDep, respond
 from app.schemas.pseudo_polynomial import FAMILY, PseudoPolynomialIn, PseudoPolynomialOut
 
-router = APIRouter(prefix="/v1", tags=["pseudo-polynomial"])
+router = APIRouter(prefix="/v1", tags=["pseudo-polynomial"], route_class=problems.JSONRoute)
 
 EXAMPLES: dict[str, dict[str, Any]] = {
     "incerti_table_iii": {

@@ -14,7 +14,7 @@ from app.responses import CSV_RESPONSE_DOC, NumpyJSONResponse, OutputDep, respon
 from app.schemas.shapers import FAMILY, InputShapedRequest, InputShapedResponse, ShaperCatalogue
 from optim.shapers import catalogue
 
-router = APIRouter(prefix="/v1", tags=["shapers"])
+router = APIRouter(prefix="/v1", tags=["shapers"], route_class=problems.JSONRoute)
 
 BAND_THRESHOLD = 0.05
 

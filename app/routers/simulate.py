@@ -15,7 +15,7 @@ from app.schemas.simulate import SimulateRequest, SimulateResponse, load_out, me
 from models.simulation import metrics, simulate
 from optim.problem import VIBRATION_FRACTION_OF_MOVE
 
-router = APIRouter(prefix="/v1", tags=["simulation"])
+router = APIRouter(prefix="/v1", tags=["simulation"], route_class=problems.JSONRoute)
 
 
 @router.post(

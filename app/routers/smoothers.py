@@ -19,7 +19,7 @@ from app.examples import BIAGIOTTI_PLANT, T0_S
 from app.responses import CSV_RESPONSE_DOC, OutputDep, respond
 from app.schemas.smoothers import FAMILY, SmootherRequest, SmootherResponse
 
-router = APIRouter(prefix="/v1", tags=["smoothers"])
+router = APIRouter(prefix="/v1", tags=["smoothers"], route_class=problems.JSONRoute)
 
 SMOOTHER_EXAMPLES: dict[str, dict[str, Any]] = {
     "biagiotti_damped_harmonic": {

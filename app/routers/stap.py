@@ -12,7 +12,7 @@ from app.examples import CUSIMANO_8HZ, CUSIMANO_40HZ
 from app.responses import CSV_RESPONSE_DOC, OutputDep, respond
 from app.schemas.stap import FAMILY, StapIn, StapOut
 
-router = APIRouter(prefix="/v1", tags=["stap"])
+router = APIRouter(prefix="/v1", tags=["stap"], route_class=problems.JSONRoute)
 
 CUSIMANO_8HZ_LIGHT_LOAD: dict[str, Any] = {
     "kind": "two_inertia",

@@ -11,7 +11,7 @@ from app.deps import PoolDep, SettingsDep
 from app.responses import CSV_RESPONSE_DOC, OutputDep, respond
 from app.schemas.time_optimal import FAMILY, TimeOptimalIn, TimeOptimalOut
 
-router = APIRouter(prefix="/v1", tags=["time-optimal"])
+router = APIRouter(prefix="/v1", tags=["time-optimal"], route_class=problems.JSONRoute)
 
 _40HZ = {"plant": {"kind": "mode", "natural_frequency_hz": 40.0, "damping_ratio": 0.0}, "displacement": 0.12}
 _LIMITS = {"max_velocity": 5.0, "max_acceleration": 10.0}
