@@ -17,6 +17,7 @@ from fastapi import APIRouter, FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.routing import APIRoute
 from pydantic import BaseModel, ConfigDict, Field
+from starlette.concurrency import run_in_threadpool
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.responses import Response
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
@@ -542,6 +543,9 @@ def parse_json(body: bytes, *, exact_integers: bool = False) -> Any:
         return json.loads(body)
 
 
+PARSE_IN_THREAD_BYTES = 256 * 1024  # above it a thread hop (~0.1 ms) is worth not blocking the event loop
+
+
 class JSONRequest(Request):
     """Starlette's request whose ``json()`` is ``parse_json``: FastAPI reads every JSON body through it
     (``fastapi.routing.get_request_handler``)."""
@@ -550,7 +554,11 @@ class JSONRequest(Request):
 
     async def json(self) -> Any:
         if not hasattr(self, "_json"):
-            self._json = parse_json(await self.body(), exact_integers=self.exact_integers)
+            body = await self.body()
+            if len(body) > PARSE_IN_THREAD_BYTES:  # megabytes of samples: parsed off the event loop
+                self._json = await run_in_threadpool(parse_json, body, exact_integers=self.exact_integers)
+            else:
+                self._json = parse_json(body, exact_integers=self.exact_integers)
         return self._json
 
 

@@ -320,6 +320,9 @@ def npz_body(answer: dict[str, Any]) -> bytes:
     return buffer.getvalue()
 
 
+RENDER_IN_THREAD_SAMPLES = 10_000  # a larger answer is written in a thread (a 1k-sample one costs less than a hop)
+
+
 def render(output: Output, answer: dict[str, Any]) -> Response:
     """The answer as JSON (default) or npz, holding what ``output.fields`` selects."""
     shaped = shape(answer, output.fields)
@@ -369,6 +372,8 @@ def comment_lines(title: str, body: ProfileRequest, answer: dict[str, Any], tabl
 async def respond(output: Output, answer: dict[str, Any], result: Result, body: ProfileRequest, title: str) -> Response:
     """JSON by default (or npz, ``render``); the CSV table on the uniform grid when the client asks for it."""
     if not output.csv:
+        if result.command.time_s.size > RENDER_IN_THREAD_SAMPLES:  # orjson holds the GIL, not the event loop
+            return await run_in_threadpool(render, output, answer)
         return render(output, answer)
     table = await run_in_threadpool(tables.table, result, output.columns or tables.PROFILE_COLUMNS)
     lines = comment_lines(title, body, answer, table) if output.comments else []
