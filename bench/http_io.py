@@ -44,9 +44,11 @@ from typing import Any
 
 import numpy as np
 import orjson
+import structlog
 
 ROOT = Path(__file__).resolve().parent.parent
-logging.disable(logging.INFO)  # the in-process runs' solve lines
+logging.disable(logging.INFO)  # the in-process runs' solve lines (stdlib)
+structlog.configure(wrapper_class=structlog.make_filtering_bound_logger(logging.WARNING))  # (structlog)
 sys.path.insert(0, str(ROOT))
 
 OLD_COMMIT = "e89cdee"
@@ -163,11 +165,18 @@ class Client:
         self, path: str, body: bytes, accept: str = "application/json"
     ) -> tuple[float, int, dict[str, str], bytes]:
         headers = {"content-type": "application/json", "accept": accept}
-        started = time.perf_counter()
-        self.connection.request("POST", path, body=body, headers=headers)
-        response = self.connection.getresponse()
-        data = response.read()
-        elapsed = time.perf_counter() - started
+        for attempt in (1, 2):
+            try:
+                started = time.perf_counter()
+                self.connection.request("POST", path, body=body, headers=headers)
+                response = self.connection.getresponse()
+                data = response.read()
+                elapsed = time.perf_counter() - started
+                break
+            except (ConnectionError, http.client.RemoteDisconnected):  # closed after 5 s idle (keep-alive)
+                self.connection.close()
+                if attempt == 2:
+                    raise
         return elapsed, response.status, dict(response.getheaders()), data
 
     def close(self) -> None:

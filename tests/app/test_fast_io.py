@@ -253,3 +253,73 @@ def test_npz_and_fields_are_documented(client):
         names = {p["name"] for p in operation["parameters"]}
         assert {"fields", "format"} <= names
         assert "np.load(io.BytesIO(r.content))" in operation["responses"]["200"]["description"]
+
+
+# ---------------------------------------------------------------------------------------------- the HTTP parser
+
+
+async def tiny_app(scope: dict[str, Any], receive: Any, send: Any) -> None:
+    """An ASGI app that answers 200 to any request: what the HTTP parser lets through, without the service."""
+    if scope["type"] == "lifespan":
+        while (await receive())["type"] != "lifespan.shutdown":
+            await send({"type": "lifespan.startup.complete"})
+        await send({"type": "lifespan.shutdown.complete"})
+        return
+    await send({"type": "http.response.start", "status": 200, "headers": [(b"content-length", b"2")]})
+    await send({"type": "http.response.body", "body": b"ok"})
+
+
+def _first_line(port: int, request: bytes) -> bytes:
+    import socket
+
+    with socket.create_connection(("127.0.0.1", port), timeout=20) as s:
+        try:
+            s.sendall(request)
+            return s.recv(100).split(b"\r\n")[0]
+        except ConnectionError:  # the server closed before the client finished sending: refused too
+            return b"reset"
+
+
+@pytest.mark.parametrize("http", ["makefile", "httptools"])
+def test_a_huge_header_is_refused_by_the_served_parser_only(http):
+    """The Makefile's SERVE_FLAGS (h11, 16 KiB of incomplete headers) refuse a 1 MB header; httptools (installed
+    with uvicorn[standard]) takes it, and 10 MB: it has no header cap, which is why h11 stays pinned."""
+    import re
+    import shlex
+    import socket
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    text = (root / "Makefile").read_text()
+    flags = shlex.split(re.search(r"^SERVE_FLAGS \?=((?:.*\\\n)*.*)$", text, re.M).group(1).replace("\\\n", " "))
+    if http == "httptools":
+        at = flags.index("--h11-max-incomplete-event-size")
+        flags = [f for i, f in enumerate(flags) if i not in (at, at + 1)]
+        flags[flags.index("--http") + 1] = "httptools"
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    command = [sys.executable, "-m", "uvicorn", "tests.app.test_fast_io:tiny_app", "--port", str(port), *flags]
+    server = subprocess.Popen(command, cwd=root, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 60
+        while True:
+            try:
+                if _first_line(port, b"GET / HTTP/1.1\r\nhost: x\r\n\r\n") == b"HTTP/1.1 200 OK":
+                    break
+            except OSError:
+                pass
+            assert time.monotonic() < deadline and server.poll() is None, "uvicorn did not start"
+            time.sleep(0.2)
+        huge = b"GET / HTTP/1.1\r\nhost: x\r\nx-big: " + b"a" * 1_000_000 + b"\r\n\r\n"
+        answer = _first_line(port, huge)
+        if http == "makefile":
+            assert answer in (b"HTTP/1.1 400 Bad Request", b"reset")
+        else:
+            assert answer == b"HTTP/1.1 200 OK"  # no cap: the reason for the h11 pin
+    finally:
+        server.terminate()
+        server.wait(20)
