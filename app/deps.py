@@ -6,8 +6,16 @@ from typing import Annotated
 
 from fastapi import Depends, Request
 
-from app.settings import Settings, get_settings
+from app.settings import Settings
 from optim.workers import SolverPool
+
+
+async def get_app_settings(request: Request) -> Settings:
+    """The app's own settings (``create_app``). Not a ``dependency_overrides`` entry: with any override FastAPI
+    rebuilds the dependant of every sub-dependency on every request (``solve_dependencies``), a quarter of a
+    1k-sample STAP request's time in bench/http_io.py's profile."""
+    settings: Settings = request.app.state.settings
+    return settings
 
 
 async def get_pool(request: Request) -> SolverPool:  # async: FastAPI would run a plain def in a thread
@@ -15,5 +23,5 @@ async def get_pool(request: Request) -> SolverPool:  # async: FastAPI would run 
     return pool
 
 
-SettingsDep = Annotated[Settings, Depends(get_settings)]
+SettingsDep = Annotated[Settings, Depends(get_app_settings)]
 PoolDep = Annotated[SolverPool, Depends(get_pool)]

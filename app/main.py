@@ -76,13 +76,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         redoc_url=None,
         generate_unique_id_function=lambda route: route.name,  # operation ids: stap_profile, compare, ...
     )
-    app.state.settings = settings
+    app.state.settings = settings  # the routes' SettingsDep (app.deps.get_app_settings)
     observability.install(app)
-
-    async def configured_settings() -> Settings:  # async: a plain def would cost a thread hop per request
-        return settings
-
-    app.dependency_overrides[get_settings] = configured_settings
     problems.install(app)
     app.add_middleware(problems.BodySizeLimit, max_bytes=settings.max_body_bytes)
     routers = (

@@ -19,7 +19,7 @@ from fastapi.exceptions import RequestValidationError
 from pydantic import ValidationError
 
 from app import problems, services
-from app.responses import comment_lines, csv_body, dumps
+from app.responses import comment_lines, csv_body, drop_duplicates, dumps
 from app.routers import compare as compare_route
 from app.schemas.family import ProfileRequest
 from app.schemas.registry import REQUEST_SCHEMAS
@@ -77,7 +77,7 @@ def synthesize(family: str, request: Mapping[str, Any] | str | bytes, *, setting
     name, model = _family(family)
     body = _validate(model, request)
     answer, result = _run(services.design(REGISTRY[name], body, settings or get_settings(), InlineExecutor()))
-    return Synthesis(name, body, answer, result)
+    return Synthesis(name, body, drop_duplicates(answer), result)  # as the endpoint answers (no load.time_s)
 
 
 def compare(request: Mapping[str, Any] | str | bytes, *, settings: Settings | None = None) -> dict[str, Any]:

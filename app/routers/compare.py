@@ -31,7 +31,7 @@ from optim.problem import Problem
 from optim.synthesis import Result, load_arrays
 from optim.workers import Executor
 
-router = APIRouter(prefix="/v1", tags=["compare"])
+router = APIRouter(prefix="/v1", tags=["compare"], route_class=problems.JSONRoute)
 FamilyName = Literal["time_optimal", "pseudo_polynomial", "stap", "smoother", "input_shaped"]
 DEFAULT_SENSITIVITY = SensitivityIn(min_ratio=0.5, max_ratio=1.5, count=201)
 

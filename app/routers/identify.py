@@ -39,7 +39,7 @@ from optim.record_csv import parse_record_csv
 from optim.smoothers import identify, tuned_duration_s, vibration_free_durations_s
 from optim.workers import Executor, InlineExecutor
 
-router = APIRouter(prefix="/v1", tags=["smoothers"])
+router = APIRouter(prefix="/v1", tags=["smoothers"], route_class=problems.JSONRoute)
 
 CSV_MEDIA_TYPE = "text/csv"
 

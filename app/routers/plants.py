@@ -11,7 +11,7 @@ from app.examples import PLANT_EXAMPLES
 from app.schemas.common import StrictModel
 from app.schemas.plants import PlantAnalysis, PlantIn, analyse, to_plant
 
-router = APIRouter(prefix="/v1/plants", tags=["plants"])
+router = APIRouter(prefix="/v1/plants", tags=["plants"], route_class=problems.JSONRoute)
 
 
 class AnalyzeRequest(StrictModel):

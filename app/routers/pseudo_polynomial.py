@@ -4,15 +4,15 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Body, Response
+from fastapi import APIRouter, Body, Depends, Response
 
 from app import problems, services
 from app.deps import PoolDep, SettingsDep
 from app.examples import CUSIMANO_8HZ, INCERTI_TABLE_III
-from app.responses import CSV_RESPONSE_DOC, OutputDep, respond
+from app.responses import CSV_RESPONSE_DOC, Output, ProfileOutput, respond
 from app.schemas.pseudo_polynomial import FAMILY, PseudoPolynomialIn, PseudoPolynomialOut
 
-router = APIRouter(prefix="/v1", tags=["pseudo-polynomial"])
+router = APIRouter(prefix="/v1", tags=["pseudo-polynomial"], route_class=problems.JSONRoute)
 
 EXAMPLES: dict[str, dict[str, Any]] = {
     "incerti_table_iii": {
@@ -47,7 +47,7 @@ async def pseudo_polynomial_profile(
     body: Annotated[PseudoPolynomialIn, Body(openapi_examples=EXAMPLES)],
     settings: SettingsDep,
     pool: PoolDep,
-    output: OutputDep,
+    output: Annotated[Output, Depends(ProfileOutput(PseudoPolynomialOut))],
 ) -> Response:
     """Chooses the exponents of phi(t) = Phi [1 - sum C_i (1 - t/T)^gamma_i] so that the plant is left
     with no vibration energy when the move ends, within the limits, by IPOPT in a worker process.

@@ -5,16 +5,16 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Body, Query, Response
+from fastapi import APIRouter, Body, Depends, Query, Response
 
 from app import problems, services
 from app.deps import PoolDep, SettingsDep
 from app.examples import CHATLATANAGULCHAI_EQ3
-from app.responses import CSV_RESPONSE_DOC, NumpyJSONResponse, OutputDep, respond
+from app.responses import CSV_RESPONSE_DOC, NumpyJSONResponse, Output, ProfileOutput, respond
 from app.schemas.shapers import FAMILY, InputShapedRequest, InputShapedResponse, ShaperCatalogue
 from optim.shapers import catalogue
 
-router = APIRouter(prefix="/v1", tags=["shapers"])
+router = APIRouter(prefix="/v1", tags=["shapers"], route_class=problems.JSONRoute)
 
 BAND_THRESHOLD = 0.05
 
@@ -63,7 +63,7 @@ async def input_shaped_profile(
     body: Annotated[InputShapedRequest, Body(openapi_examples=INPUT_SHAPED_EXAMPLES)],
     settings: SettingsDep,
     pool: PoolDep,
-    output: OutputDep,
+    output: Annotated[Output, Depends(ProfileOutput(InputShapedResponse))],
 ) -> Response:
     """Shape a velocity step or a rest-to-rest move for the plant's mode(s) and keep it within the
     drive's acceleration limit.

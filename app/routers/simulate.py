@@ -4,30 +4,32 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Body
+from fastapi import APIRouter, Body, Depends
+from starlette.responses import Response
 
 from app import problems
 from app.deps import SettingsDep
 from app.examples import SIMULATE_EXAMPLES
-from app.responses import NumpyJSONResponse
+from app.responses import ARRAY_RESPONSE_DOC, ArrayOutput, Output, render
 from app.schemas.plants import to_plant
 from app.schemas.simulate import SimulateRequest, SimulateResponse, load_out, metrics_out, profile_out, to_command
 from models.simulation import metrics, simulate
 from optim.problem import VIBRATION_FRACTION_OF_MOVE
 
-router = APIRouter(prefix="/v1", tags=["simulation"])
+router = APIRouter(prefix="/v1", tags=["simulation"], route_class=problems.JSONRoute)
 
 
 @router.post(
     "/simulate",
     summary="Load response of a plant to a sampled motor command",
     response_model=SimulateResponse,
-    responses=problems.responses(413, 422),
+    responses={**ARRAY_RESPONSE_DOC, **problems.responses(413, 422)},
 )
 def simulate_profile(
     request: Annotated[SimulateRequest, Body(openapi_examples=SIMULATE_EXAMPLES)],
     settings: SettingsDep,
-) -> NumpyJSONResponse:
+    output: Annotated[Output, Depends(ArrayOutput(SimulateResponse))],
+) -> Response:
     """Simulate the plant, started at rest, driven by the command, exactly for the chosen hold
     between samples. The metrics measure the load's free oscillation from the state at the
     command's end (not a sampled peak), so they do not depend on the horizon."""
@@ -40,11 +42,10 @@ def simulate_profile(
     result = metrics(
         response, tolerance, request.settling_window, vibration_window, vibration_fraction=VIBRATION_FRACTION_OF_MOVE
     )
-    return NumpyJSONResponse(
-        {
-            "profile": profile_out(command),
-            "load": load_out(response),
-            "metrics": metrics_out(result),
-            "warnings": warnings,
-        }
-    )
+    answer = {
+        "profile": profile_out(command),
+        "load": load_out(response),
+        "metrics": metrics_out(result),
+        "warnings": warnings,
+    }
+    return render(output, answer)

@@ -10,16 +10,16 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Body
+from fastapi import APIRouter, Body, Depends
 from starlette.responses import Response
 
 from app import problems, services
 from app.deps import PoolDep, SettingsDep
 from app.examples import BIAGIOTTI_PLANT, T0_S
-from app.responses import CSV_RESPONSE_DOC, OutputDep, respond
+from app.responses import CSV_RESPONSE_DOC, Output, ProfileOutput, respond
 from app.schemas.smoothers import FAMILY, SmootherRequest, SmootherResponse
 
-router = APIRouter(prefix="/v1", tags=["smoothers"])
+router = APIRouter(prefix="/v1", tags=["smoothers"], route_class=problems.JSONRoute)
 
 SMOOTHER_EXAMPLES: dict[str, dict[str, Any]] = {
     "biagiotti_damped_harmonic": {
@@ -94,7 +94,7 @@ async def smoother_profile(
     body: Annotated[SmootherRequest, Body(openapi_examples=SMOOTHER_EXAMPLES)],
     settings: SettingsDep,
     pool: PoolDep,
-    output: OutputDep,
+    output: Annotated[Output, Depends(ProfileOutput(SmootherResponse))],
 ) -> Response:
     """A step of ``displacement`` filtered by a chain of FIR smoothers (Biagiotti et al. 2020).
 

@@ -4,15 +4,15 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Body, Response
+from fastapi import APIRouter, Body, Depends, Response
 
 from app import problems, services
 from app.deps import PoolDep, SettingsDep
 from app.examples import CUSIMANO_8HZ, CUSIMANO_40HZ
-from app.responses import CSV_RESPONSE_DOC, OutputDep, respond
+from app.responses import CSV_RESPONSE_DOC, Output, ProfileOutput, respond
 from app.schemas.stap import FAMILY, StapIn, StapOut
 
-router = APIRouter(prefix="/v1", tags=["stap"])
+router = APIRouter(prefix="/v1", tags=["stap"], route_class=problems.JSONRoute)
 
 CUSIMANO_8HZ_LIGHT_LOAD: dict[str, Any] = {
     "kind": "two_inertia",
@@ -107,7 +107,7 @@ async def stap_profile(
     body: Annotated[StapIn, Body(openapi_examples=EXAMPLES)],
     settings: SettingsDep,
     pool: PoolDep,
-    output: OutputDep,
+    output: Annotated[Output, Depends(ProfileOutput(StapOut))],
 ) -> Response:
     """Designs t_a and t_j of a symmetric trapezoidal acceleration profile (rest-to-velocity, or a rest-to-rest
     move made of two of them and a cruise) so that the load is left without vibration at the estimated

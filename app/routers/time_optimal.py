@@ -4,14 +4,14 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Body, Response
+from fastapi import APIRouter, Body, Depends, Response
 
 from app import problems, services
 from app.deps import PoolDep, SettingsDep
-from app.responses import CSV_RESPONSE_DOC, OutputDep, respond
+from app.responses import CSV_RESPONSE_DOC, Output, ProfileOutput, respond
 from app.schemas.time_optimal import FAMILY, TimeOptimalIn, TimeOptimalOut
 
-router = APIRouter(prefix="/v1", tags=["time-optimal"])
+router = APIRouter(prefix="/v1", tags=["time-optimal"], route_class=problems.JSONRoute)
 
 _40HZ = {"plant": {"kind": "mode", "natural_frequency_hz": 40.0, "damping_ratio": 0.0}, "displacement": 0.12}
 _LIMITS = {"max_velocity": 5.0, "max_acceleration": 10.0}
@@ -74,7 +74,7 @@ async def time_optimal_profile(
     body: Annotated[TimeOptimalIn, Body(openapi_examples=EXAMPLES)],
     settings: SettingsDep,
     pool: PoolDep,
-    output: OutputDep,
+    output: Annotated[Output, Depends(ProfileOutput(TimeOptimalOut))],
 ) -> Response:
     """The shortest motor command within the limits that leaves the load without residual vibration at the
     plant's modes (exactly zero), or whose percentage vibration V stays <= robustness.max_percentage_vibration

@@ -110,9 +110,15 @@ class ProfileOut(OutModel):
 
 
 class LoadOut(OutModel):
-    """The predicted load motion at the same times."""
+    """The predicted load motion, at the times of the command that was simulated (``profile.time_s``; on
+    /v1/profiles/input-shaped ``rate_limited.time_s``, what the drive makes of the profile)."""
 
-    time_s: list[float]
+    time_s: list[float] | None = Field(
+        None,
+        deprecated=True,
+        description="Deprecated: the same array as profile.time_s (rate_limited.time_s for input-shaped), so it "
+        "is left out of the answer; returned only when asked for by `fields=load.time_s`.",
+    )
     position: list[float] = Field(description="Load position, in the load's units (platform rad for belt_platform).")
     velocity: list[float]
     acceleration: list[float]
