@@ -401,7 +401,7 @@ class DaskExecutor:
         from distributed import Client
 
         try:
-            client = await Client(address, asynchronous=True, timeout=timeout_s)  # type: ignore[misc]
+            client = await Client(address, asynchronous=True, timeout=timeout_s)  # type: ignore[no-untyped-call]
         except (OSError, TimeoutError) as exc:
             raise PoolUnavailable(f"cannot reach the Dask scheduler at {address}: {exc}") from None
         try:
@@ -417,7 +417,7 @@ class DaskExecutor:
         several = [w for w, n in threads.items() if n > 1]
         if several:
             log.warning("dask workers with several threads: IPOPT is not thread-safe", extra={"workers": several})
-        return max(1, sum(threads.values()))
+        return max(1, int(sum(threads.values())))
 
     async def run(self, fn: Callable[..., T], *args: Any, deadline_s: float) -> T:
         future = self.client.submit(warmed, self.caps, fn, *args, pure=False)
