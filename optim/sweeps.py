@@ -33,9 +33,8 @@ from typing import Any, TypeVar
 
 from models.commands import PiecewiseCommand
 from models.errors import InvalidParameter, PoolUnavailable
-from optim.family import FAMILIES, warm_up_all
+from optim.family import FAMILIES
 from optim.problem import Problem
-from optim.solver import SolveCaps
 from optim.synthesis import Result, nominal_percentage_vibration, synthesize
 from optim.workers import Executor, SolveTimeout
 
@@ -46,7 +45,7 @@ RETRY_FIRST_S = 0.05  # a refused submission (pool busy or starting) is retried 
 RETRY_MAX_S = 1.0
 BISECT_RTOL = 1e-9  # an interval narrower than this (relative) is not bisected further
 
-_warm = False  # this process has built its solvers (a Dask worker on its first point)
+_warm: set[str] = set()  # the families whose solvers this process has built
 
 
 # --- one point, in a worker --------------------------------------------------------------------
@@ -62,19 +61,13 @@ class PointOutcome:
 
 def run_point(family_name: str, problem: Problem, options: Any) -> PointOutcome:
     """Design one point through the family endpoint's pipeline; the row and the design's command only."""
+    family = FAMILIES[family_name]
+    if family_name not in _warm:  # a Dask worker builds the family's solvers on its first point; in the pool's
+        family.warm_up(problem.solver)  # workers (warm since they started) this finds them in the caches
+        _warm.add(family_name)
     started = time.perf_counter()
-    result = synthesize(FAMILIES[family_name], problem, options)
+    result = synthesize(family, problem, options)
     return PointOutcome(point_row(result, time.perf_counter() - started), check_command(result))
-
-
-def warmed(caps: SolveCaps, fn: Callable[..., T], *args: Any) -> T:
-    """``fn(*args)`` in a process that has built every family's solver problems: a Dask worker builds them on its
-    first job (the pool's workers build them when they start)."""
-    global _warm
-    if not _warm:
-        warm_up_all(caps)
-        _warm = True
-    return fn(*args)
 
 
 def point_row(result: Result, elapsed_s: float) -> dict[str, Any]:
@@ -388,16 +381,15 @@ class DaskExecutor:
     """The ``Executor`` of a Dask cluster (``dask.distributed``, an asynchronous ``Client``): each job is one task.
 
     IPOPT is not thread-safe: run the workers with one thread each (``dask worker --nthreads 1``). A worker builds
-    its solvers on its first point (``warmed``). A task that overruns ``deadline_s`` is reported as a timeout
-    and cancelled (a running task finishes under the solver's own caps)."""
+    its family's solvers on its first point (``run_point``). A task that overruns ``deadline_s`` is reported as a
+    timeout and cancelled (a running task finishes under the solver's own caps)."""
 
-    def __init__(self, client: Any, caps: SolveCaps) -> None:
+    def __init__(self, client: Any) -> None:
         self.client = client
-        self.caps = caps
 
     @classmethod
     @asynccontextmanager
-    async def connect(cls, address: str, caps: SolveCaps, timeout_s: float = 10.0) -> AsyncIterator[DaskExecutor]:
+    async def connect(cls, address: str, timeout_s: float = 10.0) -> AsyncIterator[DaskExecutor]:
         from distributed import Client
 
         try:
@@ -405,7 +397,7 @@ class DaskExecutor:
         except (OSError, TimeoutError) as exc:
             raise PoolUnavailable(f"cannot reach the Dask scheduler at {address}: {exc}") from None
         try:
-            yield cls(client, caps)
+            yield cls(client)
         finally:
             await client.close()
 
@@ -420,7 +412,7 @@ class DaskExecutor:
         return max(1, int(sum(threads.values())))
 
     async def run(self, fn: Callable[..., T], *args: Any, deadline_s: float) -> T:
-        future = self.client.submit(warmed, self.caps, fn, *args, pure=False)
+        future = self.client.submit(fn, *args, pure=False)
         try:
             result: T = await asyncio.wait_for(future, deadline_s)
             return result

@@ -158,7 +158,7 @@ def sweep(
                     on_line(line)
 
         if address:
-            async with DaskExecutor.connect(address, settings.solve_caps) as dask:
+            async with DaskExecutor.connect(address) as dask:
                 await collect(dask, 2 * await dask.capacity())
         else:
             await collect(InlineExecutor(), 1)

@@ -316,8 +316,6 @@ async def sweep(
     executor: Executor = pool
     capacity = None
     if settings.dask_scheduler:
-        dask = await stack.enter_async_context(
-            engine.DaskExecutor.connect(settings.dask_scheduler, settings.solve_caps)
-        )
+        dask = await stack.enter_async_context(engine.DaskExecutor.connect(settings.dask_scheduler))
         executor, capacity = dask, 2 * await dask.capacity()
     return NDJSONResponse(_stream(plan, executor, capacity, stack))
