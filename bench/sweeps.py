@@ -30,6 +30,9 @@ import httpx2 as httpx
 import orjson
 
 ROOT = Path(__file__).resolve().parent.parent
+# uvloop (uvicorn's default loop where it is installed) breaks the solver pool's supervision: busy workers are
+# "replaced" (exit code None) mid-solve. Until optim.workers is fixed for it, the server runs asyncio's loop.
+LOOP = ("--loop", "asyncio")
 sys.path.insert(0, str(ROOT))
 
 from app.settings import Settings  # noqa: E402  (bench/ scripts run from anywhere, like the others)
@@ -52,7 +55,7 @@ def free_port() -> int:
 @contextmanager
 def server(env: dict[str, str] | None = None) -> Iterator[str]:
     port = free_port()
-    command = [sys.executable, "-m", "uvicorn", "app.main:app", "--port", str(port), "--log-level", "warning"]
+    command = [sys.executable, "-m", "uvicorn", "app.main:app", "--port", str(port), "--log-level", "warning", *LOOP]
     process = subprocess.Popen(
         command, cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT), **(env or {})}, stdout=subprocess.DEVNULL
     )

@@ -36,13 +36,14 @@ from models.errors import InvalidParameter, PoolUnavailable
 from optim.family import FAMILIES
 from optim.problem import Problem
 from optim.synthesis import Result, nominal_percentage_vibration, synthesize
-from optim.workers import Executor, SolveTimeout
+from optim.workers import Executor, PoolBusy, SolveTimeout
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
 
 RETRY_FIRST_S = 0.05  # a refused submission (pool busy or starting) is retried after this, doubling
 RETRY_MAX_S = 1.0
+MAX_UNAVAILABLE_RETRIES = 2
 BISECT_RTOL = 1e-9  # an interval narrower than this (relative) is not bisected further
 
 _warm: set[str] = set()  # the families whose solvers this process has built
@@ -186,15 +187,20 @@ Describe = Callable[[Exception, Any], dict[str, Any]]  # a failure and its point
 
 
 async def submit(executor: Executor, fn: Callable[..., T], *args: Any, deadline_s: float) -> T:
-    """``executor.run``, resubmitted while the pool refuses it (busy, or its workers starting) for at most
-    ``deadline_s`` of waiting: a sweep waits for room instead of failing."""
+    """``executor.run``, resubmitted while the pool refuses it (``PoolBusy``: every worker busy and the queue full)
+    for at most ``deadline_s`` of waiting: a sweep waits for room instead of failing. Any other ``PoolUnavailable``
+    (workers starting, or the point's worker died) is retried ``MAX_UNAVAILABLE_RETRIES`` times, so that a point
+    that kills its worker is reported, not run again and again."""
     delay = RETRY_FIRST_S
     waited = 0.0
+    unavailable = 0
     while True:
         try:
             return await executor.run(fn, *args, deadline_s=deadline_s)
-        except PoolUnavailable:
-            if waited >= deadline_s:
+        except PoolUnavailable as exc:
+            if not isinstance(exc, PoolBusy):
+                unavailable += 1
+            if waited >= deadline_s or unavailable > MAX_UNAVAILABLE_RETRIES:
                 raise
             await asyncio.sleep(delay)
             waited += delay

@@ -26,6 +26,9 @@ from app.schemas.sweeps import FAMILY_NAMES, SweepLine
 from vibfree import cli
 
 ROOT = Path(__file__).resolve().parents[2]
+# uvloop (uvicorn's default loop where it is installed) breaks the solver pool's supervision: busy workers are
+# "replaced" (exit code None) mid-solve. Until optim.workers is fixed for it, the server runs asyncio's loop.
+LOOP = ("--loop", "asyncio")
 BASE = {  # the README's 40 Hz time-optimal example
     "plant": {"kind": "mode", "natural_frequency_hz": 40.0, "damping_ratio": 0.0},
     "displacement": 0.12,
@@ -172,7 +175,7 @@ def server() -> Iterator[str]:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
     env = {**os.environ, "PYTHONPATH": str(ROOT), "VIBFREE_WORKERS": "2"}
-    command = [sys.executable, "-m", "uvicorn", "app.main:app", "--port", str(port), "--log-level", "warning"]
+    command = [sys.executable, "-m", "uvicorn", "app.main:app", "--port", str(port), "--log-level", "warning", *LOOP]
     process = subprocess.Popen(command, cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     base = f"http://127.0.0.1:{port}"
     try:

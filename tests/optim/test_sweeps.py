@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from models.errors import InvalidParameter
+from models.errors import InvalidParameter, PoolUnavailable
 from models.plants import make_plant
 from optim import sweeps
 from optim.families.input_shaped import InputShapedOptions
@@ -152,6 +152,25 @@ def test_a_busy_pool_delays_points_and_never_fails_them():
     lines = run([frequency_axis(1.02, 3)], executor=executor, capacity=3)
     assert all(r["ok"] for r in of(lines, "row"))
     assert sorted(executor.refusals.values()) == [3, 3, 3]
+
+
+class DyingWorker:
+    """Every submission meets a worker that stopped unexpectedly (a point that crashes its worker)."""
+
+    def __init__(self) -> None:
+        self.calls = 0
+
+    async def run(self, fn, *args, deadline_s):
+        self.calls += 1
+        raise PoolUnavailable("a solver worker stopped unexpectedly (exit code -11); it is being replaced")
+
+
+def test_a_point_whose_worker_dies_is_retried_twice_then_reported():
+    executor = DyingWorker()
+    lines = run([frequency_axis(1.02, 1)], executor=executor)
+    assert executor.calls == 1 + sweeps.MAX_UNAVAILABLE_RETRIES
+    (row,) = of(lines, "row")
+    assert row["ok"] is False and "stopped unexpectedly" in row["problem"]["detail"]
 
 
 def test_an_invalid_point_is_a_row_with_its_reason_and_the_sweep_goes_on():
