@@ -33,6 +33,10 @@ ROOT = Path(__file__).resolve().parent.parent
 # uvloop (uvicorn's default loop where it is installed) breaks the solver pool's supervision: busy workers are
 # "replaced" (exit code None) mid-solve. Until optim.workers is fixed for it, the server runs asyncio's loop.
 LOOP = ("--loop", "asyncio")
+# Dask's nanny starts its workers with one BLAS thread (distributed's nanny.pre-spawn-environ); the time-optimal
+# design's last bits and IPOPT iteration counts depend on OpenBLAS' thread count, so the service's workers get the
+# same environment here: with it the rows are bit-identical, without it they differ at round-off (1e-15 relative).
+ONE_BLAS_THREAD = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 sys.path.insert(0, str(ROOT))
 
 from app.settings import Settings  # noqa: E402  (bench/ scripts run from anywhere, like the others)
@@ -57,7 +61,10 @@ def server(env: dict[str, str] | None = None) -> Iterator[str]:
     port = free_port()
     command = [sys.executable, "-m", "uvicorn", "app.main:app", "--port", str(port), "--log-level", "warning", *LOOP]
     process = subprocess.Popen(
-        command, cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT), **(env or {})}, stdout=subprocess.DEVNULL
+        command,
+        cwd=ROOT,
+        env={**os.environ, "PYTHONPATH": str(ROOT), **ONE_BLAS_THREAD, **(env or {})},
+        stdout=subprocess.DEVNULL,
     )
     base = f"http://127.0.0.1:{port}"
     try:
@@ -134,6 +141,8 @@ def main() -> int:
     print(f"single designs over HTTP: slowest {slowest:.3f} s, median {sorted(singles)[len(singles) // 2]:.3f} s")
     print(f"slowest design in its worker (the rows' elapsed_s): {in_worker:.3f} s")
     print(f"sweep wall time {wall_s:.2f} s; reference slowest x points / workers = {reference:.2f} s")
+    own = sum(r["elapsed_s"] for r in pool_lines if r["line"] == "row") / workers
+    print(f"the sweep's own designs: sum of elapsed_s / workers = {own:.2f} s (wall / that = {wall_s / own:.2f})")
     ratio = wall_s / reference
     print(f"ratio sweep / reference = {ratio:.2f} (acceptance <= {ACCEPTANCE})")
 
@@ -148,6 +157,10 @@ def main() -> int:
         f"LocalCluster (2 processes x 1 thread): wall {dask_wall_s:.2f} s, ratio to the reference "
         f"{dask_wall_s / reference:.2f}; rows identical to the pool's: {identical}"
     )
+    for a, b in zip(rows(pool_lines), rows(dask_lines), strict=True):
+        differing = {k: (a[k], b.get(k)) for k in a if a[k] != b.get(k)}
+        if differing:
+            print(f"  point {a['index']} differs: {differing}")
     return 0 if ratio <= ACCEPTANCE and identical and summary["failed"] == 0 else 1
 
 
