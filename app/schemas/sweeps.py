@@ -12,7 +12,7 @@ from app.schemas.registry import REQUEST_SCHEMAS
 
 FAMILY_NAMES = tuple(name.replace("_", "-") for name in REQUEST_SCHEMAS)  # the endpoint names
 MAX_AXES = 4
-MAX_AXIS_VALUES = 10_000
+MAX_AXIS_VALUES = 1000  # per axis (the default point cap); bounds the body too
 PATH_PATTERN = r"^[A-Za-z_][A-Za-z0-9_]*(\[[0-9]+\])?(\.[A-Za-z_][A-Za-z0-9_]*(\[[0-9]+\])?)*$"
 DEFAULT_THRESHOLD_PERCENT = 5.0
 MAX_REFINED_POINTS = 1000
