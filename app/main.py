@@ -22,6 +22,7 @@ from app.routers import (
     simulate,
     smoothers,
     stap,
+    sweeps,
     time_optimal,
 )
 from app.settings import Settings, get_settings
@@ -91,6 +92,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         identify,
         shapers,
         compare,
+        sweeps,
         metrics,
         page,
         docs,

@@ -33,6 +33,14 @@ class Settings(BaseSettings):
     worker_niceness: int = Field(
         5, ge=0, le=19, description="Niceness added to the solver workers, so the HTTP process stays responsive."
     )
+    sweep_max_points: int = Field(
+        1000, ge=1, le=100_000, description="Most points of one design sweep, its refinement included (422 above)."
+    )
+    dask_scheduler: str | None = Field(
+        None,
+        description="A Dask scheduler (tcp://host:port): design sweeps run their points on that cluster instead of "
+        "the solver pool (workers with one thread each: IPOPT is not thread-safe).",
+    )
 
     @property
     def solve_caps(self) -> SolveCaps:

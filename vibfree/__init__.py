@@ -17,9 +17,9 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from vibfree.api import FAMILIES, Synthesis, VibfreeError, compare, identify, synthesize
+    from vibfree.api import FAMILIES, Sweep, Synthesis, VibfreeError, compare, identify, sweep, synthesize
 
-__all__ = ["FAMILIES", "Synthesis", "VibfreeError", "compare", "identify", "synthesize"]
+__all__ = ["FAMILIES", "Sweep", "Synthesis", "VibfreeError", "compare", "identify", "sweep", "synthesize"]
 
 
 def __getattr__(name: str) -> Any:

@@ -1,4 +1,4 @@
-"""The Python API: the family endpoints and compare, in-process, over the service's own pipeline.
+"""The Python API: the family endpoints, compare and sweeps, in-process, over the service's own pipeline.
 
 The same request schemas validate the request, the same service layer (``app.services``) runs it, on an
 ``InlineExecutor`` instead of the solver pool (one caller owns the process, so IPOPT runs here), and the
@@ -8,7 +8,7 @@ same code writes the CSV. An error is a ``VibfreeError`` holding the problem+jso
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
@@ -100,6 +100,75 @@ def identify(record: str | bytes, *, settings: Settings | None = None, **params:
     coroutine = identify_csv(text, query, in_process_runner(settings), max_rows=settings.max_samples)
     answer: dict[str, Any] = _run(coroutine)
     return answer
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """A design sweep's NDJSON lines, as ``POST /v1/sweeps`` streams them (``line``: row, check, summary)."""
+
+    lines: list[dict[str, Any]] = field(repr=False)
+
+    @property
+    def rows(self) -> list[dict[str, Any]]:
+        """One per point, sorted by index."""
+        return sorted((x for x in self.lines if x["line"] == "row"), key=lambda r: int(r["index"]))
+
+    @property
+    def checks(self) -> list[dict[str, Any]]:
+        return [x for x in self.lines if x["line"] == "check"]
+
+    @property
+    def summary(self) -> dict[str, Any]:
+        return next(x for x in self.lines if x["line"] == "summary")
+
+    def table(self) -> list[dict[str, Any]]:
+        """One flat row per point (the axes' values, then the numbers): what ``vibfree sweep --out`` writes."""
+        from vibfree.sweep_table import flat_rows
+
+        return flat_rows(self.lines)
+
+
+def sweep(
+    request: Mapping[str, Any] | str | bytes,
+    *,
+    settings: Settings | None = None,
+    scheduler: str | None = None,
+    on_line: Callable[[dict[str, Any]], None] | None = None,
+) -> Sweep:
+    """One family's design across a grid of requests, and the table check, as ``POST /v1/sweeps`` (its lines).
+
+    The points run here, one after the other, or on the Dask cluster at ``scheduler`` (default: the setting
+    ``VIBFREE_DASK_SCHEDULER``); ``on_line`` sees each line as it comes (a progress bar)."""
+    from app.routers import sweeps as route
+    from app.schemas.sweeps import SweepIn
+    from optim.sweeps import DaskExecutor
+
+    body = _validate(SweepIn, request)
+    settings = settings or get_settings()
+    address = scheduler or settings.dask_scheduler
+
+    async def run() -> list[dict[str, Any]]:
+        plan = route.Plan(body, settings)
+        out: list[dict[str, Any]] = []
+
+        async def collect(executor: Any, capacity: int | None) -> None:
+            async for line in route.lines(plan, executor, capacity):
+                out.append(line)
+                if on_line is not None:
+                    on_line(line)
+
+        if address:
+            async with DaskExecutor.connect(address) as dask:
+                await collect(dask, 2 * await dask.capacity())
+        else:
+            await collect(InlineExecutor(), 1)
+        return out
+
+    try:
+        return Sweep(_run(run()))
+    except RequestValidationError as exc:
+        response = problems.invalid_input(problems.validation_errors(exc))
+        raise VibfreeError(orjson.loads(response.body)) from None
 
 
 def _family(family: str) -> tuple[str, type[ProfileRequest]]:

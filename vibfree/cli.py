@@ -1,4 +1,4 @@
-"""``vibfree``: design, compare and identify from the command line, in-process or against a server (``--url``).
+"""``vibfree``: design, compare, identify and sweep from the command line, in-process or against a server (``--url``).
 
 Each command prints a short summary for a person (stderr when the data itself goes to stdout) and writes the
 answer as JSON (``--json FILE``, ``-`` for stdout) or the profile as CSV (``--csv FILE``). Exit status: 0 done,
@@ -109,6 +109,16 @@ def _parser() -> argparse.ArgumentParser:
     _common(identify)
     identify.set_defaults(run=_identify)
 
+    sweep = commands.add_parser(
+        "sweep",
+        help="one family across a grid of requests, and whether the table may be interpolated (POST /v1/sweeps)",
+    )
+    sweep.add_argument("request", help="the sweep body (family, request, axes), a JSON file (- for stdin)")
+    sweep.add_argument("--out", metavar="FILE", help="write one row per point: FILE.csv, FILE.parquet, or - (CSV)")
+    sweep.add_argument("--url", help="a running service (e.g. http://127.0.0.1:8000); default: in-process")
+    sweep.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    sweep.set_defaults(run=_sweep)
+
     serve = commands.add_parser("serve", help="run the HTTP service (uvicorn, the flags of make serve)")
     serve.add_argument("--host", default="127.0.0.1")
     serve.add_argument("--port", type=int, default=8000)
@@ -187,6 +197,49 @@ def _identify(args: argparse.Namespace) -> int:
     print(identify_summary(answer), file=_summary_stream(args.json))
     _write(args.json, orjson.dumps(answer, option=orjson.OPT_INDENT_2 | orjson.OPT_SERIALIZE_NUMPY).decode() + "\n")
     return 0
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from vibfree.sweep_table import flat_rows, summary_text, write_table
+
+    request = _read(args.request)
+    lines: list[dict[str, Any]] = []
+    with tqdm(total=_points(request), unit="point", file=sys.stderr, disable=args.no_progress, leave=False) as bar:
+
+        def seen(line: dict[str, Any]) -> None:
+            lines.append(line)
+            if line.get("line") == "row":
+                if bar.total is not None and line["index"] >= bar.total:
+                    bar.total = line["index"] + 1  # a point refinement added
+                bar.update(1)
+
+        if args.url:
+            for line in _post_lines(args.url, "/v1/sweeps", request):
+                seen(line)
+        else:
+            from vibfree.api import sweep
+
+            _in_process(lambda: sweep(request, on_line=seen))
+    print(summary_text(lines), file=_summary_stream(args.out))
+    if args.out:
+        write_table(args.out, flat_rows(lines))
+    return 0
+
+
+def _points(request: bytes) -> int | None:
+    """The grid's size, for the progress bar (None where the body is not a sweep: the service says why)."""
+    try:
+        sizes = [
+            len(a["values"]) if a.get("values") is not None else int(a["num"]) for a in orjson.loads(request)["axes"]
+        ]
+    except (KeyError, TypeError, ValueError):
+        return None
+    total = 1
+    for size in sizes:
+        total *= size
+    return total
 
 
 def _serve(args: argparse.Namespace) -> int:
@@ -318,17 +371,38 @@ def _post(
         with urllib.request.urlopen(request, timeout=HTTP_TIMEOUT_S) as response:
             return bytes(response.read())
     except urllib.error.HTTPError as exc:
-        payload = exc.read()
-        try:
-            problem = orjson.loads(payload)
-        except orjson.JSONDecodeError:
-            problem = {"status": exc.code, "title": exc.reason, "detail": payload.decode(errors="replace")[:500]}
-        if exc.code == 503 and exc.headers.get("Retry-After"):
-            problem.setdefault("detail", "")
-            problem["detail"] += f" (retry after {exc.headers['Retry-After']} s)"
-        raise Refused(problem) from None
+        raise _refused(exc) from None
     except urllib.error.URLError as exc:
         raise OSError(f"cannot reach {url}: {exc.reason}") from None
+
+
+def _refused(exc: urllib.error.HTTPError) -> Refused:
+    """The service's refusal: its problem+json (a Retry-After added to the detail)."""
+    payload = exc.read()
+    try:
+        problem = orjson.loads(payload)
+    except orjson.JSONDecodeError:
+        problem = {"status": exc.code, "title": exc.reason, "detail": payload.decode(errors="replace")[:500]}
+    if exc.code == 503 and exc.headers.get("Retry-After"):
+        problem.setdefault("detail", "")
+        problem["detail"] += f" (retry after {exc.headers['Retry-After']} s)"
+    return Refused(problem)
+
+
+def _post_lines(url: str, path: str, body: bytes) -> Iterator[dict[str, Any]]:
+    """POST and read the NDJSON answer line by line, as the service streams it."""
+    target = url.rstrip("/") + path
+    request = urllib.request.Request(target, data=body, method="POST", headers={"content-type": "application/json"})
+    try:
+        response = urllib.request.urlopen(request, timeout=HTTP_TIMEOUT_S)
+    except urllib.error.HTTPError as exc:
+        raise _refused(exc) from None
+    except urllib.error.URLError as exc:
+        raise OSError(f"cannot reach {url}: {exc.reason}") from None
+    with response:
+        for raw in response:
+            if raw.strip():
+                yield orjson.loads(raw)
 
 
 def _print_problem(problem: dict[str, Any]) -> None:
