@@ -342,7 +342,8 @@ async def _run_round(
                 yield row
                 for pair in [p for p in open_pairs if _finished(p, state)]:
                     open_pairs.remove(pair)
-                    yield _check(pair, axes, state, threshold_percent)
+                    # two simulations of a command (a sampled one may hold thousands of samples): off the loop
+                    yield await asyncio.to_thread(_check, pair, axes, state, threshold_percent)
             fill()
     finally:
         for task in running:
