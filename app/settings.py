@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 from functools import lru_cache
+from typing import Any
 
 from pydantic import Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
@@ -11,8 +12,23 @@ from pydantic_settings import BaseSettings, SettingsConfigDict
 from optim.solver import SolveCaps
 
 
-def _default_workers() -> int:
-    return max(1, min(2, os.cpu_count() or 1))
+def cores() -> int:
+    """The cores this process may run on (its CPU affinity; a container's CPU quota is not seen here)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def _default_processes() -> int:
+    return cores()
+
+
+def _default_workers(data: dict[str, Any]) -> int:
+    """Solver workers per HTTP process: the cores shared out between the processes, at least one each
+    (so N processes on N cores run N solver workers, not 2N: README "Deployment")."""
+    processes = data.get("processes") or _default_processes()
+    return max(1, min(2, cores() // processes))
 
 
 class Settings(BaseSettings):
@@ -25,7 +41,22 @@ class Settings(BaseSettings):
     solve_time_limit_s: float = Field(10.0, gt=0, description="Wall-time cap of one solve (IPOPT max_wall_time).")
     solve_max_iterations: int = Field(3000, ge=1, description="Iteration cap of one solve (IPOPT max_iter).")
     solve_grace_s: float = Field(5.0, ge=0, description="Extra time before a stuck worker is killed.")
-    workers: int = Field(default_factory=_default_workers, ge=1, le=64, description="Solver worker processes.")
+    # --- processes, solver workers and their caches (README "Deployment") ---
+    processes: int = Field(
+        default_factory=_default_processes,
+        ge=1,
+        le=64,
+        description="HTTP server processes (uvicorn --workers), each with its own solver pool; default one per core.",
+    )
+    workers: int = Field(
+        default_factory=_default_workers,
+        ge=1,
+        le=64,
+        description="Solver worker processes of each HTTP process; default the cores divided by the processes, 1-2.",
+    )
+    solver_cache_size: int = Field(
+        64, ge=1, le=4096, description="Built solver problems kept per cache in each worker (least recently used go)."
+    )
     worker_start_timeout_s: float = Field(120.0, gt=0, description="Time allowed for a worker's warm-up.")
     max_queued: int | None = Field(
         None, ge=0, le=10_000, description="Most solves waiting for a worker (503 beyond); default 4 per worker."
