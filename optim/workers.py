@@ -260,6 +260,10 @@ class SolverPool:
         self._workers.append(worker)
         self._loop.add_reader(parent.fileno(), self._on_message, worker)
         self._loop.add_reader(process.sentinel, self._on_exit, worker)
+        # uvloop's add_reader makes the fd non-blocking (asyncio's does not): Connection.send/recv of a message
+        # larger than the pipe's buffer then fails with BlockingIOError half-way, and the worker was taken for
+        # dead (every pseudo-polynomial answer under uvicorn[standard]). The loop only polls it for readiness.
+        os.set_blocking(parent.fileno(), True)
         worker.timer = self._loop.call_later(self.start_timeout_s, self._kill, worker, "warm-up timed out")
         self._changed()
 
@@ -359,6 +363,7 @@ class SolverPool:
 
     def _on_message(self, worker: _Worker) -> None:
         try:
+            os.set_blocking(worker.conn.fileno(), True)  # see _spawn: whatever the loop did to it
             message = worker.conn.recv()
         except (EOFError, OSError):
             self._on_exit(worker)
