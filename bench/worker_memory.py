@@ -110,7 +110,10 @@ def main() -> None:
     parser.add_argument("--high-hz", type=float, default=60.0)
     parser.add_argument("--families", default=",".join(FAMILIES))
     args = parser.parse_args()
-    print(f"root {args.root}; {args.plants} plants, one mode at {args.low_hz:g}-{args.high_hz:g} Hz; load {os.getloadavg()}")
+    print(
+        f"root {args.root}; {args.plants} plants, one mode at {args.low_hz:g}-{args.high_hz:g} Hz; "
+        f"load {os.getloadavg()}"
+    )
     for family_key in args.families.split(","):
         rows = run(args.root, family_key, args.plants, args.low_hz, args.high_hz)
         start = rows[0][2]

@@ -54,14 +54,19 @@ def wait_ready(port: int, timeout_s: float = 180.0, process: subprocess.Popen | 
 
 
 @contextlib.contextmanager
-def serving(processes: int | None, root: Path = ROOT, env: dict[str, str] | None = None) -> Iterator[int]:
+def serving(
+    processes: int | None, root: Path = ROOT, env: dict[str, str] | None = None, extra: tuple[str, ...] = ()
+) -> Iterator[int]:
     """``vibfree serve`` from ``root`` on a free port until the block ends; yields the port.
 
-    ``processes`` None: the default of the settings (one per core). The server's own stderr goes to a file
+    ``processes`` None: the default of the settings (one per core); ``processes`` 0: plain uvicorn (one process,
+    no ``vibfree serve``: an older checkout) with ``extra`` flags. The server's own stderr goes to a file
     in the system's temporary directory (JSON lines), so a failing test can show it."""
     port = free_port()
     command = [sys.executable, "-m", "vibfree.cli", "serve", "--port", str(port)]
-    if processes is not None:
+    if processes == 0:
+        command = [sys.executable, "-m", "uvicorn", "app.main:app", "--port", str(port), "--no-access-log", *extra]
+    elif processes is not None:
         command += ["--processes", str(processes)]
     environment = {**os.environ, "PYTHONPATH": str(root), **(env or {})}
     environment.pop("PROMETHEUS_MULTIPROC_DIR", None)  # the command makes a fresh one
