@@ -148,18 +148,20 @@ def _tree_cpu_s(root_pid: int) -> float:
 
 
 def _server_pid(port: int) -> int | None:
-    """The server's top process: a process listening on ``port`` whose parent does not (uvicorn's supervisor
-    and its HTTP processes share the socket)."""
-    listeners = {
+    """The server's top process: from a process listening on ``port``, up through its parents while they run
+    uvicorn (its supervisor shares the socket with its HTTP processes, which are spawned children)."""
+    pids = [
         c.pid
         for c in psutil.net_connections("tcp")
         if c.status == psutil.CONN_LISTEN and c.laddr and c.laddr.port == port and c.pid
-    }
-    for pid in listeners:
-        with contextlib.suppress(psutil.NoSuchProcess):
-            if psutil.Process(pid).ppid() not in listeners:
-                return pid
-    return None
+    ]
+    if not pids:
+        return None
+    process = psutil.Process(pids[0])
+    with contextlib.suppress(psutil.NoSuchProcess):
+        while (parent := process.parent()) is not None and "uvicorn" in " ".join(parent.cmdline()):
+            process = parent
+    return process.pid
 
 
 def measure(label: str, root: Path, processes: int | None, env: dict[str, str], seconds: float) -> dict:
