@@ -59,7 +59,7 @@ class Settings(BaseSettings):
     )
     worker_start_timeout_s: float = Field(120.0, gt=0, description="Time allowed for a worker's warm-up.")
     max_queued: int | None = Field(
-        None, ge=0, le=10_000, description="Most solves waiting for a worker (503 beyond); default 4 per worker."
+        None, ge=0, le=10_000, description="Most solves waiting for a worker in each process (503 beyond); default 4 per worker of the server."
     )
     worker_niceness: int = Field(
         5, ge=0, le=19, description="Niceness added to the solver workers, so the HTTP process stays responsive."
@@ -72,7 +72,10 @@ class Settings(BaseSettings):
 
     @property
     def queue_limit(self) -> int:
-        return 4 * self.workers if self.max_queued is None else self.max_queued
+        """Solves one process lets wait: by default 4 per solver worker of the whole server (processes x workers),
+        since the kernel may hand one process most connections (measured: 2 processes x 1 worker with a limit of
+        4 each refused 329 of 8 clients' pseudo-polynomial requests in 6 s; bench/throughput.py)."""
+        return 4 * self.workers * self.processes if self.max_queued is None else self.max_queued
 
     @property
     def solve_deadline_s(self) -> float:
