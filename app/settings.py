@@ -64,7 +64,7 @@ class Settings(BaseSettings):
         None,
         ge=0,
         le=10_000,
-        description="Most solves waiting for a worker in each process (503 beyond); default 4 per worker of the server.",
+        description="Most solves waiting for a worker in each process (503 beyond); default 4 per server worker.",
     )
     worker_niceness: int = Field(
         5, ge=0, le=19, description="Niceness added to the solver workers, so the HTTP process stays responsive."
