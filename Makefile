@@ -21,8 +21,13 @@ $(VENV)/.installed-test: pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e ".[test]"
 	touch $@ $(VENV)/.installed-serve
 
+# VIBFREE_PROCESSES HTTP processes (default one per core) under uvicorn's supervisor, each with its solver pool;
+# their metrics in a fresh directory per start (prometheus_client multiprocess mode, README "Deployment").
+PROCESSES = $$($(BIN)/python -c 'from app.settings import Settings; print(Settings().processes)')
+
 serve: $(VENV)/.installed-serve  ## run the service on http://$(HOST):$(PORT) (docs at /docs)
-	$(BIN)/uvicorn app.main:app --host $(HOST) --port $(PORT) $(SERVE_FLAGS)
+	export PROMETHEUS_MULTIPROC_DIR=$$(mktemp -d -t vibfree-metrics-XXXXXX) VIBFREE_PROCESSES=$(PROCESSES) && \
+	$(BIN)/uvicorn app.main:app --workers $$VIBFREE_PROCESSES --host $(HOST) --port $(PORT) $(SERVE_FLAGS)
 
 test: $(VENV)/.installed-test  ## lint, format and type gates, then the whole test suite (installs Debian's chromium)
 	$(BIN)/ruff check .

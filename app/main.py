@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import functools
+import os
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
 from fastapi import FastAPI
+from prometheus_client import multiprocess as prometheus_multiprocess
 
 from app import observability, problems
 from app.routers import (
@@ -26,7 +28,7 @@ from app.routers import (
     time_optimal,
 )
 from app.settings import Settings, get_settings
-from optim.family import warm_up_all
+from app.warmup import example_jobs, warm_up_worker
 from optim.workers import SolverPool
 
 DESCRIPTION = """
@@ -54,12 +56,19 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        # Each HTTP process (uvicorn --workers) runs this: its own pool, warmed up on the documented examples
+        # (app.warmup), its caches sized by the settings, its state written to the metrics' files.
+        warm_up = functools.partial(
+            warm_up_worker, settings.solve_caps, settings.solver_cache_size, example_jobs(settings)
+        )
+        gauges = app.state.metrics.pool_gauges
         pool = SolverPool(
             settings.workers,
             settings.worker_start_timeout_s,
-            warm_up=functools.partial(observability.start_worker, functools.partial(warm_up_all, settings.solve_caps)),
+            warm_up=functools.partial(observability.start_worker, warm_up),
             max_queued=settings.queue_limit,
             niceness=settings.worker_niceness,
+            on_change=gauges.update if gauges is not None else None,
         )
         app.state.pool = pool
         pool.start_in_background()
@@ -67,6 +76,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             yield
         finally:
             await pool.close()
+            directory = app.state.metrics.multiprocess_dir
+            if directory is not None:  # this process's live gauges leave the sums; its counters stay
+                prometheus_multiprocess.mark_process_dead(os.getpid(), directory)
 
     app = FastAPI(
         title="Vibration-free motion profiles",

@@ -6,15 +6,25 @@
   whole ASGI stack in ``ObservabilityMiddleware``: a request id, one access line, the request
   metrics and the security headers on every response (problems, 500s and static files included).
 - ``record_solve(...)`` logs one design run by the service layer and counts it.
+
+With several HTTP processes (``VIBFREE_PROCESSES``, uvicorn ``--workers``) a scrape lands on any one of
+them, so the metrics use prometheus_client's multiprocess mode whenever ``PROMETHEUS_MULTIPROC_DIR`` is
+set (``vibfree serve`` and ``make serve`` set it to a fresh directory per server start): every process
+writes its counters and histograms to that directory and a scrape sums them, dead processes' included
+(https://prometheus.github.io/client_python/multiprocess/). The pool's gauges are per process
+(``multiprocess_mode="liveall"``: a ``pid`` label, live processes only; the files of a process that died
+are dropped with ``mark_process_dead`` at the next scrape); its counters are summed.
 """
 
 from __future__ import annotations
 
 import asyncio
 import base64
+import contextlib
 import contextvars
 import hashlib
 import logging
+import os
 import re
 import sys
 import time
@@ -25,7 +35,8 @@ from typing import Any, TextIO
 
 import structlog
 from fastapi import FastAPI
-from prometheus_client import CollectorRegistry, Counter, Histogram, PlatformCollector, ProcessCollector
+from prometheus_client import CollectorRegistry, Counter, Gauge, Histogram, PlatformCollector, ProcessCollector
+from prometheus_client import multiprocess as prometheus_multiprocess
 from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily, Metric
 from prometheus_client.registry import Collector
 from starlette.datastructures import MutableHeaders
@@ -178,10 +189,102 @@ class PoolCollector(Collector):
         return metrics
 
 
+def multiprocess_dir() -> str | None:
+    """The shared metrics directory of a multi-process server, or None (one process: in-memory metrics)."""
+    return os.environ.get("PROMETHEUS_MULTIPROC_DIR") or None
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # alive, another user's
+        return True
+    return True
+
+
+_LIVE_FILE = re.compile(r"gauge_live\w+?_(\d+)\.db")
+
+
+def forget_dead_processes(path: str) -> list[int]:
+    """``mark_process_dead`` for every process whose live-gauge files are in ``path`` but which is gone
+    (a process killed without its shutdown); its counters stay in the sums. Returns their pids."""
+    dead = set()
+    with contextlib.suppress(OSError):
+        for name in os.listdir(path):
+            match = _LIVE_FILE.fullmatch(name)
+            if match and not _alive(int(match.group(1))):
+                dead.add(int(match.group(1)))
+    for pid in dead:
+        prometheus_multiprocess.mark_process_dead(pid, path)
+    return sorted(dead)
+
+
+class PoolGauges:
+    """The pool's state in the shared metrics directory (multiprocess mode): gauges with this process's
+    pid, counters summed over processes. ``update(stats)`` is the pool's ``on_change`` callback."""
+
+    STATES = ("ready", "busy", "starting")
+
+    def __init__(self, registry: CollectorRegistry) -> None:
+        self.workers = Gauge(
+            "vibfree_pool_workers",
+            "Solver worker processes by state (ready: warm, idle or busy), per HTTP process.",
+            ["state"],
+            multiprocess_mode="liveall",
+            registry=registry,
+        )
+        self.gauges = {
+            key: Gauge(name, doc + " Per HTTP process.", multiprocess_mode="liveall", registry=registry)
+            for name, key, doc in PoolCollector.GAUGES
+        }
+        self.counters = {
+            key: Counter(name, doc + " Summed over the HTTP processes.", registry=registry)
+            for name, key, doc in PoolCollector.COUNTERS
+        }
+        self._counted = dict.fromkeys(self.counters, 0)
+
+    def update(self, stats: Mapping[str, int]) -> None:
+        for state in self.STATES:
+            self.workers.labels(state).set(stats.get(state, 0))
+        for key, gauge in self.gauges.items():
+            gauge.set(stats.get(key, 0))
+        for key, counter in self.counters.items():
+            delta = stats.get(key, 0) - self._counted[key]
+            if delta > 0:
+                counter.inc(delta)
+                self._counted[key] += delta
+
+
+def processes_state(path: str) -> dict[int, dict[str, int]]:
+    """Each live HTTP process's pool state as the shared directory has it: pid -> {ready, busy, starting,
+    queued, workers} (for /readyz: a probe lands on one process and answers for all)."""
+    forget_dead_processes(path)
+    registry = CollectorRegistry()
+    prometheus_multiprocess.MultiProcessCollector(registry, path)
+    out: dict[int, dict[str, int]] = {}
+    keys = {"vibfree_pool_queue_depth": "queued", "vibfree_pool_configured_workers": "workers"}
+    for metric in registry.collect():
+        for sample in metric.samples:
+            pid = sample.labels.get("pid")
+            if pid is None:
+                continue
+            if sample.name == "vibfree_pool_workers":
+                out.setdefault(int(pid), {})[sample.labels["state"]] = int(sample.value)
+            elif sample.name in keys:
+                out.setdefault(int(pid), {})[keys[sample.name]] = int(sample.value)
+    return out
+
+
 class Metrics:
-    """One app's metrics, in a registry of its own (an app factory may run several times in a process)."""
+    """One app's metrics, in a registry of its own (an app factory may run several times in a process).
+
+    In multiprocess mode (``multiprocess_dir()``) the values also go to the shared directory, and
+    ``scrape_registry()`` reads every process's; the pool's state is written by ``pool_gauges.update``."""
 
     def __init__(self, pool: Callable[[], object | None]) -> None:
+        self.multiprocess_dir = multiprocess_dir()
         self.registry = CollectorRegistry()
         self.requests = Counter(
             "vibfree_http_requests",
@@ -209,9 +312,22 @@ class Metrics:
             buckets=LATENCY_BUCKETS_S,
             registry=self.registry,
         )
-        self.registry.register(PoolCollector(pool))
-        ProcessCollector(registry=self.registry)
-        PlatformCollector(registry=self.registry)
+        self.pool_gauges: PoolGauges | None = None
+        if self.multiprocess_dir is None:
+            self.registry.register(PoolCollector(pool))
+            ProcessCollector(registry=self.registry)
+            PlatformCollector(registry=self.registry)
+        else:  # custom collectors see only the answering process: the pool's state goes to the files
+            self.pool_gauges = PoolGauges(self.registry)
+
+    def scrape_registry(self) -> CollectorRegistry:
+        """What /metrics exposes: this app's registry, or in multiprocess mode every process's files."""
+        if self.multiprocess_dir is None:
+            return self.registry
+        forget_dead_processes(self.multiprocess_dir)
+        registry = CollectorRegistry()
+        prometheus_multiprocess.MultiProcessCollector(registry, self.multiprocess_dir)
+        return registry
 
 
 # The metrics of the app serving the current request (set by the middleware), for record_solve.

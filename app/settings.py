@@ -11,8 +11,26 @@ from pydantic_settings import BaseSettings, SettingsConfigDict
 from optim.solver import SolveCaps
 
 
+def cores() -> int:
+    """The cores this process may run on (its CPU affinity; a container's CPU quota is not seen here)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def _default_processes() -> int:
+    return cores()
+
+
 def _default_workers() -> int:
-    return max(1, min(2, os.cpu_count() or 1))
+    """Solver workers per HTTP process: 2 (1 on one core), whatever the number of processes.
+
+    Measured on 2 cores (bench/throughput.py, 8 clients): 2 processes x 2 workers served 137 STAP and 53
+    pseudo-polynomial req/s, 2 x 1 served 65 and 38: with one worker each, the process the kernel gave more
+    connections queues while the other's worker idles; the workers are niced (``worker_niceness``), so the
+    extra ones do not starve the HTTP processes. The cost is memory: ~255 MiB per warm worker."""
+    return max(1, min(2, cores()))
 
 
 class Settings(BaseSettings):
@@ -25,10 +43,28 @@ class Settings(BaseSettings):
     solve_time_limit_s: float = Field(10.0, gt=0, description="Wall-time cap of one solve (IPOPT max_wall_time).")
     solve_max_iterations: int = Field(3000, ge=1, description="Iteration cap of one solve (IPOPT max_iter).")
     solve_grace_s: float = Field(5.0, ge=0, description="Extra time before a stuck worker is killed.")
-    workers: int = Field(default_factory=_default_workers, ge=1, le=64, description="Solver worker processes.")
+    # --- processes, solver workers and their caches (README "Deployment") ---
+    processes: int = Field(
+        default_factory=_default_processes,
+        ge=1,
+        le=64,
+        description="HTTP server processes (uvicorn --workers), each with its own solver pool; default one per core.",
+    )
+    workers: int = Field(
+        default_factory=_default_workers,
+        ge=1,
+        le=64,
+        description="Solver worker processes of each HTTP process; default 2 (1 on a single core).",
+    )
+    solver_cache_size: int = Field(
+        64, ge=1, le=4096, description="Built solver problems kept per cache in each worker (least recently used go)."
+    )
     worker_start_timeout_s: float = Field(120.0, gt=0, description="Time allowed for a worker's warm-up.")
     max_queued: int | None = Field(
-        None, ge=0, le=10_000, description="Most solves waiting for a worker (503 beyond); default 4 per worker."
+        None,
+        ge=0,
+        le=10_000,
+        description="Most solves waiting for a worker in each process (503 beyond); default 4 per server worker.",
     )
     worker_niceness: int = Field(
         5, ge=0, le=19, description="Niceness added to the solver workers, so the HTTP process stays responsive."
@@ -49,7 +85,10 @@ class Settings(BaseSettings):
 
     @property
     def queue_limit(self) -> int:
-        return 4 * self.workers if self.max_queued is None else self.max_queued
+        """Solves one process lets wait: by default 4 per solver worker of the whole server (processes x workers),
+        since the kernel may hand one process most connections (measured: 2 processes x 1 worker with a limit of
+        4 each refused 329 of 8 clients' pseudo-polynomial requests in 6 s; bench/throughput.py)."""
+        return 4 * self.workers * self.processes if self.max_queued is None else self.max_queued
 
     @property
     def solve_deadline_s(self) -> float:

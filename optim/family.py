@@ -9,7 +9,8 @@ it can run in a solver worker process.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import contextlib
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar, Protocol, runtime_checkable
 
@@ -17,14 +18,19 @@ import numpy as np
 from numpy.typing import NDArray
 
 from models.commands import PiecewiseCommand
+from models.errors import SolverFailed
 from models.simulation import Metrics, Response
 from optim.problem import Problem
-from optim.solver import SolveCaps, SolverReport
+from optim.solver import SolveCaps, SolverReport, Tally, tally
 
 
 @dataclass(frozen=True)
 class SolverSummary:
-    """What the solver did for one design: the last converged solve's status, all solves' iterations and time."""
+    """What the solver did for one design: the last converged solve's status, all solves' iterations and time.
+
+    ``solves`` is every solver call of the design (a duration search, multistarts, re-solves with tightened
+    limits, trade-off rows), ``iterations`` their sum: ``counted`` takes both from one tally of the calls
+    (``optim.solver.tally``), and gives a failure's report the same totals."""
 
     status: str
     iterations: int
@@ -35,6 +41,10 @@ class SolverSummary:
     def of(cls, report: SolverReport, solves: int = 1) -> SolverSummary:
         return cls(report.status, report.iterations, report.solve_time_s, solves)
 
+    @classmethod
+    def of_tally(cls, status: str, counts: Tally) -> SolverSummary:
+        return cls(status, counts.iterations, counts.seconds, counts.solves)
+
     def as_dict(self) -> dict[str, Any]:
         return {
             "status": self.status,
@@ -42,6 +52,19 @@ class SolverSummary:
             "solve_time_s": self.solve_time_s,
             "solves": self.solves,
         }
+
+
+@contextlib.contextmanager
+def counted() -> Iterator[Tally]:
+    """Count every solver call of a design; a ``SolverFailed`` leaving the block gets a report with the
+    totals (``SolverSummary``: its status, all calls' iterations, time and count), not the last call's."""
+    with tally() as counts:
+        try:
+            yield counts
+        except SolverFailed as exc:
+            status = str(getattr(exc.report, "status", "unknown"))
+            exc.report = SolverSummary.of_tally(status, counts)
+            raise
 
 
 @dataclass(frozen=True)
@@ -220,6 +243,7 @@ __all__ = [  # and FAMILIES, through __getattr__
     "Profile",
     "Run",
     "SolverSummary",
+    "counted",
     "warm_up_all",
 ]
 

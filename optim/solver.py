@@ -7,6 +7,9 @@ exception, so a failed or capped solve can never be presented as a design.
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -61,14 +64,65 @@ def ipopt_options(caps: SolveCaps, **extra: Any) -> dict[str, Any]:
     return options
 
 
+def iterations_of(stats: dict[str, Any]) -> int:
+    """IPOPT's iteration count of one call, never a value it did not record.
+
+    ``iter_count`` is the count; IPOPT's per-iteration record (``stats["iterations"]["obj"]``, iteration 0,
+    the start, included; a capped solve may record a few restoration steps more) bounds it. A count outside
+    [0, recorded] (issue 15 saw 186092209 once) is replaced by the record's own count."""
+    try:
+        count = int(stats.get("iter_count", 0))
+    except (TypeError, ValueError, OverflowError):
+        count = -1
+    record = stats.get("iterations")
+    recorded = len(record["obj"]) - 1 if isinstance(record, dict) and "obj" in record else None
+    if recorded is not None and not 0 <= count <= recorded + 1:
+        return max(0, recorded)
+    return max(0, count)
+
+
 def report_of(solver: Any, solve_time_s: float) -> SolverReport:
-    """The report of the last call of an nlpsol ``solver`` that took ``solve_time_s``."""
+    """The report of the last call of an nlpsol ``solver`` that took ``solve_time_s`` (counted in every
+    active ``tally``)."""
     stats = solver.stats()
-    return SolverReport(
+    report = SolverReport(
         status=str(stats.get("return_status", "unknown")),
-        iterations=int(stats.get("iter_count", 0)),
+        iterations=iterations_of(stats),
         solve_time_s=float(solve_time_s),
     )
+    record_solve(report.iterations, report.solve_time_s)
+    return report
+
+
+@dataclass
+class Tally:
+    """Every solver call made while it is active: calls, summed iterations and seconds."""
+
+    solves: int = 0
+    iterations: int = 0
+    seconds: float = 0.0
+
+
+_TALLIES: contextvars.ContextVar[tuple[Tally, ...]] = contextvars.ContextVar("solver_tallies", default=())
+
+
+def record_solve(iterations: int, seconds: float) -> None:
+    """Count one solver call (IPOPT through ``report_of``, an LP of the time-optimal family) in every tally."""
+    for tally in _TALLIES.get():
+        tally.solves += 1
+        tally.iterations += int(iterations)
+        tally.seconds += float(seconds)
+
+
+@contextlib.contextmanager
+def tally() -> Iterator[Tally]:
+    """Count every solver call made inside the block (nested tallies each count them)."""
+    current = Tally()
+    token = _TALLIES.set((*_TALLIES.get(), current))
+    try:
+        yield current
+    finally:
+        _TALLIES.reset(token)
 
 
 def raise_for_status(report: SolverReport) -> SolverReport:

@@ -149,8 +149,10 @@ class SolverPool:
         *,
         max_queued: int | None = None,
         niceness: int = 0,
+        on_change: Callable[[dict[str, int]], None] | None = None,
     ) -> None:
         self.workers = workers
+        self.on_change = on_change  # called with stats() after every change of state (the metrics' files)
         self.warm_up = warm_up  # run once in every new worker (a picklable callable: the families' warm-ups)
         self.start_timeout_s = start_timeout_s
         self.max_queued = 4 * workers if max_queued is None else max_queued
@@ -189,6 +191,13 @@ class SolverPool:
             "timeouts": self.timeouts,
             "rejected": self.rejected,
         }
+
+    def _changed(self) -> None:
+        if self.on_change is not None:
+            try:
+                self.on_change(self.stats())
+            except Exception:  # metrics must never break the pool
+                log.exception("the pool's on_change callback failed")
 
     def pids(self, state: Literal["starting", "idle", "busy"] | None = None) -> list[int]:
         """Process ids of the live workers, or of those in one state (for tests and operators)."""
@@ -237,6 +246,7 @@ class SolverPool:
             with contextlib.suppress(OSError):
                 worker.conn.close()
         self._ready_event.clear()
+        self._changed()
 
     def _spawn(self) -> None:
         assert self._loop is not None
@@ -250,7 +260,12 @@ class SolverPool:
         self._workers.append(worker)
         self._loop.add_reader(parent.fileno(), self._on_message, worker)
         self._loop.add_reader(process.sentinel, self._on_exit, worker)
+        # uvloop's add_reader makes the fd non-blocking (asyncio's does not): Connection.send/recv of a message
+        # larger than the pipe's buffer then fails with BlockingIOError half-way, and the worker was taken for
+        # dead (every pseudo-polynomial answer under uvicorn[standard]). The loop only polls it for readiness.
+        os.set_blocking(parent.fileno(), True)
         worker.timer = self._loop.call_later(self.start_timeout_s, self._kill, worker, "warm-up timed out")
+        self._changed()
 
     def _respawn_later(self, delay_s: float) -> None:
         assert self._loop is not None
@@ -262,6 +277,7 @@ class SolverPool:
 
         handle = self._loop.call_later(delay_s, respawn)
         self._respawns.add(handle)
+        self._changed()
 
     # --- jobs ----------------------------------------------------------------------------
 
@@ -274,6 +290,7 @@ class SolverPool:
         idle = any(w.state == "idle" for w in self._workers)
         if not idle and len(self._queue) >= self.max_queued:
             self.rejected += 1
+            self._changed()
             raise PoolBusy(
                 f"every solver worker is busy and {len(self._queue)} solves are waiting (the most allowed)",
                 retry_after_s=self.retry_after_s(),
@@ -297,6 +314,12 @@ class SolverPool:
         return int(min(RETRY_AFTER_MAX_S, max(RETRY_AFTER_MIN_S, math.ceil(self._solve_s_estimate * ahead))))
 
     def _dispatch(self) -> None:
+        try:
+            self._dispatch_jobs()
+        finally:
+            self._changed()
+
+    def _dispatch_jobs(self) -> None:
         assert self._loop is not None
         for worker in self._workers:
             if not self._queue:
@@ -319,6 +342,7 @@ class SolverPool:
         if job in self._queue:
             self._queue.remove(job)
             self.rejected += 1
+            self._changed()
             waited = time.monotonic() - job.queued_at
             self._fail(
                 job,
@@ -339,6 +363,7 @@ class SolverPool:
 
     def _on_message(self, worker: _Worker) -> None:
         try:
+            os.set_blocking(worker.conn.fileno(), True)  # see _spawn: whatever the loop did to it
             message = worker.conn.recv()
         except (EOFError, OSError):
             self._on_exit(worker)
@@ -386,6 +411,7 @@ class SolverPool:
         if not self.ready:
             self._ready_event.clear()
         if self._closing:
+            self._changed()
             return
         self.restarts += 1
         reason = worker.killed_for or f"exit code {code}"

@@ -122,6 +122,11 @@ def _parser() -> argparse.ArgumentParser:
     serve = commands.add_parser("serve", help="run the HTTP service (uvicorn, the flags of make serve)")
     serve.add_argument("--host", default="127.0.0.1")
     serve.add_argument("--port", type=int, default=8000)
+    serve.add_argument(
+        "--processes",
+        type=int,
+        help="HTTP processes, each with its solver pool (default VIBFREE_PROCESSES: one per core)",
+    )
     serve.set_defaults(run=_serve)
     return parser
 
@@ -242,9 +247,32 @@ def _points(request: bytes) -> int | None:
     return total
 
 
+def serve_command(host: str, port: int, processes: int) -> list[str]:
+    """The uvicorn command line of ``make serve``: ``processes`` HTTP processes under uvicorn's supervisor
+    (it replaces one that dies), then the flags of SERVE_FLAGS."""
+    head = [sys.executable, "-m", "uvicorn", "app.main:app", "--workers", str(processes)]
+    return [*head, "--host", host, "--port", str(port), *SERVE_FLAGS]
+
+
+def serve_environment(processes: int) -> dict[str, str]:
+    """The server's environment: the process count for its settings (``/readyz`` expects that many) and a
+    fresh, empty metrics directory for prometheus_client's multiprocess mode (set before any process
+    imports it, as its documentation asks: https://prometheus.github.io/client_python/multiprocess/)."""
+    import tempfile
+
+    directory = tempfile.mkdtemp(prefix="vibfree-metrics-")
+    return {**os.environ, "VIBFREE_PROCESSES": str(processes), "PROMETHEUS_MULTIPROC_DIR": directory}
+
+
 def _serve(args: argparse.Namespace) -> int:
-    command = [sys.executable, "-m", "uvicorn", "app.main:app", "--host", args.host, "--port", str(args.port)]
-    os.execv(sys.executable, [*command, *SERVE_FLAGS])  # replaces this process: signals reach uvicorn
+    from app.settings import Settings
+
+    processes = args.processes or Settings().processes
+    if processes < 1:
+        raise SystemExit("--processes must be at least 1")
+    command = serve_command(args.host, args.port, processes)
+    # Replaces this process: signals reach uvicorn's supervisor, which passes them to its processes.
+    os.execve(sys.executable, command, serve_environment(processes))
 
 
 # --- summaries ---------------------------------------------------------------------------------

@@ -1,4 +1,5 @@
-"""Prometheus metrics of this process: requests, solves and the solver pool (read at scrape time)."""
+"""Prometheus metrics: requests, solves and the solver pools; with several HTTP processes, summed over them
+(``app.observability``: prometheus_client's multiprocess mode)."""
 
 from __future__ import annotations
 
@@ -23,4 +24,4 @@ router = APIRouter(tags=["health"])
     },
 )
 async def metrics(request: Request) -> Response:
-    return Response(generate_latest(request.app.state.metrics.registry), media_type=CONTENT_TYPE_PLAIN_0_0_4)
+    return Response(generate_latest(request.app.state.metrics.scrape_registry()), media_type=CONTENT_TYPE_PLAIN_0_0_4)

@@ -17,7 +17,7 @@ from models.errors import InvalidParameter
 from models.pseudo_polynomial import PseudoPolynomial
 from models.simulation import simulate
 from optim import pseudo_polynomial as pp
-from optim.family import BaseFamily, Design, Grid, Profile, Run, SolverSummary
+from optim.family import BaseFamily, Design, Grid, Profile, Run, SolverSummary, counted
 from optim.problem import Problem
 from optim.solver import SolveCaps
 
@@ -143,7 +143,8 @@ class PseudoPolynomialFamily(BaseFamily):
         )
         # Refuse a sampling above the cap before any solve (the design is no longer than duration_s).
         grid_of(problem, Design(None, {}, end_s=options.duration_s))
-        result = pp.design(core, sampled_peaks(problem))
+        with counted():  # a failure's report: every solve of the search, not the last one's
+            result = pp.design(core, sampled_peaks(problem))
         warnings = []
         within = " within the limits" if lim.any else ""
         if options.minimize_duration and not result.duration_search:  # the search found none (its note)

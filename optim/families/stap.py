@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 from models.errors import NotApplicable
 from models.stap import load_acceleration_oscillation, stap_sensitivity
 from optim import stap as S
-from optim.family import BaseFamily, Candidate, Design, Run, SolverSummary
+from optim.family import BaseFamily, Candidate, Design, Run, SolverSummary, counted
 from optim.problem import Problem
 from optim.solver import SolveCaps
 
@@ -229,7 +229,8 @@ class StapFamily(BaseFamily):
             )
         core = core_request(problem, options)
         closed = S.design(core)
-        optimized = S.optimize(core, closed) if options.method == "optimized" else None
+        with counted():  # a failure's report: every solve of the multistart
+            optimized = S.optimize(core, closed) if options.method == "optimized" else None
         detail = _Detail(closed, optimized, options)
         stap, move = detail.stap, detail.move
         command = stap.command() if move is None else move.command()

@@ -23,7 +23,7 @@ from models.errors import DomainError, Infeasible, InvalidParameter, SolverFaile
 from models.plant_base import Mode
 from models.sensitivity import band_below, sensitivity
 from models.simulation import simulate
-from optim.family import BaseFamily, Candidate, Design, Run, SolverSummary
+from optim.family import BaseFamily, Candidate, Design, Run, SolverSummary, counted
 from optim.problem import Problem
 from optim.solver import SolverReport
 from optim.synthesis import percentage_vibration, rigid_reference
@@ -285,23 +285,19 @@ class TimeOptimalFamily(BaseFamily):
         chosen, notes = selected_modes(problem, options)
         deadline = time.perf_counter() + problem.solver.max_wall_time_s  # one budget for the design and its rows
         spec = spec_of(problem, options, chosen, deadline)
-        solution = solve_within_limits(problem, spec)
-        sign = math.copysign(1.0, problem.move)
-        arcs = tuple(replace(a, level=sign * a.level) for a in solution.arcs)
-        command = command_of(arcs, spec.order, spec.rest_to_rest)
-        tradeoff, counts = None, (0, 0, 0.0)
-        if options.tradeoff is not None:
-            tradeoff, counts = self._tradeoff(problem, options, chosen, deadline)
+        with counted() as counts:  # every LP: the design's, its tightened re-solves, and every trade-off row's
+            solution = solve_within_limits(problem, spec)
+            sign = math.copysign(1.0, problem.move)
+            arcs = tuple(replace(a, level=sign * a.level) for a in solution.arcs)
+            command = command_of(arcs, spec.order, spec.rest_to_rest)
+            tradeoff = None
+            if options.tradeoff is not None:
+                tradeoff, _ = self._tradeoff(problem, options, chosen, deadline)
         detail = _Detail(solution, chosen, options.robustness, tradeoff)
         extra = () if solution.refined else (f"the switching times are the grid's ({solution.refinement})",)
         # "refined": exact switching times, the shortest command found (no proof of global optimality: see
         # design.lower_bound_s); "grid": the optimum of the search grid. Counts cover every solve, rows too.
-        report = SolverSummary(
-            "refined" if solution.refined else "grid",
-            solution.lp_iterations + counts[1],
-            solution.solve_time_s + counts[2],
-            solution.lp_solves + counts[0],
-        )
+        report = SolverSummary.of_tally("refined" if solution.refined else "grid", counts)
         block = _design_block(problem, spec, options, solution, arcs, chosen)
         return Design(command, block, (*notes, *extra), report, detail=detail)
 

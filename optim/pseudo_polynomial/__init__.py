@@ -61,7 +61,7 @@ from optim.pseudo_polynomial.solve import (
     total,
 )
 from optim.pseudo_polynomial.types import Limits, PseudoPolynomialDesign, PseudoPolynomialRequest
-from optim.solver import SolverReport
+from optim.solver import SolverReport, tally
 
 __all__ = [
     "CONSTRAINT_INTERVALS",
@@ -148,7 +148,16 @@ def _checked(request: PseudoPolynomialRequest) -> tuple[PseudoPolynomialRequest,
 
 def design(request: PseudoPolynomialRequest, peaks_of: PeaksOf | None = None) -> PseudoPolynomialDesign:
     """The design for a request (runs in a worker process). ``peaks_of`` gives the peaks checked against
-    the limits (the pipeline passes those of the sampled command; default: the law's own, ``law_peaks``)."""
+    the limits (the pipeline passes those of the sampled command; default: the law's own, ``law_peaks``).
+
+    Its report counts every solve: a duration search that found nothing before the design at duration_s
+    included (``optim.solver.tally``; the ledger of the design alone said ``solves: 8`` after 30)."""
+    with tally() as counts:
+        result = _design(request, peaks_of)
+    return replace(result, solver=replace(result.solver, iterations=counts.iterations), solves=counts.solves)
+
+
+def _design(request: PseudoPolynomialRequest, peaks_of: PeaksOf | None) -> PseudoPolynomialDesign:
     request, initial = _checked(request)
     energy0, residual0 = evaluate(request, np.asarray(initial))
     peaks_of = peaks_of or law_peaks(request.plant, request.limits)

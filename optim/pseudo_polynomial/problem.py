@@ -49,6 +49,7 @@ from models.errors import InvalidParameter
 from models.plants import Plant, TwoInertiaPlant
 from models.pseudo_polynomial import boundary_matrix, derivative_terms
 from models.simulation import ModalForm, modal_form
+from optim.cache import ArrayCache, LruCache
 from optim.pseudo_polynomial.types import FloatArray, Limits, PseudoPolynomialRequest
 from optim.solver import SolveCaps, ipopt_options, parameter_layout
 
@@ -100,9 +101,21 @@ def _check_phase(phase_rad: float) -> None:
         )
 
 
-@functools.lru_cache(maxsize=32)
+PANEL_CACHE_BYTES = 48 * 1024 * 1024  # a block of 512 panels is 12.6 MB (its Chebyshev table): ~4 blocks kept
+_PANEL_RULES: ArrayCache[tuple[int, int, int, int], tuple[FloatArray, FloatArray, FloatArray]] = ArrayCache(
+    PANEL_CACHE_BYTES
+)
+
+
 def _panel_rule(panels: int, first: int, stop: int, count: int) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Nodes, weights and T_k(2 v - 1), k < count, of panels first..stop-1 of ``panels`` equal ones on [0, 1]."""
+    """Nodes, weights and T_k(2 v - 1), k < count, of panels first..stop-1 of ``panels`` equal ones on [0, 1].
+
+    Cached by bytes (``PANEL_CACHE_BYTES``): the panel count follows |lambda T|, so every distinct plant or
+    duration makes new tables, and an ``lru_cache(32)`` of them held up to 400 MB per worker (issue 15)."""
+    return _PANEL_RULES.get((panels, first, stop, count), lambda: _build_panel_rule(panels, first, stop, count))
+
+
+def _build_panel_rule(panels: int, first: int, stop: int, count: int) -> tuple[FloatArray, FloatArray, FloatArray]:
     x, w = np.polynomial.legendre.leggauss(PANEL_NODES)
     edges = np.arange(first, stop + 1) / panels
     a, b = edges[:-1, None], edges[1:, None]
@@ -156,7 +169,7 @@ class _Compiled:
     parameter_count: int
 
 
-_CACHE: dict[tuple[object, ...], _Compiled] = {}
+_CACHE: LruCache[tuple[object, ...], _Compiled] = LruCache("pseudo_polynomial")
 
 
 def _complex_mul(a: tuple[Any, Any], b: tuple[Any, Any]) -> tuple[Any, Any]:
@@ -373,9 +386,7 @@ def _compiled(
     """The cached problems: per plant kind for the symbolic kinds, per number of modes otherwise."""
     symbolic = plant if plant is not None and plant.kind in SYMBOLIC_KINDS else None
     key = (order, modes, active, caps, symbolic.symbolic_key() if symbolic is not None else None)
-    if key not in _CACHE:
-        _CACHE[key] = _build(order, modes, active, caps, symbolic)
-    return _CACHE[key]
+    return _CACHE.get(key, lambda: _build(order, modes, active, caps, symbolic))
 
 
 def _active(limits: Limits) -> tuple[bool, bool, bool, bool]:

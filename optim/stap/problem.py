@@ -31,6 +31,7 @@ from models.errors import InvalidParameter
 from models.plants import Mode, Plant
 from models.simulation import ModalForm, modal_form
 from models.stap import ComplexArray, FloatArray, Stap
+from optim.cache import LruCache
 from optim.solver import SolveCaps, ipopt_options, parameter_layout
 from optim.stap.types import StapRequest
 
@@ -63,7 +64,7 @@ class CompiledProblem:
 
 
 ProblemKey = tuple[str, int, int, int, SolveCaps]  # kind, points, torque modes, torque grid, caps
-_CACHE: dict[ProblemKey, CompiledProblem] = {}
+_CACHE: LruCache[ProblemKey, CompiledProblem] = LruCache("stap")
 
 
 def build_problem(kind: str, points: int, torque_modes: int, torque_grid: int, caps: SolveCaps) -> CompiledProblem:
@@ -161,11 +162,9 @@ def build_problem(kind: str, points: int, torque_modes: int, torque_grid: int, c
 
 
 def compiled_problem(kind: str, points: int, torque_modes: int, torque_grid: int, caps: SolveCaps) -> CompiledProblem:
-    """The cached problem of this shape, built on first use."""
+    """The cached problem of this shape, built on first use (least recently used dropped: ``optim.cache``)."""
     key: ProblemKey = (kind, points, torque_modes, torque_grid, caps)
-    if key not in _CACHE:
-        _CACHE[key] = build_problem(kind, points, torque_modes, torque_grid, caps)
-    return _CACHE[key]
+    return _CACHE.get(key, lambda: build_problem(kind, points, torque_modes, torque_grid, caps))
 
 
 def warm_up(caps: SolveCaps | None = None) -> None:

@@ -34,7 +34,7 @@ from scipy.linalg import expm
 from scipy.optimize import linprog
 
 from models.errors import SolverTimedOut
-from optim.solver import SolverReport
+from optim.solver import SolverReport, record_solve
 from optim.time_optimal.types import Spec
 from optim.time_optimal.weights import exponential_moment
 
@@ -427,6 +427,7 @@ def _solve(lp: _Lp, counter: LpCounter) -> tuple[Array | None, int]:
     # HiGHS's simplex now and then stalls on one of these small LPs for seconds (seen: 316 steps, held jerk):
     # each LP gets LP_TIME_LIMIT_S, then once more with the interior-point method, then counts as not found.
     for method in ("highs", "highs-ipm"):
+        lp_started = time.perf_counter()
         result = linprog(
             lp.cost,
             A_ub=a_ub,
@@ -438,7 +439,9 @@ def _solve(lp: _Lp, counter: LpCounter) -> tuple[Array | None, int]:
             options={"time_limit": min(LP_TIME_LIMIT_S, counter.remaining_s()), "presolve": True},
         )
         counter.solves += 1
-        counter.iterations += int(getattr(result, "nit", 0) or 0)
+        nit = max(0, int(getattr(result, "nit", 0) or 0))
+        counter.iterations += nit
+        record_solve(nit, time.perf_counter() - lp_started)
         if result.status == 0:
             x: Array = np.asarray(result.x, dtype=float)
             return x, 0

@@ -1,0 +1,78 @@
+"""The solver workers' warm-up: the families' own problems, then the documented example requests.
+
+``optim.family.warm_up_all`` builds the shapes each family knows to be common (no limits). The requests
+people send first are the documented ones (the routes' OpenAPI examples, which the README's curl lines
+repeat), and those have active limits, torque limits and duration searches whose problems the families'
+warm-ups do not build: the first such request after readiness paid about 2 s more (issue 15). So each new
+worker also runs every example design once, and only then says it is ready. What it builds stays in its
+bounded caches (``optim.cache``, ``VIBFREE_SOLVER_CACHE_SIZE``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import time
+from typing import Any
+
+from optim.solver import SolveCaps
+
+log = logging.getLogger(__name__)
+
+#: The OpenAPI examples designed at warm-up, by route (None: every example that runs a solver). Measured
+#: in one process, first design / second design (s): pseudo-polynomial shortest_with_limits 0.59 / 0.34
+#: (a problem with active limits is built), STAP table_2_torque_limit 0.049 / 0.041 (a torque problem),
+#: time-optimal two_inertia_torque 0.91 / 0.83 alone. Time-optimal designs are linear programs (HiGHS) and
+#: keep nothing between requests, so only its cheapest example runs (0.49 s: it loads the LP code); the
+#: others (robust band, trade-off, torque) cost 0.7-10 s every time and would only lengthen every start.
+WARM_EXAMPLES: dict[str, tuple[str, ...] | None] = {
+    "time_optimal": ("known_answer",),
+    "pseudo_polynomial": None,
+    "stap": None,
+}
+EXAMPLE_ROUTES = tuple(WARM_EXAMPLES)
+
+
+def example_jobs(settings: Any) -> tuple[tuple[str, Any, Any], ...]:
+    """(family name, problem, options) of every example of ``EXAMPLE_ROUTES`` that uses a solver, parsed
+    like a request (in the HTTP process: what a worker receives is what a request would send it)."""
+    import importlib
+
+    from app.schemas.registry import REQUEST_SCHEMAS
+    from optim.families import REGISTRY
+
+    jobs: list[tuple[str, Any, Any]] = []
+    for name in EXAMPLE_ROUTES:
+        examples: dict[str, dict[str, Any]] = importlib.import_module(f"app.routers.{name}").EXAMPLES
+        family = REGISTRY[name]
+        chosen = WARM_EXAMPLES[name]
+        for key, example in examples.items():
+            if chosen is not None and key not in chosen:
+                continue
+            try:
+                body = REQUEST_SCHEMAS[name].model_validate(example["value"])
+                problem = body.to_problem(settings)
+                options = body.options(problem)
+            except Exception:  # an example the schema refuses is the docs' test's business, not a start-up failure
+                log.warning("example not warmed up", extra={"family": name}, exc_info=True)
+                continue
+            if family.uses_solver(options):
+                jobs.append((name, problem, options))
+    return tuple(jobs)
+
+
+def warm_up_worker(caps: SolveCaps, cache_size: int, jobs: tuple[tuple[str, Any, Any], ...]) -> None:
+    """Run in each new solver worker: size its caches, build the families' problems, design each example."""
+    from models.errors import DomainError
+    from optim import cache
+    from optim.families import REGISTRY
+    from optim.family import warm_up_all
+    from optim.synthesis import synthesize
+
+    cache.set_size(cache_size)
+    warm_up_all(caps)
+    started = time.perf_counter()
+    for name, problem, options in jobs:
+        with contextlib.suppress(DomainError):  # an example whose answer is a 422 still built its problems
+            synthesize(REGISTRY[name], problem, options)
+    log.info("examples designed", extra={"examples": len(jobs), "seconds": round(time.perf_counter() - started, 3)})
