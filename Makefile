@@ -26,7 +26,9 @@ $(VENV)/.installed-test: pyproject.toml | $(BIN)/python
 PROCESSES = $$($(BIN)/python -c 'from app.settings import Settings; print(Settings().processes)')
 
 serve: $(VENV)/.installed-serve  ## run the service on http://$(HOST):$(PORT) (docs at /docs)
-	export PROMETHEUS_MULTIPROC_DIR=$$(mktemp -d -t vibfree-metrics-XXXXXX) VIBFREE_PROCESSES=$(PROCESSES) && \
+	export PROMETHEUS_MULTIPROC_DIR=$$(mktemp -d -t vibfree-metrics-XXXXXX) VIBFREE_PROCESSES=$(PROCESSES) \
+	OMP_NUM_THREADS=$${OMP_NUM_THREADS:-1} OPENBLAS_NUM_THREADS=$${OPENBLAS_NUM_THREADS:-1} \
+	MKL_NUM_THREADS=$${MKL_NUM_THREADS:-1} && \
 	$(BIN)/uvicorn app.main:app --workers $$VIBFREE_PROCESSES --host $(HOST) --port $(PORT) $(SERVE_FLAGS)
 
 test: $(VENV)/.installed-test  ## lint, format and type gates, then the whole test suite (installs Debian's chromium)

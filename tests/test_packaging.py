@@ -23,12 +23,12 @@ def test_dockerfile_passes_hadolint():
     assert result.returncode == 0, result.stdout + result.stderr
 
 
-def test_dockerfile_runs_uvicorn_as_non_root_with_a_healthcheck():
+def test_dockerfile_serves_as_non_root_with_a_healthcheck():
     text = (ROOT / "Dockerfile").read_text()
     assert re.search(r"^FROM python:3\.11-slim", text, re.M)
     assert re.search(r"^USER 10001", text, re.M)
     assert "HEALTHCHECK" in text and "/healthz" in text
-    assert '"app.main:app", "--host", "0.0.0.0", "--port", "8000"' in text
+    assert 'CMD ["vibfree", "serve", "--host", "0.0.0.0", "--port", "8000"' in text
 
 
 def test_the_image_holds_every_package_the_project_installs():

@@ -34,6 +34,11 @@ SERVE_FLAGS = (
     "--timeout-graceful-shutdown",
     "30",
 )
+# One BLAS thread per process unless the caller says otherwise (the Makefile and the Dockerfile do the same): the
+# service runs a process per core already, BLAS threads on top oversubscribe them (a 3x1 product took 13.6 ms with
+# OpenBLAS's threads on the loaded machine, 0.47 ms without), and a solve's last bits depend on the thread count, so
+# the pool's rows equal a Dask worker's (whose nanny sets the same) bit for bit.
+SINGLE_THREADED_BLAS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 FAMILY_NAMES = ("time-optimal", "pseudo-polynomial", "stap", "smoother", "input-shaped")
 HTTP_TIMEOUT_S = 300.0
 
@@ -122,6 +127,11 @@ def _parser() -> argparse.ArgumentParser:
     serve = commands.add_parser("serve", help="run the HTTP service (uvicorn, the flags of make serve)")
     serve.add_argument("--host", default="127.0.0.1")
     serve.add_argument("--port", type=int, default=8000)
+    serve.add_argument(
+        "--proxy-headers",
+        action="store_true",
+        help="trust X-Forwarded-* from FORWARDED_ALLOW_IPS (uvicorn's flag; README 'Behind a reverse proxy')",
+    )
     serve.add_argument(
         "--processes",
         type=int,
@@ -261,7 +271,15 @@ def serve_environment(processes: int) -> dict[str, str]:
     import tempfile
 
     directory = tempfile.mkdtemp(prefix="vibfree-metrics-")
-    return {**os.environ, "VIBFREE_PROCESSES": str(processes), "PROMETHEUS_MULTIPROC_DIR": directory}
+    blas = dict.fromkeys(SINGLE_THREADED_BLAS, "1")
+    return {**blas, **os.environ, "VIBFREE_PROCESSES": str(processes), "PROMETHEUS_MULTIPROC_DIR": directory}
+
+
+def serve_argv(argv: Sequence[str], processes: int) -> list[str]:
+    """The uvicorn command line that ``vibfree serve <argv>`` runs with ``processes`` processes (what the
+    Dockerfile's ``CMD`` starts: the tests check its flags through this)."""
+    args = _parser().parse_args(["serve", *argv])
+    return [*serve_command(args.host, args.port, processes), *(["--proxy-headers"] if args.proxy_headers else [])]
 
 
 def _serve(args: argparse.Namespace) -> int:
@@ -270,7 +288,7 @@ def _serve(args: argparse.Namespace) -> int:
     processes = args.processes or Settings().processes
     if processes < 1:
         raise SystemExit("--processes must be at least 1")
-    command = serve_command(args.host, args.port, processes)
+    command = [*serve_command(args.host, args.port, processes), *(["--proxy-headers"] if args.proxy_headers else [])]
     # Replaces this process: signals reach uvicorn's supervisor, which passes them to its processes.
     os.execve(sys.executable, command, serve_environment(processes))
 

@@ -354,14 +354,20 @@ def test_the_middleware_drops_a_server_header_the_app_sets():
 
 
 def serve_commands() -> list[list[str]]:
-    """``make serve``'s uvicorn command (as make expands it, not run) and the Dockerfile's CMD."""
+    """``make serve``'s uvicorn command (as make expands it, not run) and the one the Dockerfile's CMD
+    (``vibfree serve ...``) runs, both from ``uvicorn`` on."""
+    from vibfree import cli
+
     dry_run = subprocess.run(["make", "-n", "serve"], capture_output=True, text=True, check=True, cwd=ROOT).stdout
     (serve,) = [
         line[line.index("uvicorn app.main:app") :] for line in dry_run.splitlines() if "uvicorn app.main" in line
     ]
     dockerfile = (ROOT / "Dockerfile").read_text()
     (cmd,) = re.findall(r"^CMD (\[.*\])$", dockerfile, re.MULTILINE)
-    return [shlex.split(serve), json.loads(cmd)]
+    cmd = json.loads(cmd)
+    assert cmd[:2] == ["vibfree", "serve"]
+    docker = cli.serve_argv(cmd[2:], processes=2)
+    return [shlex.split(serve), docker[docker.index("uvicorn") :]]
 
 
 def test_the_service_is_served_without_server_header_nor_uvicorns_access_log():
