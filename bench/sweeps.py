@@ -30,9 +30,6 @@ import httpx2 as httpx
 import orjson
 
 ROOT = Path(__file__).resolve().parent.parent
-# uvloop (uvicorn's default loop where it is installed) breaks the solver pool's supervision: busy workers are
-# "replaced" (exit code None) mid-solve. Until optim.workers is fixed for it, the server runs asyncio's loop.
-LOOP = ("--loop", "asyncio")
 # Dask's nanny starts its workers with one BLAS thread (distributed's nanny.pre-spawn-environ); the time-optimal
 # design's last bits and IPOPT iteration counts depend on OpenBLAS' thread count, so the service's workers get the
 # same environment here: with it the rows are bit-identical, without it they differ at round-off (1e-15 relative).
@@ -59,7 +56,7 @@ def free_port() -> int:
 @contextmanager
 def server(env: dict[str, str] | None = None) -> Iterator[str]:
     port = free_port()
-    command = [sys.executable, "-m", "uvicorn", "app.main:app", "--port", str(port), "--log-level", "warning", *LOOP]
+    command = [sys.executable, "-m", "uvicorn", "app.main:app", "--port", str(port), "--log-level", "warning"]
     process = subprocess.Popen(
         command,
         cwd=ROOT,

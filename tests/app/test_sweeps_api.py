@@ -5,10 +5,6 @@ line by line and stopping when the client goes away (a real server), and ``vibfr
 from __future__ import annotations
 
 import math
-import os
-import socket
-import subprocess
-import sys
 import time
 import urllib.request
 from collections.abc import Iterator
@@ -23,12 +19,10 @@ from scipy import signal
 
 from app.schemas.registry import REQUEST_SCHEMAS
 from app.schemas.sweeps import FAMILY_NAMES, SweepLine
+from tests.app.server import serving
 from vibfree import cli
 
 ROOT = Path(__file__).resolve().parents[2]
-# uvloop (uvicorn's default loop where it is installed) breaks the solver pool's supervision: busy workers are
-# "replaced" (exit code None) mid-solve. Until optim.workers is fixed for it, the server runs asyncio's loop.
-LOOP = ("--loop", "asyncio")
 BASE = {  # the README's 40 Hz time-optimal example
     "plant": {"kind": "mode", "natural_frequency_hz": 40.0, "damping_ratio": 0.0},
     "displacement": 0.12,
@@ -171,28 +165,9 @@ def test_the_200_documents_one_schema_per_line_type(client):
 
 @pytest.fixture(scope="module")
 def server() -> Iterator[str]:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    env = {**os.environ, "PYTHONPATH": str(ROOT), "VIBFREE_WORKERS": "2"}
-    command = [sys.executable, "-m", "uvicorn", "app.main:app", "--port", str(port), "--log-level", "warning", *LOOP]
-    process = subprocess.Popen(command, cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    base = f"http://127.0.0.1:{port}"
-    try:
-        deadline = time.monotonic() + 120
-        while time.monotonic() < deadline:
-            try:
-                with urllib.request.urlopen(base + "/readyz", timeout=2) as response:
-                    if response.status == 200:
-                        break
-            except OSError:
-                time.sleep(0.2)
-        else:
-            raise RuntimeError("the service did not become ready")
-        yield base
-    finally:
-        process.terminate()
-        process.wait(15)
+    # One HTTP process (its /readyz is the whole pool) with 2 solver workers: vibfree serve, as make serve runs it.
+    with serving(processes=1, env={"VIBFREE_WORKERS": "2"}) as port:
+        yield f"http://127.0.0.1:{port}"
 
 
 def _post(base: str, body: dict):
