@@ -41,6 +41,11 @@ test: $(VENV)/.installed-test  ## lint, format and type gates, then the whole te
 
 bench: $(VENV)/.installed-test  ## run the benchmarks whose figures are in README.md
 	$(BIN)/python bench/simulation.py
+	$(BIN)/python bench/pipeline_stap.py  # one STAP closed form in-process, stage by stage
+	$(BIN)/python bench/http_io.py  # the HTTP path: 100k /v1/simulate (JSON, npz, fields=), 1k STAP
+	$(BIN)/python bench/throughput.py  # req/s at 1, 4, 8 clients: one process against the defaults
+	$(BIN)/python bench/worker_memory.py  # worker RSS after 200 distinct plants
+	$(BIN)/python bench/sweeps.py  # a 50-plant sweep against slowest design x points / workers; a LocalCluster
 	$(BIN)/python bench/pseudo_polynomial.py
 	$(BIN)/python bench/compare.py  # includes bench/pseudo_polynomial_duration.py
 	$(BIN)/python bench/time_optimal.py  # needs pip install ruckig for part c (skipped without it)
