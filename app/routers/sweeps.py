@@ -39,7 +39,7 @@ from optim.family import FAMILIES
 from optim.workers import Executor, SolverPool
 
 log = logging.getLogger(__name__)
-router = APIRouter(prefix="/v1", tags=["sweeps"])
+router = APIRouter(prefix="/v1", tags=["sweeps"], route_class=problems.JSONRoute)
 NDJSON = "application/x-ndjson"
 _SEGMENT = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)(?:\[([0-9]+)\])?$")
 
