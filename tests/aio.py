@@ -4,14 +4,15 @@ in the main thread for the rest of the session, where ``asyncio.run`` refuses to
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Coroutine
+from collections.abc import Callable, Coroutine
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any, TypeVar
 
 T = TypeVar("T")
 
 
-def run(coroutine: Coroutine[Any, Any, T]) -> T:
-    """Run ``coroutine`` to completion on a new event loop in a thread of its own; return its result."""
+def run(coroutine: Coroutine[Any, Any, T], runner: Callable[[Coroutine[Any, Any, T]], T] = asyncio.run) -> T:
+    """Run ``coroutine`` to completion on a new event loop (``runner``'s: asyncio's, or e.g. ``uvloop.run``) in a
+    thread of its own; return its result."""
     with ThreadPoolExecutor(max_workers=1) as thread:
-        return thread.submit(asyncio.run, coroutine).result()
+        return thread.submit(runner, coroutine).result()

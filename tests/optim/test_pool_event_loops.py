@@ -4,11 +4,10 @@ for dead (every pseudo-polynomial answer of a real server was a 503). Both loops
 
 from __future__ import annotations
 
-import asyncio
-
 import pytest
 
 from optim.workers import SolverPool
+from tests import aio
 from tests.optim.pool_jobs import big_answer
 
 
@@ -27,7 +26,7 @@ def test_an_answer_larger_than_the_pipe_buffer_comes_back_whole(loop: str) -> No
     size = 8 * 1024 * 1024  # 128 pipe buffers
     if loop == "uvloop":
         uvloop = pytest.importorskip("uvloop")
-        length, restarts = uvloop.run(_round_trip(size))
+        length, restarts = aio.run(_round_trip(size), runner=uvloop.run)
     else:
-        length, restarts = asyncio.run(_round_trip(size))
+        length, restarts = aio.run(_round_trip(size))
     assert (length, restarts) == (size, 0)
