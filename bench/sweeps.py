@@ -30,13 +30,15 @@ import httpx2 as httpx
 import orjson
 
 ROOT = Path(__file__).resolve().parent.parent
-# Dask's nanny starts its workers with one BLAS thread (distributed's nanny.pre-spawn-environ); the time-optimal
-# design's last bits and IPOPT iteration counts depend on OpenBLAS' thread count, so the service's workers get the
-# same environment here: with it the rows are bit-identical, without it they differ at round-off (1e-15 relative).
-ONE_BLAS_THREAD = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 sys.path.insert(0, str(ROOT))
 
 from app.settings import Settings  # noqa: E402  (bench/ scripts run from anywhere, like the others)
+from vibfree.cli import SINGLE_THREADED_BLAS  # noqa: E402
+
+# Dask's nanny starts its workers with one BLAS thread (distributed's nanny.pre-spawn-environ); the time-optimal
+# design's last bits and IPOPT iteration counts depend on OpenBLAS' thread count, so the service's workers get the
+# same environment here: with it the rows are bit-identical, without it they differ at round-off (1e-15 relative).
+ONE_BLAS_THREAD = dict.fromkeys(SINGLE_THREADED_BLAS, "1")  # what vibfree serve and the image default to
 
 BASE = {  # the README's 40 Hz time-optimal example
     "plant": {"kind": "mode", "natural_frequency_hz": 40.0, "damping_ratio": 0.0},

@@ -278,7 +278,10 @@ def serve_environment(processes: int) -> dict[str, str]:
 def serve_argv(argv: Sequence[str], processes: int) -> list[str]:
     """The uvicorn command line that ``vibfree serve <argv>`` runs with ``processes`` processes (what the
     Dockerfile's ``CMD`` starts: the tests check its flags through this)."""
-    args = _parser().parse_args(["serve", *argv])
+    return _uvicorn_command(_parser().parse_args(["serve", *argv]), processes)
+
+
+def _uvicorn_command(args: argparse.Namespace, processes: int) -> list[str]:
     return [*serve_command(args.host, args.port, processes), *(["--proxy-headers"] if args.proxy_headers else [])]
 
 
@@ -288,7 +291,7 @@ def _serve(args: argparse.Namespace) -> int:
     processes = args.processes or Settings().processes
     if processes < 1:
         raise SystemExit("--processes must be at least 1")
-    command = [*serve_command(args.host, args.port, processes), *(["--proxy-headers"] if args.proxy_headers else [])]
+    command = _uvicorn_command(args, processes)
     # Replaces this process: signals reach uvicorn's supervisor, which passes them to its processes.
     os.execve(sys.executable, command, serve_environment(processes))
 
