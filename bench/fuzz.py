@@ -6,6 +6,11 @@ For each operation: the cases run, the statuses answered, the server errors (a 5
 504 solve-timeout) and the failed checks (undeclared status or content type, a body not matching its
 schema, schema-invalid input accepted), then the time taken. The settings are those of
 tests/app/test_fuzz.py (small solve caps). Exits non-zero on any server error or failed check.
+
+Then, per operation, the schema-valid cases (schemathesis' positive mode) answered 422, by problem type: an
+``invalid-input`` there is a rule the OpenAPI does not express (a cross-field rule, a format inside a string),
+listed with its most frequent field and rule; ``infeasible``, ``not-applicable`` and ``solver-failed`` depend on
+the physics (limits no design meets, a family that does not apply), which no schema can say.
 """
 
 from __future__ import annotations
@@ -24,6 +29,7 @@ sys.path.insert(0, str(ROOT))
 from hypothesis import HealthCheck, Phase, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 from schemathesis import GenerationMode  # noqa: E402
+from schemathesis.generation.meta import CaseMetadata  # noqa: E402
 from schemathesis.python import asgi  # noqa: E402
 
 from app.main import create_app  # noqa: E402
@@ -31,9 +37,40 @@ from app.observability import APP_LOGGERS  # noqa: E402
 from tests.app.test_fuzz import CHECKS, FUZZ_SETTINGS, fuzz_schema, start_and_wait_ready  # noqa: E402
 
 
-def fuzz_operation(operation: Any, cases: int, seed: int) -> tuple[collections.Counter[int], list[str], float]:
+class ValidRefused:
+    """Schema-valid cases answered 422: how many cases were schema-valid, the 422s by problem type, and the
+    invalid-input ones by their first error's field and rule."""
+
+    def __init__(self) -> None:
+        self.valid = 0
+        self.types: collections.Counter[str] = collections.Counter()
+        self.rules: collections.Counter[str] = collections.Counter()
+
+    def add(self, meta: CaseMetadata | None, response: Any) -> None:
+        if meta is None or not meta.generation.mode.is_positive:
+            return
+        self.valid += 1
+        if response.status_code != 422:
+            return
+        problem = response.json()
+        slug = str(problem.get("type", "?")).removeprefix("/problems/")
+        self.types[slug] += 1
+        if slug == "invalid-input":
+            first = (problem.get("errors") or [{}])[0]
+            self.rules[f"{first.get('field')}: {str(first.get('rule'))[:90]}"] += 1
+
+    def line(self) -> str:
+        refused = sum(self.types.values())
+        kinds = ", ".join(f"{k} {n}" for k, n in self.types.most_common())
+        return f"schema-valid {self.valid}, answered 422: {refused}" + (f" ({kinds})" if kinds else "")
+
+
+def fuzz_operation(
+    operation: Any, cases: int, seed: int
+) -> tuple[collections.Counter[int], list[str], float, ValidRefused]:
     statuses: collections.Counter[int] = collections.Counter()
     failures: list[str] = []
+    refused = ValidRefused()
     strategy = st.one_of(
         operation.as_strategy(generation_mode=GenerationMode.POSITIVE),
         operation.as_strategy(generation_mode=GenerationMode.NEGATIVE),
@@ -50,6 +87,7 @@ def fuzz_operation(operation: Any, cases: int, seed: int) -> tuple[collections.C
     def run(case: Any) -> None:
         response = case.call()
         statuses[response.status_code] += 1
+        refused.add(case.meta, response)
         if response.status_code >= 500 and not (
             response.status_code == 504 and response.json().get("type") == "/problems/solve-timeout"
         ):
@@ -63,7 +101,7 @@ def fuzz_operation(operation: Any, cases: int, seed: int) -> tuple[collections.C
     seeded = run
     seeded._hypothesis_internal_use_seed = seed  # type: ignore[attr-defined]  # hypothesis.seed() for a plain call
     seeded()
-    return statuses, failures, time.perf_counter() - start
+    return statuses, failures, time.perf_counter() - start, refused
 
 
 def main() -> int:
@@ -71,6 +109,7 @@ def main() -> int:
     parser.add_argument("--cases", type=int, default=2000, help="cases per operation (default 2000)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--only", default=None, help="only operations whose path contains this")
+    parser.add_argument("--rules", type=int, default=5, help="most frequent invalid-input rules shown (default 5)")
     args = parser.parse_args()
     app = create_app(FUZZ_SETTINGS)
     # one access line per case would bury the figures: warnings and errors only (a 500 logs its traceback)
@@ -79,13 +118,13 @@ def main() -> int:
     schema = fuzz_schema(app)
     start_and_wait_ready(app)
     total_start = time.perf_counter()
-    total_cases, total_failures = 0, 0
+    total_cases, total_failures, total_valid, total_refused = 0, 0, 0, 0
     print(f"{'operation':<40} {'cases':>6} {'time s':>8}  statuses; server errors and failed checks")
     for result in schema.get_all_operations():
         operation = result.ok()
         if args.only and args.only not in operation.path:
             continue
-        statuses, failures, elapsed = fuzz_operation(operation, args.cases, args.seed)
+        statuses, failures, elapsed, refused = fuzz_operation(operation, args.cases, args.seed)
         n = sum(statuses.values())
         total_cases += n
         total_failures += len(failures)
@@ -93,10 +132,16 @@ def main() -> int:
         print(f"{operation.method.upper() + ' ' + operation.path:<40} {n:>6} {elapsed:>8.1f}  {shown}; {len(failures)}")
         for failure in failures[:5]:
             print(f"    {failure}")
+        total_valid += refused.valid
+        total_refused += refused.types["invalid-input"]
+        print(f"    {refused.line()}")
+        for rule, count in refused.rules.most_common(args.rules):
+            print(f"      {count:>4} {rule}")
         sys.stdout.flush()
     print(
         f"total: {total_cases} cases, {total_failures} server errors or failed checks, "
-        f"{time.perf_counter() - total_start:.0f} s"
+        f"{time.perf_counter() - total_start:.0f} s; {total_valid} schema-valid, {total_refused} of them answered "
+        "422 invalid-input"
     )
     asgi.shutdown_lifespans()
     return 1 if total_failures else 0
