@@ -14,6 +14,9 @@ The pool supervises its own processes, one pipe each, watched from the event loo
 - the deadline counts solving time only: it starts when a worker takes the job;
 - admission is bounded: at most ``max_queued`` jobs wait for a worker, a job beyond that is refused
   at once (``PoolBusy``, a 503 with Retry-After), and no job waits longer than its own deadline;
+- a request that needs several jobs reserves them all at once (``reserve``): either each gets a place
+  (a worker or a queue slot) held for it, or none does and the request is refused before any of its
+  jobs ran;
 - ``ready`` is true while at least one worker is warm, and ``stats()`` tells the rest.
 
 Why not ``pebble.ProcessPool`` (tried, 5.2.3): a worker that dies while no task runs makes it raise
@@ -34,11 +37,12 @@ import os
 import signal
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import AsyncIterator, Callable
+from contextlib import AbstractAsyncContextManager, asynccontextmanager
 from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
 from multiprocessing.process import BaseProcess
-from typing import Any, Literal, Protocol, TypeVar
+from typing import Any, Literal, Protocol, TypeVar, runtime_checkable
 
 from models.errors import PoolUnavailable, SolverTimedOut
 
@@ -55,6 +59,27 @@ class Executor(Protocol):
     """Where the service layer runs a design: the supervised pool, or in-process (``InlineExecutor``)."""
 
     async def run(self, fn: Callable[..., T], *args: Any, deadline_s: float) -> T: ...
+
+
+@runtime_checkable
+class Reserving(Executor, Protocol):
+    """An executor that can hold room for several jobs of one request at once (the supervised pool)."""
+
+    def reserve(self, jobs: int) -> AbstractAsyncContextManager[Executor]: ...
+
+
+@asynccontextmanager
+async def reserved(executor: Executor, jobs: int) -> AsyncIterator[Executor]:
+    """Room for ``jobs`` concurrent jobs of one request, held while the block runs: the executor to run them on.
+
+    On a ``Reserving`` executor (the pool) this is all or nothing: either every job gets a place, or the block
+    does not start (``PoolBusy``, ``PoolUnavailable``). Any other executor (``InlineExecutor``, Dask) has no
+    admission to ask: the block runs on the executor itself."""
+    if jobs < 1 or not isinstance(executor, Reserving):
+        yield executor
+        return
+    async with executor.reserve(jobs) as held:
+        yield held
 
 
 class InlineExecutor:
@@ -82,6 +107,27 @@ class PoolBusy(PoolUnavailable):
     """Every worker is busy and the queue is full, or a job waited its whole deadline for a worker."""
 
     problem_type = "busy"
+
+
+class _Reservation:
+    """The executor of a reservation (``SolverPool.reserve``): ``free`` of its places wait for a job."""
+
+    def __init__(self, pool: SolverPool, places: int) -> None:
+        self.pool = pool
+        self.free = places
+        self.closed = False
+
+    async def run(self, fn: Callable[..., T], *args: Any, deadline_s: float) -> T:
+        if self.closed or self.free < 1:  # beyond the reservation: an ordinary job
+            return await self.pool.run(fn, *args, deadline_s=deadline_s)
+        self.free -= 1
+        self.pool._held -= 1
+        try:
+            return await self.pool._submit(fn, args, deadline_s)
+        finally:
+            if not self.closed:  # the place is held again for the request's next job
+                self.free += 1
+                self.pool._held += 1
 
 
 # --- the worker process ---------------------------------------------------------------------
@@ -166,6 +212,7 @@ class SolverPool:
         self._start_failures = 0
         self._respawns: set[asyncio.TimerHandle] = set()
         self._solve_s_estimate = 1.0  # running mean of solve times, for Retry-After
+        self._held = 0  # places reservations hold that none of their jobs fills now (see reserve)
         self.restarts = 0
         self.timeouts = 0
         self.rejected = 0
@@ -283,18 +330,63 @@ class SolverPool:
 
     async def run(self, fn: Callable[..., T], *args: Any, deadline_s: float) -> T:
         """Run ``fn(*args)`` in a worker, within ``deadline_s`` of solving (and of waiting for a worker)."""
+        self._admit(1)
+        return await self._submit(fn, args, deadline_s)
+
+    def _admit(self, jobs: int) -> None:
+        """Refuse at once unless ``jobs`` more jobs have room: a worker or a queue slot each, beside the places
+        reservations hold."""
         if self._closing or self._loop is None:
             raise PoolUnavailable("the solver pool is not running")
         if not self.ready:
             raise PoolUnavailable("the solver workers are starting")  # Retry-After: the default 5 s
-        idle = any(w.state == "idle" for w in self._workers)
-        if not idle and len(self._queue) >= self.max_queued:
-            self.rejected += 1
+        if self._room() < jobs:
+            self.rejected += jobs
             self._changed()
+            waiting = f"{len(self._queue)} solves are waiting" + (f", {self._held} places held" if self._held else "")
             raise PoolBusy(
-                f"every solver worker is busy and {len(self._queue)} solves are waiting (the most allowed)",
-                retry_after_s=self.retry_after_s(),
+                f"every solver worker is busy and {waiting} (the most allowed)"
+                if jobs == 1
+                else f"no room for the {jobs} solves of the request: {waiting}, {self.max_queued} allowed",
+                retry_after_s=self.retry_after_s(jobs),
             )
+
+    def _room(self) -> int:
+        """Jobs the pool can take now: its warm workers and ``max_queued`` queue slots, less the jobs they hold
+        (running or queued) and the places reservations hold. With no reservation this is the rule "an idle
+        worker, or fewer than ``max_queued`` waiting"."""
+        warm = busy = 0
+        for worker in self._workers:
+            warm += worker.state in ("idle", "busy")
+            busy += worker.state == "busy"
+        return warm + self.max_queued - busy - len(self._queue) - self._held
+
+    @asynccontextmanager
+    async def reserve(self, jobs: int) -> AsyncIterator[Executor]:
+        """Hold room for ``jobs`` concurrent jobs of one request, all or none, and yield the executor that runs
+        them (``_Reservation``). Refused at once (``PoolBusy``, ``PoolUnavailable``) when the pool cannot take
+        them all now, so that a request never waits for part of its work and is then refused for the rest.
+
+        A job run through the reservation takes one of its places without admission and gives it back when it
+        ends, so a job that follows another (a fallback after an infeasible design) reuses its place; beyond
+        ``jobs`` at once, a job meets the usual admission. Leaving the block frees every place. The held places
+        still obey the deadlines: a held job waits for a worker no longer than its own deadline."""
+        self._admit(jobs)
+        reservation = _Reservation(self, jobs)
+        self._held += jobs
+        self._changed()
+        try:
+            yield reservation
+        finally:
+            self._held -= reservation.free
+            reservation.free = 0
+            reservation.closed = True
+            self._changed()
+
+    async def _submit(self, fn: Callable[..., T], args: tuple[Any, ...], deadline_s: float) -> T:
+        """Queue an admitted job and wait for its outcome."""
+        if self._closing or self._loop is None:
+            raise PoolUnavailable("the solver pool is not running")
         job = _Job(fn, args, deadline_s, self._loop.create_future(), time.monotonic())
         job.timer = self._loop.call_later(deadline_s, self._expire_queued, job)
         self._queue.append(job)
@@ -308,9 +400,9 @@ class SolverPool:
                     self._queue.remove(job)
                     self._cancel_timer(job)
 
-    def retry_after_s(self) -> int:
-        """When a slot is likely to free: the mean solve time times the jobs ahead per worker."""
-        ahead = (len(self._queue) + 1) / max(1, self.workers)
+    def retry_after_s(self, jobs: int = 1) -> int:
+        """When room for ``jobs`` is likely to free: the mean solve time times the jobs ahead per worker."""
+        ahead = (len(self._queue) + self._held + jobs) / max(1, self.workers)
         return int(min(RETRY_AFTER_MAX_S, max(RETRY_AFTER_MIN_S, math.ceil(self._solve_s_estimate * ahead))))
 
     def _dispatch(self) -> None:

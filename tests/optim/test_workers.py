@@ -18,7 +18,7 @@ from typing import Any
 import pytest
 
 from models.errors import PoolUnavailable
-from optim.workers import PoolBusy, SolverPool, SolveTimeout
+from optim.workers import InlineExecutor, PoolBusy, SolverPool, SolveTimeout, reserved
 from tests import aio
 from tests.app import slow_solves
 
@@ -217,5 +217,47 @@ def test_close_stops_busy_workers_within_seconds() -> None:
         for pid in pids:
             with pytest.raises(ProcessLookupError):
                 os.kill(pid, 0)
+
+    run_async(main)
+
+
+@with_pool(workers=1, max_queued=2)
+async def test_a_reservation_is_all_or_nothing_and_refused_before_any_of_its_jobs(pool: SolverPool) -> None:
+    """Issue 23: room for a request's jobs is held all at once (a worker or a queue slot each), or none is."""
+    running = asyncio.ensure_future(pool.run(slow_solves.sleep_for, 1.0, deadline_s=10))
+    await until(lambda: pool.stats()["busy"] == 1)
+    queued = asyncio.ensure_future(pool.run(slow_solves.sleep_for, 0.0, deadline_s=10))
+    await asyncio.sleep(0)
+    # 1 worker + 2 queue slots, 2 of them taken: room for 1 job, not 2.
+    with pytest.raises(PoolBusy, match="the 2 solves") as refused:
+        async with reserved(pool, 2):
+            raise AssertionError("a refused reservation must not run its block")
+    assert refused.value.retry_after_s >= 1
+    assert pool.stats()["queued"] == 1 and pool.stats()["rejected"] == 2  # nothing of it was queued
+    async with reserved(pool, 1) as held:
+        with pytest.raises(PoolBusy):  # the last place is held for the reservation's job
+            await pool.run(slow_solves.sleep_for, 0.0, deadline_s=10)
+        assert not running.done()  # the place was held while the worker was still busy
+        for _ in range(2):  # one after the other, in the same place (a plain job would be refused until running ends)
+            assert isinstance(await held.run(slow_solves.sleep_for, 0.0, deadline_s=10), int)
+    assert isinstance(await queued, int) and isinstance(await running, int)
+    # Every place is free again: a worker and 2 queue slots, for three reservations at once.
+    for pid in await asyncio.gather(*(reserve_and_run(pool) for _ in range(3))):
+        assert isinstance(pid, int)
+
+
+async def reserve_and_run(pool: SolverPool) -> int:
+    async with reserved(pool, 1) as held:
+        return await held.run(slow_solves.sleep_for, 0.1, deadline_s=10)
+
+
+def test_an_executor_without_admission_runs_a_reservation_itself() -> None:
+    """The Python API's InlineExecutor (and Dask's) have no admission: ``reserved`` yields them unchanged."""
+
+    async def main() -> None:
+        inline = InlineExecutor()
+        async with reserved(inline, 3) as executor:
+            assert executor is inline
+            assert await executor.run(divmod, 7, 2, deadline_s=1) == (3, 1)
 
     run_async(main)
