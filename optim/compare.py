@@ -3,26 +3,34 @@
 Each family offers its ``candidates`` (its best within the limits, or the caller's override), each
 run through the same pipeline as the family's endpoint, so a row's numbers are the endpoint's
 answer to the request the row echoes. Of the candidates in one group only the one that settles
-first is kept. A family that does not apply, or whose designs all fail, is listed with the reason
-and its problem type. A family the pool could not take (PoolUnavailable: starting or busy) is no part of
-an answer: compare raises it, once every run has ended. The runner is injected (the pool for solver
-families, a thread otherwise), so this module does no I/O.
+first is kept. A family that does not apply, whose limits no design meets, or whose input or solver
+fails for this problem, is listed with the reason and its problem type.
+
+A ranking is never shown without a row that the machine's state removed: a family the pool could not
+take (``PoolUnavailable``: starting, busy, or its worker died) or whose solve ran out of time
+(``SolverTimedOut``, the pool's deadline or the solver's own wall-time cap) makes compare raise that
+error at once, the other runs cancelled. ``plan`` says, before anything runs, how many runs need a
+solver, so that the caller can reserve room for all of them at once (``optim.workers.reserved``) and
+be refused before any work. The runner is injected (the pool for solver families, a thread
+otherwise), so this module does no I/O.
 """
 
 from __future__ import annotations
 
 import asyncio
 import math
-from collections.abc import Awaitable, Callable, Iterable, Mapping
+from collections.abc import Awaitable, Callable, Coroutine, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from models.errors import DomainError, Infeasible, InvalidParameter, PoolUnavailable
+from models.errors import DomainError, Infeasible, InvalidParameter, PoolUnavailable, SolverTimedOut
 from optim.family import FAMILIES, Candidate, Family
 from optim.problem import Problem
 from optim.synthesis import Result
 
 Runner = Callable[[Family, Problem, Any], Awaitable[Result]]
+# What the machine's state decides, not the problem: no answer rather than a ranking without the family.
+NOT_AN_ANSWER = (PoolUnavailable, SolverTimedOut)
 
 
 @dataclass(frozen=True)
@@ -63,7 +71,7 @@ async def _one(family: Family, problem: Problem, candidate: Candidate, run: Runn
             if fallback is None:
                 raise
             return Row(family, fallback, await run(family, problem, fallback), candidate.label)
-    except PoolUnavailable:
+    except NOT_AN_ANSWER:
         raise
     except DomainError as exc:
         return Unavailable(family.name, reason_of(exc), f"/problems/{exc.problem_type}")
@@ -79,13 +87,25 @@ def _best_of_groups(candidates: tuple[Candidate, ...], outcomes: list[Row | Unav
     return out
 
 
-async def compare(
-    problem: Problem, run: Runner, names: Iterable[str] | None = None, overrides: Mapping[str, Any] | None = None
-) -> tuple[list[Row], list[Unavailable]]:
-    """Rows sorted by settling time (never-settling designs last), and the families that gave none."""
+@dataclass(frozen=True)
+class Plan:
+    """What compare runs: each applicable family's candidates, and the families that gave none."""
+
+    problem: Problem
+    runs: tuple[tuple[Family, tuple[Candidate, ...]], ...]
+    unavailable: tuple[Unavailable, ...]
+
+    @property
+    def solver_runs(self) -> int:
+        """Candidates that run in the solver pool (``Family.uses_solver``), all at once: the room to reserve."""
+        return sum(family.uses_solver(c.options) for family, candidates in self.runs for c in candidates)
+
+
+def plan(problem: Problem, names: Iterable[str] | None = None, overrides: Mapping[str, Any] | None = None) -> Plan:
+    """The families that apply and their candidates (the caller's override, or the family's own)."""
     overrides = overrides or {}
     families = [FAMILIES[n] for n in (names or FAMILIES) if n in FAMILIES]
-    plans: list[tuple[Family, tuple[Candidate, ...]]] = []
+    runs: list[tuple[Family, tuple[Candidate, ...]]] = []
     unavailable: list[Unavailable] = []
     for family in families:
         reason = family.not_applicable(problem)
@@ -98,19 +118,50 @@ async def compare(
         except DomainError as exc:  # its default options cannot be built for this problem
             unavailable.append(Unavailable(family.name, reason_of(exc), f"/problems/{exc.problem_type}"))
             continue
-        plans.append((family, candidates))
-    runs = await asyncio.gather(
-        *(_one(f, problem, c, run) for f, cands in plans for c in cands), return_exceptions=True
+        runs.append((family, candidates))
+    return Plan(problem, tuple(runs), tuple(unavailable))
+
+
+async def run_plan(planned: Plan, run: Runner) -> tuple[list[Row], list[Unavailable]]:
+    """Rows sorted by settling time (never-settling designs last), and the families that gave none; the first
+    ``NOT_AN_ANSWER`` error (or unexpected error) is raised instead, once the other runs are cancelled."""
+    outcomes = await _every_or_first_error(
+        [_one(f, planned.problem, c, run) for f, cands in planned.runs for c in cands]
     )
-    refused = next((o for o in runs if isinstance(o, BaseException)), None)
-    if refused is not None:  # a ranking with rows missing because the pool refused them is not an answer
-        raise refused
-    outcomes = [o for o in runs if not isinstance(o, BaseException)]
     kept: list[Row | Unavailable] = []
     start = 0
-    for _, cands in plans:
-        kept += _best_of_groups(cands, list(outcomes[start : start + len(cands)]))
+    for _, cands in planned.runs:
+        kept += _best_of_groups(cands, outcomes[start : start + len(cands)])
         start += len(cands)
     rows = sorted((o for o in kept if isinstance(o, Row)), key=lambda r: r.settling_key)
     failures = [o for o in kept if isinstance(o, Unavailable)]
-    return rows, unavailable + list(dict.fromkeys(failures))  # a reason once per family (the shapers share one)
+    # a reason once per family (the shapers share one)
+    return rows, list(planned.unavailable) + list(dict.fromkeys(failures))
+
+
+async def compare(
+    problem: Problem, run: Runner, names: Iterable[str] | None = None, overrides: Mapping[str, Any] | None = None
+) -> tuple[list[Row], list[Unavailable]]:
+    """``run_plan`` of ``plan``: rows sorted by settling time, and the families that gave none."""
+    return await run_plan(plan(problem, names, overrides), run)
+
+
+async def _every_or_first_error(coroutines: list[Coroutine[Any, Any, Row | Unavailable]]) -> list[Row | Unavailable]:
+    """Every outcome in order, or the first error: the runs still going are then cancelled (a queued solve leaves
+    the queue; one already in a worker ends under its own deadline) and awaited, and the error raised."""
+    tasks = [asyncio.ensure_future(c) for c in coroutines]
+    if not tasks:
+        return []
+    try:
+        _, pending = await asyncio.wait(tasks, return_when=asyncio.FIRST_EXCEPTION)
+    except BaseException:  # this request was cancelled: so are its runs
+        for task in tasks:
+            task.cancel()
+        raise
+    errors = [e for t in tasks if t.done() and not t.cancelled() and (e := t.exception()) is not None]
+    if not errors:
+        return [t.result() for t in tasks]
+    for task in pending:
+        task.cancel()
+    await asyncio.gather(*pending, return_exceptions=True)
+    raise errors[0]

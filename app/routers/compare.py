@@ -24,12 +24,12 @@ from app.schemas.stap import StapSensitivityOut
 from app.settings import Settings
 from models.errors import InvalidParameter
 from optim.compare import Row as ComparedRow
-from optim.compare import compare as compare_families
+from optim.compare import plan, run_plan
 from optim.families.pseudo_polynomial import PseudoPolynomialOptions
 from optim.family import Family
 from optim.problem import Problem
 from optim.synthesis import Result, load_arrays
-from optim.workers import Executor
+from optim.workers import Executor, reserved
 
 router = APIRouter(prefix="/v1", tags=["compare"], route_class=problems.JSONRoute)
 FamilyName = Literal["time_optimal", "pseudo_polynomial", "stap", "smoother", "input_shaped"]
@@ -171,7 +171,7 @@ EXAMPLES: dict[str, dict[str, Any]] = {
     "/compare",
     summary="Every family side by side on one plant, move and limits",
     response_model=CompareOut,
-    responses=problems.responses(413, 422, 503),
+    responses=problems.responses(413, 422, 503, 504),
 )
 async def compare(
     body: Annotated[CompareIn, Body(openapi_examples=EXAMPLES)],
@@ -182,7 +182,12 @@ async def compare(
     acceleration or torque limit) with the same limits, sampling, settling band and sensitivity grid, and returns
     one row per design sorted by the load's settling time. A family that does not apply or cannot meet the limits
     is listed in `unavailable` with its reason. `rows[].request` is the exact request to POST to
-    `rows[].endpoint` to get the same design (add `?format=csv` for a cam table)."""
+    `rows[].endpoint` to get the same design (add `?format=csv` for a cam table).
+
+    A ranking never misses a family for the service's own reasons: the request asks the solver pool for room
+    for all its solves at once and is refused at once (503 `busy`, with Retry-After) when there is not room for
+    every one; a solve that runs out of time makes the answer a 504 `solve-timeout`, and a solver worker that
+    dies a 503 `not-ready`, rather than a ranking without that family."""
     return NumpyJSONResponse(await answer(body, settings, pool))
 
 
@@ -194,10 +199,14 @@ async def answer(body: CompareIn, settings: Settings, pool: Executor) -> dict[st
     if not problem.plant.modes():
         raise InvalidParameter("plant", problem.plant.kind, "the plant has no vibration mode to design against")
 
-    async def run(family: Family, p: Problem, options: Any) -> Result:
-        return await services.run(family, p, options, settings, pool)
+    planned = plan(problem, body.families, body.options(problem))
+    # Room for every solve at once, or a 503 busy before any of them ran (no ranking with a row the load removed).
+    async with reserved(pool, planned.solver_runs) as executor:
 
-    rows, unavailable = await compare_families(problem, run, body.families, body.options(problem))
+        async def run(family: Family, p: Problem, options: Any) -> Result:
+            return await services.run(family, p, options, settings, executor)
+
+        rows, unavailable = await run_plan(planned, run)
     common = body.common_body()
     return {
         "move": "rest_to_rest" if problem.rest_to_rest else "rest_to_velocity",

@@ -214,3 +214,54 @@ def test_a_compare_missing_rows_only_because_the_pool_refused_them_is_a_503_not_
         aio.run(compare(problem, refusing(PoolBusy("the queue is full"), "input_shaped"), families))
     with pytest.raises(PoolUnavailable, match="starting"):
         aio.run(compare(problem, refusing(PoolUnavailable("workers starting"), "input_shaped"), ["input_shaped"]))
+
+
+def designs_counted(client: TestClient) -> float:
+    """Every design the service layer ran, in the pool or a thread, whatever its outcome (vibfree_solves_total)."""
+    return sum(
+        s.value
+        for family in text_string_to_metric_families(client.get("/metrics").text)
+        for s in family.samples
+        if s.name == "vibfree_solves_total"
+    )
+
+
+def test_a_compare_the_pool_has_no_room_for_is_refused_at_once_and_none_of_it_runs(client):
+    """Issue 23: compare asks room for all its solves at once. Here the pool has room for one job and compare
+    needs three (time-optimal, pseudo-polynomial, STAP optimized: ``optim.compare.plan``): it is refused while
+    the workers are still busy, nothing of it is queued, and none of its designs runs (not even those that
+    need no worker), where it used to queue one, run the closed forms, and refuse after the queued one ran."""
+    from app.routers.compare import EXAMPLES, CompareIn
+    from optim.compare import plan
+    from tests.app.conftest import TEST_SETTINGS
+
+    body = EXAMPLES["incerti_rest_to_rest"]["value"]
+    needs = plan(CompareIn.model_validate(body).to_problem(TEST_SETTINGS)).solver_runs
+    assert needs == 3
+    wait_all_warm(client)
+    pool = pool_of(client)
+    room = 1
+    with ThreadPoolExecutor(max_workers=pool.workers + pool.max_queued) as threads:
+        busy = [
+            threads.submit(client.post, "/test/slow", params={"seconds": 3.0, "deadline_s": 60})
+            for _ in range(pool.workers)
+        ]
+        deadline = time.monotonic() + 10
+        while pool.stats()["busy"] < pool.workers:
+            assert time.monotonic() < deadline
+            time.sleep(0.02)
+        waiting = [
+            threads.submit(client.post, "/test/slow", params={"seconds": 0.0, "deadline_s": 60})
+            for _ in range(pool.max_queued - room)
+        ]
+        while pool.stats()["queued"] < pool.max_queued - room:
+            assert time.monotonic() < deadline
+            time.sleep(0.02)
+        designs = designs_counted(client)
+        response = client.post("/v1/compare", json=body)
+        assert not any(f.done() for f in busy)  # refused before the 3 s the workers stay busy
+        assert_problem(response, 503, slug="busy")
+        assert int(response.headers["retry-after"]) >= 1
+        assert pool.stats()["queued"] == pool.max_queued - room  # nothing of it queued
+        assert designs_counted(client) == designs  # no design of it ran, in a worker or a thread
+        assert [f.result().status_code for f in busy + waiting] == [200] * (pool.workers + pool.max_queued - room)

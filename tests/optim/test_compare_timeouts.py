@@ -1,29 +1,86 @@
-"""Issue 11, section 4: a solver time-out is never reported as infeasible, in compare either. With a
-0.1 ms wall-time cap every IPOPT solve times out; the solver families must say so (or fall back to a
-closed form that needs no solve, saying so), never call the move infeasible."""
+"""Time-outs in compare.
+
+Issue 11, section 4: a solver time-out is never reported as infeasible, in compare either. Issue 23: nor is
+it a family left out of the ranking: a ranking never misses a row that the machine's state (a solve out of
+time, a worker that died, a full pool) removed; compare answers that error instead (504 solve-timeout, 503).
+With a 0.1 ms wall-time cap every IPOPT solve and every time-optimal LP search times out; the closed forms
+need no solve (STAP falls back to its closed form, saying so).
+"""
 
 from __future__ import annotations
 
+import asyncio
+
+import pytest
+
+import vibfree
 from app.examples import INCERTI_TABLE_III
 from app.routers.compare import CompareIn
 from app.settings import Settings
+from models.errors import PoolUnavailable, SolverTimedOut
+from optim.compare import compare
+from optim.synthesis import synthesize
+from optim.workers import SolveTimeout
+from tests import aio
 from tests.optim.compare_runner import run_compare
 
+INCERTI_MOVE = {
+    "plant": INCERTI_TABLE_III,
+    "displacement": 94.24777960769379,
+    "limits": {"max_velocity": 200.0, "max_acceleration": 700.0},
+}
+TINY_CAP = Settings(solve_time_limit_s=1e-4)
 
-def test_time_outs_in_compare_are_time_outs():
-    settings = Settings(solve_time_limit_s=1e-4)
-    body = CompareIn.model_validate(
-        {
-            "plant": INCERTI_TABLE_III,
-            "displacement": 94.24777960769379,
-            "limits": {"max_velocity": 200.0, "max_acceleration": 700.0},
-        }
-    )
-    problem = body.to_problem(settings)
+
+def test_time_outs_in_compare_are_time_outs_never_infeasible_nor_a_row_left_out():
+    problem = CompareIn.model_validate(INCERTI_MOVE).to_problem(TINY_CAP)
     assert problem.solver.max_wall_time_s == 1e-4
-    rows, unavailable = run_compare(problem)
-    types = {u.family: u.problem_type for u in unavailable}
-    assert types.get("pseudo_polynomial") == "/problems/solve-timeout", unavailable
-    assert "/problems/infeasible" not in types.values()
-    stap = [r for r in rows if r.family.name == "stap"]
-    assert stap and all(r.label == "stap/closed_form" or "closed form" in " ".join(r.result.warnings) for r in stap)
+    # Each solver family alone: its time-out is raised as a time-out (SolverTimedOut is no Infeasible).
+    for name in ("pseudo_polynomial", "time_optimal"):
+        with pytest.raises(SolverTimedOut):
+            run_compare(problem, [name])
+    # STAP needs no solve for its closed form: a row, which says so where the optimiser ran out of time.
+    rows, unavailable = run_compare(problem, ["stap"])
+    assert not unavailable
+    assert rows and all(r.label == "stap/closed_form" or "closed form" in " ".join(r.result.warnings) for r in rows)
+    # Every family: the time-out, not a ranking without the time-optimal and pseudo-polynomial rows.
+    with pytest.raises(SolverTimedOut):
+        run_compare(problem)
+
+
+def test_the_python_api_compare_answers_the_time_out_as_the_endpoint_does():
+    """vibfree.compare runs the route's own answer (InlineExecutor): the 504 problem, not a ranking."""
+    with pytest.raises(vibfree.VibfreeError) as error:
+        vibfree.compare(INCERTI_MOVE, settings=TINY_CAP)
+    assert error.value.status == 504
+    assert error.value.problem["type"] == "/problems/solve-timeout"
+
+
+@pytest.mark.parametrize(
+    "error",
+    [SolveTimeout(30.0), PoolUnavailable("a solver worker stopped unexpectedly (exit code -9)")],
+    ids=["pool-deadline", "worker-died"],
+)
+def test_one_family_out_of_time_or_without_its_worker_ends_compare_and_cancels_the_rest(error):
+    """The error of the failing family is compare's answer at once: the family still running is cancelled, not
+    waited for (it would wait for ever here), and no ranking is made without the failing family's row."""
+    problem = CompareIn.model_validate(INCERTI_MOVE).to_problem(Settings())
+    cancelled: list[str] = []
+
+    async def run(family, p, options):
+        if family.name == "pseudo_polynomial":
+            await asyncio.sleep(0)
+            raise error
+        if family.name == "time_optimal":
+            try:
+                await asyncio.Event().wait()  # never set: only cancellation ends it
+            except asyncio.CancelledError:
+                cancelled.append(family.name)
+                raise
+        return synthesize(family, p, options)
+
+    families = ["time_optimal", "pseudo_polynomial", "input_shaped"]
+    with pytest.raises(type(error)) as raised:
+        aio.run(asyncio.wait_for(compare(problem, run, families), 60))  # 60 s: a guard against a hang, not a bound
+    assert raised.value is error
+    assert cancelled == ["time_optimal"]
