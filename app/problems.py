@@ -285,7 +285,17 @@ def install(app: FastAPI) -> None:
         return problem_response(exc.slug, exc.detail, field=exc.field, **exc.extra)
 
     @app.exception_handler(StarletteHTTPException)
-    async def _http(_: Request, exc: StarletteHTTPException) -> Response:
+    async def _http(request: Request, exc: StarletteHTTPException) -> Response:
+        response = _http_problem(exc)
+        for name, value in (exc.headers or {}).items():  # e.g. a 405's Allow (RFC 9110 15.5.6)
+            response.headers.setdefault(name, value)
+        if exc.status_code == 405:
+            allowed = allowed_methods(request.app, request.scope)
+            if allowed:
+                response.headers["Allow"] = ", ".join(allowed)
+        return response
+
+    def _http_problem(exc: StarletteHTTPException) -> Response:
         slug = {
             400: "malformed-body",
             404: "not-found",
@@ -312,6 +322,27 @@ def install(app: FastAPI) -> None:
     async def _unexpected(request: Request, exc: Exception) -> Response:
         log.exception("unexpected error on %s %s", request.method, request.url.path)
         return problem_response("internal-error", "an unexpected error occurred; it has been logged")
+
+
+METHOD_ORDER = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS")
+
+
+def allowed_methods(app: Any, scope: Scope) -> list[str]:
+    """The methods the request's path accepts, over every route of the app that matches it (Starlette's 405
+    names only the first route matching the path, and a StaticFiles mount its own). Empty if none says."""
+    from fastapi import routing
+    from starlette.routing import Match
+
+    methods: set[str] = set()
+    probe = {**scope, "type": "http", "method": ""}  # a method no route takes: the path matches PARTIAL at best
+    iterate = getattr(routing, "iter_route_contexts", None)  # FastAPI >= 0.16x wraps included routers
+    for context in iterate(app.routes) if iterate is not None else app.routes:
+        if isinstance(getattr(context, "original_route", context), routing.Mount):
+            continue  # a mount (the static files) answers its own 405, with its own Allow
+        route_methods = getattr(context, "methods", None)
+        if route_methods and context.matches(probe)[0] is not Match.NONE:
+            methods.update(route_methods)
+    return sorted(methods, key=lambda m: (METHOD_ORDER.index(m) if m in METHOD_ORDER else len(METHOD_ORDER), m))
 
 
 def responses(*statuses: int) -> dict[int | str, dict[str, Any]]:

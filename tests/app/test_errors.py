@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import pytest
 
@@ -144,6 +145,49 @@ def test_malformed_json(client):
 def test_unknown_path_and_method_are_problems(client):
     assert_problem(client.get("/v1/nothing"), 404, slug="not-found")
     assert_problem(client.get("/v1/simulate"), 405, slug="method-not-allowed")
+
+
+METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS")
+
+
+def declared_methods(app) -> dict[str, set[str]]:
+    """Path template -> the methods its routes declare, over app.routes (included routers unwrapped); a mount of
+    static files takes GET and HEAD (Starlette's StaticFiles)."""
+    from fastapi.routing import iter_route_contexts
+    from starlette.routing import Mount
+
+    out: dict[str, set[str]] = {}
+    for context in iter_route_contexts(app.routes):
+        if isinstance(context.original_route, Mount):
+            out.setdefault(context.path_format, set()).update({"GET", "HEAD"})
+        else:
+            out.setdefault(context.path_format, set()).update(context.methods)
+    return out
+
+
+def test_every_405_says_in_allow_which_methods_the_path_takes():
+    """RFC 9110 15.5.6: a 405 MUST carry Allow, the methods the target resource supports; here every route of the
+    app, every method it does not take. Two routes on one path (GET and POST declared apart) give both: the Allow
+    of Starlette's 405 names only the first route that matches the path."""
+    from fastapi.testclient import TestClient
+
+    from app.main import create_app
+    from tests.app.conftest import TEST_SETTINGS
+
+    app = create_app(TEST_SETTINGS)
+    app.add_api_route("/test/two-routes", lambda: {}, methods=["GET"])
+    app.add_api_route("/test/two-routes", lambda: {}, methods=["POST"])
+    routes = declared_methods(app)
+    assert routes["/test/two-routes"] == {"GET", "POST"} and len(routes) > 15
+    client = TestClient(app, raise_server_exceptions=False)  # no lifespan: a 405 needs no solver
+    for template, allowed in routes.items():
+        path = re.sub(r"{[^}]+}", "x", template)
+        for method in sorted(set(METHODS) - allowed):
+            response = client.request(method, path)
+            assert response.status_code == 405, (method, path, response.status_code)
+            assert {m.strip() for m in response.headers.get("allow", "").split(",")} == allowed, (method, path)
+            if method != "HEAD":
+                assert_problem(response, 405, slug="method-not-allowed")
 
 
 def test_many_bad_samples_give_a_bounded_error_list(client):
