@@ -114,6 +114,7 @@ class _Reservation:
 
     def __init__(self, pool: SolverPool, places: int) -> None:
         self.pool = pool
+        self.places = places
         self.free = places
         self.closed = False
 
@@ -123,7 +124,7 @@ class _Reservation:
         self.free -= 1
         self.pool._held -= 1
         try:
-            return await self.pool._submit(fn, args, deadline_s)
+            return await self.pool._submit(fn, args, deadline_s, wait_s=deadline_s * self.places)
         finally:
             if not self.closed:  # the place is held again for the request's next job
                 self.free += 1
@@ -369,8 +370,8 @@ class SolverPool:
 
         A job run through the reservation takes one of its places without admission and gives it back when it
         ends, so a job that follows another (a fallback after an infeasible design) reuses its place; beyond
-        ``jobs`` at once, a job meets the usual admission. Leaving the block frees every place. The held places
-        still obey the deadlines: a held job waits for a worker no longer than its own deadline."""
+        ``jobs`` at once, a job meets the usual admission. Leaving the block frees every place. A held job waits
+        for a worker at most its deadline times ``jobs``: it may wait behind the request's own jobs."""
         self._admit(jobs)
         reservation = _Reservation(self, jobs)
         self._held += jobs
@@ -383,12 +384,15 @@ class SolverPool:
             reservation.closed = True
             self._changed()
 
-    async def _submit(self, fn: Callable[..., T], args: tuple[Any, ...], deadline_s: float) -> T:
-        """Queue an admitted job and wait for its outcome."""
+    async def _submit(
+        self, fn: Callable[..., T], args: tuple[Any, ...], deadline_s: float, wait_s: float | None = None
+    ) -> T:
+        """Queue an admitted job and wait for its outcome; it waits for a worker at most ``wait_s`` (default: its
+        deadline)."""
         if self._closing or self._loop is None:
             raise PoolUnavailable("the solver pool is not running")
         job = _Job(fn, args, deadline_s, self._loop.create_future(), time.monotonic())
-        job.timer = self._loop.call_later(deadline_s, self._expire_queued, job)
+        job.timer = self._loop.call_later(deadline_s if wait_s is None else wait_s, self._expire_queued, job)
         self._queue.append(job)
         self._dispatch()
         try:
