@@ -48,13 +48,18 @@ MAX_DECAY_TIMES_DURATION = 200.0
 # Continuous filters
 
 
+PHI_SERIES_BELOW = 1e-5  # |z| below which expm1(z)/z is its series 1 + z/2 + z^2/6 (next term < 5e-17)
+
+
 def _phi(z: ArrayLike) -> NDArray[np.complex128]:
-    """expm1(z)/z with its limit 1 at z = 0 (complex, vectorised)."""
+    """expm1(z)/z with its limit 1 at z = 0 (complex, vectorised). Near 0 it is the series 1 + z/2 + z^2/6:
+    numpy's complex division overflows for a subnormal z (1e-320 / 1e-320 is inf + nan j), which a decay rate of
+    a damping ratio near the smallest double gives."""
     z = np.asarray(z, dtype=complex)
-    out = np.ones_like(z)
-    nz = z != 0
+    out = np.asarray(1.0 + z / 2.0 + z * z / 6.0, dtype=complex)
+    far = np.abs(z) >= PHI_SERIES_BELOW
     with np.errstate(over="ignore", invalid="ignore"):
-        out[nz] = np.expm1(z[nz]) / z[nz]
+        out[far] = np.expm1(z[far]) / z[far]
     return out
 
 

@@ -440,3 +440,16 @@ def test_a_linear_hold_on_velocity_samples_is_vibration_free_when_t_is_a_whole_n
         assert residual < bound
         if ts == 5e-4:
             assert residual > 1e-9  # the off-grid end costs something: the figure is real, not round-off
+
+
+@pytest.mark.parametrize("rate", [1e-320, 5e-324 * 2.5e5])
+def test_an_exponential_filter_with_a_subnormal_decay_rate_is_the_undamped_one(rate):
+    """M_sigma(s) = phi((sigma - s) T) / phi(sigma T) tends to the rectangular filter's phi(-s T) as sigma -> 0
+    (phi(z) = expm1(z)/z -> 1). A damping ratio near the smallest double gives a subnormal sigma T, where numpy's
+    complex division overflowed (1e-320 / 1e-320 = inf + nan j): a NaN residual that let an infeasible move through
+    (found by bench/fuzz.py, issue 23). Tolerance: the decay's own effect, |sigma| T, is below 1e-300."""
+    s = np.array([POLE, 1j * OMEGA, -3.0 + 0j])
+    damped = Smoother("exponential", T1, rate)
+    undamped = Smoother("exponential", T1, 0.0)
+    for f in ("frequency_response", "end_response"):
+        assert np.allclose(getattr(damped, f)(s), getattr(undamped, f)(s), rtol=1e-14, atol=0), f
