@@ -2,15 +2,19 @@
 
 from __future__ import annotations
 
+import copy
 import functools
 import os
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
+from typing import Any
 
 from fastapi import FastAPI
 from prometheus_client import multiprocess as prometheus_multiprocess
+from pydantic import BaseModel
 
 from app import observability, problems
+from app.responses import FieldsOutput
 from app.routers import (
     compare,
     docs,
@@ -27,6 +31,7 @@ from app.routers import (
     sweeps,
     time_optimal,
 )
+from app.schemas.common import unschemed_rules
 from app.settings import Settings, get_settings
 from app.warmup import example_jobs, warm_up_worker
 from optim.workers import SolverPool
@@ -147,10 +152,71 @@ def _declare_problem_schema(app: FastAPI) -> None:
                 declared = operation.setdefault("responses", {})
                 for status, response in problems.responses(*problems.declared_statuses(route)).items():
                     declared.setdefault(str(status), response)
+                _declare_rules(operation, route, components)
         app.openapi_schema = schema
         return schema
 
     app.openapi = openapi  # type: ignore[method-assign]
+
+
+def _declare_rules(operation: dict[str, Any], route: Any, components: dict[str, Any]) -> None:
+    """The route's own query schemas (``fields=`` lists its answer's paths) and its JSON answer with ``fields=``
+    (a part of it), and, in its description, every rule validation checks that the schema does not state (value
+    comparisons, physics): so that a request the schema allows is refused only for a rule written here
+    (``app.schemas.common.unschemed_rules``)."""
+    rules: list[str] = []
+    body = route.body_field.field_info.annotation if route.body_field is not None else None
+    if isinstance(body, type) and issubclass(body, BaseModel):
+        rules += unschemed_rules(body)
+    stack = list(route.dependant.dependencies)
+    while stack:
+        dependency = stack.pop()
+        stack.extend(dependency.dependencies)
+        if isinstance(dependency.call, FieldsOutput):
+            rules += dependency.call.UNSCHEMED_RULES
+            extra = dependency.call.query_schemas()
+            for parameter in operation.get("parameters", []):
+                if parameter.get("in") == "query" and parameter.get("name") in extra:
+                    parameter["schema"] = {**parameter.get("schema", {}), **extra[parameter["name"]]}
+            content = operation.get("responses", {}).get("200", {}).get("content", {}).get("application/json", {})
+            whole = content.get("schema", {}).get("$ref", "")
+            if whole.startswith(COMPONENTS):
+                part = COMPONENTS + _selected(components, whole.removeprefix(COMPONENTS))
+                content["schema"] = {"anyOf": [{"$ref": whole}, {"$ref": part}]}
+    if rules:
+        listed = "\n".join(f"- {rule}" for rule in dict.fromkeys(rules))
+        operation["description"] = (
+            operation.get("description", "").rstrip()
+            + "\n\n**Rules the schema does not state** (each a 422 `invalid-input` naming the field):\n\n"
+            + listed
+        ).lstrip()
+
+
+COMPONENTS = "#/components/schemas/"
+
+
+def _selected(components: dict[str, Any], name: str, depth: int = 2) -> str:
+    """The component ``name`` with no member required, and so its blocks down ``depth`` levels (added once as
+    ``<name>Selected``): the schema of an answer that ``fields=`` cut down to some blocks, or to some keys of a
+    block (``responses.field_paths``)."""
+    selected = f"{name}Selected"
+    if selected in components:
+        return selected
+    schema = copy.deepcopy(components[name])
+    components[selected] = schema
+    schema.pop("required", None)
+    schema["title"] = f"{schema.get('title', name)} (the parts fields= names)"
+    stack: list[Any] = list(schema.get("properties", {}).values()) if depth > 1 else []
+    while stack:
+        node = stack.pop()
+        if isinstance(node, dict):
+            ref = node.get("$ref")
+            if isinstance(ref, str) and ref.startswith(COMPONENTS):
+                node["$ref"] = COMPONENTS + _selected(components, ref.removeprefix(COMPONENTS), depth - 1)
+            stack.extend(value for key, value in node.items() if key != "$ref")
+        elif isinstance(node, list):
+            stack.extend(node)
+    return selected
 
 
 app = create_app()

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import io
+import re
 import types
 import typing
 from collections.abc import Iterable
@@ -51,6 +52,31 @@ COLUMNS_DESCRIPTION = (
     "deflection from the simulated load; motor_torque_nm on two_inertia plants), or `all` (every column this plant "
     "defines). Default: " + ",".join(tables.PROFILE_COLUMNS) + "."
 )
+
+
+def _names(names: Iterable[str]) -> str:
+    return "(?:" + "|".join(re.escape(n) for n in names) + ")"
+
+
+def list_pattern(names: Iterable[str], *, at_least_one: bool) -> str:
+    r"""A comma-separated list of ``names`` as it is parsed here, unanchored: each item stripped of white space
+    (``str.strip``, which strips what Python's ``\s`` matches), empty items skipped; ``at_least_one``: at least
+    one name."""
+    name = _names(names)
+    first = rf"(?:\s*,)*\s*{name}" if at_least_one else rf"\s*{name}?"
+    return rf"{first}\s*(?:,\s*{name}?\s*)*"
+
+
+# columns=: any of the table's columns, or all alone (tables.check_columns). Two patterns, not one alternation:
+# hypothesis (schemathesis) never finishes drawing a string from their alternation.
+COLUMNS_MAX_CHARS = 400
+COLUMNS_PATTERNS = ("^" + list_pattern(tables.COLUMNS, at_least_one=False) + "$", r"^(?:\s*,)*\s*all\s*(?:,\s*)*$")
+COLUMNS_SCHEMA = {
+    "anyOf": [
+        *({"type": "string", "maxLength": COLUMNS_MAX_CHARS, "pattern": pattern} for pattern in COLUMNS_PATTERNS),
+        {"type": "null"},
+    ]
+}
 
 
 NPZ_MEDIA_TYPE = "application/x-npz"
@@ -147,18 +173,37 @@ class Output:
     fields: tuple[str, ...] | None = None
 
 
-class ProfileOutput:
-    """The output options of a profile route (``format``, ``columns``, ``comments``, ``fields``), from the query
-    and the Accept header; ``fields`` checked against the route's response model before anything is designed."""
+class FieldsOutput:
+    """An output dependency with ``fields=``, checked against the route's response model (``parse_fields``)."""
+
+    UNSCHEMED_RULES: tuple[str, ...] = ()
 
     def __init__(self, model: type[BaseModel]) -> None:
         self.allowed = field_paths(model)
+
+    def query_schemas(self) -> dict[str, dict[str, Any]]:
+        """What the OpenAPI adds to a query parameter's schema for this route (its own ``fields=`` paths: the
+        dependency's Query is shared by every route)."""
+        return {"fields": {"pattern": "^" + list_pattern(self.allowed, at_least_one=True) + "$"}}
+
+
+class ProfileOutput(FieldsOutput):
+    """The output options of a profile route (``format``, ``columns``, ``comments``, ``fields``), from the query
+    and the Accept header; ``fields`` checked against the route's response model before anything is designed."""
+
+    UNSCHEMED_RULES = (
+        "fields= selects what the JSON or npz answer holds: not with the CSV table (format=csv, or an Accept "
+        "header that prefers text/csv), whose columns columns= chooses.",
+    )
 
     async def __call__(
         self,
         request: Request,
         format: Annotated[Literal["json", "csv", "npz"] | None, Query(description=FORMAT_DESCRIPTION)] = None,
-        columns: Annotated[str | None, Query(max_length=400, description=COLUMNS_DESCRIPTION)] = None,
+        columns: Annotated[
+            str | None,
+            Query(max_length=COLUMNS_MAX_CHARS, description=COLUMNS_DESCRIPTION, json_schema_extra=COLUMNS_SCHEMA),
+        ] = None,
         comments: Annotated[
             bool,
             Query(
@@ -181,12 +226,9 @@ class ProfileOutput:
         return Output(csv=csv, columns=names, comments=comments, npz=not csv and wants_npz(request), fields=chosen)
 
 
-class ArrayOutput:
+class ArrayOutput(FieldsOutput):
     """The output options of a route with sampled arrays and no CSV table (/v1/simulate): ``format`` (json or
     npz, or the Accept header) and ``fields``."""
-
-    def __init__(self, model: type[BaseModel]) -> None:
-        self.allowed = field_paths(model)
 
     async def __call__(
         self,

@@ -7,7 +7,7 @@ POSTed to ``rows[].endpoint``.
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
 from fastapi import APIRouter, Body
 from pydantic import Field
@@ -49,6 +49,8 @@ class CompareIn(ProfileRequest):
     )
     families: list[FamilyName] | None = Field(None, min_length=1, description="Run only these families (default: all).")
     include_curves: bool = Field(False, description="Add each design's profile, load response and sensitivity curve.")
+
+    UNSCHEMED_RULES: ClassVar[tuple[str, ...]] = ("plant: at least one vibration mode to design against.",)
 
     def options(self, problem: Problem) -> dict[str, Any]:
         if self.duration_s is None:

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+import types
+import typing
+from typing import Annotated, Any, ClassVar
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field
 
 # Bounds of the numbers in request arrays: far beyond any machine, so they only refuse nonsense, and
 # small enough that sums, squares and differences of samples stay finite in double precision.
@@ -17,12 +19,116 @@ SampleTime = Annotated[float, Field(ge=-SAMPLE_TIME_MAX_S, le=SAMPLE_TIME_MAX_S)
 DampingRatio = Annotated[float, Field(ge=0, lt=1)]
 
 
+def _integral(value: Any) -> Any:
+    """A float with no fractional part as the integer it is: JSON has one number type, and JSON Schema's
+    ``integer`` is any number whose fractional part is zero (72.0 is the integer 72)."""
+    if isinstance(value, float) and value.is_integer():
+        return int(value)
+    return value
+
+
+INTEGRAL = BeforeValidator(_integral)
+# An integer field of a request (strict, but 72.0 is 72). Inside a union or a list, write the bounds before the
+# validator, Annotated[int, Field(ge=...), INTEGRAL]: after it, pydantic writes them as "ge"/"le" in the schema.
+Int = Annotated[int, INTEGRAL]
+
+
+# --- JSON Schema for the rules between fields ---------------------------------------------------------------
+# Each helper says exactly what validation checks, no more: a schema stricter than the validation would have
+# schema-invalid requests accepted (schemathesis' negative_data_rejection), a looser one schema-valid requests
+# refused.
+
+
+def given(name: str, kind: str = "number") -> dict[str, Any]:
+    """The field is there and not null (a JSON ``kind``: number, integer, array, object, string)."""
+    return {"required": [name], "properties": {name: {"type": kind}}}
+
+
+def is_value(name: str, value: Any, *, default: bool = False) -> dict[str, Any]:
+    """The field equals ``value`` (``default``: also when it is absent, its default being ``value``)."""
+    return (
+        {"properties": {name: {"const": value}}}
+        if default
+        else {"required": [name], "properties": {name: {"const": value}}}
+    )
+
+
+def limit_given(name: str) -> dict[str, Any]:
+    """``limits.<name>`` is there and not null."""
+    return {"required": ["limits"], "properties": {"limits": given(name)}}
+
+
+def plant_kind_is(*kinds: str) -> dict[str, Any]:
+    """``plant.kind`` is one of ``kinds``."""
+    return {
+        "required": ["plant"],
+        "properties": {"plant": {"required": ["kind"], "properties": {"kind": {"enum": list(kinds)}}}},
+    }
+
+
+def all_of(*schemas: dict[str, Any]) -> dict[str, Any]:
+    return {"allOf": list(schemas)}
+
+
+def never(*schemas: dict[str, Any]) -> dict[str, Any]:
+    """Refused when every one of ``schemas`` holds."""
+    return {"not": schemas[0] if len(schemas) == 1 else all_of(*schemas)}
+
+
+def _add_schema_rules(schema: dict[str, Any], model: type[Any]) -> None:
+    rules = model.schema_rules() if hasattr(model, "schema_rules") else []
+    if rules:
+        schema["allOf"] = [*schema.get("allOf", []), *rules]
+
+
 class StrictModel(BaseModel):
     """Request models: unknown fields, NaN and infinities are refused with a 422, and so are values of the
     wrong JSON type (true for a number, "1" for a number): strict validation, which still takes an
-    integer for a number."""
+    integer for a number (and, with ``Int``, an integral number for an integer).
 
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)
+    The JSON schema states the rules between fields that it can (``schema_rules``, exactly as validation checks
+    them); the others, value comparisons and physics, are listed in ``UNSCHEMED_RULES`` and, for every
+    model a request holds, in the operation's description (``unschemed_rules``)."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True, json_schema_extra=_add_schema_rules)
+
+    UNSCHEMED_RULES: ClassVar[tuple[str, ...]] = ()
+
+    @classmethod
+    def schema_rules(cls) -> list[dict[str, Any]]:
+        """JSON Schema ``allOf`` entries for the rules between this model's fields."""
+        return []
+
+
+def _models_in(annotation: Any) -> list[type[BaseModel]]:
+    """The pydantic models an annotation holds, through unions, lists and Annotated."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return [annotation]
+    out: list[type[BaseModel]] = []
+    if typing.get_origin(annotation) is not None or isinstance(annotation, types.UnionType):
+        for arg in typing.get_args(annotation):
+            out += _models_in(arg)
+    return out
+
+
+def unschemed_rules(model: type[BaseModel]) -> list[str]:
+    """Every rule validation checks that the JSON schema of ``model`` cannot state: its own (``UNSCHEMED_RULES``,
+    along its bases) and those of every model it holds, each once, in order."""
+    rules: dict[str, None] = {}
+    seen: set[type[BaseModel]] = set()
+
+    def visit(current: type[BaseModel]) -> None:
+        if current in seen:
+            return
+        seen.add(current)
+        for base in reversed(current.__mro__):
+            rules.update(dict.fromkeys(getattr(base, "UNSCHEMED_RULES", ()) if "UNSCHEMED_RULES" in vars(base) else ()))
+        for info in current.model_fields.values():
+            for inner in _models_in(info.annotation):
+                visit(inner)
+
+    visit(model)
+    return list(rules)
 
 
 class OutModel(BaseModel):

@@ -13,18 +13,33 @@ from typing import Annotated, Any, ClassVar
 
 import numpy as np
 from pydantic import Field, PrivateAttr, model_validator
+from pydantic.json_schema import JsonDict
 
-from app.schemas.common import TOLERANCE_MIN, DampingRatio, OutModel, StrictModel
+from app.schemas.common import (
+    TOLERANCE_MIN,
+    DampingRatio,
+    Int,
+    OutModel,
+    StrictModel,
+    given,
+    limit_given,
+    never,
+    plant_kind_is,
+)
 from app.schemas.plants import PlantIn, to_plant
 from app.schemas.simulate import LoadOut, MetricsOut, ProfileOut, SettlingIn
 from app.settings import Settings
 from models.errors import InvalidParameter
-from optim.problem import MAX_MOVE, Limits, Problem, SensitivityGrid, Settling
+from optim.problem import MAX_MOVE, MIN_MOVE, Limits, Problem, SensitivityGrid, Settling
 
 MAX_SENSITIVITY_POINTS = 4001
 # The smallest limit: a micrometre (or microradian) per second, per s^2, per s^3, a micronewton metre.
 LIMIT_MIN = 1e-6
 HORIZON_MIN_S = 1e-6
+# |move| >= MIN_MOVE (optim.problem): a move field is no number strictly between -MIN_MOVE and MIN_MOVE
+NOT_A_TINY_MOVE: JsonDict = {"not": {"type": "number", "exclusiveMinimum": -MIN_MOVE, "exclusiveMaximum": MIN_MOVE}}
+# The move of a rest-to-rest family: a displacement, no target_velocity (the family's not_applicable)
+REST_TO_REST_ONLY = [given("displacement"), {"not": given("target_velocity")}]
 
 
 class LimitsIn(StrictModel):
@@ -53,12 +68,18 @@ class SensitivityIn(StrictModel):
     )
     min_ratio: float = Field(0.5, ge=0.01, le=100, description="Start of a uniform range of ratios (>= 0.01).")
     max_ratio: float = Field(1.5, ge=0.01, le=100, description="End of the range.")
-    count: int = Field(201, ge=2, le=MAX_SENSITIVITY_POINTS, description="Points in the range.")
+    count: Int = Field(201, ge=2, le=MAX_SENSITIVITY_POINTS, description="Points in the range.")
     damping_ratios: list[DampingRatio] | None = Field(
         None,
         min_length=1,
         max_length=50,
         description="True damping ratios to evaluate (a grid with the ratios); default: the plant's own.",
+    )
+
+    UNSCHEMED_RULES: ClassVar[tuple[str, ...]] = (
+        "sensitivity.max_ratio must be greater than sensitivity.min_ratio.",
+        f"sensitivity: at most {20 * MAX_SENSITIVITY_POINTS} (damping ratio, frequency ratio) points: the damping "
+        "ratios times the frequency ratios (frequency_ratios, or count).",
     )
 
     @model_validator(mode="after")
@@ -138,13 +159,20 @@ class ProfileRequest(StrictModel):
 
     plant: PlantIn
     displacement: float | None = Field(
-        None, ge=-MAX_MOVE, le=MAX_MOVE, description="Rest-to-rest: the signed motor displacement (rad or m)."
+        None,
+        ge=-MAX_MOVE,
+        le=MAX_MOVE,
+        description=f"Rest-to-rest: the signed motor displacement (rad or m), {MIN_MOVE:g} <= |displacement| <= "
+        f"{MAX_MOVE:g}.",
+        json_schema_extra=NOT_A_TINY_MOVE,
     )
     target_velocity: float | None = Field(
         None,
         ge=-MAX_MOVE,
         le=MAX_MOVE,
-        description="Rest-to-velocity: the signed final motor velocity (rad/s or m/s). Give this or displacement.",
+        description=f"Rest-to-velocity: the signed final motor velocity (rad/s or m/s), {MIN_MOVE:g} <= "
+        f"|target_velocity| <= {MAX_MOVE:g}. Give this or displacement.",
+        json_schema_extra=NOT_A_TINY_MOVE,
     )
     limits: LimitsIn = Field(
         default_factory=LimitsIn, description="max_velocity is also the cruise speed of a rest-to-rest move."
@@ -180,6 +208,30 @@ class ProfileRequest(StrictModel):
     _aliases: dict[str, str] = PrivateAttr(default_factory=dict)  # new field -> the legacy field the caller used
 
     MOVE_FIELD: ClassVar[str] = "displacement"  # the field a missing move is reported under
+    UNSCHEMED_RULES: ClassVar[tuple[str, ...]] = (
+        "A deprecated field that names a limit (see each field) must equal the limits field it stands for when both "
+        "are given.",
+        "sample_period_s: the returned series (horizon_s / sample_period_s samples) must not exceed the service's "
+        "sample cap (VIBFREE_MAX_SAMPLES); the answer names the smallest period that fits. horizon_s: at least the "
+        "command's end.",
+        "limits.max_torque_nm: M / (J_M + J_L) at least 1e-9.",
+    )
+
+    @classmethod
+    def schema_rules(cls) -> list[dict[str, Any]]:
+        return [
+            *super().schema_rules(),
+            *cls.move_rules(),
+            # settling_tolerance is the deprecated settling.position_tolerance: not beside settling
+            never(given("settling_tolerance"), {"required": ["settling"]}),
+            # only a two_inertia plant defines the motor torque (optim.problem.Problem)
+            never(limit_given("max_torque_nm"), {"not": plant_kind_is("two_inertia")}),
+        ]
+
+    @classmethod
+    def move_rules(cls) -> list[dict[str, Any]]:
+        """Exactly one of displacement (rest-to-rest) and target_velocity (rest-to-velocity): ``_resolved``."""
+        return [{"oneOf": [given("displacement"), given("target_velocity")]}]
 
     def _resolved(self) -> tuple[LimitsIn, SettlingIn, float | None, float | None]:
         """Legacy fields folded into the uniform ones (recording each use), and the move checked; a

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
 from pydantic import Field
 
@@ -38,6 +38,12 @@ Radius = Annotated[float, Field(ge=RADIUS_MIN_M, le=RADIUS_MAX_M)]
 Coefficient = Annotated[float, Field(ge=-COEFFICIENT_MAX, le=COEFFICIENT_MAX)]
 
 
+PHYSICS = (
+    f"plant (two_inertia, belt_platform, rigid_flexible): the parameters must give an oscillatory mode whose "
+    f"natural frequency lies in [{FREQUENCY_MIN_HZ:g}, {FREQUENCY_MAX_HZ:g}] Hz and damping ratio is below 1.",
+)
+
+
 class ModeIn(StrictModel):
     """One vibration mode: the load follows the motor through (2 zeta w s + w^2)/(s^2 + 2 zeta w s + w^2)."""
 
@@ -52,6 +58,7 @@ class TwoInertiaIn(StrictModel):
     """Motor and load inertias on a compliant shaft (Cusimano Fig. 1); motor torque is defined."""
 
     kind: Literal["two_inertia"]
+    UNSCHEMED_RULES: ClassVar[tuple[str, ...]] = PHYSICS
     motor_inertia_kgm2: Inertia = Field(description="Motor inertia J_M, kg m^2 (1e-9 to 1e12).")
     load_inertia_kgm2: Inertia = Field(description="Load inertia J_L, kg m^2 (1e-9 to 1e12).")
     stiffness_nm_per_rad: Stiffness = Field(description="Shaft torsional stiffness k, N m/rad (1e-6 to 1e12).")
@@ -65,6 +72,7 @@ class BeltPlatformIn(StrictModel):
     """
 
     kind: Literal["belt_platform"]
+    UNSCHEMED_RULES: ClassVar[tuple[str, ...]] = PHYSICS
     platform_inertia_kgm2: Inertia = Field(description="Platform inertia J, kg m^2 (1e-9 to 1e12).")
     branch_stiffness_n_per_m: Stiffness = Field(description="Stiffness k of each belt branch, N/m (1e-6 to 1e12).")
     branch_damping_ns_per_m: NonNegative = Field(description="Damping c of each belt branch, N s/m.")
@@ -86,6 +94,7 @@ class RigidFlexibleIn(StrictModel):
     """
 
     kind: Literal["rigid_flexible"]
+    UNSCHEMED_RULES: ClassVar[tuple[str, ...]] = PHYSICS
     drive_mass_kg: Mass = Field(description="Driving mass m0, kg (1e-6 to 1e12).")
     load_mass_kg: Mass = Field(description="Driven mass m1, kg (1e-6 to 1e12).")
     stiffness_n_per_m: Stiffness = Field(description="Spring stiffness k, N/m (1e-6 to 1e12).")
@@ -114,6 +123,28 @@ class TransferFunctionIn(StrictModel):
     command_input: Literal["position", "velocity"] = Field(
         "position", description="Whether the transfer function takes the motor position or velocity."
     )
+
+    UNSCHEMED_RULES: ClassVar[tuple[str, ...]] = (
+        "plant (transfer_function): proper (numerator degree, after its leading zeros, at most the denominator's; "
+        "below it for command_input velocity); poles in the left half-plane (undamped complex pairs allowed), not "
+        "repeated, of magnitude at most 2 pi 1e6 rad/s; the coefficients within double precision's range once the "
+        "denominator is made monic; its modes physical (natural frequency within [1e-3, 1e5] Hz).",
+    )
+
+    @classmethod
+    def schema_rules(cls) -> list[dict[str, Any]]:
+        # models.plants.TransferFunctionPlant: a denominator whose leading coefficient is not 0 and whose constant
+        # term is not 0 either (a pole at s = 0: not in the left half-plane), and a numerator not all zeros
+        nonzero = {"not": {"const": 0}}
+        last_nonzero = [
+            {"minItems": n, "maxItems": n, "prefixItems": [{}] * (n - 1) + [nonzero]}
+            for n in range(2, MAX_TRANSFER_FUNCTION_ORDER + 2)
+        ]
+        return [
+            *super().schema_rules(),
+            {"properties": {"denominator": {"prefixItems": [nonzero], "anyOf": last_nonzero}}},
+            {"properties": {"numerator": {"contains": nonzero}}},
+        ]
 
 
 PlantIn = Annotated[

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Annotated, Any, ClassVar
 
 from pydantic import Field
 
-from app.schemas.common import OutModel
-from app.schemas.family import FamilyResponse, ProfileRequest, SolverOut
+from app.schemas.common import Int, OutModel
+from app.schemas.family import REST_TO_REST_ONLY, FamilyResponse, ProfileRequest, SolverOut
 from app.schemas.simulate import LoadOut, MetricsOut, ProfileOut
 from optim.families.pseudo_polynomial import PseudoPolynomialOptions
 from optim.family import FAMILIES
@@ -32,7 +32,7 @@ class PseudoPolynomialIn(ProfileRequest):
         "shortest duration found by minimize_duration, scanning whole periods from the kinematic floor up to "
         "whole periods above twice the floor (at least 5).",
     )
-    order: int = Field(
+    order: Int = Field(
         2, ge=1, le=MAX_ORDER, description="n: derivatives up to n are null at both ends (n + 1 exponents)."
     )
     initial_exponents: list[Annotated[float, Field(gt=1, le=MAX_EXPONENT)]] | None = Field(
@@ -53,6 +53,15 @@ class PseudoPolynomialIn(ProfileRequest):
         description="Residual load amplitude accepted by minimize_duration (default 1e-6 of the load's move), "
         "1e-15 to 1e9 load units.",
     )
+
+    UNSCHEMED_RULES: ClassVar[tuple[str, ...]] = (
+        "initial_exponents: order + 1 of them, each >= max(3, order + 0.05) and at least 0.05 apart.",
+        "minimize_duration needs at least one limit; limits.max_torque_nm needs a two_inertia plant.",
+    )
+
+    @classmethod
+    def move_rules(cls) -> list[dict[str, Any]]:
+        return REST_TO_REST_ONLY
 
     def options(self, problem: Problem) -> PseudoPolynomialOptions:
         exponents = tuple(self.initial_exponents) if self.initial_exponents else None

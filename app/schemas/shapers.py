@@ -2,21 +2,33 @@
 
 from __future__ import annotations
 
-from typing import ClassVar, Literal
+from typing import Any, ClassVar, Literal
 
 from pydantic import ConfigDict, Field
 
-from app.schemas.common import OutModel
+from app.schemas.common import Int, OutModel, given, limit_given, never
 from app.schemas.family import FamilyResponse, ProfileRequest
 from app.schemas.simulate import MetricsOut, ProfileOut
 from models.errors import InvalidParameter
-from optim.families.input_shaped import MAX_SHAPED_MODES, InputShapedOptions
+from optim.families.input_shaped import MAX_SHAPED_MODES, MAX_SHAPED_RAMPS, InputShapedOptions
 from optim.family import FAMILIES
 from optim.firmware import KLIPPER_VERSION, MARLIN_VERSION, RRF_VERSION
-from optim.problem import MAX_MOVE, Problem
-from optim.shapers import CATALOGUE_NAMES, DEFAULT_VIBRATION_TOLERANCE, MAX_DERIVATIVE_ORDER
+from optim.problem import MAX_MOVE, MIN_LIMIT, Problem
+from optim.shapers import CATALOGUE_NAMES, DEFAULT_VIBRATION_TOLERANCE, EI_HUMPS, MAX_DERIVATIVE_ORDER
 
 FAMILY = FAMILIES["input_shaped"]
+
+
+def _any_case(word: str) -> str:
+    return "".join(f"[{c}{c.upper()}]" if c.isalpha() else c for c in word)
+
+
+# The names optim.shapers accepts (after strip and lower): zv and up to MAX_DERIVATIVE_ORDER letters d, mzv, the EIs.
+SHAPER_PATTERN = (
+    rf"^\s*(?:{_any_case('zv')}{_any_case('d')}{{0,{MAX_DERIVATIVE_ORDER}}}|"
+    + "|".join(_any_case(name) for name in ("mzv", *EI_HUMPS))
+    + r")\s*$"
+)
 
 
 class InputShapedRequest(ProfileRequest):
@@ -44,7 +56,8 @@ class InputShapedRequest(ProfileRequest):
     shaper: str = Field(
         "zvd",
         description=f"One of {', '.join(CATALOGUE_NAMES)}, or zv followed by up to {MAX_DERIVATIVE_ORDER} letters d "
-        "(see GET /v1/shapers). Designed for the plant's own mode(s), damping included.",
+        "(see GET /v1/shapers), in any case. Designed for the plant's own mode(s), damping included.",
+        json_schema_extra={"pattern": SHAPER_PATTERN},
     )
     vibration_tolerance: float = Field(
         DEFAULT_VIBRATION_TOLERANCE,
@@ -68,13 +81,50 @@ class InputShapedRequest(ProfileRequest):
         "impulse times (Fig. 10), by the paper's relations where they hold (ZV) and otherwise the fastest valid "
         "steps. modified and multi_step need an acceleration limit.",
     )
-    baseline_steps: int = Field(2, ge=1, le=32, description="multi_step only: the number of steps (<= impulse count).")
+    baseline_steps: Int = Field(2, ge=1, le=32, description="multi_step only: the number of steps (<= impulse count).")
     cruise_velocity: float | None = Field(
-        None, gt=0, le=MAX_MOVE, deprecated="cruise_velocity is deprecated: use limits.max_velocity (same meaning)"
+        None,
+        ge=MIN_LIMIT,
+        le=MAX_MOVE,
+        deprecated="cruise_velocity is deprecated: use limits.max_velocity (same meaning)",
     )
     acceleration_limit: float | None = Field(
-        None, gt=0, le=1e12, deprecated="acceleration_limit is deprecated: use limits.max_acceleration (same meaning)"
+        None,
+        ge=MIN_LIMIT,
+        le=1e12,
+        deprecated="acceleration_limit is deprecated: use limits.max_acceleration (same meaning)",
     )
+
+    UNSCHEMED_RULES: ClassVar[tuple[str, ...]] = (
+        "baseline modified and multi_step need an acceleration limit (limits.max_acceleration, or "
+        "limits.max_torque_nm on a two_inertia plant).",
+        "baseline_steps: at most the shaper's impulse count; the impulses (of every shaped mode) times the steps: "
+        f"at most {MAX_SHAPED_RAMPS} ramps.",
+        f"shaped_modes all: at most {MAX_SHAPED_MODES} modes.",
+    )
+
+    @classmethod
+    def schema_rules(cls) -> list[dict[str, Any]]:
+        # cruise_velocity (deprecated limits.max_velocity) is the cruise of a rest-to-rest move: ``_legacy_move``
+        return [
+            *super().schema_rules(),
+            never(given("target_velocity"), given("cruise_velocity")),
+            never(limit_given("max_jerk")),  # shaped steps make the jerk impulsive: the family's not_applicable
+            # a rest-to-rest move cruises at limits.max_velocity where no acceleration limit bounds it (its cruise)
+            never(
+                given("displacement"),
+                *(
+                    {"not": schema}
+                    for schema in (
+                        limit_given("max_velocity"),
+                        given("cruise_velocity"),
+                        limit_given("max_acceleration"),
+                        given("acceleration_limit"),
+                        limit_given("max_torque_nm"),
+                    )
+                ),
+            ),
+        ]
 
     def _legacy_move(
         self, updates: dict[str, float], notes: list[str], aliases: dict[str, str]

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 from pydantic import Field
 
-from app.schemas.common import TOLERANCE_MIN, OutModel, SampleTime, SampleValue, StrictModel
+from app.schemas.common import TOLERANCE_MIN, OutModel, SampleTime, SampleValue, StrictModel, given, is_value, never
 from app.schemas.plants import PlantIn
 from models.commands import DERIVATIVE_NAMES, PiecewiseCommand
 from models.errors import InvalidParameter
@@ -27,6 +27,16 @@ class ProfileIn(StrictModel):
     velocity: list[SampleValue] | None = Field(None, description="Motor velocity, one per time (|v| <= 1e12).")
     acceleration: list[SampleValue] | None = Field(None, description="Motor acceleration, one per time (<= 1e12).")
     jerk: list[SampleValue] | None = Field(None, description="Motor jerk, one per time (|j| <= 1e12).")
+
+    UNSCHEMED_RULES: ClassVar[tuple[str, ...]] = (
+        "profile.time_s strictly increasing, at most the service's sample cap (VIBFREE_MAX_SAMPLES); every array "
+        "given as long as profile.time_s.",
+    )
+
+    @classmethod
+    def schema_rules(cls) -> list[dict[str, Any]]:
+        # at least one of the quantities (to_command)
+        return [*super().schema_rules(), {"anyOf": [given(name, "array") for name in DERIVATIVE_NAMES]}]
 
 
 class SettlingIn(StrictModel):
@@ -84,6 +94,11 @@ class SimulationOptions(StrictModel):
         "move). settling.position_tolerance replaces settling_tolerance.",
     )
 
+    @classmethod
+    def schema_rules(cls) -> list[dict[str, Any]]:
+        # settling_tolerance is the deprecated settling.position_tolerance: not beside settling (settling_criteria)
+        return [*super().schema_rules(), never({"required": ["settling_tolerance"]}, given("settling", "object"))]
+
     def settling_criteria(self) -> tuple[float, float | None]:
         """The position tolerance and the vibration bound (None: the default)."""
         legacy = float(self.__dict__["settling_tolerance"])  # without the deprecated field's access warning
@@ -97,6 +112,28 @@ class SimulationOptions(StrictModel):
 class SimulateRequest(SimulationOptions):
     plant: PlantIn
     profile: ProfileIn
+
+    @classmethod
+    def schema_rules(cls) -> list[dict[str, Any]]:
+        """The held quantity is given, and a cubic hold also has its derivative (``to_command``)."""
+
+        def profile(*schemas: dict[str, Any]) -> dict[str, Any]:
+            return {"required": ["profile"], "properties": {"profile": {"allOf": list(schemas)}}}
+
+        def lacks(name: str) -> dict[str, Any]:
+            return {"not": given(name, "array")}
+
+        cubic = is_value("hold", "cubic")
+        rules = [*super().schema_rules(), never(cubic, is_value("held_quantity", "jerk"))]
+        for index, name in enumerate(DERIVATIVE_NAMES):
+            rules.append(never(is_value("held_quantity", name), profile(lacks(name))))
+            if index + 1 < len(DERIVATIVE_NAMES):  # a cubic hold of name needs its derivative
+                rules.append(never(cubic, is_value("held_quantity", name), profile(lacks(DERIVATIVE_NAMES[index + 1]))))
+            # cubic, held_quantity unset: the highest quantity given (name) and the one below it
+            highest = [given(name, "array"), *(lacks(above) for above in DERIVATIVE_NAMES[index + 1 :])]
+            below = [lacks(DERIVATIVE_NAMES[index - 1])] if index else []
+            rules.append(never(cubic, {"not": given("held_quantity", "string")}, profile(*highest, *below)))
+        return rules
 
 
 class ProfileOut(OutModel):

@@ -7,12 +7,22 @@ from typing import Annotated, Any, ClassVar, Literal
 
 from pydantic import Field, field_validator
 
-from app.schemas.common import DampingRatio, OutModel, StrictModel
+from app.schemas.common import (
+    DampingRatio,
+    Int,
+    OutModel,
+    StrictModel,
+    given,
+    is_value,
+    limit_given,
+    never,
+    plant_kind_is,
+)
 from app.schemas.family import FamilyResponse, ProfileRequest, SensitivityOut, SolverOut
 from models.errors import InvalidParameter
 from optim.families.stap import AUTO_RULE, StapOptimization, StapOptions
 from optim.family import FAMILIES
-from optim.problem import Problem
+from optim.problem import MIN_LIMIT, Problem
 from optim.stap import (
     DEFAULT_FREQUENCY_UNCERTAINTY,
     DEFAULT_RESIDUAL_TOLERANCE,
@@ -40,7 +50,7 @@ class OptimizationIn(StrictModel):
         max_length=MAX_BAND_DAMPING_RATIOS,
         description="Damping ratios of the band (worst_case, residual_and_time); default: the plant's own.",
     )
-    frequency_points: int = Field(
+    frequency_points: Int = Field(
         21, ge=3, le=MAX_FREQUENCY_POINTS, description="Frequency ratios of the band grid, uniform over [1 - u, 1 + u]."
     )
 
@@ -71,7 +81,7 @@ class StapIn(ProfileRequest):
         description="k_j: t_j = (k_j + delta dec(f_n,e t_a))/f_n,e (eqs. 44, 49); 'auto' applies the flowchart "
         "(see design.rule).",
     )
-    delta: int = Field(
+    delta: Int = Field(
         0, ge=0, le=1, description="delta of eq. (44): 1 takes the side band (needs acceleration_time_s)."
     )
     acceleration_time_s: float | None = Field(
@@ -101,10 +111,13 @@ class StapIn(ProfileRequest):
     )
     optimization: OptimizationIn | None = Field(None, description="Options of method 'optimized'.")
     max_acceleration: float | None = Field(
-        None, gt=0, le=1e12, deprecated="max_acceleration is deprecated: use limits.max_acceleration (same meaning)"
+        None,
+        ge=MIN_LIMIT,
+        le=1e12,
+        deprecated="max_acceleration is deprecated: use limits.max_acceleration (same meaning)",
     )
     max_torque_nm: float | None = Field(
-        None, gt=0, le=1e12, deprecated="max_torque_nm is deprecated: use limits.max_torque_nm (same meaning)"
+        None, ge=MIN_LIMIT, le=1e12, deprecated="max_torque_nm is deprecated: use limits.max_torque_nm (same meaning)"
     )
 
     @field_validator("jerk_periods", mode="before")
@@ -124,6 +137,47 @@ class StapIn(ProfileRequest):
         return int(value)
 
     MOVE_FIELD: ClassVar[str] = "target_velocity"
+    UNSCHEMED_RULES: ClassVar[tuple[str, ...]] = (
+        "target_velocity beside a displacement (deprecated: the cruise speed) must equal limits.max_velocity when "
+        "that is given.",
+    )
+
+    @classmethod
+    def move_rules(cls) -> list[dict[str, Any]]:
+        """displacement, target_velocity, or both (deprecated: target_velocity is then the cruise speed, of the
+        displacement's sign): ``_legacy_move``."""
+
+        def signed(name: str, bound: str) -> dict[str, Any]:
+            return {"required": [name], "properties": {name: {"type": "number", bound: 0}}}
+
+        return [
+            {"anyOf": [given("displacement"), given("target_velocity")]},
+            never(signed("displacement", "exclusiveMinimum"), signed("target_velocity", "exclusiveMaximum")),
+            never(signed("displacement", "exclusiveMaximum"), signed("target_velocity", "exclusiveMinimum")),
+        ]
+
+    @classmethod
+    def schema_rules(cls) -> list[dict[str, Any]]:
+        return [
+            *super().schema_rules(),
+            # optimization applies to method 'optimized' only (options)
+            never(given("optimization", "object"), {"not": is_value("method", "optimized")}),
+            # (k_j, delta) = (0, 0) is no zero of eq. (44); a side band needs a whole k_j (optim.stap.check_request)
+            never(is_value("jerk_periods", 0), is_value("delta", 0, default=True)),
+            never(is_value("delta", 1), is_value("jerk_periods", "auto", default=True)),
+            never(is_value("delta", 1), {"not": given("acceleration_time_s")}),  # eq. (49) needs t_a (stap.ramp)
+            never(given("max_torque_nm"), {"not": plant_kind_is("two_inertia")}),  # the deprecated torque limit
+            # a STAP is designed from the acceleration limit (the family's design: not applicable without one)
+            {
+                "anyOf": [
+                    limit_given("max_acceleration"),
+                    limit_given("max_torque_nm"),
+                    given("acceleration_time_s"),
+                    given("max_acceleration"),
+                    given("max_torque_nm"),
+                ]
+            },
+        ]
 
     def _legacy_move(
         self, updates: dict[str, float], notes: list[str], aliases: dict[str, str]

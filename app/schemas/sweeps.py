@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
-from app.schemas.common import OutModel, StrictModel
+from app.schemas.common import INTEGRAL, Int, OutModel, StrictModel, is_value, never
 from app.schemas.registry import REQUEST_SCHEMAS
 
 FAMILY_NAMES = tuple(name.replace("_", "-") for name in REQUEST_SCHEMAS)  # the endpoint names
@@ -16,6 +16,7 @@ MAX_AXIS_VALUES = 1000  # per axis (the default point cap); bounds the body too
 PATH_PATTERN = r"^[A-Za-z_][A-Za-z0-9_]*(\[[0-9]+\])?(\.[A-Za-z_][A-Za-z0-9_]*(\[[0-9]+\])?)*$"
 DEFAULT_THRESHOLD_PERCENT = 5.0
 MAX_REFINED_POINTS = 1000
+RANGE = ("start", "stop", "num")
 SweepFamily = Literal["time-optimal", "pseudo-polynomial", "stap", "smoother", "input-shaped"]
 
 
@@ -35,12 +36,37 @@ class AxisIn(StrictModel):
     )
     start: float | None = Field(None, description="First value of a range (with stop and num).")
     stop: float | None = Field(None, description="Last value of a range, included (> start).")
-    num: int | None = Field(None, ge=1, le=MAX_AXIS_VALUES, description="Values in the range, both ends included.")
+    num: Annotated[int, Field(ge=1, le=MAX_AXIS_VALUES), INTEGRAL] | None = Field(
+        None, description="Values in the range, both ends included."
+    )
     scale: Literal["linear", "log"] = Field(
         "linear",
         description="Spacing of a range (log: geometric, for frequencies and inertias; positive ends) and the "
         "midpoint refinement bisects at (arithmetic, or geometric).",
     )
+
+    UNSCHEMED_RULES: ClassVar[tuple[str, ...]] = (
+        "axes[].values strictly increasing; axes[].stop greater than axes[].start (unless num is 1).",
+        "axes: each axis its own path, a numeric field of the base request.",
+    )
+
+    @classmethod
+    def schema_rules(cls) -> list[dict[str, Any]]:
+        """values, or start, stop and num (``_one_kind``); a log axis has positive values, or start > 0."""
+        absent = {"type": "null"}  # in properties: absent or null
+        listed = {"required": ["values"], "properties": {"values": {"type": "array"}, **dict.fromkeys(RANGE, absent)}}
+        bounds = {"start": {"type": "number"}, "stop": {"type": "number"}, "num": {"type": "integer"}, "values": absent}
+        ranged = {"required": list(RANGE), "properties": bounds}
+        log = is_value("scale", "log")
+        return [
+            *super().schema_rules(),
+            {"oneOf": [listed, ranged]},
+            never(
+                log,
+                {"required": ["values"], "properties": {"values": {"type": "array", "prefixItems": [{"maximum": 0}]}}},
+            ),
+            never(log, {"required": ["start"], "properties": {"start": {"type": "number", "maximum": 0}}}),
+        ]
 
     @model_validator(mode="after")
     def _one_kind(self) -> AxisIn:
@@ -100,13 +126,24 @@ class SweepIn(StrictModel):
         description="Bisect each pair that fails the check (the midpoint along its axis, other coordinates "
         "unchanged), and check both halves, round after round, up to max_refined_points new points.",
     )
-    max_refined_points: int = Field(
+    max_refined_points: Int = Field(
         32,
         ge=0,
         le=MAX_REFINED_POINTS,
         description=f"Most points refinement may add (at most {MAX_REFINED_POINTS}; also within the service's "
         "sweep point cap).",
     )
+
+    UNSCHEMED_RULES: ClassVar[tuple[str, ...]] = (
+        "request: the fields and types of a /v1/profiles/{family} body (the rules between its fields are each "
+        "point's: a point they refuse is a row with ok false and its problem); at most the service's point cap "
+        "(VIBFREE_SWEEP_MAX_POINTS) points.",
+    )
+
+    @classmethod
+    def schema_rules(cls) -> list[dict[str, Any]]:
+        # the base request is validated by the family's schema first (routers.sweeps.Plan), which needs a plant
+        return [*super().schema_rules(), {"properties": {"request": {"required": ["plant"]}}}]
 
     @field_validator("axes")
     @classmethod

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any, ClassVar
 
 from pydantic import Field, field_validator, model_validator
 
-from app.schemas.common import DampingRatio, OutModel, StrictModel
+from app.schemas.common import INTEGRAL, DampingRatio, OutModel, StrictModel, given, limit_given
 from app.schemas.family import FamilyResponse, ProfileRequest
 from models.plants import FREQUENCY_MAX_HZ, FREQUENCY_MIN_HZ
 from optim.families.time_optimal import MAX_TRADEOFF, Robustness, TimeOptimalOptions
@@ -64,18 +64,34 @@ class RobustnessIn(StrictModel):
         "settles when the command ends on the nominal plant; false: the band only (up to a few % shorter, "
         "leaving up to max_percentage_vibration at the nominal frequency).",
     )
-    derivative_order: int | None = Field(
+    derivative_order: Annotated[int, Field(ge=1, le=2), INTEGRAL] | None = Field(
         None,
-        ge=1,
-        le=2,
         description="Zero residual and zero derivatives in frequency up to this order at the nominal modes "
         "(1: ZVD-like, 2: ZVDD-like), instead of a band.",
     )
 
+    UNSCHEMED_RULES: ClassVar[tuple[str, ...]] = (
+        "robustness.frequency_ratio_range and robustness.frequency_range_hz are [lo, hi] with lo < hi; "
+        "robustness.damping_ratio_range [lo, hi] with lo <= hi.",
+    )
+
+    @classmethod
+    def schema_rules(cls) -> list[dict[str, Any]]:
+        return [
+            *super().schema_rules(),
+            {
+                "oneOf": [
+                    given("frequency_ratio_range", "array"),
+                    given("frequency_range_hz", "array"),
+                    given("derivative_order", "integer"),
+                ]
+            },
+        ]
+
     @model_validator(mode="after")
     def _check(self) -> RobustnessIn:
-        given = [self.frequency_ratio_range, self.frequency_range_hz, self.derivative_order]
-        if sum(v is not None for v in given) != 1:
+        chosen = [self.frequency_ratio_range, self.frequency_range_hz, self.derivative_order]
+        if sum(v is not None for v in chosen) != 1:
             raise ValueError("give exactly one of frequency_ratio_range, frequency_range_hz or derivative_order")
         _range(self.frequency_ratio_range, "frequency_ratio_range", MIN_RATIO, MAX_RATIO)
         _range(self.frequency_range_hz, "frequency_range_hz", 1e-3, 1e5)
@@ -108,7 +124,7 @@ class TimeOptimalIn(ProfileRequest):
     others are optional; all are hard."""
 
     robustness: RobustnessIn | None = Field(None, description="Default: exactly zero residual at the nominal modes.")
-    modes: list[Annotated[int, Field(ge=0, lt=1000)]] | None = Field(
+    modes: list[Annotated[int, Field(ge=0, lt=1000), INTEGRAL]] | None = Field(
         None,
         min_length=1,
         max_length=MAX_MODES,
@@ -130,6 +146,12 @@ class TimeOptimalIn(ProfileRequest):
         description="The longest command searched (default: 4 x the rigid minimum time + 20 periods of the slowest "
         "cancelled mode). Infeasible within it is proven, or reported as not found.",
     )
+
+    @classmethod
+    def schema_rules(cls) -> list[dict[str, Any]]:
+        # without a bound on the acceleration the minimum-time command is impulsive: the family's not_applicable
+        bounds = [limit_given("max_acceleration"), limit_given("max_jerk"), limit_given("max_torque_nm")]
+        return [*super().schema_rules(), {"anyOf": bounds}]
 
     @field_validator("modes")
     @classmethod
