@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import types
 import typing
+from dataclasses import dataclass
 from typing import Annotated, Any, ClassVar
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field
@@ -34,45 +35,76 @@ Int = Annotated[int, INTEGRAL]
 
 
 # --- JSON Schema for the rules between fields ---------------------------------------------------------------
-# Each helper says exactly what validation checks, no more: a schema stricter than the validation would have
+# Each condition says exactly what validation checks, no more: a schema stricter than the validation would have
 # schema-invalid requests accepted (schemathesis' negative_data_rejection), a looser one schema-valid requests
-# refused.
+# refused. A condition carries its negation written without "not" over objects: schemathesis' generator gives up
+# on an operation whose schema holds more than a few of those ("UnsupportedSchema"); "not" is kept to scalars.
 
 
-def given(name: str, kind: str = "number") -> dict[str, Any]:
-    """The field is there and not null (a JSON ``kind``: number, integer, array, object, string)."""
-    return {"required": [name], "properties": {name: {"type": kind}}}
+@dataclass(frozen=True)
+class Cond:
+    """A condition on a request body: the schema of the bodies where it ``holds``, and of those where it ``fails``."""
+
+    holds: dict[str, Any]
+    fails: dict[str, Any]
+
+    def __invert__(self) -> Cond:
+        return Cond(self.fails, self.holds)
 
 
-def is_value(name: str, value: Any, *, default: bool = False) -> dict[str, Any]:
+def given(name: str, kind: str = "number") -> Cond:
+    """A nullable field is there and not null (a JSON ``kind``: number, integer, array, object, string)."""
+    return Cond({"required": [name], "properties": {name: {"type": kind}}}, {"properties": {name: {"type": "null"}}})
+
+
+def present(name: str) -> Cond:
+    """A field that cannot be null is there."""
+    return Cond({"required": [name]}, {"properties": {name: False}})
+
+
+def is_value(name: str, value: Any, *, default: bool = False) -> Cond:
     """The field equals ``value`` (``default``: also when it is absent, its default being ``value``)."""
-    return (
-        {"properties": {name: {"const": value}}}
-        if default
-        else {"required": [name], "properties": {name: {"const": value}}}
-    )
+    equal, other = {name: {"const": value}}, {name: {"not": {"const": value}}}
+    if default:
+        return Cond({"properties": equal}, {"required": [name], "properties": other})
+    return Cond({"required": [name], "properties": equal}, {"properties": other})
 
 
-def limit_given(name: str) -> dict[str, Any]:
+def leaf(name: str, holds: dict[str, Any], fails: dict[str, Any]) -> Cond:
+    """The field is there and ``holds`` (a schema of its value); else it is absent, or ``fails`` (its complement
+    among the values the field's own schema allows)."""
+    return Cond({"required": [name], "properties": {name: holds}}, {"properties": {name: fails}})
+
+
+def inside(name: str, *conds: Cond) -> Cond:
+    """The object field ``name`` is there and every one of ``conds`` holds in it."""
+    holds = {"required": [name], "properties": {name: both(*conds).holds}}
+    return Cond(holds, {"properties": {name: both(*conds).fails}})
+
+
+def limit_given(name: str) -> Cond:
     """``limits.<name>`` is there and not null."""
-    return {"required": ["limits"], "properties": {"limits": given(name)}}
+    return inside("limits", given(name))
 
 
-def plant_kind_is(*kinds: str) -> dict[str, Any]:
+def plant_kind_is(*kinds: str) -> Cond:
     """``plant.kind`` is one of ``kinds``."""
-    return {
-        "required": ["plant"],
-        "properties": {"plant": {"required": ["kind"], "properties": {"kind": {"enum": list(kinds)}}}},
-    }
+    return inside("plant", leaf("kind", {"enum": list(kinds)}, {"not": {"enum": list(kinds)}}))
 
 
-def all_of(*schemas: dict[str, Any]) -> dict[str, Any]:
-    return {"allOf": list(schemas)}
+def both(*conds: Cond) -> Cond:
+    if len(conds) == 1:
+        return conds[0]
+    return Cond({"allOf": [c.holds for c in conds]}, {"anyOf": [c.fails for c in conds]})
 
 
-def never(*schemas: dict[str, Any]) -> dict[str, Any]:
-    """Refused when every one of ``schemas`` holds."""
-    return {"not": schemas[0] if len(schemas) == 1 else all_of(*schemas)}
+def either(*conds: Cond) -> Cond:
+    return ~both(*(~c for c in conds))
+
+
+def never(*conds: Cond) -> dict[str, Any]:
+    """The schema of a rule: refused when every one of ``conds`` holds."""
+    return both(*conds).fails
 
 
 def _add_schema_rules(schema: dict[str, Any], model: type[Any]) -> None:
@@ -122,7 +154,7 @@ def unschemed_rules(model: type[BaseModel]) -> list[str]:
             return
         seen.add(current)
         for base in reversed(current.__mro__):
-            rules.update(dict.fromkeys(getattr(base, "UNSCHEMED_RULES", ()) if "UNSCHEMED_RULES" in vars(base) else ()))
+            rules.update(dict.fromkeys(vars(base).get("UNSCHEMED_RULES", ())))
         for info in current.model_fields.values():
             for inner in _models_in(info.annotation):
                 visit(inner)

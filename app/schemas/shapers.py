@@ -114,8 +114,8 @@ class InputShapedRequest(ProfileRequest):
             never(
                 given("displacement"),
                 *(
-                    {"not": schema}
-                    for schema in (
+                    ~cond
+                    for cond in (
                         limit_given("max_velocity"),
                         given("cruise_velocity"),
                         limit_given("max_acceleration"),

@@ -7,7 +7,20 @@ from typing import Any, ClassVar, Literal
 import numpy as np
 from pydantic import Field
 
-from app.schemas.common import TOLERANCE_MIN, OutModel, SampleTime, SampleValue, StrictModel, given, is_value, never
+from app.schemas.common import (
+    TOLERANCE_MIN,
+    Cond,
+    OutModel,
+    SampleTime,
+    SampleValue,
+    StrictModel,
+    either,
+    given,
+    inside,
+    is_value,
+    never,
+    present,
+)
 from app.schemas.plants import PlantIn
 from models.commands import DERIVATIVE_NAMES, PiecewiseCommand
 from models.errors import InvalidParameter
@@ -36,7 +49,7 @@ class ProfileIn(StrictModel):
     @classmethod
     def schema_rules(cls) -> list[dict[str, Any]]:
         # at least one of the quantities (to_command)
-        return [*super().schema_rules(), {"anyOf": [given(name, "array") for name in DERIVATIVE_NAMES]}]
+        return [*super().schema_rules(), either(*(given(name, "array") for name in DERIVATIVE_NAMES)).holds]
 
 
 class SettlingIn(StrictModel):
@@ -97,7 +110,7 @@ class SimulationOptions(StrictModel):
     @classmethod
     def schema_rules(cls) -> list[dict[str, Any]]:
         # settling_tolerance is the deprecated settling.position_tolerance: not beside settling (settling_criteria)
-        return [*super().schema_rules(), never({"required": ["settling_tolerance"]}, given("settling", "object"))]
+        return [*super().schema_rules(), never(present("settling_tolerance"), given("settling", "object"))]
 
     def settling_criteria(self) -> tuple[float, float | None]:
         """The position tolerance and the vibration bound (None: the default)."""
@@ -117,22 +130,20 @@ class SimulateRequest(SimulationOptions):
     def schema_rules(cls) -> list[dict[str, Any]]:
         """The held quantity is given, and a cubic hold also has its derivative (``to_command``)."""
 
-        def profile(*schemas: dict[str, Any]) -> dict[str, Any]:
-            return {"required": ["profile"], "properties": {"profile": {"allOf": list(schemas)}}}
-
-        def lacks(name: str) -> dict[str, Any]:
-            return {"not": given(name, "array")}
+        def lacks(name: str) -> Cond:
+            return ~given(name, "array")
 
         cubic = is_value("hold", "cubic")
         rules = [*super().schema_rules(), never(cubic, is_value("held_quantity", "jerk"))]
         for index, name in enumerate(DERIVATIVE_NAMES):
-            rules.append(never(is_value("held_quantity", name), profile(lacks(name))))
+            rules.append(never(is_value("held_quantity", name), inside("profile", lacks(name))))
             if index + 1 < len(DERIVATIVE_NAMES):  # a cubic hold of name needs its derivative
-                rules.append(never(cubic, is_value("held_quantity", name), profile(lacks(DERIVATIVE_NAMES[index + 1]))))
+                next_lacking = inside("profile", lacks(DERIVATIVE_NAMES[index + 1]))
+                rules.append(never(cubic, is_value("held_quantity", name), next_lacking))
             # cubic, held_quantity unset: the highest quantity given (name) and the one below it
             highest = [given(name, "array"), *(lacks(above) for above in DERIVATIVE_NAMES[index + 1 :])]
             below = [lacks(DERIVATIVE_NAMES[index - 1])] if index else []
-            rules.append(never(cubic, {"not": given("held_quantity", "string")}, profile(*highest, *below)))
+            rules.append(never(cubic, ~given("held_quantity", "string"), inside("profile", *highest, *below)))
         return rules
 
 

@@ -7,7 +7,7 @@ from typing import Annotated, Any, ClassVar, Literal
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
-from app.schemas.common import INTEGRAL, Int, OutModel, StrictModel, is_value, never
+from app.schemas.common import INTEGRAL, Int, OutModel, StrictModel, is_value, leaf, never
 from app.schemas.registry import REQUEST_SCHEMAS
 
 FAMILY_NAMES = tuple(name.replace("_", "-") for name in REQUEST_SCHEMAS)  # the endpoint names
@@ -58,14 +58,15 @@ class AxisIn(StrictModel):
         bounds = {"start": {"type": "number"}, "stop": {"type": "number"}, "num": {"type": "integer"}, "values": absent}
         ranged = {"required": list(RANGE), "properties": bounds}
         log = is_value("scale", "log")
+        first_not_positive = leaf(
+            "values", {"type": "array", "prefixItems": [{"maximum": 0}]}, {"prefixItems": [{"exclusiveMinimum": 0}]}
+        )
+        start_not_positive = leaf("start", {"type": "number", "maximum": 0}, {"exclusiveMinimum": 0})
         return [
             *super().schema_rules(),
             {"oneOf": [listed, ranged]},
-            never(
-                log,
-                {"required": ["values"], "properties": {"values": {"type": "array", "prefixItems": [{"maximum": 0}]}}},
-            ),
-            never(log, {"required": ["start"], "properties": {"start": {"type": "number", "maximum": 0}}}),
+            never(log, first_not_positive),
+            never(log, start_not_positive),
         ]
 
     @model_validator(mode="after")

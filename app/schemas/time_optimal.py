@@ -6,7 +6,7 @@ from typing import Annotated, Any, ClassVar
 
 from pydantic import Field, field_validator, model_validator
 
-from app.schemas.common import INTEGRAL, DampingRatio, OutModel, StrictModel, given, limit_given
+from app.schemas.common import INTEGRAL, DampingRatio, OutModel, StrictModel, either, given, limit_given
 from app.schemas.family import FamilyResponse, ProfileRequest
 from models.plants import FREQUENCY_MAX_HZ, FREQUENCY_MIN_HZ
 from optim.families.time_optimal import MAX_TRADEOFF, Robustness, TimeOptimalOptions
@@ -81,9 +81,9 @@ class RobustnessIn(StrictModel):
             *super().schema_rules(),
             {
                 "oneOf": [
-                    given("frequency_ratio_range", "array"),
-                    given("frequency_range_hz", "array"),
-                    given("derivative_order", "integer"),
+                    given("frequency_ratio_range", "array").holds,
+                    given("frequency_range_hz", "array").holds,
+                    given("derivative_order", "integer").holds,
                 ]
             },
         ]
@@ -150,8 +150,8 @@ class TimeOptimalIn(ProfileRequest):
     @classmethod
     def schema_rules(cls) -> list[dict[str, Any]]:
         # without a bound on the acceleration the minimum-time command is impulsive: the family's not_applicable
-        bounds = [limit_given("max_acceleration"), limit_given("max_jerk"), limit_given("max_torque_nm")]
-        return [*super().schema_rules(), {"anyOf": bounds}]
+        bound = either(limit_given("max_acceleration"), limit_given("max_jerk"), limit_given("max_torque_nm"))
+        return [*super().schema_rules(), bound.holds]
 
     @field_validator("modes")
     @classmethod
