@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 from pydantic import Field
 
 from app.schemas.common import OutModel, SampleTime, SampleValue, StrictModel
-from app.schemas.family import FamilyResponse, ProfileRequest
+from app.schemas.family import REST_TO_REST_ONLY, FamilyResponse, ProfileRequest
 from app.schemas.plants import ModeOut
 from models.commands import MIN_STEP_S
 from models.smoothers import MAX_DURATION_S, MAX_REQUESTED_FILTERS, MIN_DURATION_S
@@ -61,6 +61,15 @@ class SmootherRequest(ProfileRequest):
         description="A drive's sample period: also return the discrete filters (eq. 17) and what rounding "
         "N = T/Ts to an integer costs.",
     )
+
+    UNSCHEMED_RULES: ClassVar[tuple[str, ...]] = (
+        "discrete_sample_period_s: the discrete filters may span at most the service's sample cap "
+        "(VIBFREE_MAX_SAMPLES) samples.",
+    )
+
+    @classmethod
+    def move_rules(cls) -> list[dict[str, Any]]:
+        return REST_TO_REST_ONLY
 
     def options(self, problem: Problem) -> SmootherOptions:
         return SmootherOptions(

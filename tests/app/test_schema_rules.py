@@ -102,6 +102,8 @@ CASES = [
     ("/v1/profiles/time-optimal", SHAPED, {}, True),
     ("/v1/profiles/pseudo-polynomial", {"plant": MODE, "target_velocity": 1.0}, {}, False),
     ("/v1/profiles/pseudo-polynomial", {"plant": MODE, "displacement": 1.0}, {}, True),
+    ("/v1/profiles/smoother", {"plant": MODE, "target_velocity": 1.0}, {}, False),
+    ("/v1/profiles/smoother", {"plant": MODE, "displacement": 1.0}, {}, True),
     # RobustnessIn._check: exactly one kind of robustness
     ("/v1/profiles/time-optimal", {**SHAPED, "robustness": {}}, {}, False),
     ("/v1/profiles/time-optimal", {**SHAPED, "robustness": {"derivative_order": 1.0}}, {}, True),
