@@ -34,7 +34,7 @@ from schemathesis.python import asgi  # noqa: E402
 
 from app.main import create_app  # noqa: E402
 from app.observability import APP_LOGGERS  # noqa: E402
-from tests.app.test_fuzz import CHECKS, FUZZ_SETTINGS, fuzz_schema, start_and_wait_ready  # noqa: E402
+from tests.app.test_fuzz import CALL_TIMEOUT_S, CHECKS, FUZZ_SETTINGS, fuzz_schema, start_and_wait_ready  # noqa: E402
 
 
 class ValidRefused:
@@ -85,7 +85,7 @@ def fuzz_operation(
     )
     @given(case=strategy)
     def run(case: Any) -> None:
-        response = case.call()
+        response = case.call(timeout=CALL_TIMEOUT_S)
         statuses[response.status_code] += 1
         refused.add(case.meta, response)
         if response.status_code >= 500 and not (

@@ -39,6 +39,9 @@ FUZZ_SETTINGS = Settings(
     solve_grace_s=2.0,
 )
 EXAMPLES_PER_OPERATION = 100
+# A compare runs its solves one after the other on the one worker, each within its deadline (4 x 1 s + 2 s): more
+# than schemathesis' 10 s default read timeout on a loaded machine.
+CALL_TIMEOUT_S = 60.0
 # not_a_server_error is replaced by the assertion in the test: a 504 solve-timeout (declared) is allowed.
 CHECKS = [
     status_code_conformance,
@@ -86,6 +89,6 @@ def running_app() -> None:
     suppress_health_check=list(HealthCheck),
 )
 def test_every_operation_survives_fuzzing(case: schemathesis.Case, running_app: None) -> None:
-    response = case.call_and_validate(checks=CHECKS)
+    response = case.call_and_validate(checks=CHECKS, timeout=CALL_TIMEOUT_S)
     # the only 5xx a valid request may meet is a solve that ran out of its (small) time cap
     assert response.status_code < 500 or response.json()["type"] == "/problems/solve-timeout", response.text
