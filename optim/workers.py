@@ -124,7 +124,7 @@ class _Reservation:
         self.free -= 1
         self.pool._held -= 1
         try:
-            return await self.pool._submit(fn, args, deadline_s, wait_s=deadline_s * self.places)
+            return await self.pool._submit(fn, args, deadline_s, wait_s=deadline_s * self.pool.turns_ahead())
         finally:
             if not self.closed:  # the place is held again for the request's next job
                 self.free += 1
@@ -370,8 +370,10 @@ class SolverPool:
 
         A job run through the reservation takes one of its places without admission and gives it back when it
         ends, so a job that follows another (a fallback after an infeasible design) reuses its place; beyond
-        ``jobs`` at once, a job meets the usual admission. Leaving the block frees every place. A held job waits
-        for a worker at most its deadline times ``jobs``: it may wait behind the request's own jobs."""
+        ``jobs`` at once, a job meets the usual admission. Leaving the block frees every place. A held job was
+        admitted with the jobs ahead of it (the request's own included), so it waits for a worker as long as they
+        may take, each within its deadline (``turns_ahead``), not the lone job's deadline: a request is refused
+        before its work or answered, not refused after part of it."""
         self._admit(jobs)
         reservation = _Reservation(self, jobs)
         self._held += jobs
@@ -383,6 +385,13 @@ class SolverPool:
             reservation.free = 0
             reservation.closed = True
             self._changed()
+
+    def turns_ahead(self) -> int:
+        """Deadlines a job queued now may wait for a worker: one per round of the jobs ahead of it (running or
+        queued) over the warm workers, and one more for a worker that is replaced meanwhile."""
+        warm = sum(w.state in ("idle", "busy") for w in self._workers)
+        ahead = sum(w.state == "busy" for w in self._workers) + len(self._queue)
+        return 1 + math.ceil(ahead / max(1, warm))
 
     async def _submit(
         self, fn: Callable[..., T], args: tuple[Any, ...], deadline_s: float, wait_s: float | None = None

@@ -265,9 +265,9 @@ def test_an_executor_without_admission_runs_a_reservation_itself() -> None:
 
 @with_pool(workers=1)
 async def test_a_reserved_job_may_wait_behind_its_own_request(pool: SolverPool) -> None:
-    """A plain job waits for a worker no longer than its deadline (test above); a request's held jobs queue
-    behind one another on a busy pool, so each may wait its deadline times the places held: here the fourth
-    0.4 s job waits ~1.2 s, past its 1 s deadline, and still runs (bounded by 4 x 1 s)."""
+    """A plain job waits for a worker no longer than its deadline (test above); a request's held jobs were admitted
+    with the jobs ahead of them, so each may wait a deadline per job ahead (per worker), plus one: here the fourth
+    0.4 s job waits ~1.2 s behind the request's own three, past its 1 s deadline, and still runs (bound 4 s)."""
     async with reserved(pool, 4) as held:
         pids = await asyncio.gather(*(held.run(slow_solves.sleep_for, 0.4, deadline_s=1.0) for _ in range(4)))
     assert all(isinstance(pid, int) for pid in pids)
