@@ -150,7 +150,8 @@ class TransferFunctionIn(StrictModel):
 PlantIn = Annotated[
     ModeIn | TwoInertiaIn | BeltPlatformIn | RigidFlexibleIn | TransferFunctionIn, Field(discriminator="kind")
 ]
-UNION_TAGS.update({"mode", "two_inertia", "belt_platform", "rigid_flexible", "transfer_function"})
+PLANT_KINDS = ("mode", "two_inertia", "belt_platform", "rigid_flexible", "transfer_function")
+UNION_TAGS.update(PLANT_KINDS)
 
 
 def to_plant(schema: ModeIn | TwoInertiaIn | BeltPlatformIn | RigidFlexibleIn | TransferFunctionIn) -> Plant:

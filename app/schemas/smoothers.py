@@ -6,7 +6,7 @@ from typing import Any, ClassVar, Literal
 
 from pydantic import Field
 
-from app.schemas.common import OutModel, SampleTime, SampleValue, StrictModel
+from app.schemas.common import OutModel, SampleTime, SampleValue, StrictModel, leaf, limit_given, never
 from app.schemas.family import REST_TO_REST_ONLY, FamilyResponse, ProfileRequest
 from app.schemas.plants import ModeOut
 from models.commands import MIN_STEP_S
@@ -70,6 +70,13 @@ class SmootherRequest(ProfileRequest):
     @classmethod
     def move_rules(cls) -> list[dict[str, Any]]:
         return REST_TO_REST_ONLY
+
+    @classmethod
+    def schema_rules(cls) -> list[dict[str, Any]]:
+        # no filter needs a limit to design the chain for (optim.smoothers.design_chain; the torque is only checked)
+        no_filter = leaf("filters", {"type": "array", "maxItems": 0}, {"minItems": 1})
+        limits = (limit_given("max_velocity"), limit_given("max_acceleration"), limit_given("max_jerk"))
+        return [*super().schema_rules(), never(no_filter, *(~limit for limit in limits))]
 
     def options(self, problem: Problem) -> SmootherOptions:
         return SmootherOptions(

@@ -17,7 +17,6 @@ from app.schemas.common import (
     given,
     is_value,
     limit_given,
-    never,
 )
 from app.schemas.family import FamilyResponse, ProfileRequest, SensitivityOut, SolverOut
 from models.errors import InvalidParameter
@@ -144,7 +143,6 @@ class StapIn(ProfileRequest):
     UNSCHEMED_RULES: ClassVar[tuple[str, ...]] = (
         "target_velocity beside a displacement (deprecated: the cruise speed) must have the displacement's sign, "
         "and equal limits.max_velocity when that is given.",
-        "jerk_periods 0 needs delta 1 ((k_j, delta) = (0, 0) is no zero of eq. 44).",
         "max_torque_nm (deprecated: limits.max_torque_nm) needs a two_inertia plant.",
         "optimization applies to method optimized only.",
     )
@@ -156,11 +154,15 @@ class StapIn(ProfileRequest):
 
     @classmethod
     def schema_rules(cls) -> list[dict[str, Any]]:
-        whole_periods = ~is_value("jerk_periods", "auto", default=True)
+        # (k_j, delta) = (0, 0) is no zero of eq. (44); a side band (delta = 1) needs a whole k_j
+        # (optim.stap.check_request) and t_a (eq. 49, optim.stap.ramp): one rule of two alternatives
+        fundamental = both(is_value("delta", 0, default=True), ~is_value("jerk_periods", 0))
+        side_band = both(
+            is_value("delta", 1), ~is_value("jerk_periods", "auto", default=True), given("acceleration_time_s")
+        )
         return [
             *super().schema_rules(),
-            # a side band (delta = 1) needs a whole k_j (optim.stap.check_request) and t_a (eq. 49, stap.ramp)
-            never(is_value("delta", 1), ~both(whole_periods, given("acceleration_time_s"))),
+            either(fundamental, side_band).holds,
             # a STAP is designed from the acceleration limit (the family's design: not applicable without one)
             either(
                 limit_given("max_acceleration"),

@@ -8,6 +8,7 @@ import numpy as np
 from pydantic import Field, field_validator, model_validator
 
 from app.schemas.common import INTEGRAL, Int, OutModel, StrictModel, is_value, leaf, never
+from app.schemas.plants import PLANT_KINDS
 from app.schemas.registry import REQUEST_SCHEMAS
 
 FAMILY_NAMES = tuple(name.replace("_", "-") for name in REQUEST_SCHEMAS)  # the endpoint names
@@ -143,8 +144,13 @@ class SweepIn(StrictModel):
 
     @classmethod
     def schema_rules(cls) -> list[dict[str, Any]]:
-        # the base request is validated by the family's schema first (routers.sweeps.Plan), which needs a plant
-        return [*super().schema_rules(), {"properties": {"request": {"required": ["plant"]}}}]
+        # the base request is validated by the family's schema first (routers.sweeps.Plan): it needs a plant, an
+        # object tagged by its kind
+        plant = {"type": "object", "required": ["kind"], "properties": {"kind": {"enum": list(PLANT_KINDS)}}}
+        return [
+            *super().schema_rules(),
+            {"properties": {"request": {"required": ["plant"], "properties": {"plant": plant}}}},
+        ]
 
     @field_validator("axes")
     @classmethod

@@ -94,6 +94,8 @@ CASES = [
     ("/v1/profiles/stap", {**STAP, "delta": 1, "jerk_periods": 1}, {}, False),
     ("/v1/profiles/stap", {**STAP, "delta": 1, "jerk_periods": 1, "acceleration_time_s": 1.0}, {}, True),
     ("/v1/profiles/stap", {**STAP, "jerk_periods": 2}, {}, True),
+    ("/v1/profiles/stap", {**STAP, "jerk_periods": 0}, {}, False),
+    ("/v1/profiles/stap", {**STAP, "jerk_periods": 0, "delta": 1, "acceleration_time_s": 1.0}, {}, True),
     # the STAP design: an acceleration limit (or torque, or a fixed t_a)
     ("/v1/profiles/stap", {**STAP, "limits": {}}, {}, False),
     ("/v1/profiles/stap", {**STAP, "limits": {}, "acceleration_time_s": 0.5}, {}, True),
@@ -104,6 +106,9 @@ CASES = [
     ("/v1/profiles/pseudo-polynomial", {"plant": MODE, "displacement": 1.0}, {}, True),
     ("/v1/profiles/smoother", {"plant": MODE, "target_velocity": 1.0}, {}, False),
     ("/v1/profiles/smoother", {"plant": MODE, "displacement": 1.0}, {}, True),
+    # optim.smoothers.design_chain: no filter needs a limit to design for
+    ("/v1/profiles/smoother", {"plant": MODE, "displacement": 1.0, "filters": []}, {}, False),
+    ("/v1/profiles/smoother", {"plant": MODE, "displacement": 1.0, "filters": [], "limits": LIMITS}, {}, True),
     # RobustnessIn._check: exactly one kind of robustness
     ("/v1/profiles/time-optimal", {**SHAPED, "robustness": {}}, {}, False),
     ("/v1/profiles/time-optimal", {**SHAPED, "robustness": {"derivative_order": 1.0}}, {}, True),
@@ -130,6 +135,9 @@ CASES = [
         {},
         False,
     ),
+    # routers.sweeps.Plan: the base request is the family's body, which has a plant tagged by its kind
+    ("/v1/sweeps", {"family": "stap", "request": {**STAP, "plant": 1}, "axes": [AXIS_RANGE]}, {}, False),
+    ("/v1/sweeps", {"family": "stap", "request": {**STAP, "plant": {"kind": "x"}}, "axes": [AXIS_RANGE]}, {}, False),
 ]
 
 
@@ -145,7 +153,6 @@ def test_the_schema_allows_exactly_what_validation_accepts(app, path, body, quer
 DESCRIBED = [
     ("/v1/profiles/stap", {**STAP, "displacement": -2.0}, "displacement's sign"),
     ("/v1/profiles/stap", {**STAP, "optimization": {}}, "optimization applies to method optimized only"),
-    ("/v1/profiles/stap", {**STAP, "jerk_periods": 0}, "jerk_periods 0 needs delta 1"),
     ("/v1/profiles/input-shaped", {**SHAPED, "sensitivity": {"min_ratio": 1.5, "max_ratio": 0.5}}, "max_ratio"),
     ("/v1/sweeps", {"family": "stap", "request": STAP, "axes": [{**AXIS_RANGE, "stop": 3.0}]}, "stop greater"),
 ]
