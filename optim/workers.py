@@ -53,6 +53,7 @@ BACKOFF_FIRST_S = 0.5
 BACKOFF_MAX_S = 30.0
 RETRY_AFTER_MIN_S = 1
 RETRY_AFTER_MAX_S = 60
+SETTLE_POLL_S = 0.02  # how often a reservation's exit looks whether its cancelled solves have left the workers
 
 
 class Executor(Protocol):
@@ -117,6 +118,7 @@ class _Reservation:
         self.places = places
         self.free = places
         self.closed = False
+        self.jobs: set[_Job] = set()  # every job it submitted: those still in a worker are waited for on exit
 
     async def run(self, fn: Callable[..., T], *args: Any, deadline_s: float) -> T:
         if self.closed or self.free < 1:  # beyond the reservation: an ordinary job
@@ -124,7 +126,8 @@ class _Reservation:
         self.free -= 1
         self.pool._held -= 1
         try:
-            return await self.pool._submit(fn, args, deadline_s, wait_s=deadline_s * self.pool.turns_ahead())
+            wait_s = deadline_s * self.pool.turns_ahead()
+            return await self.pool._submit(fn, args, deadline_s, wait_s=wait_s, track=self.jobs)
         finally:
             if not self.closed:  # the place is held again for the request's next job
                 self.free += 1
@@ -381,10 +384,18 @@ class SolverPool:
         try:
             yield reservation
         finally:
-            self._held -= reservation.free
-            reservation.free = 0
-            reservation.closed = True
-            self._changed()
+            try:  # a job cancelled while in a worker still runs there (within its deadline): the request ends after
+                await self._settled(reservation.jobs)  # it, so that no work of an answered request is left behind
+            finally:
+                self._held -= reservation.free
+                reservation.free = 0
+                reservation.closed = True
+                self._changed()
+
+    async def _settled(self, jobs: set[_Job]) -> None:
+        """Until no worker runs one of ``jobs`` (each ends within its deadline, or its worker is killed)."""
+        while jobs and any(worker.job in jobs for worker in self._workers):
+            await asyncio.sleep(SETTLE_POLL_S)
 
     def turns_ahead(self) -> int:
         """Deadlines a job queued now may wait for a worker: one per round of the jobs ahead of it (running or
@@ -394,24 +405,34 @@ class SolverPool:
         return 1 + math.ceil(ahead / max(1, warm))
 
     async def _submit(
-        self, fn: Callable[..., T], args: tuple[Any, ...], deadline_s: float, wait_s: float | None = None
+        self,
+        fn: Callable[..., T],
+        args: tuple[Any, ...],
+        deadline_s: float,
+        wait_s: float | None = None,
+        track: set[_Job] | None = None,
     ) -> T:
         """Queue an admitted job and wait for its outcome; it waits for a worker at most ``wait_s`` (default: its
-        deadline)."""
+        deadline). ``track`` collects the job (a reservation's)."""
         if self._closing or self._loop is None:
             raise PoolUnavailable("the solver pool is not running")
         job = _Job(fn, args, deadline_s, self._loop.create_future(), time.monotonic())
+        if track is not None:
+            track.add(job)
         job.timer = self._loop.call_later(deadline_s if wait_s is None else wait_s, self._expire_queued, job)
         self._queue.append(job)
         self._dispatch()
         try:
             return await job.future  # type: ignore[no-any-return]
         finally:
-            if not job.future.done():  # the caller went away: a queued job is dropped, a running one finishes
+            if not job.future.done():
                 job.future.cancel()
-                if job in self._queue:
-                    self._queue.remove(job)
-                    self._cancel_timer(job)
+            # The caller went away (its task cancelled, which cancels the future too): a queued job leaves the queue
+            # now (it used to stay, counted, until a worker skipped it), a running one finishes.
+            if job in self._queue:
+                self._queue.remove(job)
+                self._cancel_timer(job)
+                self._changed()
 
     def retry_after_s(self, jobs: int = 1) -> int:
         """When room for ``jobs`` is likely to free: the mean solve time times the jobs ahead per worker."""

@@ -271,3 +271,21 @@ async def test_a_reserved_job_may_wait_behind_its_own_request(pool: SolverPool) 
     async with reserved(pool, 4) as held:
         pids = await asyncio.gather(*(held.run(slow_solves.sleep_for, 0.4, deadline_s=1.0) for _ in range(4)))
     assert all(isinstance(pid, int) for pid in pids)
+
+
+@with_pool(workers=1)
+async def test_a_request_that_stops_waits_for_its_running_solve_and_drops_its_queued_one(pool: SolverPool) -> None:
+    """A compare whose family timed out cancels its other runs (optim.compare): the queued one leaves the queue
+    and never runs; the one a worker runs cannot be interrupted short of killing the worker, so the request ends
+    when it ends (within its deadline), and leaves no work behind to delay the next request."""
+    with pytest.raises(RuntimeError, match="a family timed out"):
+        async with reserved(pool, 2) as held:
+            running = asyncio.ensure_future(held.run(slow_solves.sleep_for, 0.5, deadline_s=10))
+            queued = asyncio.ensure_future(held.run(slow_solves.sleep_for, 0.0, deadline_s=10))
+            await until(lambda: pool.stats()["busy"] == 1 and pool.stats()["queued"] == 1)
+            running.cancel()
+            queued.cancel()
+            await asyncio.gather(running, queued, return_exceptions=True)
+            assert pool.stats()["queued"] == 0  # the queued job left at once
+            raise RuntimeError("a family timed out")
+    assert pool.stats()["busy"] == 0  # the running one ended before the request did
