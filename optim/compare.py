@@ -9,9 +9,10 @@ fails for this problem, is listed with the reason and its problem type.
 A ranking is never shown without a row that the machine's state removed: a family the pool could not
 take (``PoolUnavailable``: starting, busy, or its worker died) or whose solve ran out of time
 (``SolverTimedOut``, the pool's deadline or the solver's own wall-time cap) makes compare raise that
-error at once, the other runs cancelled. ``plan`` says, before anything runs, how many runs need a
-solver, so that the caller can reserve room for all of them at once (``optim.workers.reserved``) and
-be refused before any work. The runner is injected (the pool for solver families, a thread
+error, the other runs cancelled (one still queued never runs; one a worker runs ends within its
+deadline, and the pool's reservation ends after it). ``plan`` says, before anything runs, how many
+runs need a solver, so that the caller can reserve room for all of them at once
+(``optim.workers.reserved``) and be refused before any work. The runner is injected (the pool for solver families, a thread
 otherwise), so this module does no I/O.
 """
 
