@@ -827,7 +827,9 @@ async function design(event) {
     if (!current() || failed) return;
     endPending(job.key);
     if (outcome.problem) {
-      if (job.fatal) { fail(outcome.problem, ""); return; }
+      // A compare refused for its input ends the design; one the service's state ended (503 busy or not ready,
+      // 504 a solve out of time) is that family's reason, like an endpoint's.
+      if (job.fatal && !(outcome.problem.status >= 500)) { fail(outcome.problem, ""); return; }
       showProblem(outcome.problem, `${job.name}: `);
       results.unavailable.push({ name: job.name, reason: outcome.problem.detail || outcome.problem.title });
     } else {
