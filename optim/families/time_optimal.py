@@ -27,7 +27,6 @@ from optim.problem import Problem
 from optim.solver import SolverReport
 from optim.synthesis import percentage_vibration, rigid_reference
 from optim.time_optimal import Arc, Band, Solution, Spec, Torque, command_of, solve
-from optim.time_optimal.lp import MAX_LP_ITERATIONS, MAX_LP_SOLVES
 from optim.time_optimal.types import DEFAULT_MAX_PERCENTAGE_VIBRATION, MAX_MODES
 
 LIMIT_RTOL = 1e-10  # a refined command must meet its limits this tightly (the pipeline refuses above 1e-9)
@@ -300,11 +299,14 @@ class TimeOptimalFamily(BaseFamily):
         detail = _Detail(solution, chosen, options.robustness, tradeoff)
         extra = () if solution.refined else (f"the switching times are the grid's ({solution.refinement})",)
         if solution.capped_lps + row_capped:
-            rows = f" ({row_capped} of them in the trade-off rows)" if row_capped else ""
+            count, rows = (
+                solution.capped_lps + row_capped,
+                f" ({row_capped} in the trade-off rows)" if row_capped else "",
+            )
             extra += (
-                f"{solution.capped_lps + row_capped} LPs{rows} stopped at their iteration cap ({MAX_LP_ITERATIONS} "
-                "HiGHS iterations per method) and counted as 'no command found' at their length: a duration may "
-                "exceed its search grid's optimum",
+                f"{count} LP{'' if count == 1 else 's'}{rows} stopped at their iteration cap "
+                f"({solution.max_lp_iterations} HiGHS iterations per method) and counted as 'no command found' "
+                "at their length: a duration may exceed its search grid's optimum",
             )
         # "refined": exact switching times, the shortest command found (no proof of global optimality: see
         # design.lower_bound_s); "grid": the optimum of the search grid. Counts cover every solve, rows too.
@@ -428,8 +430,8 @@ def _design_block(
             "band_points": solution.cut_frequencies,
             "solve_time_s": solution.solve_time_s,
             "lp_solver": "HiGHS (scipy.optimize.linprog)",
-            "max_lp_iterations": MAX_LP_ITERATIONS,  # per LP and method: the caps are work, never time
-            "max_lp_solves": MAX_LP_SOLVES,  # per search (the design, each tightening, each trade-off row)
+            "max_lp_iterations": solution.max_lp_iterations,  # per LP and method: the caps are work, never time
+            "max_lp_solves": solution.max_lp_solves,  # per search (the design, each tightening, each trade-off row)
             "lp_runs_at_iteration_cap": solution.capped_runs,
             "lps_not_found_at_iteration_cap": solution.capped_lps,
         },

@@ -72,11 +72,12 @@ class Cut:
 @dataclass
 class LpCounter:
     """The LPs of one search: HiGHS runs (``solves``), their iterations and seconds, the runs that stopped at
-    MAX_LP_ITERATIONS (``capped_runs``) and the LPs that therefore counted as not found (``capped_lps``).
+    ``max_iterations`` (``capped_runs``) and the LPs that therefore counted as not found (``capped_lps``).
     ``time_limit_s``: each run's wall-clock last resort (HiGHS's own clock)."""
 
     time_limit_s: float = math.inf
-    max_solves: int = MAX_LP_SOLVES
+    max_iterations: int = field(default_factory=lambda: MAX_LP_ITERATIONS)
+    max_solves: int = field(default_factory=lambda: MAX_LP_SOLVES)
     solves: int = 0
     iterations: int = 0
     seconds: float = 0.0
@@ -432,7 +433,7 @@ def _solve(lp: _Lp, counter: LpCounter) -> tuple[Array | None, int]:
     """HiGHS's solution (None unless optimal) and scipy's status (0 optimal, 1 iteration cap, 2 infeasible, ...).
 
     HiGHS's simplex now and then stalls on one of these small LPs (seen: 316 steps, held jerk): stopped at
-    MAX_LP_ITERATIONS, the LP is solved again with the interior-point method (same cap), then counts as not found.
+    its iteration cap, the LP is solved again with the interior-point method (same cap), then counts as not found.
     Raises SolverFailed past the search's LP cap, SolverTimedOut when HiGHS reaches its time limit."""
     if counter.solves >= counter.max_solves:
         raise SolverFailed(
@@ -445,7 +446,7 @@ def _solve(lp: _Lp, counter: LpCounter) -> tuple[Array | None, int]:
     a_ub = sp.vstack(lp.ub).tocsr() if lp.ub else None
     b_ub = np.concatenate(lp.ub_rhs) if lp.ub else None
     bounds = np.column_stack([lp.lower, lp.upper])
-    options: dict[str, Any] = {"maxiter": MAX_LP_ITERATIONS, "presolve": True}
+    options: dict[str, Any] = {"maxiter": counter.max_iterations, "presolve": True}
     if math.isfinite(counter.time_limit_s):
         options["time_limit"] = counter.time_limit_s
     status = 1

@@ -386,6 +386,8 @@ def solve(
         lp_iterations=search.counter.iterations,
         solve_time_s=time.perf_counter() - began,
         cut_frequencies=len(search.cuts),
+        max_lp_iterations=search.counter.max_iterations,
+        max_lp_solves=search.counter.max_solves,
         capped_runs=search.counter.capped_runs,
         capped_lps=search.counter.capped_lps,
     )
