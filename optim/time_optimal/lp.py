@@ -53,9 +53,10 @@ MARGIN = 1e-7  # bounds tightened by this fraction so that HiGHS's feasibility t
 # seldom adds a point.
 BAND_MARGIN = 0.003
 # HiGHS iterations per LP and method (scipy's ``maxiter``: HiGHS's simplex_iteration_limit and ipm_iteration_limit).
-# The LPs of the tests, the README's examples and bench/determinism.py's 50 random requests need at most 2906 simplex
-# iterations (up to ~3 per row); one LP of tests/optim/test_time_optimal.py's stalling move never ends (515 000
-# iterations in 30 s), and HiGHS's interior-point method proves it infeasible in 16.
+# The LPs of tests/optim/test_time_optimal.py, the README's examples and bench/determinism.py's 50 random requests
+# need at most 4036 simplex iterations (a band down to 1 mHz, 3856 rows; the 1 s time limit used to stop them) and
+# 16 interior-point ones; one LP of the stalling move of those tests never ends in the simplex (515 000 iterations in
+# 30 s), and the interior-point method proves it infeasible in 16.
 MAX_LP_ITERATIONS = 10_000
 MAX_LP_SOLVES = 200  # LPs per search (those runs need at most 30): beyond, SolverFailed
 TORQUE_POINTS = (0.0, 0.25, 0.5, 0.75, 1.0)  # 1.0: the left limit at the next node (the torque jumps)
