@@ -297,7 +297,9 @@ class TimeOptimalFamily(BaseFamily):
             if options.tradeoff is not None:
                 tradeoff, row_capped = self._tradeoff(problem, options, chosen)
         detail = _Detail(solution, chosen, options.robustness, tradeoff)
-        extra = () if solution.refined else (f"the switching times are the grid's ({solution.refinement})",)
+        extra: tuple[str, ...] = (
+            () if solution.refined else (f"the switching times are the grid's ({solution.refinement})",)
+        )
         if solution.capped_lps + row_capped:
             count, rows = (
                 solution.capped_lps + row_capped,
