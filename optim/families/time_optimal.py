@@ -301,10 +301,8 @@ class TimeOptimalFamily(BaseFamily):
             () if solution.refined else (f"the switching times are the grid's ({solution.refinement})",)
         )
         if solution.capped_lps + row_capped:
-            count, rows = (
-                solution.capped_lps + row_capped,
-                f" ({row_capped} in the trade-off rows)" if row_capped else "",
-            )
+            count = solution.capped_lps + row_capped
+            rows = f" ({row_capped} in the trade-off rows)" if row_capped else ""
             extra += (
                 f"{count} LP{'' if count == 1 else 's'}{rows} stopped at their iteration cap "
                 f"({solution.max_lp_iterations} HiGHS iterations per method) and counted as 'no command found' "
