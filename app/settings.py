@@ -40,7 +40,12 @@ class Settings(BaseSettings):
 
     max_samples: int = Field(200_000, ge=2, description="Most samples in any sampled array, in or out.")
     max_body_bytes: int = Field(32 * 1024 * 1024, ge=1024, description="Largest request body accepted (413 above).")
-    solve_time_limit_s: float = Field(10.0, gt=0, description="Wall-time cap of one solve (IPOPT max_wall_time).")
+    solve_time_limit_s: float = Field(
+        10.0,
+        gt=0,
+        description="Wall-clock last resort of each solver call (IPOPT max_wall_time, HiGHS time_limit of an LP): "
+        "reached, the design fails with solve-timeout (504). Designs are decided by caps in work, never by time.",
+    )
     solve_max_iterations: int = Field(3000, ge=1, description="Iteration cap of one solve (IPOPT max_iter).")
     solve_grace_s: float = Field(5.0, ge=0, description="Extra time before a stuck worker is killed.")
     # --- processes, solver workers and their caches (README "Deployment") ---
