@@ -69,6 +69,27 @@ class Settings(BaseSettings):
     worker_niceness: int = Field(
         5, ge=0, le=19, description="Niceness added to the solver workers, so the HTTP process stays responsive."
     )
+    threads: int = Field(
+        default_factory=cores,
+        ge=1,
+        le=64,
+        description="Design threads of each HTTP process: at most this many closed-form designs and fits compute at "
+        "once (optim.threads); default one per core.",
+    )
+    max_thread_queued: int | None = Field(
+        None,
+        ge=0,
+        le=10_000,
+        description="Most designs waiting for a design thread in each process (503 beyond); default 4 per design "
+        "thread of the whole server.",
+    )
+    thread_deadline_s: float = Field(
+        30.0,
+        gt=0,
+        le=3600,
+        description="A design thread's work on one request (504 beyond; the thread finishes in the background), "
+        "and the longest a design waits for a thread (503).",
+    )
     sweep_max_points: int = Field(
         1000, ge=1, le=100_000, description="Most points of one design sweep, its refinement included (422 above)."
     )
@@ -89,6 +110,12 @@ class Settings(BaseSettings):
         since the kernel may hand one process most connections (measured: 2 processes x 1 worker with a limit of
         4 each refused 329 of 8 clients' pseudo-polynomial requests in 6 s; bench/throughput.py)."""
         return 4 * self.workers * self.processes if self.max_queued is None else self.max_queued
+
+    @property
+    def thread_queue_limit(self) -> int:
+        """Designs one process lets wait for a design thread: by default 4 per design thread of the whole server
+        (processes x threads), as ``queue_limit`` (a compare alone asks for 7 closed-form designs at once)."""
+        return 4 * self.threads * self.processes if self.max_thread_queued is None else self.max_thread_queued
 
     @property
     def solve_deadline_s(self) -> float:
