@@ -69,6 +69,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             warm_up=functools.partial(observability.start_worker, warm_up),
             max_queued=settings.queue_limit,
             niceness=settings.worker_niceness,
+            memory_mb=settings.worker_memory_mb,
             on_change=gauges.update if gauges is not None else None,
         )
         app.state.pool = pool
