@@ -389,11 +389,11 @@ def identify_modes(record: Record, *, max_modes: int = 4, start_s: float | None 
     live = spread > 0
     if not np.any(live):
         raise InvalidParameter(names[0], "constant", "every signal is constant: the record holds no vibration")
-    fitted = int(np.count_nonzero(live))
-    if n * fitted > MAX_FIT_VALUES:
+    live_count = int(np.count_nonzero(live))
+    if n * live_count > MAX_FIT_VALUES:
         raise InvalidParameter(
             field_name,
-            f"{n} samples x {fitted} signals",
+            f"{n} samples x {live_count} signals",
             f"the fit takes at most {MAX_FIT_VALUES} values (samples x signals from {t_abs[0] + start * dt:.6g} s, "
             f"{source.replace('_', ' ')}): start later (start_s), send fewer rows (a lower rate) or fewer signals",
         )
