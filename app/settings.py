@@ -101,6 +101,13 @@ class Settings(BaseSettings):
         description="A design thread's work on one request (504 beyond; the thread finishes in the background), "
         "and the longest a design waits for a thread (503).",
     )
+    compare_max_samples: int = Field(
+        25_000,
+        ge=2,
+        description="Most samples in each design of one compare (a row finer than that is unavailable, naming "
+        "sample_period_s): its 8 or so rows are held together, so 25000 each keep the answer within one "
+        "VIBFREE_MAX_SAMPLES answer (8 rows of 163000 samples held 271 MiB, 620 MiB with include_curves).",
+    )
     sweep_max_points: int = Field(
         1000, ge=1, le=100_000, description="Most points of one design sweep, its refinement included (422 above)."
     )

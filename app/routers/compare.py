@@ -7,6 +7,7 @@ POSTed to ``rows[].endpoint``.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Body
@@ -195,6 +196,8 @@ async def answer(
     if body.sensitivity is None:
         body = body.model_copy(update={"sensitivity": DEFAULT_SENSITIVITY})
     problem = await run_in_threadpool(body.to_problem, settings)
+    # every row is held until the last one ends: each gets its share of the sample cap (VIBFREE_COMPARE_MAX_SAMPLES)
+    problem = dataclasses.replace(problem, max_samples=min(problem.max_samples, settings.compare_max_samples))
     if not problem.plant.modes():
         raise InvalidParameter("plant", problem.plant.kind, "the plant has no vibration mode to design against")
 
