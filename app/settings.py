@@ -92,7 +92,7 @@ class Settings(BaseSettings):
         ge=0,
         le=10_000,
         description="Most designs waiting for a design thread in each process (503 beyond); default 4 per design "
-        "thread of the whole server.",
+        "thread of the whole server, at least 16 (a compare asks for 7 closed-form designs at once).",
     )
     thread_deadline_s: float = Field(
         30.0,
@@ -132,8 +132,11 @@ class Settings(BaseSettings):
     @property
     def thread_queue_limit(self) -> int:
         """Designs one process lets wait for a design thread: by default 4 per design thread of the whole server
-        (processes x threads), as ``queue_limit`` (a compare alone asks for 7 closed-form designs at once)."""
-        return 4 * self.threads * self.processes if self.max_thread_queued is None else self.max_thread_queued
+        (processes x threads), as ``queue_limit``, and at least 16: a compare alone asks for 7 closed-form designs
+        at once (4 shapers, 2 smoothers, STAP's closed form), so two fit on one core."""
+        if self.max_thread_queued is not None:
+            return self.max_thread_queued
+        return max(16, 4 * self.threads * self.processes)
 
     @property
     def solve_deadline_s(self) -> float:
