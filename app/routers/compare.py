@@ -7,6 +7,7 @@ POSTed to ``rows[].endpoint``.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Body
@@ -14,7 +15,7 @@ from pydantic import Field
 from starlette.concurrency import run_in_threadpool
 
 from app import problems, services
-from app.deps import PoolDep, SettingsDep
+from app.deps import PoolDep, SettingsDep, ThreadsDep
 from app.examples import CUSIMANO_8HZ, INCERTI_TABLE_III
 from app.responses import NumpyJSONResponse
 from app.schemas.common import OutModel
@@ -177,25 +178,31 @@ async def compare(
     body: Annotated[CompareIn, Body(openapi_examples=EXAMPLES)],
     settings: SettingsDep,
     pool: PoolDep,
+    threads: ThreadsDep,
 ) -> NumpyJSONResponse:
     """Runs every family that applies (pseudo-polynomial and smoothers need a rest-to-rest move, STAP an
     acceleration or torque limit) with the same limits, sampling, settling band and sensitivity grid, and returns
     one row per design sorted by the load's settling time. A family that does not apply or cannot meet the limits
     is listed in `unavailable` with its reason. `rows[].request` is the exact request to POST to
     `rows[].endpoint` to get the same design (add `?format=csv` for a cam table)."""
-    return NumpyJSONResponse(await answer(body, settings, pool))
+    return NumpyJSONResponse(await answer(body, settings, pool, threads))
 
 
-async def answer(body: CompareIn, settings: Settings, pool: Executor) -> dict[str, Any]:
-    """The compare answer (JSON-ready apart from numpy arrays), run on ``pool``: the route's and the Python API's."""
+async def answer(
+    body: CompareIn, settings: Settings, pool: Executor, threads: Executor = services.INLINE
+) -> dict[str, Any]:
+    """The compare answer (JSON-ready apart from numpy arrays), run on ``pool`` and ``threads`` (services.run): the
+    route's and the Python API's."""
     if body.sensitivity is None:
         body = body.model_copy(update={"sensitivity": DEFAULT_SENSITIVITY})
     problem = await run_in_threadpool(body.to_problem, settings)
+    # every row is held until the last one ends: each gets its share of the sample cap (VIBFREE_COMPARE_MAX_SAMPLES)
+    problem = dataclasses.replace(problem, max_samples=min(problem.max_samples, settings.compare_max_samples))
     if not problem.plant.modes():
         raise InvalidParameter("plant", problem.plant.kind, "the plant has no vibration mode to design against")
 
     async def run(family: Family, p: Problem, options: Any) -> Result:
-        return await services.run(family, p, options, settings, pool)
+        return await services.run(family, p, options, settings, pool, threads)
 
     rows, unavailable = await compare_families(problem, run, body.families, body.options(problem))
     common = body.common_body()
