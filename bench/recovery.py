@@ -37,14 +37,12 @@ import psutil
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+sys.path.insert(0, str(ROOT / "bench"))
+
+from health_under_load import SLOW_SOLVE  # noqa: E402  (the same slow solve as that benchmark)
+
 from tests.app.server import readyz, serving  # noqa: E402  (bench/ scripts run from anywhere, like the others)
 
-SLOW_SOLVE = {
-    "plant": {"kind": "mode", "natural_frequency_hz": 40},
-    "displacement": 0.12,
-    "limits": {"max_velocity": 5, "max_acceleration": 10},
-    "robustness": {"frequency_ratio_range": [0.9, 1.1]},
-}
 CLIENTS = 8
 BURNERS = 3  # with the solves: a load average of about 4 on 2 cores
 TARGET_READY_S = 15.0
