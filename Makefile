@@ -51,6 +51,7 @@ bench: $(VENV)/.installed-test  ## run the benchmarks whose figures are in READM
 	$(BIN)/python bench/time_optimal.py  # needs pip install ruckig for part c (skipped without it)
 	$(BIN)/python bench/csv_export.py  # the CSV table beside the JSON answer
 	$(BIN)/python bench/health_under_load.py  # /healthz and /readyz while slow solves saturate the pool
+	$(BIN)/python bench/determinism.py  # the same answers idle and with 8 clients sending slow solves
 	$(BIN)/python bench/fuzz.py  # 2000 schemathesis cases per operation (--cases N)
 
 clean:

@@ -7,6 +7,7 @@ from typing import Annotated
 from fastapi import Depends, Request
 
 from app.settings import Settings
+from optim.threads import ThreadLane
 from optim.workers import SolverPool
 
 
@@ -23,5 +24,12 @@ async def get_pool(request: Request) -> SolverPool:  # async: FastAPI would run 
     return pool
 
 
+async def get_threads(request: Request) -> ThreadLane:
+    """The process's design threads (``optim.threads``): where the closed-form designs and fits run."""
+    threads: ThreadLane = request.app.state.threads
+    return threads
+
+
 SettingsDep = Annotated[Settings, Depends(get_app_settings)]
 PoolDep = Annotated[SolverPool, Depends(get_pool)]
+ThreadsDep = Annotated[ThreadLane, Depends(get_threads)]

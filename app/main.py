@@ -34,6 +34,7 @@ from app.routers import (
 from app.schemas.common import unschemed_rules
 from app.settings import Settings, get_settings
 from app.warmup import example_jobs, warm_up_worker
+from optim.threads import ThreadLane
 from optim.workers import SolverPool
 
 DESCRIPTION = """
@@ -73,13 +74,22 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             warm_up=functools.partial(observability.start_worker, warm_up),
             max_queued=settings.queue_limit,
             niceness=settings.worker_niceness,
+            memory_mb=settings.worker_memory_mb,
             on_change=gauges.update if gauges is not None else None,
         )
         app.state.pool = pool
+        thread_gauges = app.state.metrics.thread_gauges
+        threads = ThreadLane(
+            settings.threads,
+            settings.thread_queue_limit,
+            on_change=thread_gauges.update if thread_gauges is not None else None,
+        )
+        app.state.threads = threads  # the closed-form designs and fits of this process (optim.threads)
         pool.start_in_background()
         try:
             yield
         finally:
+            threads.close()
             await pool.close()
             directory = app.state.metrics.multiprocess_dir
             if directory is not None:  # this process's live gauges leave the sums; its counters stay

@@ -27,6 +27,7 @@ import logging
 import os
 import re
 import sys
+import threading
 import time
 import uuid
 from collections.abc import Callable, Iterable, Mapping
@@ -189,6 +190,70 @@ class PoolCollector(Collector):
         return metrics
 
 
+class ThreadsCollector(Collector):
+    """The design threads' state (``optim.threads.ThreadLane.stats()``), read at scrape time (skipped while none)."""
+
+    GAUGES = (
+        ("vibfree_threads_configured", "threads", "Design threads configured (closed-form designs and fits)."),
+        ("vibfree_threads_running", "running", "Design threads computing."),
+        ("vibfree_threads_queue_depth", "queued", "Designs waiting for a design thread."),
+        ("vibfree_threads_held", "held", "Places reserved for requests' designs not yet submitted."),
+        ("vibfree_threads_overrunning", "overrunning", "Design threads still computing past their deadline (504)."),
+    )
+    COUNTERS = (
+        ("vibfree_threads_timeouts", "timeouts", "Designs answered 504 at their deadline."),
+        ("vibfree_threads_rejected", "rejected", "Designs refused by admission control (503)."),
+    )
+
+    def __init__(self, lane: Callable[[], object | None]) -> None:
+        self._lane = lane
+
+    def collect(self) -> Iterable[Metric]:
+        stats_of = getattr(self._lane(), "stats", None)
+        if not callable(stats_of):
+            return []
+        try:
+            stats: Mapping[str, int] = stats_of()
+        except Exception:  # a scrape must not fail because the lane could not say
+            logging.getLogger(__name__).exception("the design threads' stats() failed")
+            return []
+        metrics: list[Metric] = [
+            GaugeMetricFamily(name, doc, value=stats[key]) for name, key, doc in self.GAUGES if key in stats
+        ]
+        metrics += [
+            CounterMetricFamily(name, doc, value=stats[key]) for name, key, doc in self.COUNTERS if key in stats
+        ]
+        return metrics
+
+
+class ThreadsGauges:
+    """The design threads' state in the shared metrics directory (multiprocess mode), as ``PoolGauges``: gauges
+    with this process's pid, counters summed. ``update(stats)`` is the lane's ``on_change`` callback (called
+    from its threads: prometheus_client's values lock)."""
+
+    def __init__(self, registry: CollectorRegistry) -> None:
+        self.gauges = {
+            key: Gauge(name, doc + " Per HTTP process.", multiprocess_mode="liveall", registry=registry)
+            for name, key, doc in ThreadsCollector.GAUGES
+        }
+        self.counters = {
+            key: Counter(name, doc + " Summed over the HTTP processes.", registry=registry)
+            for name, key, doc in ThreadsCollector.COUNTERS
+        }
+        self._counted = dict.fromkeys(self.counters, 0)
+        self._lock = threading.Lock()
+
+    def update(self, stats: Mapping[str, int]) -> None:
+        for key, gauge in self.gauges.items():
+            gauge.set(stats.get(key, 0))
+        with self._lock:
+            for key, counter in self.counters.items():
+                delta = stats.get(key, 0) - self._counted[key]
+                if delta > 0:
+                    counter.inc(delta)
+                    self._counted[key] += delta
+
+
 def multiprocess_dir() -> str | None:
     """The shared metrics directory of a multi-process server, or None (one process: in-memory metrics)."""
     return os.environ.get("PROMETHEUS_MULTIPROC_DIR") or None
@@ -283,7 +348,7 @@ class Metrics:
     In multiprocess mode (``multiprocess_dir()``) the values also go to the shared directory, and
     ``scrape_registry()`` reads every process's; the pool's state is written by ``pool_gauges.update``."""
 
-    def __init__(self, pool: Callable[[], object | None]) -> None:
+    def __init__(self, pool: Callable[[], object | None], threads: Callable[[], object | None] = lambda: None) -> None:
         self.multiprocess_dir = multiprocess_dir()
         self.registry = CollectorRegistry()
         self.requests = Counter(
@@ -313,12 +378,15 @@ class Metrics:
             registry=self.registry,
         )
         self.pool_gauges: PoolGauges | None = None
+        self.thread_gauges: ThreadsGauges | None = None
         if self.multiprocess_dir is None:
             self.registry.register(PoolCollector(pool))
+            self.registry.register(ThreadsCollector(threads))
             ProcessCollector(registry=self.registry)
             PlatformCollector(registry=self.registry)
         else:  # custom collectors see only the answering process: the pool's state goes to the files
             self.pool_gauges = PoolGauges(self.registry)
+            self.thread_gauges = ThreadsGauges(self.registry)
 
     def scrape_registry(self) -> CollectorRegistry:
         """What /metrics exposes: this app's registry, or in multiprocess mode every process's files."""
@@ -549,7 +617,7 @@ def install(app: FastAPI) -> Metrics:
     The wrapper goes outside Starlette's ``ServerErrorMiddleware`` (which ``add_middleware`` cannot
     do), so that a 500 problem carries the request id and the security headers too.
     """
-    metrics = Metrics(lambda: getattr(app.state, "pool", None))
+    metrics = Metrics(lambda: getattr(app.state, "pool", None), lambda: getattr(app.state, "threads", None))
     app.state.metrics = metrics
     build_stack = app.build_middleware_stack
 

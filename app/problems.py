@@ -371,11 +371,11 @@ def declared_statuses(route: Any) -> tuple[int, ...]:
     - any route: 500 (internal-error);
     - a route with parameters or a body: 422 (invalid-input);
     - a route with a body: 400 (malformed-body), 413 (body-too-large), 415 (unsupported-media-type);
-    - a route with a body that runs on the solver pool (``app.deps.get_pool``): 503 (not-ready, with
-      Retry-After) and 504 (solve-timeout);
+    - a route with a body that runs on the solver pool or the design threads (``app.deps.get_pool``,
+      ``get_threads``): 503 (not-ready or busy, with Retry-After) and 504 (solve-timeout);
     - ``/problems/{slug}``: 404 (not-found).
     """
-    from app.deps import get_pool
+    from app.deps import get_pool, get_threads
 
     dependant = route.dependant
     statuses = {500}
@@ -390,7 +390,7 @@ def declared_statuses(route: Any) -> tuple[int, ...]:
             dep = stack.pop()
             calls.add(dep.call)
             stack.extend(dep.dependencies)
-        if get_pool in calls:
+        if get_pool in calls or get_threads in calls:
             statuses.update({503, 504})
     if route.endpoint is problem_type:
         statuses.add(404)

@@ -1,7 +1,9 @@
 """The service layer between the routes and the pipeline: where a design runs, and its answer.
 
 A family whose options need a solver runs the whole pipeline in a worker process (IPOPT is not
-thread-safe); the others run it in a thread, off the event loop.
+thread-safe); the others run it in one of the HTTP process's design threads (``optim.threads.ThreadLane``:
+bounded admission and a deadline), off the event loop. Without a server (the Python API, the CLI) both are
+the calling process (``InlineExecutor``).
 """
 
 from __future__ import annotations
@@ -18,17 +20,22 @@ from models.errors import DomainError, Infeasible, InvalidParameter, NotApplicab
 from optim.family import Family
 from optim.problem import Problem
 from optim.synthesis import Result, synthesize
-from optim.workers import Executor
+from optim.workers import Executor, InlineExecutor
+
+INLINE = InlineExecutor()
 
 
-async def run(family: Family, problem: Problem, options: Any, settings: Settings, pool: Executor) -> Result:
+async def run(
+    family: Family, problem: Problem, options: Any, settings: Settings, pool: Executor, threads: Executor = INLINE
+) -> Result:
+    """The pipeline's ``Result``: in ``pool`` where the family's options need a solver, else in ``threads``."""
     uses_solver = family.uses_solver(options)
     started = time.perf_counter()
     try:
         if uses_solver:
             result = await pool.run(synthesize, family, problem, options, deadline_s=settings.solve_deadline_s)
         else:
-            result = await run_in_threadpool(synthesize, family, problem, options)
+            result = await threads.run(synthesize, family, problem, options, deadline_s=settings.thread_deadline_s)
     except BaseException as exc:  # logged and counted, then raised as before (cancellation included)
         record_solve(family.name, time.perf_counter() - started, error=exc, executor=_executor(uses_solver))
         raise
@@ -40,14 +47,16 @@ def _executor(uses_solver: bool) -> str:
     return "pool" if uses_solver else "thread"
 
 
-async def profile(family: Family, body: ProfileRequest, settings: Settings, pool: Executor) -> dict[str, Any]:
+async def profile(
+    family: Family, body: ProfileRequest, settings: Settings, pool: Executor, threads: Executor = INLINE
+) -> dict[str, Any]:
     """The answer of a family endpoint: the pipeline's result, with a line per deprecated field used."""
-    answer, _ = await design(family, body, settings, pool)
+    answer, _ = await design(family, body, settings, pool, threads)
     return answer
 
 
 async def design(
-    family: Family, body: ProfileRequest, settings: Settings, pool: Executor
+    family: Family, body: ProfileRequest, settings: Settings, pool: Executor, threads: Executor = INLINE
 ) -> tuple[dict[str, Any], Result]:
     """The answer of a family endpoint and the pipeline's ``Result`` it was made from (for the CSV table)."""
     try:
@@ -55,7 +64,7 @@ async def design(
         reason = family.not_applicable(problem)
         if reason is not None:  # before the options, whose defaults may need what is missing (a mode)
             raise NotApplicable(reason)
-        result = await run(family, problem, body.options(problem), settings, pool)
+        result = await run(family, problem, body.options(problem), settings, pool, threads)
     except (InvalidParameter, Infeasible, NotApplicable) as exc:
         raise _as_sent(exc, body) from None
     answer = result.body()

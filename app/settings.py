@@ -40,7 +40,12 @@ class Settings(BaseSettings):
 
     max_samples: int = Field(200_000, ge=2, description="Most samples in any sampled array, in or out.")
     max_body_bytes: int = Field(32 * 1024 * 1024, ge=1024, description="Largest request body accepted (413 above).")
-    solve_time_limit_s: float = Field(10.0, gt=0, description="Wall-time cap of one solve (IPOPT max_wall_time).")
+    solve_time_limit_s: float = Field(
+        10.0,
+        gt=0,
+        description="Wall-clock last resort of each solver call (IPOPT max_wall_time, HiGHS time_limit of an LP): "
+        "reached, the design fails with solve-timeout (504). Designs are decided by caps in work, never by time.",
+    )
     solve_max_iterations: int = Field(3000, ge=1, description="Iteration cap of one solve (IPOPT max_iter).")
     solve_grace_s: float = Field(5.0, ge=0, description="Extra time before a stuck worker is killed.")
     # --- processes, solver workers and their caches (README "Deployment") ---
@@ -66,8 +71,47 @@ class Settings(BaseSettings):
         le=10_000,
         description="Most solves waiting for a worker in each process (503 beyond); default 4 per server worker.",
     )
+    worker_memory_mb: int = Field(
+        1024,
+        ge=0,
+        le=1_048_576,
+        description="Address space (RLIMIT_AS, virtual memory) each solver worker may map, in MiB; a job past it is "
+        "a 422 and the worker serves on; 0: no limit. Measured (bench/worker_memory.py, single-threaded BLAS as "
+        "vibfree serve, the Makefile and the Dockerfile run them): a warm worker maps 609 MiB for 240 MiB resident, "
+        "654-674 MiB after 200 distinct plants (RSS 288-305 MiB); the mappings beyond the resident set stay ~370 "
+        "MiB, so 1024 lets a worker's RSS reach ~650 MiB, above the documented 400 MiB bound. OpenBLAS's own "
+        "threads add ~100 MiB of mappings each (825 MiB warm with 2): raise it where BLAS runs threads.",
+    )
     worker_niceness: int = Field(
         5, ge=0, le=19, description="Niceness added to the solver workers, so the HTTP process stays responsive."
+    )
+    threads: int = Field(
+        default_factory=cores,
+        ge=1,
+        le=64,
+        description="Design threads of each HTTP process: at most this many closed-form designs and fits compute at "
+        "once (optim.threads); default one per core.",
+    )
+    max_thread_queued: int | None = Field(
+        None,
+        ge=0,
+        le=10_000,
+        description="Most designs waiting for a design thread in each process (503 beyond); default 4 per design "
+        "thread of the whole server, at least 16 (a compare asks for 7 closed-form designs at once).",
+    )
+    thread_deadline_s: float = Field(
+        30.0,
+        gt=0,
+        le=3600,
+        description="A design thread's work on one request (504 beyond; the thread finishes in the background), "
+        "and the longest a design waits for a thread (503).",
+    )
+    compare_max_samples: int = Field(
+        25_000,
+        ge=2,
+        description="Most samples in each design of one compare (a row finer than that is unavailable, naming "
+        "sample_period_s): its 8 or so rows are held together, so 25000 each keep the answer within one "
+        "VIBFREE_MAX_SAMPLES answer (8 rows of 163000 samples held 271 MiB, 620 MiB with include_curves).",
     )
     sweep_max_points: int = Field(
         1000, ge=1, le=100_000, description="Most points of one design sweep, its refinement included (422 above)."
@@ -89,6 +133,15 @@ class Settings(BaseSettings):
         since the kernel may hand one process most connections (measured: 2 processes x 1 worker with a limit of
         4 each refused 329 of 8 clients' pseudo-polynomial requests in 6 s; bench/throughput.py)."""
         return 4 * self.workers * self.processes if self.max_queued is None else self.max_queued
+
+    @property
+    def thread_queue_limit(self) -> int:
+        """Designs one process lets wait for a design thread: by default 4 per design thread of the whole server
+        (processes x threads), as ``queue_limit``, and at least 16: a compare alone asks for 7 closed-form designs
+        at once (4 shapers, 2 smoothers, STAP's closed form), so two fit on one core."""
+        if self.max_thread_queued is not None:
+            return self.max_thread_queued
+        return max(16, 4 * self.threads * self.processes)
 
     @property
     def solve_deadline_s(self) -> float:

@@ -18,7 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 from models.commands import PiecewiseCommand
 from models.errors import InvalidParameter
 
-_CHUNK_ELEMENTS = 2_000_000  # bounds the (frequencies x breakpoints) matrix in memory
+_CHUNK_ELEMENTS = 262_144  # bounds the (frequencies x breakpoints) matrices: 4 MiB each (complex), ~30 MiB in all
 _ROUNDOFF = 4 * np.finfo(float).eps
 _BAND_RTOL = 1e-9
 RELIABLE_FRACTION = 1e-6  # a residual whose round-off could exceed this fraction of the move is refused

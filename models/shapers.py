@@ -260,9 +260,13 @@ class RampTrain:
         starts = self.start_s[ramps][None, :]
         ends = (self.start_s + self.rise_s)[ramps][None, :]
         slack = 1e-12 * max(1.0, float(times[-1]))
-        active = (starts <= times[:, None] + slack) & (times[:, None] < ends - slack)
-        slopes = active @ (self.height[ramps] / self.rise_s[ramps])
-        return float(np.max(np.abs(slopes)))
+        rates = self.height[ramps] / self.rise_s[ramps]
+        largest = 0.0
+        for rows in _row_chunks(times.size, rates.size):  # (times x ramps) in bounded pieces
+            at = times[rows, None]
+            slopes = ((starts <= at + slack) & (at < ends - slack)) @ rates
+            largest = max(largest, float(np.max(np.abs(slopes))))
+        return largest
 
     def to_command(self, initial_position: float = 0.0) -> PiecewiseCommand:
         """The exact PiecewiseCommand (position, velocity, acceleration) with a breakpoint at
@@ -273,14 +277,26 @@ class RampTrain:
         a = _snap(self.start_s, grid)
         b = _snap(self.start_s + self.rise_s, grid)
         s, e = grid[a], grid[b]
-        k = np.arange(grid.size)[:, None]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            inside = (k >= a) & (k < b)
-            frac = np.where(k >= b, 1.0, np.where(inside, (grid[:, None] - s) / (e - s), 0.0))
-            slope_each = np.where(inside, self.height / (e - s), 0.0)
-        velocity = frac @ self.height
-        slope = slope_each.sum(axis=1)
+        velocity, slope = np.empty(grid.size), np.empty(grid.size)
+        for rows in _row_chunks(grid.size, self.height.size):  # (breakpoints x ramps) in bounded pieces
+            k = np.arange(rows.start, rows.stop)[:, None]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                inside = (k >= a) & (k < b)
+                frac = np.where(k >= b, 1.0, np.where(inside, (grid[rows, None] - s) / (e - s), 0.0))
+                slope_each = np.where(inside, self.height / (e - s), 0.0)
+            velocity[rows] = frac @ self.height
+            slope[rows] = slope_each.sum(axis=1)
         return _integrated(grid, velocity, slope, initial_position, continuous_orders=1)
+
+
+_CHUNK_ELEMENTS = 262_144  # a (breakpoints x ramps) table is built this many entries at a time: 2 MiB per array
+
+
+def _row_chunks(rows: int, columns: int) -> list[slice]:
+    """Slices of ``rows`` whose tables of ``columns`` entries each hold at most _CHUNK_ELEMENTS (one row at least):
+    a shaped train of 2000 ramps built its 4001 x 2000 tables whole, 138 MiB."""
+    step = max(1, _CHUNK_ELEMENTS // max(1, columns))
+    return [slice(start, min(start + step, rows)) for start in range(0, rows, step)]
 
 
 def _integrated(

@@ -101,6 +101,11 @@ class Plan:
         """Candidates that run in the solver pool (``Family.uses_solver``), all at once: the room to reserve."""
         return sum(family.uses_solver(c.options) for family, candidates in self.runs for c in candidates)
 
+    @property
+    def thread_runs(self) -> int:
+        """Candidates that run in the HTTP process's design threads (closed forms), all at once: their room."""
+        return sum(not family.uses_solver(c.options) for family, candidates in self.runs for c in candidates)
+
 
 def plan(problem: Problem, names: Iterable[str] | None = None, overrides: Mapping[str, Any] | None = None) -> Plan:
     """The families that apply and their candidates (the caller's override, or the family's own)."""

@@ -37,6 +37,7 @@ from models.errors import InvalidParameter
 
 __all__ = [
     "CONFIDENCE",
+    "MAX_FIT_VALUES",
     "MAX_MODES",
     "MAX_SPECTRUM_POINTS",
     "IdentifiedMode",
@@ -55,6 +56,9 @@ MAX_MODES = 6
 MAX_SPECTRUM_POINTS = 2049  # welch's one-sided spectrum of at most 4096-sample segments
 MAX_SEGMENT = 4096
 MIN_FIT_SAMPLES = 32
+# samples x signals the fit takes: its Jacobians hold ~800 B per value (6 modes), so 105 MiB at the peak here
+# (tracemalloc), where the 200000 rows x 16 signals a CSV may hold took 2.2 GB, and minutes, in the HTTP process.
+MAX_FIT_VALUES = 131_072
 LOW_R_SQUARED = 0.5  # below: a warning
 MIN_DETECTION_SNR = 10.0  # a mode's energy over the noise's, in rms (20 dB): weaker modes are dropped
 FEW_PERIODS = 5.0
@@ -385,6 +389,14 @@ def identify_modes(record: Record, *, max_modes: int = 4, start_s: float | None 
     live = spread > 0
     if not np.any(live):
         raise InvalidParameter(names[0], "constant", "every signal is constant: the record holds no vibration")
+    live_count = int(np.count_nonzero(live))
+    if n * live_count > MAX_FIT_VALUES:
+        raise InvalidParameter(
+            field_name,
+            f"{n} samples x {live_count} signals",
+            f"the fit takes at most {MAX_FIT_VALUES} values (samples x signals from {t_abs[0] + start * dt:.6g} s, "
+            f"{source.replace('_', ' ')}): start later (start_s), send fewer rows (a lower rate) or fewer signals",
+        )
     t = np.arange(n, dtype=np.float64) * dt
     spectrum = record_spectrum(window, rate)
     peaks = spectral_peaks(spectrum, max_modes)

@@ -1,7 +1,9 @@
 """What every CasADi/IPOPT solve shares: its caps, its report and how a failure is told.
 
-A solve is always capped (``max_iter``, ``max_wall_time``). Its report carries IPOPT's status,
-iterations and wall time; ``raise_for_status`` turns anything but a converged solve into an
+A solve is always capped in work (``max_iter``), which decides what a design is, and in wall time
+(``max_wall_time``), only as a last resort: a solve that reaches it fails the design with SolverTimedOut,
+so that no answer depends on the machine's load. Its report carries IPOPT's status, iterations and
+wall time (reported, never decisive); ``raise_for_status`` turns anything but a converged solve into an
 exception, so a failed or capped solve can never be presented as a design.
 """
 
@@ -22,6 +24,9 @@ TIMED_OUT = {"Maximum_WallTime_Exceeded", "Maximum_CpuTime_Exceeded"}
 
 @dataclass(frozen=True)
 class SolveCaps:
+    """``max_iterations``: IPOPT's max_iter, a cap in work. ``max_wall_time_s``: each solver call's wall-clock
+    last resort (IPOPT's max_wall_time, an LP's HiGHS time_limit): reached, SolverTimedOut."""
+
     max_iterations: int = 3000
     max_wall_time_s: float = 10.0
 

@@ -161,6 +161,7 @@ class _State:
     values: dict[int, tuple[float, ...]] = field(default_factory=dict)
     problems: dict[int, Problem] = field(default_factory=dict)
     commands: dict[int, PiecewiseCommand] = field(default_factory=dict)
+    released: set[int] = field(default_factory=set)  # done, their commands dropped (``_release``)
     failed: set[int] = field(default_factory=set)
     checks: dict[Pair, bool | None] = field(default_factory=dict)
     leaves: list[Pair] = field(default_factory=list)
@@ -248,6 +249,7 @@ async def sweep(
             capacity,
             deadline_s,
             threshold_percent,
+            refined < budget,
         ):
             yield line
         state.leaves += pending
@@ -267,6 +269,7 @@ async def sweep(
             state.leaves.remove(pair)
             pending += [Pair(pair.axis, pair.a, index), Pair(pair.axis, index, pair.b)]
             refined += 1
+        _release(state, pending, keep_failing=False)  # only the ends of the pairs still to check stay
     leaves = [state.checks.get(p) for p in state.leaves]
     yield {
         "line": "summary",
@@ -294,6 +297,7 @@ async def _run_round(
     capacity: int,
     deadline_s: float,
     threshold_percent: float,
+    keep_failing: bool,
 ) -> AsyncIterator[dict[str, Any]]:
     waiting = iter(round_points)
     running: dict[asyncio.Task[tuple[Problem, PointOutcome]], tuple[int, tuple[float, ...], Pair | None]] = {}
@@ -344,6 +348,7 @@ async def _run_round(
                     open_pairs.remove(pair)
                     # two simulations of a command (a sampled one may hold thousands of samples): off the loop
                     yield await asyncio.to_thread(_check, pair, axes, state, threshold_percent)
+                _release(state, [*open_pairs, *pairs], keep_failing)
             fill()
     finally:
         for task in running:
@@ -353,9 +358,23 @@ async def _run_round(
                 await task
 
 
+def _release(state: _State, pairs: Sequence[Pair], keep_failing: bool) -> None:
+    """Drop the commands no check needs any more: a point's command (up to VIBFREE_MAX_SAMPLES samples of a
+    sampled design: 245 KiB for a default smoother point, so 1000 points held 245 MiB) is kept while a pair of
+    ``pairs`` it ends is unchecked, or, with refinement to come (``keep_failing``), while a pair it ends fails
+    (its midpoint is checked against it next round). The rest of the sweep then holds the points in flight and
+    the unfinished neighbours along the axes, not every point."""
+    needed = {i for p in pairs if p not in state.checks for i in (p.a, p.b)}
+    if keep_failing:
+        needed |= {i for p in pairs if state.checks.get(p) is False for i in (p.a, p.b)}
+    for index in [i for i in state.commands if i not in needed]:
+        del state.commands[index]
+        state.released.add(index)
+
+
 def _finished(pair: Pair, state: _State) -> bool:
     def done(i: int) -> bool:
-        return i in state.commands or i in state.failed
+        return i in state.commands or i in state.failed or i in state.released
 
     return done(pair.a) and done(pair.b)
 

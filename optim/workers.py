@@ -34,6 +34,7 @@ import logging
 import math
 import multiprocessing
 import os
+import resource
 import signal
 import time
 from collections import deque
@@ -44,7 +45,7 @@ from multiprocessing.connection import Connection
 from multiprocessing.process import BaseProcess
 from typing import Any, Literal, Protocol, TypeVar, runtime_checkable
 
-from models.errors import PoolUnavailable, SolverTimedOut
+from models.errors import InvalidParameter, PoolUnavailable, SolverTimedOut
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
@@ -137,9 +138,32 @@ class _Reservation:
 # --- the worker process ---------------------------------------------------------------------
 
 
-def _worker_main(conn: Connection, warm_up: Callable[[], None] | None, niceness: int) -> None:
-    """A worker: warm up, say ready, then run ``(fn, args)`` jobs until told to stop (``None``)."""
+def limit_memory(memory_mb: int) -> None:
+    """Cap this process's address space (RLIMIT_AS) at ``memory_mb`` MiB (0: no cap): an allocation past it raises
+    MemoryError here instead of growing the process until the kernel kills one (possibly the HTTP process).
+    RLIMIT_AS counts virtual memory: a warm worker maps ~370 MiB more than it has resident (app.settings
+    ``worker_memory_mb`` gives the measured figures)."""
+    if memory_mb > 0:
+        limit = memory_mb * 1024 * 1024
+        _, hard = resource.getrlimit(resource.RLIMIT_AS)
+        resource.setrlimit(resource.RLIMIT_AS, (limit if hard == resource.RLIM_INFINITY else min(limit, hard), hard))
+
+
+def _too_large(memory_mb: int) -> InvalidParameter:
+    """What a job that ran out of memory answers (a 422: the same request would run out again)."""
+    where = f"the {memory_mb} MiB a solver worker may use (VIBFREE_WORKER_MEMORY_MB)" if memory_mb else "memory"
+    return InvalidParameter(
+        "body",
+        "too large",
+        f"the design needs more than {where}: ask for less work (a longer sample_period_s, fewer sensitivity points "
+        "or modes, a shorter move or horizon)",
+    )
+
+
+def _worker_main(conn: Connection, warm_up: Callable[[], None] | None, niceness: int, memory_mb: int = 0) -> None:
+    """A worker: cap its memory, warm up, say ready, then run ``(fn, args)`` jobs until told to stop (``None``)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C stops the server, which stops its workers
+    limit_memory(memory_mb)  # before the warm-up: a worker that cannot warm up within it fails to start, visibly
     if niceness:
         with contextlib.suppress(OSError):
             os.nice(niceness)  # the HTTP process keeps answering while every worker computes
@@ -156,6 +180,8 @@ def _worker_main(conn: Connection, warm_up: Callable[[], None] | None, niceness:
         fn, args = job
         try:
             outcome: tuple[str, Any] = ("ok", fn(*args))
+        except MemoryError:  # past limit_memory: the job's arrays are freed with its frames, the worker serves on
+            outcome = ("error", _too_large(memory_mb))
         except Exception as exc:
             outcome = ("error", exc)
         try:
@@ -200,8 +226,10 @@ class SolverPool:
         max_queued: int | None = None,
         niceness: int = 0,
         on_change: Callable[[dict[str, int]], None] | None = None,
+        memory_mb: int = 0,
     ) -> None:
         self.workers = workers
+        self.memory_mb = memory_mb  # each worker's address-space cap (limit_memory; 0: none)
         self.on_change = on_change  # called with stats() after every change of state (the metrics' files)
         self.warm_up = warm_up  # run once in every new worker (a picklable callable: the families' warm-ups)
         self.start_timeout_s = start_timeout_s
@@ -303,7 +331,10 @@ class SolverPool:
         assert self._loop is not None
         parent, child = self._context.Pipe(duplex=True)
         process = self._context.Process(
-            target=_worker_main, args=(child, self.warm_up, self.niceness), name="vibfree-solver", daemon=True
+            target=_worker_main,
+            args=(child, self.warm_up, self.niceness, self.memory_mb),
+            name="vibfree-solver",
+            daemon=True,
         )
         process.start()
         child.close()

@@ -7,6 +7,7 @@ POSTed to ``rows[].endpoint``.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Annotated, Any, ClassVar, Literal
 
 from fastapi import APIRouter, Body
@@ -14,7 +15,7 @@ from pydantic import Field
 from starlette.concurrency import run_in_threadpool
 
 from app import problems, services
-from app.deps import PoolDep, SettingsDep
+from app.deps import PoolDep, SettingsDep, ThreadsDep
 from app.examples import CUSIMANO_8HZ, INCERTI_TABLE_III
 from app.responses import NumpyJSONResponse
 from app.schemas.common import OutModel
@@ -179,6 +180,7 @@ async def compare(
     body: Annotated[CompareIn, Body(openapi_examples=EXAMPLES)],
     settings: SettingsDep,
     pool: PoolDep,
+    threads: ThreadsDep,
 ) -> NumpyJSONResponse:
     """Runs every family that applies (pseudo-polynomial and smoothers need a rest-to-rest move, STAP an
     acceleration or torque limit) with the same limits, sampling, settling band and sensitivity grid, and returns
@@ -186,27 +188,36 @@ async def compare(
     is listed in `unavailable` with its reason. `rows[].request` is the exact request to POST to
     `rows[].endpoint` to get the same design (add `?format=csv` for a cam table).
 
-    A ranking never misses a family for the service's own reasons: the request asks the solver pool for room
-    for all its solves at once and is refused at once (503 `busy`, with Retry-After) when there is not room for
-    every one; a solve that runs out of time makes the answer a 504 `solve-timeout`, and a solver worker that
-    dies a 503 `not-ready`, rather than a ranking without that family."""
-    return NumpyJSONResponse(await answer(body, settings, pool))
+    A ranking never misses a family for the service's own reasons: the request asks for room for all its designs
+    at once (solver workers for its solves, design threads for its closed forms) and is refused at once (503
+    `busy`, with Retry-After) when there is not room for every one; a design that runs out of time makes the
+    answer a 504 `solve-timeout`, and a solver worker that dies a 503 `not-ready`, rather than a ranking without
+    that family."""
+    return NumpyJSONResponse(await answer(body, settings, pool, threads))
 
 
-async def answer(body: CompareIn, settings: Settings, pool: Executor) -> dict[str, Any]:
-    """The compare answer (JSON-ready apart from numpy arrays), run on ``pool``: the route's and the Python API's."""
+async def answer(
+    body: CompareIn, settings: Settings, pool: Executor, threads: Executor = services.INLINE
+) -> dict[str, Any]:
+    """The compare answer (JSON-ready apart from numpy arrays), run on ``pool`` and ``threads`` (services.run): the
+    route's and the Python API's."""
     if body.sensitivity is None:
         body = body.model_copy(update={"sensitivity": DEFAULT_SENSITIVITY})
     problem = await run_in_threadpool(body.to_problem, settings)
+    # every row is held until the last one ends: each gets its share of the sample cap (VIBFREE_COMPARE_MAX_SAMPLES)
+    problem = dataclasses.replace(problem, max_samples=min(problem.max_samples, settings.compare_max_samples))
     if not problem.plant.modes():
         raise InvalidParameter("plant", problem.plant.kind, "the plant has no vibration mode to design against")
 
     planned = plan(problem, body.families, body.options(problem))
-    # Room for every solve at once, or a 503 busy before any of them ran (no ranking with a row the load removed).
-    async with reserved(pool, planned.solver_runs) as executor:
+    # Room for every design at once, or a 503 busy before any of them ran (no ranking with a row the load removed).
+    async with (
+        reserved(pool, planned.solver_runs) as solver_executor,
+        reserved(threads, planned.thread_runs) as thread_executor,
+    ):
 
         async def run(family: Family, p: Problem, options: Any) -> Result:
-            return await services.run(family, p, options, settings, executor)
+            return await services.run(family, p, options, settings, solver_executor, thread_executor)
 
         rows, unavailable = await run_plan(planned, run)
     common = body.common_body()

@@ -32,6 +32,16 @@ class ProcessPool(OutModel):
     queued: int = Field(description="Solves waiting for one of its workers.")
 
 
+class Threads(OutModel):
+    threads: int = Field(description="Design threads configured: closed-form designs and fits computing at once.")
+    running: int = Field(description="Design threads computing.")
+    queued: int = Field(description="Designs waiting for a design thread.")
+    held: int = Field(description="Places reserved for requests' designs not yet submitted (a compare's closed forms).")
+    overrunning: int = Field(description="Design threads still computing past their deadline (answered 504).")
+    timeouts: int = Field(description="Designs answered 504 at their deadline since start.")
+    rejected: int = Field(description="Designs refused since start (queue full, or no thread free within a deadline).")
+
+
 class Ready(OutModel):
     status: Literal["ready"]
     pid: int = Field(description="Process id of the HTTP process that answered (the counts below are its pool's).")
@@ -45,6 +55,9 @@ class Ready(OutModel):
     rejected: int = Field(description="Solves refused since start (queue full, or no worker free within a deadline).")
     processes: list[ProcessPool] | None = Field(
         None, description="Every live HTTP process's pool (several processes only); 200 needs each one ready."
+    )
+    threads: Threads | None = Field(
+        None, description="The answering process's design threads (optim.threads), where closed forms and fits run."
     )
 
 
@@ -87,4 +100,5 @@ async def readyz(request: Request, pool: PoolDep, settings: SettingsDep) -> Any:
     rows, not_ready = _processes(request, settings.processes)
     if not_ready is not None:
         return problems.problem_response("not-ready", not_ready, pool={**stats, "processes": rows})
-    return {"status": "ready", **stats, "processes": rows}
+    lane = getattr(request.app.state, "threads", None)
+    return {"status": "ready", **stats, "processes": rows, "threads": None if lane is None else lane.stats()}

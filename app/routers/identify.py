@@ -18,10 +18,9 @@ import numpy as np
 from fastapi import APIRouter, Body, Query, Request
 from fastapi.exceptions import RequestValidationError
 from pydantic import ValidationError
-from starlette.concurrency import run_in_threadpool
 
 from app import problems, services
-from app.deps import PoolDep, SettingsDep
+from app.deps import PoolDep, SettingsDep, ThreadsDep
 from app.examples import OMEGA_RAD_S, SIGMA_1_S
 from app.responses import NumpyJSONResponse
 from app.schemas.family import ProfileRequest
@@ -122,12 +121,13 @@ def parse_family_request(family: str, body: Mapping[str, Any]) -> ProfileRequest
         raise InvalidParameter(problems.field_path(tuple(err["loc"])), None, str(err["msg"])) from None
 
 
-def runner(settings: Settings, executor: Executor) -> RunOne:
+def runner(settings: Settings, executor: Executor, threads: Executor = services.INLINE) -> RunOne:
     """A ``run_one``: each candidate through the family endpoints' service layer (app.services.profile) on
-    ``executor``: the route's solver pool, or in-process."""
+    ``executor`` and ``threads``: the route's solver pool and design threads, or in-process."""
 
     async def run_one(family: str, body: dict[str, Any]) -> dict[str, Any]:
-        return await services.profile(FAMILIES[family], parse_family_request(family, body), settings, executor)
+        request = parse_family_request(family, body)
+        return await services.profile(FAMILIES[family], request, settings, executor, threads)
 
     return run_one
 
@@ -181,14 +181,21 @@ def identify_record_csv(text: str, params: MeasurementParams, max_rows: int) -> 
 
 
 async def identify_csv(
-    text: str, params: MeasurementParams, run_one: RunOne | None, *, max_rows: int
+    text: str,
+    params: MeasurementParams,
+    run_one: RunOne | None,
+    *,
+    max_rows: int,
+    threads: Executor = services.INLINE,
+    deadline_s: float = 0.0,
 ) -> dict[str, Any]:
     """The whole answer of POST /v1/identify for a CSV record, with candidates run by ``run_one(family, request)``
     (returns the endpoint's response body or raises a DomainError). The HTTP route runs them through
     app.services.profile; a caller without a server (the CLI) passes its own runner, or None for no
     recommendation."""
     params.check()
-    result, samples = await run_in_threadpool(identify_record_csv, text, params, max_rows)
+    # the fit, in the route's design threads (optim.threads: bounded admission, deadline_s), or in-process
+    result, samples = await threads.run(identify_record_csv, text, params, max_rows, deadline_s=deadline_s)
     body = _measurement_body(result, samples)
     mode, interval = plant_interval(result.modes)
     plant = {"kind": "mode", "natural_frequency_hz": mode.natural_frequency_hz, "damping_ratio": mode.damping_ratio}
@@ -295,6 +302,7 @@ async def identify_mode(
     request: Request,
     settings: SettingsDep,
     pool: PoolDep,
+    threads: ThreadsDep,
     params: Annotated[MeasurementParams, Query()],
 ) -> NumpyJSONResponse:
     """**application/json** (``time_s``, ``signal``): fit A e^(sigma t) cos(Omega t + phi) + offset to a free
@@ -329,8 +337,16 @@ async def identify_mode(
             raise RequestValidationError(
                 [{**e, "loc": ("body", *e["loc"])} for e in exc.errors(include_url=False)]
             ) from None
-        return NumpyJSONResponse(await run_in_threadpool(identify_respond, record, settings))
+        answer = await threads.run(identify_respond, record, settings, deadline_s=settings.thread_deadline_s)
+        return NumpyJSONResponse(answer)
     text = _decode(body if isinstance(body, bytes) else str(body).encode())
 
-    answer = await identify_csv(text, params, runner(settings, pool), max_rows=settings.max_samples)
+    answer = await identify_csv(
+        text,
+        params,
+        runner(settings, pool, threads),
+        max_rows=settings.max_samples,
+        threads=threads,
+        deadline_s=settings.thread_deadline_s,
+    )
     return NumpyJSONResponse(answer)

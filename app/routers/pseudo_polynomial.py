@@ -7,7 +7,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Body, Depends, Response
 
 from app import problems, services
-from app.deps import PoolDep, SettingsDep
+from app.deps import PoolDep, SettingsDep, ThreadsDep
 from app.examples import CUSIMANO_8HZ, INCERTI_TABLE_III
 from app.responses import CSV_RESPONSE_DOC, Output, ProfileOutput, respond
 from app.schemas.pseudo_polynomial import FAMILY, PseudoPolynomialIn, PseudoPolynomialOut
@@ -47,6 +47,7 @@ async def pseudo_polynomial_profile(
     body: Annotated[PseudoPolynomialIn, Body(openapi_examples=EXAMPLES)],
     settings: SettingsDep,
     pool: PoolDep,
+    threads: ThreadsDep,
     output: Annotated[Output, Depends(ProfileOutput(PseudoPolynomialOut))],
 ) -> Response:
     """Chooses the exponents of phi(t) = Phi [1 - sum C_i (1 - t/T)^gamma_i] so that the plant is left
@@ -55,5 +56,5 @@ async def pseudo_polynomial_profile(
     The returned profile holds the law's exact values at the sample times; the load response simulates
     the drive following them (velocity on the cubic Hermite curve through the sampled velocities and
     accelerations). A failed or timed-out solve is a problem, never a profile."""
-    answer, result = await services.design(FAMILY, body, settings, pool)
+    answer, result = await services.design(FAMILY, body, settings, pool, threads)
     return await respond(output, answer, result, body, "pseudo-polynomial profile")

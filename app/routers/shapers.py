@@ -8,7 +8,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Body, Depends, Query, Response
 
 from app import problems, services
-from app.deps import PoolDep, SettingsDep
+from app.deps import PoolDep, SettingsDep, ThreadsDep
 from app.examples import CHATLATANAGULCHAI_EQ3
 from app.responses import CSV_RESPONSE_DOC, NumpyJSONResponse, Output, ProfileOutput, respond
 from app.schemas.shapers import FAMILY, InputShapedRequest, InputShapedResponse, ShaperCatalogue
@@ -63,6 +63,7 @@ async def input_shaped_profile(
     body: Annotated[InputShapedRequest, Body(openapi_examples=INPUT_SHAPED_EXAMPLES)],
     settings: SettingsDep,
     pool: PoolDep,
+    threads: ThreadsDep,
     output: Annotated[Output, Depends(ProfileOutput(InputShapedResponse))],
 ) -> Response:
     """Shape a velocity step or a rest-to-rest move for the plant's mode(s) and keep it within the
@@ -83,7 +84,7 @@ async def input_shaped_profile(
     The load response and ``metrics`` simulate what the drive does, exactly; ``unmodified`` gives the
     metrics of the plain shaped step after the drive, for comparison.
     """
-    answer, result = await services.design(FAMILY, body, settings, pool)
+    answer, result = await services.design(FAMILY, body, settings, pool, threads)
     return await respond(output, answer, result, body, "input-shaped profile (the shaped command sent to the drive)")
 
 

@@ -8,11 +8,12 @@ from fastapi import APIRouter, Body, Depends
 from starlette.responses import Response
 
 from app import problems
-from app.deps import SettingsDep
+from app.deps import SettingsDep, ThreadsDep
 from app.examples import SIMULATE_EXAMPLES
 from app.responses import ARRAY_RESPONSE_DOC, ArrayOutput, Output, render
 from app.schemas.plants import to_plant
 from app.schemas.simulate import SimulateRequest, SimulateResponse, load_out, metrics_out, profile_out, to_command
+from app.settings import Settings
 from models.simulation import metrics, simulate
 from optim.problem import VIBRATION_FRACTION_OF_MOVE
 
@@ -25,14 +26,20 @@ router = APIRouter(prefix="/v1", tags=["simulation"], route_class=problems.JSONR
     response_model=SimulateResponse,
     responses={**ARRAY_RESPONSE_DOC, **problems.responses(413, 422)},
 )
-def simulate_profile(
+async def simulate_profile(
     request: Annotated[SimulateRequest, Body(openapi_examples=SIMULATE_EXAMPLES)],
     settings: SettingsDep,
+    threads: ThreadsDep,
     output: Annotated[Output, Depends(ArrayOutput(SimulateResponse))],
 ) -> Response:
     """Simulate the plant, started at rest, driven by the command, exactly for the chosen hold
     between samples. The metrics measure the load's free oscillation from the state at the
     command's end (not a sampled peak), so they do not depend on the horizon."""
+    # up to VIBFREE_MAX_SAMPLES samples: in the design threads (optim.threads), not starlette's 40 of a sync route
+    return await threads.run(_simulate, request, settings, output, deadline_s=settings.thread_deadline_s)
+
+
+def _simulate(request: SimulateRequest, settings: Settings, output: Output) -> Response:
     plant = to_plant(request.plant)
     command, warnings = to_command(request.profile, request, settings.max_samples)
     response = simulate(plant, command)

@@ -14,7 +14,7 @@ from fastapi import APIRouter, Body, Depends
 from starlette.responses import Response
 
 from app import problems, services
-from app.deps import PoolDep, SettingsDep
+from app.deps import PoolDep, SettingsDep, ThreadsDep
 from app.examples import BIAGIOTTI_PLANT, T0_S
 from app.responses import CSV_RESPONSE_DOC, Output, ProfileOutput, respond
 from app.schemas.smoothers import FAMILY, SmootherRequest, SmootherResponse
@@ -94,6 +94,7 @@ async def smoother_profile(
     body: Annotated[SmootherRequest, Body(openapi_examples=SMOOTHER_EXAMPLES)],
     settings: SettingsDep,
     pool: PoolDep,
+    threads: ThreadsDep,
     output: Annotated[Output, Depends(ProfileOutput(SmootherResponse))],
 ) -> Response:
     """A step of ``displacement`` filtered by a chain of FIR smoothers (Biagiotti et al. 2020).
@@ -106,5 +107,5 @@ async def smoother_profile(
     the metrics use. ``design.residual_amplitude_closed_form`` gives the same residual from the chain's
     transfer function at the plant's poles.
     """
-    answer, result = await services.design(FAMILY, body, settings, pool)
+    answer, result = await services.design(FAMILY, body, settings, pool, threads)
     return await respond(output, answer, result, body, "smoother profile")

@@ -7,7 +7,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Body, Depends, Response
 
 from app import problems, services
-from app.deps import PoolDep, SettingsDep
+from app.deps import PoolDep, SettingsDep, ThreadsDep
 from app.examples import CUSIMANO_8HZ, CUSIMANO_40HZ
 from app.responses import CSV_RESPONSE_DOC, Output, ProfileOutput, respond
 from app.schemas.stap import FAMILY, StapIn, StapOut
@@ -107,6 +107,7 @@ async def stap_profile(
     body: Annotated[StapIn, Body(openapi_examples=EXAMPLES)],
     settings: SettingsDep,
     pool: PoolDep,
+    threads: ThreadsDep,
     output: Annotated[Output, Depends(ProfileOutput(StapOut))],
 ) -> Response:
     """Designs t_a and t_j of a symmetric trapezoidal acceleration profile (rest-to-velocity, or a rest-to-rest
@@ -123,5 +124,5 @@ async def stap_profile(
 
     The profile holds the exact STAP at the sample times (corners always included): with the acceleration
     held linearly between samples it is the designed command, which load and metrics simulate exactly."""
-    answer, result = await services.design(FAMILY, body, settings, pool)
+    answer, result = await services.design(FAMILY, body, settings, pool, threads)
     return await respond(output, answer, result, body, "STAP profile")

@@ -7,7 +7,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Body, Depends, Response
 
 from app import problems, services
-from app.deps import PoolDep, SettingsDep
+from app.deps import PoolDep, SettingsDep, ThreadsDep
 from app.responses import CSV_RESPONSE_DOC, Output, ProfileOutput, respond
 from app.schemas.time_optimal import FAMILY, TimeOptimalIn, TimeOptimalOut
 
@@ -74,6 +74,7 @@ async def time_optimal_profile(
     body: Annotated[TimeOptimalIn, Body(openapi_examples=EXAMPLES)],
     settings: SettingsDep,
     pool: PoolDep,
+    threads: ThreadsDep,
     output: Annotated[Output, Depends(ProfileOutput(TimeOptimalOut))],
 ) -> Response:
     """The shortest motor command within the limits that leaves the load without residual vibration at the
@@ -104,5 +105,5 @@ async def time_optimal_profile(
     LP of the design, its tightenings and its trade-off rows.
     Infeasible within max_duration_s is a 422 /problems/infeasible only where proven; a search that found
     nothing without a proof is /problems/solver-failed; over the time limit, 504."""
-    answer, result = await services.design(FAMILY, body, settings, pool)
+    answer, result = await services.design(FAMILY, body, settings, pool, threads)
     return await respond(output, answer, result, body, "time-optimal profile")

@@ -34,9 +34,9 @@ from models.shapers import (
     rate_limit,
     shape_command,
 )
-from models.simulation import simulate
+from models.torque import peak_motor_torque_nm as exact_peak_motor_torque_nm
 from optim.family import BaseFamily, Candidate, Design, Grid, Profile, Run, profile_at_instants
-from optim.problem import TAIL_PERIODS, Problem
+from optim.problem import Problem
 from optim.shapers import (
     DEFAULT_VIBRATION_TOLERANCE,
     MAX_COMMAND_S,
@@ -55,8 +55,7 @@ from optim.shapers import (
 MAX_SHAPED_MODES = 3
 MAX_SHAPED_RAMPS = 1000  # impulses x baseline steps: bounds the limiter's corners and the step programme
 TORQUE_ITERATIONS = 8  # lowering the acceleration limit until the motor torque fits: 2-3 passes seen
-TORQUE_SAMPLES_PER_PERIOD = 2000  # a peak between samples is then within (pi/2000)^2/2 = 1.3e-6 of the sampled
-TORQUE_GRID_SLACK = 2e-6  # so a design is kept when its sampled peak is this far below the limit
+TORQUE_SLACK = 1e-9  # a design is kept when its exact torque peak is this far below the limit (round-off)
 COMPARED_SHAPERS = ("zv", "mzv", "zvd", "ei")  # compare's rows: the shapers users set in their firmware
 AUTO_MULTI_STEP_MAX_IMPULSES = 5  # auto also tries multi-step baselines (linear programmes) on shapers this small
 
@@ -260,15 +259,13 @@ def _commands(problem: Problem, chosen: Plan, shaper: ImpulseSequence, limit: fl
 
 
 def peak_motor_torque_nm(problem: Problem, command: PiecewiseCommand) -> float | None:
-    """max |motor torque| of the exact simulated command (inertial plus shaft torque, two_inertia), on a grid
-    of TORQUE_SAMPLES_PER_PERIOD per period of the fastest mode (corners kept) to TAIL_PERIODS past the end."""
-    modes = problem.plant.modes()
-    if problem.limits.max_torque_nm is None or not modes:
+    """sup over all time of |motor torque| (inertial plus shaft torque, two_inertia) of the drive's command
+    (piecewise-constant acceleration), exact in closed form per piece from the modal state
+    (``models.torque``): its work grows with the command's breakpoints, not with the mode's frequency or the
+    command's length. None without a torque limit or a mode."""
+    if problem.limits.max_torque_nm is None or not problem.plant.modes():
         return None
-    period = min(m.natural_period_s for m in modes) / TORQUE_SAMPLES_PER_PERIOD
-    end = float(command.time_s[-1]) + TAIL_PERIODS * problem.slowest_period_s
-    torque = simulate(problem.plant, command.resampled(period, end)).motor_torque_nm
-    return None if torque is None else float(np.max(np.abs(torque)))
+    return exact_peak_motor_torque_nm(problem.plant, command)
 
 
 def _overshoot(command: PiecewiseCommand, limit: float | None) -> float:
@@ -306,8 +303,12 @@ def within_torque(
         chosen, commands = _designed(problem, options, shaper, limit)
         peak = peak_motor_torque_nm(problem, commands.limited)
         top = problem.limits.max_torque_nm
-        if peak is None or top is None or peak <= top * (1.0 - TORQUE_GRID_SLACK) or limit is None:
+        if peak is None or top is None or peak <= top * (1.0 - TORQUE_SLACK) or limit is None:
             return chosen, commands, limit
+        if not math.isfinite(peak):  # not seen: under an acceleration limit the drive never steps its velocity
+            raise Infeasible(
+                "the drive's command steps its velocity, so the motor torque is impulsive", "limits.max_torque_nm"
+            )
         limit *= top / peak * (1.0 - 1e-4)
     raise Infeasible(
         f"the motor torque still peaks at {peak:.6g} N m > limits.max_torque_nm = {top:.6g} after lowering the "

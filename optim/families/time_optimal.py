@@ -10,7 +10,6 @@ refinement of the switching times.
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, replace
 from functools import partial
 from typing import Any, ClassVar
@@ -19,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from models.commands import PiecewiseCommand
-from models.errors import DomainError, Infeasible, InvalidParameter, SolverFailed
+from models.errors import DomainError, Infeasible, InvalidParameter, SolverFailed, SolverTimedOut
 from models.plant_base import Mode
 from models.sensitivity import band_below, sensitivity
 from models.simulation import simulate
@@ -131,9 +130,7 @@ def _torque(problem: Problem) -> Torque | None:
     return Torque(inertias[0], inertias[1], problem.limits.max_torque_nm, problem.plant.modes()[0].pole)
 
 
-def spec_of(
-    problem: Problem, options: TimeOptimalOptions, chosen: tuple[int, ...], deadline_s: float | None = None
-) -> Spec:
+def spec_of(problem: Problem, options: TimeOptimalOptions, chosen: tuple[int, ...]) -> Spec:
     modes = problem.plant.modes()
     robust = options.robustness
     bands, covered = _bands(problem, robust, chosen)
@@ -172,8 +169,7 @@ def spec_of(
         floor_s=floor,
         upper_guess_s=min(upper, cap),
         max_duration_s=cap,
-        wall_time_s=problem.solver.max_wall_time_s,
-        deadline_s=deadline_s,
+        lp_time_limit_s=problem.solver.max_wall_time_s,
     )
 
 
@@ -216,15 +212,23 @@ def solve_within_limits(problem: Problem, spec: Spec) -> Solution:
     """solve, with a limit the grid command breaks between its check points tightened by its excess and solved
     again (at most TIGHTENINGS times); the refined commands are checked exactly by limits_met."""
     current = spec
-    solves = iterations = 0
+    solves = iterations = capped_runs = capped_lps = 0
     seconds = 0.0
     for attempt in range(TIGHTENINGS):
         solution = solve(current, partial(limits_met, problem, current), bound_spec=spec)
         solves, iterations = solves + solution.lp_solves, iterations + solution.lp_iterations
+        capped_runs, capped_lps = capped_runs + solution.capped_runs, capped_lps + solution.capped_lps
         seconds += solution.solve_time_s
         over = excess(problem, spec, solution.arcs)
         if not over:  # the report counts every solve, the tightened ones too
-            return replace(solution, lp_solves=solves, lp_iterations=iterations, solve_time_s=seconds)
+            return replace(
+                solution,
+                lp_solves=solves,
+                lp_iterations=iterations,
+                solve_time_s=seconds,
+                capped_runs=capped_runs,
+                capped_lps=capped_lps,
+            )
         margin = 1.0 - (1e-6, 1e-3, 1e-2)[attempt]  # a little more each time: the excess moves with the limit
         if "max_velocity" in over and current.max_velocity is not None:
             current = replace(current, max_velocity=current.max_velocity / over["max_velocity"] * margin)
@@ -283,18 +287,27 @@ class TimeOptimalFamily(BaseFamily):
 
     def design(self, problem: Problem, options: TimeOptimalOptions) -> Design:
         chosen, notes = selected_modes(problem, options)
-        deadline = time.perf_counter() + problem.solver.max_wall_time_s  # one budget for the design and its rows
-        spec = spec_of(problem, options, chosen, deadline)
+        spec = spec_of(problem, options, chosen)
         with counted() as counts:  # every LP: the design's, its tightened re-solves, and every trade-off row's
             solution = solve_within_limits(problem, spec)
             sign = math.copysign(1.0, problem.move)
             arcs = tuple(replace(a, level=sign * a.level) for a in solution.arcs)
             command = command_of(arcs, spec.order, spec.rest_to_rest)
-            tradeoff = None
+            tradeoff, row_capped = None, 0
             if options.tradeoff is not None:
-                tradeoff, _ = self._tradeoff(problem, options, chosen, deadline)
+                tradeoff, row_capped = self._tradeoff(problem, options, chosen)
         detail = _Detail(solution, chosen, options.robustness, tradeoff)
-        extra = () if solution.refined else (f"the switching times are the grid's ({solution.refinement})",)
+        extra: tuple[str, ...] = (
+            () if solution.refined else (f"the switching times are the grid's ({solution.refinement})",)
+        )
+        if solution.capped_lps + row_capped:
+            count = solution.capped_lps + row_capped
+            rows = f" ({row_capped} in the trade-off rows)" if row_capped else ""
+            extra += (
+                f"{count} LP{'' if count == 1 else 's'}{rows} stopped at their iteration cap "
+                f"({solution.max_lp_iterations} HiGHS iterations per method) and counted as 'no command found' "
+                "at their length: a duration may exceed its search grid's optimum",
+            )
         # "refined": exact switching times, the shortest command found (no proof of global optimality: see
         # design.lower_bound_s); "grid": the optimum of the search grid. Counts cover every solve, rows too.
         report = SolverSummary.of_tally("refined" if solution.refined else "grid", counts)
@@ -302,28 +315,32 @@ class TimeOptimalFamily(BaseFamily):
         return Design(command, block, (*notes, *extra), report, detail=detail)
 
     def _tradeoff(
-        self, problem: Problem, options: TimeOptimalOptions, chosen: tuple[int, ...], deadline: float
-    ) -> tuple[tuple[dict[str, Any], ...], tuple[int, int, float]]:
-        """One row per half-width h: the minimum duration for the band [1 - h, 1 + h] (h = 0: zero residual).
-        A design for a wider band meets every narrower one, so a row never shows more than a wider band's
-        duration (``from_half_width`` says which design it is: band designs are grid optima, within a step)."""
+        self, problem: Problem, options: TimeOptimalOptions, chosen: tuple[int, ...]
+    ) -> tuple[tuple[dict[str, Any], ...], int]:
+        """One row per half-width h: the minimum duration for the band [1 - h, 1 + h] (h = 0: zero residual),
+        and the rows' LPs stopped at their iteration cap. A design for a wider band meets every narrower one, so a
+        row never shows more than a wider band's duration (``from_half_width`` says which design it is: band
+        designs are grid optima, within a step). A row's failure is its status, but a row that reaches the
+        wall-clock last resort fails the design (SolverTimedOut): no answer depends on the machine's load."""
         robust = options.robustness or Robustness()
         solved: dict[float, dict[str, Any]] = {}
-        counts: tuple[int, int, float] = (0, 0, 0.0)  # LP solves, iterations, seconds of the rows
+        capped = 0
         for h in sorted(set(options.tradeoff or ())):
             band = Robustness(
                 frequency_ratio_range=(1.0 - h, 1.0 + h) if h > 0 else None,
                 max_percentage_vibration=robust.max_percentage_vibration,
                 damping_ratio_range=robust.damping_ratio_range,
             )
-            spec = spec_of(problem, replace(options, robustness=band, tradeoff=None), chosen, deadline)
+            spec = spec_of(problem, replace(options, robustness=band, tradeoff=None), chosen)
             try:
                 s = solve_within_limits(problem, spec)
+            except SolverTimedOut:
+                raise
             except DomainError as exc:
                 solved[h] = {"duration_s": None, "lower_bound_s": None, "status": exc.problem_type, "reason": str(exc)}
                 continue
             solved[h] = {"duration_s": s.duration_s, "lower_bound_s": s.lower_bound_s, "status": "ok", "reason": None}
-            counts = (counts[0] + s.lp_solves, counts[1] + s.lp_iterations, counts[2] + s.solve_time_s)
+            capped += s.capped_lps
         rows = []
         for h in options.tradeoff or ():
             row = dict(solved[h])
@@ -338,7 +355,7 @@ class TimeOptimalFamily(BaseFamily):
             rows.append(
                 {"half_width": h, "frequency_ratio_range": [1.0 - h, 1.0 + h], **row, "from_half_width": source}
             )
-        return tuple(rows), counts
+        return tuple(rows), capped
 
     def finish(self, problem: Problem, design: Design, run: Run) -> dict[str, Any]:
         detail: _Detail = design.detail
@@ -413,6 +430,10 @@ def _design_block(
             "band_points": solution.cut_frequencies,
             "solve_time_s": solution.solve_time_s,
             "lp_solver": "HiGHS (scipy.optimize.linprog)",
+            "max_lp_iterations": solution.max_lp_iterations,  # per LP and method: the caps are work, never time
+            "max_lp_solves": solution.max_lp_solves,  # per search (the design, each tightening, each trade-off row)
+            "lp_runs_at_iteration_cap": solution.capped_runs,
+            "lps_not_found_at_iteration_cap": solution.capped_lps,
         },
         "bands_rad_s": [[b.low_rad_s, b.high_rad_s] for b in bands],
     }

@@ -13,9 +13,14 @@ eq. 61/66 designs for k_j = 1..3 when t_a is free). The closed-form design (whos
 limits (the acceleration projected onto its constraint exactly, the real torque J_M a_M + J_L a_L
 checked on its exact peak, the sampled torque rows tightened by the excess and solved again where
 it slipped through) and beats the closed form (lower objective, then shorter). Otherwise the closed
-form is returned with selection ``closed_form_kept`` and a note saying why: a solve that fails,
-times out or reports Infeasible_Problem_Detected (a local verdict) is never a design, and never a
-proof that the problem is infeasible while the closed form meets the limits.
+form is returned with selection ``closed_form_kept`` and a note saying why: a solve that fails or
+reports Infeasible_Problem_Detected (a local verdict) is never a design, and never a proof that the
+problem is infeasible while the closed form meets the limits.
+
+The work is capped in counts: at most MAX_STARTS starts, each solved at most 1 + TORQUE_RESOLVES
+times within IPOPT's max_iter, so the design is the same on any machine under any load. IPOPT's
+max_wall_time is only a last resort: a solve that reaches it raises SolverTimedOut (never the
+closed form in its place, which would make the answer depend on the load).
 """
 
 from __future__ import annotations
@@ -26,7 +31,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from models.errors import Infeasible, InvalidParameter
+from models.errors import Infeasible, InvalidParameter, SolverTimedOut
 from models.stap import FloatArray, RestToRest, Stap, max_jerk_time
 from optim.solver import SolverReport, report_of
 from optim.stap.limits import estimated_mode, has_no_acceleration_limit, torque_plant
@@ -48,7 +53,7 @@ from optim.stap.types import OptimizedDesign, StapDesign, StapRequest
 TORQUE_BAND_POINTS = 5  # band frequencies where the torque is constrained (ends and quartiles)
 JERK_PERIODS_FLOOR = 1e-3  # the optimiser keeps t_j >= 0.001 / f_n,e
 TIME_RANGE = 4.0  # residual_and_time searches t_a up to this times the closed-form t_a
-MAX_STARTS = 8
+MAX_STARTS = 8  # starts of the multistart (the closed form first); each solved at most 1 + TORQUE_RESOLVES times
 FEASIBLE = 1e-6  # largest constraint breach accepted from IPOPT (scaled constraints)
 TORQUE_RESOLVES = 3  # solves again with the torque rows tightened where the real torque broke the limit
 
@@ -88,7 +93,6 @@ def optimize(request: StapRequest, start: StapDesign) -> OptimizedDesign:
             request,
             start,
             [],
-            False,
             0,
             0,
             0.0,
@@ -119,7 +123,7 @@ def optimize(request: StapRequest, start: StapDesign) -> OptimizedDesign:
         torque_grid = torque_grid_size(top_hz * ta_hi) if torque_modes else 0
     except InvalidParameter as exc:  # too many periods to sample the torque: the closed form meets the limits
         return _closed_form_kept(
-            request, start, [], False, 0, 0, 0.0, (ta_lo, ta_hi), t_hat_lo * ta_lo, nominal, grid, exc.rule
+            request, start, [], 0, 0, 0.0, (ta_lo, ta_hi), t_hat_lo * ta_lo, nominal, grid, exc.rule
         )
     compiled = compiled_problem(kind, used.poles.size, len(torque_modes), torque_grid, request.caps)
 
@@ -182,13 +186,10 @@ def optimize(request: StapRequest, start: StapDesign) -> OptimizedDesign:
     meets_start = kind != "time" or float(np.max(sq0)) <= norm * (1.0 + 1e-9)  # within the tolerance
     best: tuple[tuple[bool, float, float], FloatArray] | None = None
     key_start = (not meets_start, f_start, _duration(s0, start.move))
-    iterations, elapsed, solves = 0, 0.0, 0
+    iterations, elapsed, solves = 0, 0.0, 0  # elapsed: reported only, never a reason to stop
     statuses: list[str] = []
     converged_status = ""
-    timed_out = False
-    for t_a_s, t_j_s in starts:  # a handful of starts
-        if elapsed > 2.0 * request.caps.max_wall_time_s:
-            break
+    for k, (t_a_s, t_j_s) in enumerate(starts, 1):  # at most MAX_STARTS
         x0 = x_of(t_a_s, t_j_s)
         if compiled.variables == 3:
             _, _, sq = (np.asarray(a).ravel() for a in compiled.evaluate(x0, p))
@@ -200,7 +201,12 @@ def optimize(request: StapRequest, start: StapDesign) -> OptimizedDesign:
             report = report_of(compiled.solver, time.perf_counter() - started)
             iterations, elapsed, solves = iterations + report.iterations, elapsed + report.solve_time_s, solves + 1
             statuses.append(report.status)
-            timed_out = timed_out or report.timed_out
+            if report.timed_out:  # the last resort: no design rather than one that depends on the load
+                raise SolverTimedOut(
+                    SolverReport(report.status, iterations, elapsed),
+                    f"IPOPT reached its wall-clock last resort ({request.caps.max_wall_time_s:g} s) on start "
+                    f"{k} of {len(starts)}: no design is returned",
+                )
             if not report.converged:
                 break
             xs = np.clip(np.asarray(solution["x"]).ravel(), lbx, ubx)
@@ -224,15 +230,12 @@ def optimize(request: StapRequest, start: StapDesign) -> OptimizedDesign:
             if _beats(key, key_start) and (best is None or _beats(key, best[0])):
                 best = (key, xs)
             break
-        if timed_out:
-            break
     if best is None:
         none = None if starts else f"no start: no design with t_j > 0 fits t_a in [{ta_lo:.6g}, {ta_hi:.6g}] s"
         return _closed_form_kept(
             request,
             start,
             statuses,
-            timed_out,
             solves,
             iterations,
             elapsed,
@@ -287,7 +290,6 @@ def _closed_form_kept(
     request: StapRequest,
     start: StapDesign,
     statuses: list[str],
-    timed_out: bool,
     solves: int,
     iterations: int,
     elapsed: float,
@@ -302,7 +304,7 @@ def _closed_form_kept(
     descent direction: neither makes the problem infeasible, the closed form meets the limits)."""
     s0 = start.stap
     speed = abs(s0.velocity)
-    what = reason or "IPOPT: " + ("timed out" if timed_out else ", ".join(dict.fromkeys(statuses)) or "no solve")
+    what = reason or "IPOPT: " + (", ".join(dict.fromkeys(statuses)) or "no solve")
     note = (
         f"the optimization did not improve on the closed-form design ({what}); the closed form, which meets "
         "the limits, is returned"

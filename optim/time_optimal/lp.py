@@ -18,6 +18,12 @@ acceleration, abar_k: the velocity at the nodes is exact, the other equalities a
 averaging can change (|int f a - sum abar_k int_step f| <= A max|f'| T dt / 4), the band polygons are
 circumscribed and widened alike, and the jerk bound becomes |abar_(k+1) - abar_k| <= J dt. HiGHS
 proving it infeasible proves that no command of duration T exists (the certificate of lower_bound_s).
+
+Every LP is capped in work, so that a search is the same on any machine under any load: MAX_LP_ITERATIONS
+HiGHS iterations per method (its simplex, then its interior-point method), after which the LP counts as "no
+command found" at its length (a capped LP, reported in the design's search block); MAX_LP_SOLVES LPs per search
+(SolverFailed beyond). Wall-clock time is only a last resort: HiGHS's own ``time_limit`` (the solve's
+max_wall_time_s) reached, the design fails with SolverTimedOut, never a different design.
 """
 
 from __future__ import annotations
@@ -33,7 +39,7 @@ from numpy.typing import NDArray
 from scipy.linalg import expm
 from scipy.optimize import linprog
 
-from models.errors import SolverTimedOut
+from models.errors import SolverFailed, SolverTimedOut
 from optim.solver import SolverReport, record_solve
 from optim.time_optimal.types import Spec
 from optim.time_optimal.weights import exponential_moment
@@ -46,7 +52,13 @@ MARGIN = 1e-7  # bounds tightened by this fraction so that HiGHS's feasibility t
 # rises by about (PHASE_STEP / 2)^2 / 2 = 0.28 % (its phase turns, its modulus is smooth), so the dense check
 # seldom adds a point.
 BAND_MARGIN = 0.003
-LP_TIME_LIMIT_S = 1.0  # one LP's cap (seconds), before the second method and then 'not found'
+# HiGHS iterations per LP and method (scipy's ``maxiter``: HiGHS's simplex_iteration_limit and ipm_iteration_limit).
+# The LPs of tests/optim/test_time_optimal.py, the README's examples and bench/determinism.py's 50 random requests
+# need at most 4036 simplex iterations (a band down to 1 mHz, 3856 rows; the 1 s time limit used to stop them) and
+# 16 interior-point ones; one LP of the stalling move of those tests never ends in the simplex (515 000 iterations in
+# 30 s), and the interior-point method proves it infeasible in 16.
+MAX_LP_ITERATIONS = 10_000
+MAX_LP_SOLVES = 200  # LPs per search (those runs need at most 30): beyond, SolverFailed
 TORQUE_POINTS = (0.0, 0.25, 0.5, 0.75, 1.0)  # 1.0: the left limit at the next node (the torque jumps)
 
 
@@ -60,19 +72,21 @@ class Cut:
 
 @dataclass
 class LpCounter:
+    """The LPs of one search: HiGHS runs (``solves``), their iterations and seconds, the runs that stopped at
+    ``max_iterations`` (``capped_runs``) and the LPs that therefore counted as not found (``capped_lps``).
+    ``time_limit_s``: each run's wall-clock last resort (HiGHS's own clock)."""
+
+    time_limit_s: float = math.inf
+    max_iterations: int = field(default_factory=lambda: MAX_LP_ITERATIONS)
+    max_solves: int = field(default_factory=lambda: MAX_LP_SOLVES)
     solves: int = 0
     iterations: int = 0
-    deadline: float = math.inf
-    started: float = field(default_factory=time.perf_counter)
+    seconds: float = 0.0
+    capped_runs: int = 0
+    capped_lps: int = 0
 
-    def remaining_s(self) -> float:
-        left = self.deadline - time.perf_counter()
-        if left <= 0.0:
-            raise SolverTimedOut(
-                SolverReport("time_limit", self.iterations, time.perf_counter() - self.started),
-                f"the time-optimal search overran its wall-time cap after {self.solves} LP solves",
-            )
-        return left
+    def report(self, status: str) -> SolverReport:
+        return SolverReport(status, self.iterations, self.seconds)
 
 
 def pieces(steps: int, dt: float) -> tuple[Array, Array]:
@@ -417,36 +431,50 @@ def relaxed_lp(spec: Spec, total_s: float, steps: int, cuts: list[Cut], counter:
 
 
 def _solve(lp: _Lp, counter: LpCounter) -> tuple[Array | None, int]:
-    """HiGHS's solution (None unless optimal) and scipy's status (0 optimal, 2 infeasible, ...)."""
+    """HiGHS's solution (None unless optimal) and scipy's status (0 optimal, 1 iteration cap, 2 infeasible, ...).
+
+    HiGHS's simplex now and then stalls on one of these small LPs (seen: 316 steps, held jerk): stopped at
+    its iteration cap, the LP is solved again with the interior-point method (same cap), then counts as not found.
+    Raises SolverFailed past the search's LP cap, SolverTimedOut when HiGHS reaches its time limit."""
+    if counter.solves >= counter.max_solves:
+        raise SolverFailed(
+            counter.report("lp_solve_cap"),
+            f"the time-optimal search reached its cap of {counter.max_solves} LP solves (max_lp_solves) without an "
+            "answer",
+        )
     a_eq = sp.vstack(lp.eq).tocsr() if lp.eq else None
     b_eq = np.concatenate(lp.eq_rhs) if lp.eq else None
     a_ub = sp.vstack(lp.ub).tocsr() if lp.ub else None
     b_ub = np.concatenate(lp.ub_rhs) if lp.ub else None
     bounds = np.column_stack([lp.lower, lp.upper])
+    options: dict[str, Any] = {"maxiter": counter.max_iterations, "presolve": True}
+    if math.isfinite(counter.time_limit_s):
+        options["time_limit"] = counter.time_limit_s
     status = 1
-    # HiGHS's simplex now and then stalls on one of these small LPs for seconds (seen: 316 steps, held jerk):
-    # each LP gets LP_TIME_LIMIT_S, then once more with the interior-point method, then counts as not found.
     for method in ("highs", "highs-ipm"):
         lp_started = time.perf_counter()
         result = linprog(
-            lp.cost,
-            A_ub=a_ub,
-            b_ub=b_ub,
-            A_eq=a_eq,
-            b_eq=b_eq,
-            bounds=bounds,
-            method=method,
-            options={"time_limit": min(LP_TIME_LIMIT_S, counter.remaining_s()), "presolve": True},
+            lp.cost, A_ub=a_ub, b_ub=b_ub, A_eq=a_eq, b_eq=b_eq, bounds=bounds, method=method, options=options
         )
-        counter.solves += 1
+        seconds = time.perf_counter() - lp_started  # reported only: nothing below depends on it
         nit = max(0, int(getattr(result, "nit", 0) or 0))
+        counter.solves += 1
         counter.iterations += nit
-        record_solve(nit, time.perf_counter() - lp_started)
+        counter.seconds += seconds
+        record_solve(nit, seconds)
         if result.status == 0:
             x: Array = np.asarray(result.x, dtype=float)
             return x, 0
-        counter.remaining_s()  # raises if the request's time budget is spent
         status = int(result.status)
+        if status == 1 and "iteration limit" not in str(result.message).lower():  # HiGHS's time limit
+            raise SolverTimedOut(
+                counter.report("lp_time_limit"),
+                f"an LP reached its wall-clock last resort ({counter.time_limit_s:g} s, the solve time limit) after "
+                f"{counter.solves} LP solves of the search: no design is returned",
+            )
         if status != 1:  # proven infeasible, or a numerical failure: no second method
             break
+        counter.capped_runs += 1
+    if status == 1:
+        counter.capped_lps += 1
     return None, status

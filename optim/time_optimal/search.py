@@ -24,7 +24,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from models.errors import Infeasible, SolverFailed
-from optim.solver import SolverReport
 from optim.time_optimal.arcs import SNAP, arcs_of, merged, structure
 from optim.time_optimal.check import (
     CHECK_MARGIN,
@@ -56,8 +55,7 @@ MAX_ARCS = 16  # a grid solution with more arcs is not refined (it chatters: ano
 class _Search:
     def __init__(self, spec: Spec) -> None:
         self.spec = spec
-        deadline = time.perf_counter() + spec.wall_time_s
-        self.counter = LpCounter(deadline=deadline if spec.deadline_s is None else min(deadline, spec.deadline_s))
+        self.counter = LpCounter(time_limit_s=spec.lp_time_limit_s)
         self.dense = [band_grid(spec, b, dense_points(b, spec.upper_guess_s)) for b in spec.bands]
         self.cuts: list[Cut] = []
         for b in spec.bands:
@@ -137,7 +135,7 @@ class _Search:
                 "robustness" if spec.bands else "limits",
             )
         raise SolverFailed(
-            SolverReport("not_found", self.counter.iterations, 0.0),
+            self.counter.report("not_found"),
             f"no command of duration <= max_duration_s = {spec.max_duration_s:.6g} s was found on the search grid "
             "(infeasibility is not proven); allow a longer max_duration_s",
         )
@@ -321,7 +319,7 @@ def solve(
     times finer for the early-acting vertex at the refined duration: if one exists, its structure is refined in
     turn (at most PROBES times), so that a local optimum of one structure is not returned where a shorter one
     exists on the fine grid."""
-    began = time.perf_counter()
+    began = time.perf_counter()  # for solve_time_s only: the search's caps are counts (optim.time_optimal.lp)
     search = _Search(spec)
     grid = search.grid_optimum()
     values = _clip(spec, project(spec, grid))
@@ -388,4 +386,8 @@ def solve(
         lp_iterations=search.counter.iterations,
         solve_time_s=time.perf_counter() - began,
         cut_frequencies=len(search.cuts),
+        max_lp_iterations=search.counter.max_iterations,
+        max_lp_solves=search.counter.max_solves,
+        capped_runs=search.counter.capped_runs,
+        capped_lps=search.counter.capped_lps,
     )

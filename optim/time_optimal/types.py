@@ -54,8 +54,7 @@ class Spec:
     floor_s: float  # a proven lower bound on the duration (the rigid kinematics)
     upper_guess_s: float  # a duration at which a command is expected to exist (the search starts there)
     max_duration_s: float
-    wall_time_s: float = 10.0
-    deadline_s: float | None = None  # time.perf_counter() by which the whole design must end (shared by its solves)
+    lp_time_limit_s: float = 10.0  # each LP's wall-clock last resort (HiGHS's time_limit): reached, SolverTimedOut
 
     @property
     def order(self) -> int:
@@ -109,6 +108,10 @@ class Solution:
     refinement: str
     lp_solves: int
     lp_iterations: int
-    solve_time_s: float
+    solve_time_s: float  # reported only
     cut_frequencies: int
     notes: tuple[str, ...] = field(default=())
+    max_lp_iterations: int = 0  # the caps the search ran with (optim.time_optimal.lp)
+    max_lp_solves: int = 0
+    capped_runs: int = 0  # HiGHS runs stopped at max_lp_iterations
+    capped_lps: int = 0  # LPs counted as "not found" because both methods stopped there

@@ -13,6 +13,7 @@ from app.main import create_app
 from app.settings import Settings
 from optim.solver import raise_for_status
 from tests.app import slow_solves
+from tests.optim import pool_jobs
 
 TEST_SETTINGS = Settings(workers=2, max_samples=5000, max_body_bytes=2 * 1024 * 1024)
 
@@ -27,7 +28,11 @@ def _add_test_routes(app) -> None:
         raise_for_status(report)
         return {"status": report.status}
 
+    async def allocate(request: Request, size: int) -> dict:
+        return {"allocated": await request.app.state.pool.run(pool_jobs.allocate, size, deadline_s=30.0)}
+
     app.add_api_route("/test/slow", slow, methods=["POST"])
+    app.add_api_route("/test/allocate", allocate, methods=["POST"])
     app.add_api_route("/test/capped", capped, methods=["POST"])
 
 

@@ -237,3 +237,36 @@ def test_the_first_row_never_rings_after_a_lower_row_has_settled(client, request
         later = t >= row["settling_time_s"]
         assert np.all(np.abs(np.array(load["position"])[later] - final) <= 1e-3 * move * (1 + 1e-9))
         assert np.all(np.abs(np.array(load["deflection"])[later]) <= window * (1 + 1e-9))
+
+
+def test_each_compare_row_holds_at_most_its_share_of_samples():
+    # Compare holds every row until the last ends, so each gets VIBFREE_COMPARE_MAX_SAMPLES (25000 by default),
+    # not the whole cap (200000 by default): 8 rows of 163000 samples held 271 MiB (620 MiB with include_curves)
+    # in the HTTP process. A 1 s move on Cusimano's plant sampled every 20 us needs some 60000 samples (rows
+    # unavailable, naming sample_period_s and the cap); every 100 us, some 12000 (answered, with its curves).
+    from app.routers.compare import CompareIn, answer
+    from app.settings import Settings
+    from optim.workers import InlineExecutor
+    from tests import aio
+
+    settings = Settings(max_samples=200_000)
+    assert settings.compare_max_samples == 25_000
+    base = {
+        "plant": CUSIMANO_8HZ,
+        "displacement": 1.0,
+        "limits": {"max_velocity": 2.0, "max_acceleration": 10.0},
+        "families": ["input_shaped"],
+        "include_curves": True,
+    }
+
+    def compare(period_s: float) -> dict:
+        body = CompareIn.model_validate({**base, "sample_period_s": period_s})
+        return aio.run(answer(body, settings, InlineExecutor()))
+
+    fine = compare(2e-5)
+    assert fine["rows"] == [] and fine["unavailable"]
+    assert all(
+        u["reason"].startswith("sample_period_s:") and "cap of 25000" in u["reason"] for u in fine["unavailable"]
+    )
+    coarse = compare(1e-4)
+    assert coarse["rows"] and all(len(r["curves"]["profile"]["time_s"]) <= 25_000 for r in coarse["rows"])

@@ -6,13 +6,22 @@ declares, a body that matches the declared schema (a problem for every error), a
 input refused. The app runs its own lifespan (a one-worker solver pool) with small solve caps so that
 random valid designs stay fast; the run is derandomised, so CI sees the same cases every time.
 ``bench/fuzz.py`` is the longer run whose figures are in the README.
+
+Issue 23's budget: beside status and schema, no answer may take longer than the settings' deadline (the pool
+answers 504 at ``solve_deadline_s``; everything else is capped in samples) plus a margin for the request's own
+parsing and serialising, and no process may grow past a bound of RSS during the run. A sampler thread reads
+the RSS of this process and of its solver workers every 20 ms (psutil) from the first case to the last; the
+last test of the module checks the peaks. On main before the issue a fuzzed compare body grew the HTTP process
+by gigabytes (the input-shaped torque check), which these bounds refuse.
 """
 
 from __future__ import annotations
 
 import json
+import threading
 import time
 
+import psutil
 import pytest
 import schemathesis
 from fastapi import FastAPI
@@ -28,6 +37,7 @@ from schemathesis.specs.openapi.checks import (
 
 from app.main import create_app
 from app.settings import Settings
+from optim.family import FAMILIES
 
 # Small caps: a random valid design takes at most about a second of solving.
 FUZZ_SETTINGS = Settings(
@@ -39,9 +49,19 @@ FUZZ_SETTINGS = Settings(
     solve_grace_s=2.0,
 )
 EXAMPLES_PER_OPERATION = 100
-# A compare runs its solves one after the other on the one worker, each within its deadline (4 x 1 s + 2 s): more
-# than schemathesis' 10 s default read timeout on a loaded machine.
-CALL_TIMEOUT_S = 60.0
+# Every answer within the deadline the pool enforces, plus 5 s for the request's own work outside the solve
+# (parsing, checks, serialising at most max_samples samples: milliseconds idle; the margin absorbs a loaded CI).
+# A compare runs its solves one after the other on the one worker, each within its deadline: one deadline per
+# family it may run. Schemathesis' own read timeout (10 s by default) is set above every budget.
+RESPONSE_BUDGET_S = FUZZ_SETTINGS.solve_deadline_s + 5.0
+COMPARE_BUDGET_S = len(FAMILIES) * FUZZ_SETTINGS.solve_deadline_s + 5.0
+CALL_TIMEOUT_S = COMPARE_BUDGET_S + 30.0
+MIB = 1024 * 1024
+# This process holds the whole test session: its growth from the first fuzz case on is bounded (what earlier
+# tests left is its baseline; CI's full suite reached 521 MiB of growth when it was taken at collection).
+# A worker's RSS is bounded outright: warm 250-260 MiB (README, Deployment), at most 400 MiB after 200 plants.
+HTTP_PROCESS_GROWTH_BOUND = 300 * MIB
+WORKER_RSS_BOUND = 600 * MIB
 # not_a_server_error is replaced by the assertion in the test: a 504 solve-timeout (declared) is allowed.
 CHECKS = [
     status_code_conformance,
@@ -73,11 +93,41 @@ APP = create_app(FUZZ_SETTINGS)
 schema = fuzz_schema(APP)
 
 
+class RssSampler(threading.Thread):
+    """Peak RSS of this process (above its RSS when sampling began) and of its children, every ``period_s``."""
+
+    def __init__(self, period_s: float = 0.02) -> None:
+        super().__init__(daemon=True, name="fuzz-rss-sampler")
+        self.period_s = period_s
+        self.me = psutil.Process()
+        self.baseline = 0  # taken when sampling begins (the first fuzz case), not when the module is collected
+        self.peak_growth = 0
+        self.peak_children: dict[int, int] = {}
+        self.stopped = threading.Event()
+
+    def run(self) -> None:
+        # The session's earlier tests are in the baseline: the bound is on what the fuzzing itself adds.
+        self.baseline = self.me.memory_info().rss
+        while not self.stopped.wait(self.period_s):
+            self.peak_growth = max(self.peak_growth, self.me.memory_info().rss - self.baseline)
+            for child in self.me.children(recursive=True):
+                try:
+                    rss = child.memory_info().rss
+                except psutil.Error:  # it ended between the listing and the reading
+                    continue
+                self.peak_children[child.pid] = max(self.peak_children.get(child.pid, 0), rss)
+
+
+SAMPLER = RssSampler()
+
+
 @pytest.fixture
 def running_app() -> None:
     # Schemathesis keeps the lifespan it starts until the process exits (its atexit hook stops the pool);
     # a per-test fixture, because schemathesis' generated items do not share module fixtures' teardown.
     start_and_wait_ready(APP)
+    if not SAMPLER.is_alive() and not SAMPLER.stopped.is_set():
+        SAMPLER.start()
 
 
 @schema.parametrize()
@@ -89,6 +139,21 @@ def running_app() -> None:
     suppress_health_check=list(HealthCheck),
 )
 def test_every_operation_survives_fuzzing(case: schemathesis.Case, running_app: None) -> None:
+    started = time.monotonic()
     response = case.call_and_validate(checks=CHECKS, timeout=CALL_TIMEOUT_S)
+    elapsed_s = time.monotonic() - started
+    budget_s = COMPARE_BUDGET_S if case.path.endswith("/compare") else RESPONSE_BUDGET_S
     # the only 5xx a valid request may meet is a solve that ran out of its (small) time cap
     assert response.status_code < 500 or response.json()["type"] == "/problems/solve-timeout", response.text
+    assert elapsed_s <= budget_s, f"{case.method} {case.path} took {elapsed_s:.1f} s: {case.body!r:.300}"
+
+
+def test_no_process_grew_past_its_bound_during_the_fuzzing() -> None:
+    """Runs after every fuzzed operation (pytest keeps the module's order): the sampler's peaks."""
+    assert SAMPLER.is_alive(), "no fuzz case ran: nothing was measured"
+    SAMPLER.stopped.set()
+    SAMPLER.join(1.0)
+    assert SAMPLER.peak_children, "no solver worker was sampled"
+    assert SAMPLER.peak_growth <= HTTP_PROCESS_GROWTH_BOUND, f"this process grew by {SAMPLER.peak_growth / MIB:.0f} MiB"
+    worst = max(SAMPLER.peak_children.values())
+    assert worst <= WORKER_RSS_BOUND, f"a solver worker reached {worst / MIB:.0f} MiB"

@@ -176,8 +176,10 @@ def test_a_problem_body_keeps_to_its_budget():
     assert problem["field"].startswith("\\ud800") and problem["huge"] == "an integer of 133 bits"
 
 
-# Operations that run designs on the solver pool (app/routers: they take PoolDep and a body).
+# Operations that run designs on the solver pool or the design threads (app/routers: they take PoolDep or
+# ThreadsDep, and a body); /v1/simulate runs in the design threads.
 POOL_OPERATIONS = {
+    "/v1/simulate",
     "/v1/profiles/time-optimal",
     "/v1/profiles/pseudo-polynomial",
     "/v1/profiles/stap",

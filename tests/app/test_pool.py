@@ -265,3 +265,17 @@ def test_a_compare_the_pool_has_no_room_for_is_refused_at_once_and_none_of_it_ru
         assert pool.stats()["queued"] == pool.max_queued - room  # nothing of it queued
         assert designs_counted(client) == designs  # no design of it ran, in a worker or a thread
         assert [f.result().status_code for f in busy + waiting] == [200] * (pool.workers + pool.max_queued - room)
+
+
+def test_a_solve_past_the_worker_memory_limit_is_a_422_and_the_pool_serves_on(client):
+    # Every worker caps its address space at VIBFREE_WORKER_MEMORY_MB (1024 MiB by default; a warm worker maps
+    # 609): a job asking for 2 GiB more gets MemoryError inside the worker, never the HTTP process, and its
+    # request a 422 naming the body as too large; the pool is not restarted and answers the next solve.
+    wait_all_warm(client)
+    restarts = pool_of(client).stats()["restarts"]
+    response = client.post("/test/allocate", params={"size": 2 << 30})
+    body = assert_problem(response, 422, field="body")
+    assert "VIBFREE_WORKER_MEMORY_MB" in body["errors"][0]["rule"]
+    assert client.post("/test/allocate", params={"size": 1 << 20}).json() == {"allocated": 1 << 20}
+    assert solves_correctly_within(client, RECOVERY_S) < RECOVERY_S
+    assert pool_of(client).stats()["restarts"] == restarts

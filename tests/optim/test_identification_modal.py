@@ -168,3 +168,21 @@ def test_pure_noise_and_constant_records_are_refused():
     with pytest.raises(InvalidParameter) as info:
         identify_modes(Record(t, np.ones((1, t.size)), ("a",)))
     assert "constant" in info.value.rule
+
+
+def test_a_fit_larger_than_its_cap_is_refused_before_it_runs():
+    # The truth's record at 2 kHz for 21.85 s on 3 axes: 43700 samples x 3 signals = 131100 values, just past
+    # MAX_FIT_VALUES (131072; the fit's Jacobians take ~800 B per value: 2.2 GB and minutes for the 200000 rows x
+    # 16 signals a CSV may hold). Fitted from t = 0 (start_s), it is refused as invalid input naming start_s, the
+    # field that sets the fit's window; its first 10 s (20000 samples x 3 signals) are fitted.
+    from optim.modal import MAX_FIT_VALUES
+
+    t = np.arange(43_700) / RATE_HZ
+    assert 3 * t.size > MAX_FIT_VALUES >= 3 * 20_000
+    record = Record(t, free_vibration(t), NAMES)
+    with pytest.raises(InvalidParameter, match="at most 131072 values") as refused:
+        identify_modes(record, start_s=0.0)
+    assert refused.value.field == "start_s"
+    short = t[:20_000]
+    modes = identify_modes(Record(short, free_vibration(short), NAMES), start_s=0.0).modes
+    assert [round(m.natural_frequency_hz, 3) for m in modes] == [f for f, _ in TRUTH]

@@ -289,3 +289,20 @@ async def test_a_request_that_stops_waits_for_its_running_solve_and_drops_its_qu
             assert pool.stats()["queued"] == 0  # the queued job left at once
             raise RuntimeError("a family timed out")
     assert pool.stats()["busy"] == 0  # the running one ended before the request did
+
+
+@with_pool(workers=1, memory_mb=512)
+async def test_a_job_past_the_memory_limit_is_a_422_and_the_worker_serves_on(pool: SolverPool) -> None:
+    # The worker caps its address space (RLIMIT_AS, VIBFREE_WORKER_MEMORY_MB) when it starts: a job that asks
+    # for 1 GiB past a 512 MiB cap gets MemoryError in the worker, answered as a 422 naming the work too large
+    # (the same request would run out again); the same worker then serves a job within the cap.
+    from models.errors import InvalidParameter
+    from tests.optim import pool_jobs
+
+    pid = pool.pids()[0]
+    assert await pool.run(pool_jobs.address_space_limit, deadline_s=10) == 512 * 1024 * 1024
+    with pytest.raises(InvalidParameter, match="512 MiB a solver worker may use") as too_large:
+        await pool.run(pool_jobs.allocate, 1 << 30, deadline_s=30)
+    assert too_large.value.field == "body"
+    assert await pool.run(pool_jobs.allocate, 64 << 20, deadline_s=30) == 64 << 20
+    assert pool.pids() == [pid] and pool.stats()["restarts"] == 0
