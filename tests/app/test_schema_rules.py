@@ -24,6 +24,7 @@ from app.schemas.family import SensitivityIn
 from app.schemas.stap import StapOut
 from models.errors import DomainError, PoolUnavailable
 from optim import tables
+from optim.workers import InlineExecutor
 from tests.app.conftest import TEST_SETTINGS
 
 MODE = {"kind": "mode", "natural_frequency_hz": 5.0, "damping_ratio": 0.05}
@@ -46,6 +47,7 @@ class NoSolver:
 def app():
     application = create_app(TEST_SETTINGS)
     application.state.pool = NoSolver()  # no lifespan: no worker starts
+    application.state.threads = InlineExecutor()  # closed forms run in the test (their physics checks are validation)
     return application
 
 
