@@ -34,7 +34,17 @@ from schemathesis.python import asgi  # noqa: E402
 
 from app.main import create_app  # noqa: E402
 from app.observability import APP_LOGGERS  # noqa: E402
-from tests.app.test_fuzz import CALL_TIMEOUT_S, CHECKS, FUZZ_SETTINGS, fuzz_schema, start_and_wait_ready  # noqa: E402
+from tests.app.test_fuzz import (  # noqa: E402
+    CALL_TIMEOUT_S,
+    CHECKS,
+    COMPARE_BUDGET_S,
+    FUZZ_SETTINGS,
+    MIB,
+    RESPONSE_BUDGET_S,
+    RssSampler,
+    fuzz_schema,
+    start_and_wait_ready,
+)
 
 
 class ValidRefused:
@@ -65,10 +75,24 @@ class ValidRefused:
         return f"schema-valid {self.valid}, answered 422: {refused}" + (f" ({kinds})" if kinds else "")
 
 
+class Slowest:
+    """The slowest answer of an operation, against its budget (tests/app/test_fuzz.py's)."""
+
+    def __init__(self, path: str) -> None:
+        self.budget_s = COMPARE_BUDGET_S if path.endswith("/compare") else RESPONSE_BUDGET_S
+        self.worst_s = 0.0
+        self.over = 0
+
+    def add(self, elapsed_s: float) -> None:
+        self.worst_s = max(self.worst_s, elapsed_s)
+        self.over += elapsed_s > self.budget_s
+
+
 def fuzz_operation(
     operation: Any, cases: int, seed: int
-) -> tuple[collections.Counter[int], list[str], float, ValidRefused]:
+) -> tuple[collections.Counter[int], list[str], float, ValidRefused, Slowest]:
     statuses: collections.Counter[int] = collections.Counter()
+    slowest = Slowest(operation.path)
     failures: list[str] = []
     refused = ValidRefused()
     strategy = st.one_of(
@@ -85,7 +109,9 @@ def fuzz_operation(
     )
     @given(case=strategy)
     def run(case: Any) -> None:
+        started = time.perf_counter()
         response = case.call(timeout=CALL_TIMEOUT_S)
+        slowest.add(time.perf_counter() - started)
         statuses[response.status_code] += 1
         refused.add(case.meta, response)
         if response.status_code >= 500 and not (
@@ -101,7 +127,7 @@ def fuzz_operation(
     seeded = run
     seeded._hypothesis_internal_use_seed = seed  # type: ignore[attr-defined]  # hypothesis.seed() for a plain call
     seeded()
-    return statuses, failures, time.perf_counter() - start, refused
+    return statuses, failures, time.perf_counter() - start, refused, slowest
 
 
 def main() -> int:
@@ -117,6 +143,8 @@ def main() -> int:
         logging.getLogger(name).setLevel(logging.WARNING)
     schema = fuzz_schema(app)
     start_and_wait_ready(app)
+    sampler = RssSampler()
+    sampler.start()
     total_start = time.perf_counter()
     total_cases, total_failures, total_valid, total_refused = 0, 0, 0, 0
     print(f"{'operation':<40} {'cases':>6} {'time s':>8}  statuses; server errors and failed checks")
@@ -124,7 +152,9 @@ def main() -> int:
         operation = result.ok()
         if args.only and args.only not in operation.path:
             continue
-        statuses, failures, elapsed, refused = fuzz_operation(operation, args.cases, args.seed)
+        statuses, failures, elapsed, refused, slowest = fuzz_operation(operation, args.cases, args.seed)
+        if slowest.over:
+            failures.append(f"{slowest.over} answers slower than the budget of {slowest.budget_s:g} s")
         n = sum(statuses.values())
         total_cases += n
         total_failures += len(failures)
@@ -134,7 +164,7 @@ def main() -> int:
             print(f"    {failure}")
         total_valid += refused.valid
         total_refused += refused.types["invalid-input"]
-        print(f"    {refused.line()}")
+        print(f"    slowest answer {slowest.worst_s:.2f} s (budget {slowest.budget_s:g} s); {refused.line()}")
         for rule, count in refused.rules.most_common(args.rules):
             print(f"      {count:>4} {rule}")
         sys.stdout.flush()
@@ -142,6 +172,16 @@ def main() -> int:
         f"total: {total_cases} cases, {total_failures} server errors or failed checks, "
         f"{time.perf_counter() - total_start:.0f} s; {total_valid} schema-valid, {total_refused} of them answered "
         "422 invalid-input"
+    )
+    sampler.stopped.set()
+    sampler.join(1.0)
+    workers = app.state.pool.stats()
+    print(
+        f"peak RSS: HTTP process {sampler.peak_rss / MIB:.0f} MiB; solver workers "
+        + ", ".join(f"{rss / MIB:.0f}" for rss in sampler.peak_children.values())
+        + f" MiB ({len(sampler.peak_children)} processes seen); worker restarts {workers['restarts']}, of them "
+        f"{workers['timeouts']} killed at a solve's deadline (a 504) and {workers['restarts'] - workers['timeouts']} "
+        "died otherwise"
     )
     asgi.shutdown_lifespans()
     return 1 if total_failures else 0

@@ -102,6 +102,7 @@ class RssSampler(threading.Thread):
         self.me = psutil.Process()
         self.baseline = 0  # taken when sampling begins (the first fuzz case), not when the module is collected
         self.peak_growth = 0
+        self.peak_rss = 0
         self.peak_children: dict[int, int] = {}
         self.stopped = threading.Event()
 
@@ -109,7 +110,9 @@ class RssSampler(threading.Thread):
         # The session's earlier tests are in the baseline: the bound is on what the fuzzing itself adds.
         self.baseline = self.me.memory_info().rss
         while not self.stopped.wait(self.period_s):
-            self.peak_growth = max(self.peak_growth, self.me.memory_info().rss - self.baseline)
+            rss = self.me.memory_info().rss
+            self.peak_rss = max(self.peak_rss, rss)
+            self.peak_growth = max(self.peak_growth, rss - self.baseline)
             for child in self.me.children(recursive=True):
                 try:
                     rss = child.memory_info().rss
