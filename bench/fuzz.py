@@ -164,7 +164,10 @@ def main() -> int:
             print(f"    {failure}")
         total_valid += refused.valid
         total_refused += refused.types["invalid-input"]
-        print(f"    slowest answer {slowest.worst_s:.2f} s (budget {slowest.budget_s:g} s); {refused.line()}")
+        print(
+            f"    slowest answer {slowest.worst_s:.2f} s (budget {slowest.budget_s:g} s); HTTP process "
+            f"{sampler.me.memory_info().rss / MIB:.0f} MiB (peak {sampler.peak_rss / MIB:.0f}); {refused.line()}"
+        )
         for rule, count in refused.rules.most_common(args.rules):
             print(f"      {count:>4} {rule}")
         sys.stdout.flush()

@@ -30,7 +30,7 @@ from contextlib import asynccontextmanager
 from typing import Any, TypeVar
 
 from models.errors import PoolUnavailable, SolverTimedOut
-from optim.workers import RETRY_AFTER_MAX_S, RETRY_AFTER_MIN_S, Executor, PoolBusy
+from optim.workers import RETRY_AFTER_MAX_S, RETRY_AFTER_MIN_S, Executor, PoolBusy, reservation_places
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
@@ -132,14 +132,16 @@ class ThreadLane:
     @asynccontextmanager
     async def reserve(self, jobs: int) -> AsyncIterator[Executor]:
         """Hold places for ``jobs`` concurrent jobs of one request, all or none (``SolverPool.reserve``'s rule for
-        the lane): refused at once (``PoolBusy``) without room for all, so a compare never runs part of its closed
-        forms and is then refused for the rest. A held job waits for a thread a deadline per round of the jobs
-        ahead of it (they were admitted first), not a lone job's single deadline."""
-        self._admit(jobs)
+        the lane): as many as the lane has threads at most (``reservation_places``), the request's other jobs
+        waiting for one of its places; refused at once (``PoolBusy``) without room, so a compare never runs part
+        of its closed forms and is then refused for the rest. A held job waits for a thread a deadline per round
+        of the jobs ahead of it (they were admitted first), not a lone job's single deadline."""
+        places = reservation_places(jobs, self.workers)
+        self._admit(places)
         with self._lock:
-            self._queued -= jobs
-            self._held += jobs
-        reservation = _LaneReservation(self, jobs)
+            self._queued -= places
+            self._held += places
+        reservation = _LaneReservation(self, places)
         self._changed()
         try:
             yield reservation
@@ -232,30 +234,31 @@ class ThreadLane:
 
 
 class _LaneReservation:
-    """The executor of a lane reservation: ``free`` of its places wait for a job of the request."""
+    """The executor of a lane reservation: ``free`` of its places wait for a job of the request; a job beyond
+    them waits for one of them (``turn``)."""
 
     def __init__(self, lane: ThreadLane, places: int) -> None:
         self.lane = lane
         self.free = places
+        self.turn = asyncio.Semaphore(places)
         self.closed = False  # the request left its block: a job still running gives its place back to nobody
 
     async def run(self, fn: Callable[..., T], *args: Any, deadline_s: float) -> T:
         lane = self.lane
-        with lane._lock:
-            held = self.free > 0 and not self.closed
-            if held:  # the held place becomes the job's queue place, and returns when the job ends
+        if self.closed:  # after the request's block: an ordinary job
+            return await lane.run(fn, *args, deadline_s=deadline_s)
+        async with self.turn:
+            with lane._lock:  # the held place becomes the job's queue place, and returns when the job ends
                 self.free -= 1
                 lane._held -= 1
                 lane._queued += 1
-        if not held:  # beyond the reservation: an ordinary job
-            return await lane.run(fn, *args, deadline_s=deadline_s)
-        try:
-            return await lane._submit(fn, args, deadline_s, wait_s=deadline_s * lane.turns_ahead())
-        finally:
-            with lane._lock:
-                if not self.closed:
-                    self.free += 1
-                    lane._held += 1
+            try:
+                return await lane._submit(fn, args, deadline_s, wait_s=deadline_s * lane.turns_ahead())
+            finally:
+                with lane._lock:
+                    if not self.closed:
+                        self.free += 1
+                        lane._held += 1
 
 
 class _Job:

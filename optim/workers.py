@@ -111,28 +111,37 @@ class PoolBusy(PoolUnavailable):
     problem_type = "busy"
 
 
+def reservation_places(jobs: int, workers: int) -> int:
+    """Places a request of ``jobs`` concurrent jobs holds on an executor of ``workers``: no more than can compute
+    at once (its other jobs wait for one of its own places, not in the shared queue), and at least one."""
+    return max(1, min(jobs, workers))
+
+
 class _Reservation:
-    """The executor of a reservation (``SolverPool.reserve``): ``free`` of its places wait for a job."""
+    """The executor of a reservation (``SolverPool.reserve``): ``free`` of its places wait for a job; a job
+    beyond them waits for one of them (``turn``), so the request never meets admission again."""
 
     def __init__(self, pool: SolverPool, places: int) -> None:
         self.pool = pool
         self.places = places
         self.free = places
+        self.turn = asyncio.Semaphore(places)
         self.closed = False
         self.jobs: set[_Job] = set()  # every job it submitted: those still in a worker are waited for on exit
 
     async def run(self, fn: Callable[..., T], *args: Any, deadline_s: float) -> T:
-        if self.closed or self.free < 1:  # beyond the reservation: an ordinary job
+        if self.closed:  # after the request's block: an ordinary job
             return await self.pool.run(fn, *args, deadline_s=deadline_s)
-        self.free -= 1
-        self.pool._held -= 1
-        try:
-            wait_s = deadline_s * self.pool.turns_ahead()
-            return await self.pool._submit(fn, args, deadline_s, wait_s=wait_s, track=self.jobs)
-        finally:
-            if not self.closed:  # the place is held again for the request's next job
-                self.free += 1
-                self.pool._held += 1
+        async with self.turn:
+            self.free -= 1
+            self.pool._held -= 1
+            try:
+                wait_s = deadline_s * self.pool.turns_ahead()
+                return await self.pool._submit(fn, args, deadline_s, wait_s=wait_s, track=self.jobs)
+            finally:
+                if not self.closed:  # the place is held again for the request's next job
+                    self.free += 1
+                    self.pool._held += 1
 
 
 # --- the worker process ---------------------------------------------------------------------
@@ -400,17 +409,19 @@ class SolverPool:
     async def reserve(self, jobs: int) -> AsyncIterator[Executor]:
         """Hold room for ``jobs`` concurrent jobs of one request, all or none, and yield the executor that runs
         them (``_Reservation``). Refused at once (``PoolBusy``, ``PoolUnavailable``) when the pool cannot take
-        them all now, so that a request never waits for part of its work and is then refused for the rest.
+        them now, so that a request never waits for part of its work and is then refused for the rest.
 
-        A job run through the reservation takes one of its places without admission and gives it back when it
-        ends, so a job that follows another (a fallback after an infeasible design) reuses its place; beyond
-        ``jobs`` at once, a job meets the usual admission. Leaving the block frees every place. A held job was
-        admitted with the jobs ahead of it (the request's own included), so it waits for a worker as long as they
-        may take, each within its deadline (``turns_ahead``), not the lone job's deadline: a request is refused
-        before its work or answered, not refused after part of it."""
-        self._admit(jobs)
-        reservation = _Reservation(self, jobs)
-        self._held += jobs
+        The request holds ``reservation_places(jobs, workers)`` places: no more jobs than the workers can compute
+        at once; its other jobs wait for one of its places. A job takes a place without admission and gives it
+        back when it ends, so the next job of the request (or a fallback after an infeasible design) reuses it.
+        Leaving the block frees every place. A held job was admitted with the jobs ahead of it (the request's own
+        included), so it waits for a worker as long as they may take, each within its deadline
+        (``turns_ahead``), not the lone job's deadline: a request is refused before its work or answered, not
+        refused after part of it."""
+        places = reservation_places(jobs, self.workers)
+        self._admit(places)
+        reservation = _Reservation(self, places)
+        self._held += places
         self._changed()
         try:
             yield reservation

@@ -169,32 +169,37 @@ def test_errors_reach_the_caller_and_free_the_thread():
 
 
 def test_a_reservation_is_all_or_nothing_and_its_jobs_keep_their_places():
-    # Issue 23 (compare's closed forms): 1 thread + 2 waiting = 3 places. One job runs, so a request asking for 3
-    # places is refused before any of its jobs exists (nothing is queued, the refusal counts 3); one asking for 2
-    # gets them, and a plain job meanwhile finds no room (the places are held, though no job of the request waits).
+    # Issue 23 (compare's closed forms): 2 threads + 1 waiting = 3 places. Two jobs run, so a request of 5 jobs,
+    # which holds 2 places (as many as there are threads), is refused before any of its jobs exists (nothing is
+    # queued, the refusal counts 2). Once one job ends it gets them; a plain job meanwhile finds no room (the
+    # places are held, though no job of the request waits), and its 5 jobs run in its 2 places.
     async def main() -> None:
-        lane, gate = ThreadLane(1, 2), Gate()
+        lane, gate, first = ThreadLane(2, 1), Gate(), Gate()
         try:
             running = asyncio.ensure_future(lane.run(gate.job, 0, deadline_s=30.0))
-            await until(lambda: lane.stats()["running"] == 1)
-            with pytest.raises(PoolBusy, match="no room for the 3 designs"):
-                async with lane.reserve(3):
+            ending = asyncio.ensure_future(lane.run(first.job, -1, deadline_s=30.0))
+            await until(lambda: lane.stats()["running"] == 2)
+            with pytest.raises(PoolBusy, match="no room for the 2 designs"):
+                async with lane.reserve(5):
                     raise AssertionError("a refused reservation must not run its block")
-            assert lane.stats()["queued"] == 0 and lane.stats()["held"] == 0 and lane.stats()["rejected"] == 3
-            async with lane.reserve(2) as held:
+            assert lane.stats()["queued"] == 0 and lane.stats()["held"] == 0 and lane.stats()["rejected"] == 2
+            first.opened.set()
+            assert await ending == -1
+            async with lane.reserve(5) as held:
                 assert lane.stats()["held"] == 2
                 with pytest.raises(PoolBusy):
                     await lane.run(gate.job, 99, deadline_s=30.0)
-                jobs = [asyncio.ensure_future(held.run(gate.job, k, deadline_s=30.0)) for k in (1, 2)]
-                await until(lambda: lane.stats()["queued"] == 2 and lane.stats()["held"] == 0)
+                jobs = [asyncio.ensure_future(held.run(gate.job, k, deadline_s=30.0)) for k in range(1, 6)]
+                await until(lambda: lane.stats()["running"] == 2 and lane.stats()["queued"] == 1)
+                assert lane.stats()["held"] == 0  # its 2 places: one job running, one waiting; 3 wait for them
                 gate.opened.set()
-                assert await asyncio.gather(*jobs) == [1, 2]
+                assert await asyncio.gather(*jobs) == [1, 2, 3, 4, 5]
                 assert lane.stats()["held"] == 2  # each ended job gave its place back to the request
-                assert await held.run(gate.job, 3, deadline_s=30.0) == 3  # a later job of it reuses a place
             assert await running == 0
-            assert lane.stats()["held"] == 0 and lane.stats()["queued"] == 0 and gate.most_at_once == 1
+            assert lane.stats()["held"] == 0 and lane.stats()["queued"] == 0 and gate.most_at_once == 2
         finally:
             gate.opened.set()
+            first.opened.set()
             lane.close()
 
     run_async(main)

@@ -221,29 +221,36 @@ def test_close_stops_busy_workers_within_seconds() -> None:
     run_async(main)
 
 
-@with_pool(workers=1, max_queued=2)
+@with_pool(workers=2, max_queued=2)
 async def test_a_reservation_is_all_or_nothing_and_refused_before_any_of_its_jobs(pool: SolverPool) -> None:
-    """Issue 23: room for a request's jobs is held all at once (a worker or a queue slot each), or none is."""
-    running = asyncio.ensure_future(pool.run(slow_solves.sleep_for, 1.0, deadline_s=10))
-    await until(lambda: pool.stats()["busy"] == 1)
+    """Issue 23: room for a request's jobs is held all at once (a worker or a queue slot each), or none is; a
+    request holds no more places than the workers can compute at once (its other jobs wait for its places)."""
+    running = [asyncio.ensure_future(pool.run(slow_solves.sleep_for, 1.0, deadline_s=10)) for _ in range(2)]
+    await until(lambda: pool.stats()["busy"] == 2)
     queued = asyncio.ensure_future(pool.run(slow_solves.sleep_for, 0.0, deadline_s=10))
     await asyncio.sleep(0)
-    # 1 worker + 2 queue slots, 2 of them taken: room for 1 job, not 2.
+    # 2 workers + 2 queue slots, 3 of them taken: room for 1 job; a request of 3 jobs needs 2 places (2 workers).
     with pytest.raises(PoolBusy, match="the 2 solves") as refused:
-        async with reserved(pool, 2):
+        async with reserved(pool, 3):
             raise AssertionError("a refused reservation must not run its block")
     assert refused.value.retry_after_s >= 1
     assert pool.stats()["queued"] == 1 and pool.stats()["rejected"] == 2  # nothing of it was queued
     async with reserved(pool, 1) as held:
         with pytest.raises(PoolBusy):  # the last place is held for the reservation's job
             await pool.run(slow_solves.sleep_for, 0.0, deadline_s=10)
-        assert not running.done()  # the place was held while the worker was still busy
+        assert not any(r.done() for r in running)  # the place was held while the workers were still busy
         for _ in range(2):  # one after the other, in the same place (a plain job would be refused until running ends)
             assert isinstance(await held.run(slow_solves.sleep_for, 0.0, deadline_s=10), int)
-    assert isinstance(await queued, int) and isinstance(await running, int)
-    # Every place is free again: a worker and 2 queue slots, for three reservations at once.
-    for pid in await asyncio.gather(*(reserve_and_run(pool) for _ in range(3))):
+    assert isinstance(await queued, int) and all(isinstance(pid, int) for pid in await asyncio.gather(*running))
+    # Every place is free again: 4 reservations of one place at once; then one of 5 jobs holds 2 places and runs
+    # its jobs two at a time in them.
+    for pid in await asyncio.gather(*(reserve_and_run(pool) for _ in range(4))):
         assert isinstance(pid, int)
+    async with reserved(pool, 5) as held:
+        assert pool.stats()["rejected"] == 3 and pool._held == 2
+        pids = await asyncio.gather(*(held.run(slow_solves.sleep_for, 0.1, deadline_s=10) for _ in range(5)))
+        assert len(set(pids)) <= 2 and pool._held == 2
+    assert pool._held == 0
 
 
 async def reserve_and_run(pool: SolverPool) -> int:
@@ -265,30 +272,35 @@ def test_an_executor_without_admission_runs_a_reservation_itself() -> None:
 
 @with_pool(workers=1)
 async def test_a_reserved_job_may_wait_behind_its_own_request(pool: SolverPool) -> None:
-    """A plain job waits for a worker no longer than its deadline (test above); a request's held jobs were admitted
-    with the jobs ahead of them, so each may wait a deadline per job ahead (per worker), plus one: here the fourth
-    0.4 s job waits ~1.2 s behind the request's own three, past its 1 s deadline, and still runs (bound 4 s)."""
+    """A plain job waits for a worker no longer than its deadline (test above); a request's jobs were admitted
+    together, and those beyond its places (one here: one worker) wait for one of its places, not for the shared
+    queue: here the fourth 0.4 s job waits ~1.2 s behind the request's own three, past its 1 s deadline, and
+    still runs (bound 4 s)."""
     async with reserved(pool, 4) as held:
         pids = await asyncio.gather(*(held.run(slow_solves.sleep_for, 0.4, deadline_s=1.0) for _ in range(4)))
     assert all(isinstance(pid, int) for pid in pids)
 
 
-@with_pool(workers=1)
+@with_pool(workers=2)
 async def test_a_request_that_stops_waits_for_its_running_solve_and_drops_its_queued_one(pool: SolverPool) -> None:
     """A compare whose family timed out cancels its other runs (optim.compare): the queued one leaves the queue
     and never runs; the one a worker runs cannot be interrupted short of killing the worker, so the request ends
-    when it ends (within its deadline), and leaves no work behind to delay the next request."""
+    when it ends (within its deadline), and leaves no work behind to delay the next request. Another request's
+    job keeps the second worker busy meanwhile, so that one of the request's two places waits in the queue."""
+    other = asyncio.ensure_future(pool.run(slow_solves.sleep_for, 3.0, deadline_s=10))
+    await until(lambda: pool.stats()["busy"] == 1)
     with pytest.raises(RuntimeError, match="a family timed out"):
         async with reserved(pool, 2) as held:
             running = asyncio.ensure_future(held.run(slow_solves.sleep_for, 0.5, deadline_s=10))
             queued = asyncio.ensure_future(held.run(slow_solves.sleep_for, 0.0, deadline_s=10))
-            await until(lambda: pool.stats()["busy"] == 1 and pool.stats()["queued"] == 1)
+            await until(lambda: pool.stats()["busy"] == 2 and pool.stats()["queued"] == 1)
             running.cancel()
             queued.cancel()
             await asyncio.gather(running, queued, return_exceptions=True)
             assert pool.stats()["queued"] == 0  # the queued job left at once
             raise RuntimeError("a family timed out")
-    assert pool.stats()["busy"] == 0  # the running one ended before the request did
+    assert not other.done() and pool.stats()["busy"] == 1  # the request's running one ended before the request did
+    assert isinstance(await other, int)
 
 
 @with_pool(workers=1, memory_mb=512)
