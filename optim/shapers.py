@@ -268,9 +268,12 @@ def _ei_normalised(humps: int, zeta: float, tolerance: float) -> tuple[tuple[flo
     while reached is None or reached < zeta:  # from zeta = 0 (polishing the zeros and humps found on
         # a grid) on, in steps of zeta halved where a solve fails
         target = 0.0 if reached is None else min(zeta, reached + step)
-        solution = root(conditions.residual, x, args=(target,), method="hybr", options={"xtol": 1e-13})
-        residual = float(np.max(np.abs(conditions.residual(solution.x, target))))
-        if residual <= _CONDITIONS_TOLERANCE and conditions.well_formed(solution.x):
+        # hybr may step to where exp(-zeta r (t_n - t_i)) overflows: such a step is a failed solve (its
+        # residual is not finite, so it is not accepted), never an error
+        with np.errstate(over="ignore", invalid="ignore"):
+            solution = root(conditions.residual, x, args=(target,), method="hybr", options={"xtol": 1e-13})
+            residual = float(np.max(np.abs(conditions.residual(solution.x, target))))
+        if math.isfinite(residual) and residual <= _CONDITIONS_TOLERANCE and conditions.well_formed(solution.x):
             x, reached, worst, step = solution.x, target, residual, min(2.0 * step, _ZETA_STEP)
             continue
         step *= 0.5
