@@ -362,10 +362,10 @@ def test_ei_family_ends_where_its_conditions_have_no_solution():
 
 def test_ei_continuation_that_steps_into_overflow_is_a_failed_step_not_an_error():
     # A case the fuzzing found (GET /v1/shapers?damping_ratio=0.5&vibration_tolerance=0.2786779479469307):
-    # hybr stepped to t = 297/omega_n, r = 38, where exp(-zeta r (t_n - t_i)) overflows. The suite turns
+    # the 3-hump EI solve stepped to t = 297/omega_n, r = 38, where exp(-zeta r (t_n - t_i)) overflows. The suite turns
     # RuntimeWarning into an error (pyproject), so before the fix this raised instead of ending the continuation.
     with pytest.raises(Infeasible) as info:
-        design_shaper("ei", Mode(1.0, 0.5), 0.2786779479469307)
+        design_shaper("3hump_ei", Mode(1.0, 0.5), 0.2786779479469307)
     assert info.value.field == "vibration_tolerance"
 
 
