@@ -130,7 +130,23 @@ def running_app() -> None:
     # a per-test fixture, because schemathesis' generated items do not share module fixtures' teardown.
     start_and_wait_ready(APP)
     if not SAMPLER.is_alive() and not SAMPLER.stopped.is_set():
+        warm_up(APP)
         SAMPLER.start()
+
+
+def warm_up(app: FastAPI) -> None:
+    """One call of every operation's OpenAPI example before the baseline: what the first use of a family costs
+    once (its imports, its built problems, its caches) is not growth under fuzzing. Measured before this warm-up,
+    a fresh process grew 187 -> 513 MiB over its first 20 compare cases, then 513 -> 549 MiB over the next 180."""
+    spec = app.openapi()
+    with asgi.get_client(app) as client:
+        for path, item in spec["paths"].items():
+            body = item.get("post", {}).get("requestBody", {}).get("content", {}).get("application/json", {})
+            example = body.get("example")
+            if example is None and body.get("examples"):
+                example = next(iter(body["examples"].values())).get("value")
+            if example is not None:
+                client.post(path, json=example)
 
 
 @schema.parametrize()
