@@ -158,6 +158,11 @@ def limit_memory(memory_mb: int) -> None:
         resource.setrlimit(resource.RLIMIT_AS, (limit if hard == resource.RLIM_INFINITY else min(limit, hard), hard))
 
 
+def _out_of_memory(exc: BaseException) -> bool:
+    """A C++ allocation failure surfaced as a Python exception (CasADi's bindings give RuntimeError)."""
+    return "std::bad_alloc" in str(exc)
+
+
 def _too_large(memory_mb: int) -> InvalidParameter:
     """What a job that ran out of memory answers (a 422: the same request would run out again)."""
     where = f"the {memory_mb} MiB a solver worker may use (VIBFREE_WORKER_MEMORY_MB)" if memory_mb else "memory"
@@ -192,7 +197,8 @@ def _worker_main(conn: Connection, warm_up: Callable[[], None] | None, niceness:
         except MemoryError:  # past limit_memory: the job's arrays are freed with its frames, the worker serves on
             outcome = ("error", _too_large(memory_mb))
         except Exception as exc:
-            outcome = ("error", exc)
+            # C++ libraries (CasADi, IPOPT) past limit_memory throw std::bad_alloc, raised as a RuntimeError
+            outcome = ("error", _too_large(memory_mb) if _out_of_memory(exc) else exc)
         try:
             conn.send(outcome)  # pickled whole before any byte is written
         except Exception as exc:

@@ -318,3 +318,9 @@ async def test_a_job_past_the_memory_limit_is_a_422_and_the_worker_serves_on(poo
     assert too_large.value.field == "body"
     assert await pool.run(pool_jobs.allocate, 64 << 20, deadline_s=30) == 64 << 20
     assert pool.pids() == [pid] and pool.stats()["restarts"] == 0
+    # CasADi past the cap: C++ std::bad_alloc, which its binding raises as a RuntimeError (a fuzzed
+    # pseudo-polynomial with 363 sensitivity points got a 500 this way); 50 M symbols need ~5 GB.
+    with pytest.raises(InvalidParameter, match="512 MiB a solver worker may use"):
+        await pool.run(pool_jobs.casadi_symbols, 50_000_000, deadline_s=30)
+    assert await pool.run(pool_jobs.casadi_symbols, 1000, deadline_s=30) == 1000
+    assert pool.pids() == [pid] and pool.stats()["restarts"] == 0
