@@ -257,6 +257,7 @@ class SolverPool:
         self._ready_event = asyncio.Event()
         self._closing = False
         self._start_failures = 0
+        self._warmed = False  # a worker has been ready once: a later start replaces a worker (see _recovering)
         self._respawns: set[asyncio.TimerHandle] = set()
         self._solve_s_estimate = 1.0  # running mean of solve times, for Retry-After
         self._held = 0  # places reservations hold that none of their jobs fills now (see reserve)
@@ -270,6 +271,17 @@ class SolverPool:
     def ready(self) -> bool:
         """At least one worker is warm (idle or busy)."""
         return any(w.state in ("idle", "busy") for w in self._workers)
+
+    @property
+    def _recovering(self) -> bool:
+        """A worker is starting in place of one that was killed or died, and starts have not been failing: the
+        pool takes jobs for it (they queue within their deadlines) instead of refusing them as "starting"."""
+        return self._warmed and self._start_failures == 0 and any(w.state == "starting" for w in self._workers)
+
+    def _capacity(self) -> int:
+        """Workers a queued job can count on: the warm ones, and the starting ones while ``_recovering``."""
+        recovering = self._recovering
+        return sum(w.state in ("idle", "busy") or (recovering and w.state == "starting") for w in self._workers)
 
     def stats(self) -> dict[str, int]:
         """Counts for /readyz and /metrics."""
@@ -388,7 +400,7 @@ class SolverPool:
         reservations hold."""
         if self._closing or self._loop is None:
             raise PoolUnavailable("the solver pool is not running")
-        if not self.ready:
+        if not self.ready and not self._recovering:
             raise PoolUnavailable("the solver workers are starting")  # Retry-After: the default 5 s
         if self._room() < jobs:
             self.rejected += jobs
@@ -404,12 +416,9 @@ class SolverPool:
     def _room(self) -> int:
         """Jobs the pool can take now: its warm workers and ``max_queued`` queue slots, less the jobs they hold
         (running or queued) and the places reservations hold. With no reservation this is the rule "an idle
-        worker, or fewer than ``max_queued`` waiting"."""
-        warm = busy = 0
-        for worker in self._workers:
-            warm += worker.state in ("idle", "busy")
-            busy += worker.state == "busy"
-        return warm + self.max_queued - busy - len(self._queue) - self._held
+        worker, or fewer than ``max_queued`` waiting". A worker being replaced counts as warm (``_capacity``)."""
+        busy = sum(worker.state == "busy" for worker in self._workers)
+        return self._capacity() + self.max_queued - busy - len(self._queue) - self._held
 
     @asynccontextmanager
     async def reserve(self, jobs: int) -> AsyncIterator[Executor]:
@@ -448,9 +457,8 @@ class SolverPool:
     def turns_ahead(self) -> int:
         """Deadlines a job queued now may wait for a worker: one per round of the jobs ahead of it (running or
         queued) over the warm workers, and one more for a worker that is replaced meanwhile."""
-        warm = sum(w.state in ("idle", "busy") for w in self._workers)
         ahead = sum(w.state == "busy" for w in self._workers) + len(self._queue)
-        return 1 + math.ceil(ahead / max(1, warm))
+        return 1 + math.ceil(ahead / max(1, self._capacity()))
 
     async def _submit(
         self,
@@ -549,6 +557,7 @@ class SolverPool:
             self._cancel_timer(worker)
             worker.state = "idle"
             self._start_failures = 0
+            self._warmed = True
             self._ready_event.set()
             log.info("solver worker ready", extra={"pid": payload, "warm_up_s": time.monotonic() - worker.started_at})
         elif worker.job is not None:

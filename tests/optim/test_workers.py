@@ -75,15 +75,36 @@ async def test_an_idle_worker_that_dies_is_replaced_and_the_other_keeps_serving(
 
 
 @with_pool(workers=1, warm_up=functools.partial(slow_solves.slow_warm_up, 0.5))
-async def test_readiness_is_false_exactly_while_the_only_worker_is_rebuilt(pool: SolverPool) -> None:
+async def test_while_the_only_worker_is_replaced_readiness_is_false_and_a_solve_waits_for_the_new_one(
+    pool: SolverPool,
+) -> None:
+    """A worker killed by a solve's deadline is replaced in seconds: the solves that arrive meanwhile wait for the
+    replacement within their deadlines (the fuzz bench's single worker answered 152 of 1000 time-optimal cases 503
+    "starting" after a 504 when they were refused instead), while /readyz still tells the truth."""
     (victim,) = pool.pids()
     os.kill(victim, signal.SIGKILL)
     await until(lambda: not pool.ready, timeout_s=2)
-    with pytest.raises(PoolUnavailable) as refused:  # not ready: refused at once with a Retry-After
+    solve = asyncio.ensure_future(pool.run(slow_solves.sleep_for, 0.0, deadline_s=10))
+    await asyncio.sleep(0.1)
+    assert not pool.ready and not solve.done()  # queued, not refused: the replacement warms up for 0.5 s
+    assert await asyncio.wait_for(solve, 15) not in (victim,)  # ran on the replacement
+    assert pool.ready
+
+
+@with_pool(workers=1, warm_up=functools.partial(slow_solves.slow_warm_up, 2.0), start_timeout_s=30)
+async def test_a_solve_is_refused_at_once_while_worker_starts_keep_failing(pool: SolverPool) -> None:
+    """Only a replacement after a warm worker is waited for: once a start has failed, nothing says a worker will
+    come, so a solve is refused at once with a Retry-After, as before the pool's first start."""
+    (warm,) = pool.pids()
+    os.kill(warm, signal.SIGKILL)
+    await until(lambda: pool.pids() and pool.pids() != [warm] and pool.stats()["starting"] == 1)
+    (warming,) = pool.pids()
+    os.kill(warming, signal.SIGKILL)  # a failed start: back-off, then another 2 s warm-up
+    await until(lambda: pool.stats()["restarts"] == 2)
+    with pytest.raises(PoolUnavailable, match="starting") as refused:
         await pool.run(slow_solves.sleep_for, 0.0, deadline_s=10)
     assert refused.value.retry_after_s >= 1
-    rebuilt_s = await until(lambda: pool.ready)
-    assert rebuilt_s < 15
+    await until(lambda: pool.ready)
     assert isinstance(await pool.run(slow_solves.sleep_for, 0.0, deadline_s=10), int)
 
 
