@@ -30,7 +30,7 @@ from contextlib import asynccontextmanager
 from typing import Any, TypeVar
 
 from models.errors import PoolUnavailable, SolverTimedOut
-from optim.workers import RETRY_AFTER_MAX_S, RETRY_AFTER_MIN_S, Executor, PoolBusy, reservation_places
+from optim.workers import RETRY_AFTER_MAX_S, RETRY_AFTER_MIN_S, Executor, HeldPlaces, PoolBusy, reservation_places
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
@@ -233,32 +233,31 @@ class ThreadLane:
             return True
 
 
-class _LaneReservation:
-    """The executor of a lane reservation: ``free`` of its places wait for a job of the request; a job beyond
-    them waits for one of them (``turn``)."""
+class _LaneReservation(HeldPlaces):
+    """Places held in the lane (``ThreadLane.reserve``): a held place becomes the job's queue place, and returns
+    when the job ends."""
 
     def __init__(self, lane: ThreadLane, places: int) -> None:
+        super().__init__(places)
         self.lane = lane
-        self.free = places
-        self.turn = asyncio.Semaphore(places)
-        self.closed = False  # the request left its block: a job still running gives its place back to nobody
 
-    async def run(self, fn: Callable[..., T], *args: Any, deadline_s: float) -> T:
-        lane = self.lane
-        if self.closed:  # after the request's block: an ordinary job
-            return await lane.run(fn, *args, deadline_s=deadline_s)
-        async with self.turn:
-            with lane._lock:  # the held place becomes the job's queue place, and returns when the job ends
-                self.free -= 1
-                lane._held -= 1
-                lane._queued += 1
-            try:
-                return await lane._submit(fn, args, deadline_s, wait_s=deadline_s * lane.turns_ahead())
-            finally:
-                with lane._lock:
-                    if not self.closed:
-                        self.free += 1
-                        lane._held += 1
+    def _take(self) -> None:
+        with self.lane._lock:
+            self.free -= 1
+            self.lane._held -= 1
+            self.lane._queued += 1
+
+    def _give_back(self) -> None:
+        with self.lane._lock:
+            if not self.closed:
+                self.free += 1
+                self.lane._held += 1
+
+    async def _run_alone(self, fn: Callable[..., T], args: tuple[Any, ...], deadline_s: float) -> T:
+        return await self.lane.run(fn, *args, deadline_s=deadline_s)
+
+    async def _run_held(self, fn: Callable[..., T], args: tuple[Any, ...], deadline_s: float) -> T:
+        return await self.lane._submit(fn, args, deadline_s, wait_s=deadline_s * self.lane.turns_ahead())
 
 
 class _Job:

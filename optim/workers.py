@@ -117,31 +117,63 @@ def reservation_places(jobs: int, workers: int) -> int:
     return max(1, min(jobs, workers))
 
 
-class _Reservation:
-    """The executor of a reservation (``SolverPool.reserve``): ``free`` of its places wait for a job; a job
-    beyond them waits for one of them (``turn``), so the request never meets admission again."""
+class HeldPlaces:
+    """The executor of a request's reservation: ``free`` of its places wait for a job of the request; a job beyond
+    them waits for one of them (``turn``), so the request never meets admission again. A subclass says how a job
+    takes a held place on its executor and gives it back (``_take``, ``_give_back``), and how it runs."""
 
-    def __init__(self, pool: SolverPool, places: int) -> None:
-        self.pool = pool
+    def __init__(self, places: int) -> None:
         self.places = places
         self.free = places
         self.turn = asyncio.Semaphore(places)
-        self.closed = False
-        self.jobs: set[_Job] = set()  # every job it submitted: those still in a worker are waited for on exit
+        self.closed = False  # the request left its block: a job still running gives its place back to nobody
 
     async def run(self, fn: Callable[..., T], *args: Any, deadline_s: float) -> T:
         if self.closed:  # after the request's block: an ordinary job
-            return await self.pool.run(fn, *args, deadline_s=deadline_s)
+            return await self._run_alone(fn, args, deadline_s)
         async with self.turn:
-            self.free -= 1
-            self.pool._held -= 1
+            self._take()
             try:
-                wait_s = deadline_s * self.pool.turns_ahead()
-                return await self.pool._submit(fn, args, deadline_s, wait_s=wait_s, track=self.jobs)
+                return await self._run_held(fn, args, deadline_s)
             finally:
                 if not self.closed:  # the place is held again for the request's next job
-                    self.free += 1
-                    self.pool._held += 1
+                    self._give_back()
+
+    def _take(self) -> None:
+        raise NotImplementedError
+
+    def _give_back(self) -> None:
+        raise NotImplementedError
+
+    async def _run_alone(self, fn: Callable[..., T], args: tuple[Any, ...], deadline_s: float) -> T:
+        raise NotImplementedError
+
+    async def _run_held(self, fn: Callable[..., T], args: tuple[Any, ...], deadline_s: float) -> T:
+        raise NotImplementedError
+
+
+class _Reservation(HeldPlaces):
+    """Places held in the solver pool (``SolverPool.reserve``)."""
+
+    def __init__(self, pool: SolverPool, places: int) -> None:
+        super().__init__(places)
+        self.pool = pool
+        self.jobs: set[_Job] = set()  # every job it submitted: those still in a worker are waited for on exit
+
+    def _take(self) -> None:
+        self.free -= 1
+        self.pool._held -= 1
+
+    def _give_back(self) -> None:
+        self.free += 1
+        self.pool._held += 1
+
+    async def _run_alone(self, fn: Callable[..., T], args: tuple[Any, ...], deadline_s: float) -> T:
+        return await self.pool.run(fn, *args, deadline_s=deadline_s)
+
+    async def _run_held(self, fn: Callable[..., T], args: tuple[Any, ...], deadline_s: float) -> T:
+        wait_s = deadline_s * self.pool.turns_ahead()
+        return await self.pool._submit(fn, args, deadline_s, wait_s=wait_s, track=self.jobs)
 
 
 # --- the worker process ---------------------------------------------------------------------
