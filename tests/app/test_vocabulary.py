@@ -16,6 +16,7 @@ import pytest
 from app.examples import CHATLATANAGULCHAI_EQ3
 from app.main import create_app
 from tests.app.conftest import TEST_SETTINGS
+from tests.app.openapi_examples import post_examples
 
 PROFILE_PATHS = (
     "/v1/profiles/pseudo-polynomial",
@@ -50,17 +51,7 @@ def legacy(path: str, body: dict[str, Any]) -> dict[str, Any]:
     return old
 
 
-def examples() -> list[tuple[str, str, dict[str, Any]]]:
-    spec = create_app(TEST_SETTINGS).openapi()
-    out = []
-    for path in PROFILE_PATHS:
-        content = spec["paths"][path]["post"]["requestBody"]["content"]["application/json"]
-        for name, example in content["examples"].items():
-            out.append((path, name, example["value"]))
-    return out
-
-
-EXAMPLES = examples()
+EXAMPLES = list(post_examples(create_app(TEST_SETTINGS).openapi(), PROFILE_PATHS))
 
 
 def with_settling(body: dict[str, Any]) -> dict[str, Any]:
