@@ -210,11 +210,11 @@ def _worker_main(conn: Connection, warm_up: Callable[[], None] | None, niceness:
     """A worker: cap its memory, warm up, say ready, then run ``(fn, args)`` jobs until told to stop (``None``)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C stops the server, which stops its workers
     limit_memory(memory_mb)  # before the warm-up: a worker that cannot warm up within it fails to start, visibly
-    if niceness:
-        with contextlib.suppress(OSError):
-            os.nice(niceness)  # the HTTP process keeps answering while every worker computes
     if warm_up is not None:
         warm_up()  # an exception ends the process: the pool sees a failed start and backs off
+    if niceness:  # after the warm-up: a replacement warming up niced on a loaded machine took 25-30 s, not ~4 s
+        with contextlib.suppress(OSError):
+            os.nice(niceness)  # the HTTP process keeps answering while every worker computes
     conn.send(("ready", os.getpid()))
     while True:
         try:

@@ -42,3 +42,9 @@ def failing_warm_up() -> None:
 def unpicklable_result() -> object:
     """A result that cannot cross the process boundary (a lambda)."""
     return lambda: None
+
+
+def priority_warm_up(path: str) -> None:
+    """A warm-up that writes the worker's niceness during its warm-up to ``path``."""
+    with open(path, "w") as file:
+        file.write(str(os.getpriority(os.PRIO_PROCESS, 0)))

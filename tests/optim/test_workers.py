@@ -108,6 +108,20 @@ async def test_a_solve_is_refused_at_once_while_worker_starts_keep_failing(pool:
     assert isinstance(await pool.run(slow_solves.sleep_for, 0.0, deadline_s=10), int)
 
 
+def test_a_worker_warms_up_at_the_pools_priority_and_solves_niced(tmp_path) -> None:
+    """A warm-up gates readiness, so it runs at the supervisor's priority (niced, a replacement's took 25-30 s on
+    a loaded 2-core machine); the solves that follow are niced, so the HTTP process stays responsive."""
+    during_warm_up = tmp_path / "priority"
+    ours = os.getpriority(os.PRIO_PROCESS, 0)
+
+    @with_pool(workers=1, niceness=5, warm_up=functools.partial(slow_solves.priority_warm_up, str(during_warm_up)))
+    async def body(pool: SolverPool) -> None:
+        assert int(during_warm_up.read_text()) == ours
+        assert await pool.run(os.getpriority, os.PRIO_PROCESS, 0, deadline_s=10) == min(19, ours + 5)
+
+    body()
+
+
 @with_pool(workers=2)
 async def test_a_busy_worker_that_dies_fails_only_its_own_solve(pool: SolverPool) -> None:
     await until(lambda: all_warm(pool))
