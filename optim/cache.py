@@ -5,7 +5,9 @@ a worker serving many plant kinds, orders and limit combinations grows for ever.
 cache of built problems is a ``LruCache`` registered here, so one setting sizes them all
 (``VIBFREE_SOLVER_CACHE_SIZE``, applied in each new worker by ``optim.family.warm_up_all``).
 ``ArrayCache`` bounds numpy tables by their bytes instead (the pseudo-polynomial quadrature rules:
-one entry is up to 12.6 MB).
+one entry is up to 12.6 MB). A ``LruCache`` may also carry a budget in units of work (``weigh`` gives an
+entry's estimated MiB from its key): entries are evicted before a build so that the kept ones and the new one
+fit, since a count alone lets a worker keep 64 of the largest problems (the pseudo-polynomial's: ~90 MiB each).
 """
 
 from __future__ import annotations
@@ -27,9 +29,17 @@ _registry: list[LruCache[object, object]] = []
 class LruCache(Generic[K, V]):
     """A dict-like cache of at most ``size`` entries, evicting the least recently used."""
 
-    def __init__(self, name: str, size: int | None = None) -> None:
+    def __init__(
+        self,
+        name: str,
+        size: int | None = None,
+        weigh: Callable[[K], float] | None = None,
+        budget: float | None = None,
+    ) -> None:
         self.name = name
         self.size = size or DEFAULT_SIZE
+        self.weigh = weigh  # an entry's estimated cost from its key (MiB); with ``budget``, the sum is capped
+        self.budget = budget
         self._entries: OrderedDict[K, V] = OrderedDict()
         self._lock = threading.Lock()
         self.builds = 0
@@ -42,6 +52,8 @@ class LruCache(Generic[K, V]):
             if key in self._entries:
                 self._entries.move_to_end(key)
                 return self._entries[key]
+            if self.weigh is not None and self.budget is not None:  # make room before building, not after
+                self._fit(self.budget - self.weigh(key))
         value = build()  # outside the lock: a build may take seconds
         with self._lock:
             self._entries[key] = value
@@ -61,6 +73,20 @@ class LruCache(Generic[K, V]):
         while len(self._entries) > self.size:
             self._entries.popitem(last=False)
             self.evictions += 1
+        if self.weigh is not None and self.budget is not None:
+            self._fit(self.budget, keep=1)
+
+    def _fit(self, room: float, keep: int = 0) -> None:
+        """Evict the least recently used entries until their weights sum to at most ``room`` (or ``keep`` are left)."""
+        assert self.weigh is not None
+        while len(self._entries) > keep and sum(self.weigh(k) for k in self._entries) > room:
+            self._entries.popitem(last=False)
+            self.evictions += 1
+
+    @property
+    def weight(self) -> float:
+        """The estimated cost of the entries held (0 without ``weigh``)."""
+        return sum(self.weigh(k) for k in list(self._entries)) if self.weigh is not None else 0.0
 
     def __contains__(self, key: object) -> bool:
         return key in self._entries

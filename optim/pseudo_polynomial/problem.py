@@ -62,9 +62,11 @@ __all__ = [
     "MAX_PHASE_RAD",
     "MIN_SEPARATION",
     "PROBE_ITERATIONS",
+    "PROBLEM_CACHE_MIB",
     "QUICK_ITERATIONS",
     "SEARCH_ITERATIONS",
     "SYMBOLIC_KINDS",
+    "build_mib",
     "evaluate",
     "limit_grid_u",
     "lower_bound",
@@ -169,7 +171,42 @@ class _Compiled:
     parameter_count: int
 
 
-_CACHE: LruCache[tuple[object, ...], _Compiled] = LruCache("pseudo_polynomial")
+def build_mib(order: int, modes: int, active: tuple[bool, bool, bool, bool]) -> float:
+    """Estimated memory of one built problem (its four IPOPT solvers and two Functions), MiB:
+    12 + 0.003 (n + 1)^2 (rows + 66 modes), rows = 110 per kinematic limit (``limit_grid_u``), 200 for the torque.
+
+    Every limit row and every mode's product integration (96 nodes) is an expression of all n + 1 exponents
+    through C = Z^-1 e (eq. 22), and its Jacobian and Hessian rows are too, hence (n + 1)^2. Fitted to builds in
+    one process (bench-style, /proc/self/status): 20 consecutive builds of orders 4-6 with 3 modes and 1-3
+    limits grew the RSS by 10.6 + 0.0027 (n + 1)^2 (rows + 66 modes) MiB each (max error 1.6 MiB), the address
+    space by 0-4 MiB more; a fresh process's first build of each shape (orders 1-6, 1 or 3 modes, 0, 3 or 4
+    limits) fits within 6 MiB. The torque rows (a recurrence along the grid) cost more than a kinematic limit's:
+    +22 MiB for 101 rows at order 6. The largest problem a request can ask for (order 6 with all four limits,
+    or 3 modes and three limits) is estimated at 100 MiB: measured 93 MiB resident, 88 MiB of address space."""
+    rows = 110 * sum(active[:3]) + (200 if active[3] else 0)
+    return 12.0 + 0.003 * (order + 1) ** 2 * (rows + 66 * modes)
+
+
+# The built problems a worker keeps, in estimated MiB (``build_mib``). Counted alone (64 problems), a worker that
+# met many shapes kept them all: 21 distinct ones of orders 4-6 with 3 modes held 1149 MiB resident, 1599 MiB of
+# address space, past the 1024 MiB worker cap (VIBFREE_WORKER_MEMORY_MB), where CasADi throws std::bad_alloc
+# (the fuzz bench's 363-sensitivity-point request; sensitivity points never enter the NLP, and its own problem,
+# order 4 with limits, is at most 57 MiB). Within 192 MiB the warm-up's problems (orders 2-4 without limits for the
+# three second-order kinds: 138 MiB estimated) stay until a larger problem needs their room; the least recently
+# used go first, evicted before a build, so the problems a worker keeps never exceed the budget. Measured through
+# the app (one worker, multi-threaded BLAS: 894 MiB of address space warm): seven distinct order 4-6 requests
+# with 3-4 limits each, 2 of 7 answered before (then std::bad_alloc at 1023 MiB, and every new shape after it),
+# 6 of 7 with a 256 MiB budget (1011-1022 MiB), all within 969 MiB with 192 until a fuzz-settings timeout.
+PROBLEM_CACHE_MIB = 192.0
+
+
+def _weight(key: tuple[object, ...]) -> float:
+    order, modes, active = key[0], key[1], key[2]
+    assert isinstance(order, int) and isinstance(modes, int) and isinstance(active, tuple)
+    return build_mib(order, modes, active)
+
+
+_CACHE: LruCache[tuple[object, ...], _Compiled] = LruCache("pseudo_polynomial", weigh=_weight, budget=PROBLEM_CACHE_MIB)
 
 
 def _complex_mul(a: tuple[Any, Any], b: tuple[Any, Any]) -> tuple[Any, Any]:

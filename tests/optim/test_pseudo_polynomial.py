@@ -299,3 +299,59 @@ def test_a_duration_search_that_finds_nothing_falls_back_to_the_design_at_durati
     assert any(w.startswith("minimize_duration: the duration search found no") for w in design.warnings)
     fixed = family.design(problem, PseudoPolynomialOptions(duration_s=0.225))
     assert fixed.summary["selection"] == "closest_zero_energy"
+
+
+# --- issue 23: the built problems a worker keeps are bounded in estimated MiB, not only in count -------------
+
+
+def test_cache_budget_evicts_before_building_and_keeps_the_newest():
+    from optim.cache import LruCache
+
+    built: list[str] = []
+    cache: LruCache[str, str] = LruCache("test-budget", size=64, weigh=lambda key: float(len(key)), budget=10.0)
+    for key in ("aaaa", "bbbb", "cc"):  # 4 + 4 + 2 = 10: all fit
+        cache.get(key, lambda key=key: built.append(key) or key)
+    assert cache.keys() == ["aaaa", "bbbb", "cc"] and cache.weight == 10.0
+    cache.get("aaaa", lambda: "never")  # a hit refreshes, builds nothing
+    cache.get("ddddd", lambda: built.append("ddddd") or "ddddd")  # 5 more: least recently used first
+    assert cache.keys() == ["aaaa", "ddddd"] and cache.weight == 9.0  # bbbb, then cc, made room
+    cache.get("x" * 12, lambda: "big")  # heavier than the budget alone: built and kept, alone
+    assert cache.keys() == ["x" * 12]
+    assert built == ["aaaa", "bbbb", "cc", "ddddd"]
+
+
+def test_every_problem_a_request_can_ask_for_fits_the_worker_budget():
+    # The largest shapes the schema admits (order MAX_ORDER with all four limits on a two-inertia plant, or
+    # MAX_MODES modes with the three kinematic ones) are estimated at ~100 MiB (measured: 93 MiB resident),
+    # below the budget, so one request's problem is always built; the fuzz bench's (order 4, minimize_duration
+    # with all four limits) 57 MiB. The warm-up's problems fit the budget together.
+    from optim.pseudo_polynomial.problem import PROBLEM_CACHE_MIB, build_mib
+
+    largest = max(
+        build_mib(pp.MAX_ORDER, 1, (True,) * 4), build_mib(pp.MAX_ORDER, pp.MAX_MODES, (True,) * 3 + (False,))
+    )
+    assert 90.0 < largest < 110.0 < PROBLEM_CACHE_MIB
+    assert build_mib(4, 1, (True,) * 4) == pytest.approx(56.7, abs=0.1)
+    warm = sum(build_mib(order, 1, (False,) * 4) for order in (2, 3, 4)) * len(pp.SYMBOLIC_KINDS)
+    assert warm < PROBLEM_CACHE_MIB
+    assert pp._CACHE.budget == PROBLEM_CACHE_MIB and pp._CACHE.weight <= PROBLEM_CACHE_MIB
+
+
+def test_a_built_problem_costs_no_more_than_its_estimate():
+    # Order 3, one mode, velocity and jerk limits, in this (warm) process: the resident set grows by at most
+    # the estimate (the fit's largest error was 1.6 MiB on consecutive builds, 6 MiB on a fresh process's first).
+    import resource
+
+    from optim.pseudo_polynomial.problem import build_mib
+    from optim.solver import SolveCaps
+
+    active = (True, False, True, False)
+    pp._build(2, 1, active, SolveCaps(), None)  # the process's first build of this kind loads IPOPT's plug-ins
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    with open("/proc/self/status") as f:
+        rss_before = next(int(line.split()[1]) for line in f if line.startswith("VmRSS"))
+    kept = pp._build(3, 1, active, SolveCaps(), None)
+    with open("/proc/self/status") as f:
+        rss_after = next(int(line.split()[1]) for line in f if line.startswith("VmRSS"))
+    assert kept is not None and before > 0
+    assert (rss_after - rss_before) / 1024 <= build_mib(3, 1, active)
