@@ -7,6 +7,13 @@ For each operation: the cases run, the statuses answered, the server errors (a 5
 schema, schema-invalid input accepted), then the time taken. The settings are those of
 tests/app/test_fuzz.py (small solve caps). Exits non-zero on any server error or failed check.
 
+Memory of this process (the app's HTTP side, in-process over ASGI; the solver workers are its children): its RSS
+once the pool is ready (start), after one call of every operation's OpenAPI example (warmed: tests/app/test_fuzz.py's
+``warm_up``, the first-use cost of each family, stated separately), then per operation how much it grew during the
+calls and between them (case generation: schemathesis and jsonschema_rs run in this process too), and at the end
+the peak, its growth above the warmed figure against the test's bound, and the RSS left after ``malloc_trim``
+(what of it was free heap glibc kept).
+
 Then, per operation, the schema-valid cases (schemathesis' positive mode) answered 422, by problem type: an
 ``invalid-input`` there is a rule the OpenAPI does not express (a cross-field rule, a format inside a string),
 listed with its most frequent field and rule; ``infeasible``, ``not-applicable`` and ``solver-failed`` depend on
@@ -17,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import collections
+import ctypes
 import logging
 import sys
 import time
@@ -32,19 +40,57 @@ from schemathesis import GenerationMode  # noqa: E402
 from schemathesis.generation.meta import CaseMetadata  # noqa: E402
 from schemathesis.python import asgi  # noqa: E402
 
-from app.main import create_app  # noqa: E402
 from app.observability import APP_LOGGERS  # noqa: E402
 from tests.app.test_fuzz import (  # noqa: E402
+    APP,
     CALL_TIMEOUT_S,
     CHECKS,
     COMPARE_BUDGET_S,
-    FUZZ_SETTINGS,
+    HTTP_PROCESS_GROWTH_BOUND,
     MIB,
     RESPONSE_BUDGET_S,
+    WORKER_RSS_BOUND,
     RssSampler,
-    fuzz_schema,
+    schema,
     start_and_wait_ready,
+    warm_up,
 )
+
+# Issue 23's target for the HTTP process's peak RSS over the whole run (a fresh process, first use included).
+HTTP_PEAK_TARGET = 600 * MIB
+
+
+class RssSteps:
+    """Where this process's RSS grew: during the calls (the app: routing, validation, designs in its threads,
+    the client) or between them (hypothesis and schemathesis generating the next case). Sums of the rises of
+    RSS between two readings taken around every call; a fall is not subtracted (glibc keeps freed heap)."""
+
+    def __init__(self, me: Any) -> None:
+        self.me = me
+        self.in_calls = 0
+        self.between = 0
+        self._last: int | None = None
+
+    def before_call(self) -> None:
+        rss = self.me.memory_info().rss
+        if self._last is not None:
+            self.between += max(0, rss - self._last)
+        self._last = rss
+
+    def after_call(self) -> None:
+        rss = self.me.memory_info().rss
+        assert self._last is not None
+        self.in_calls += max(0, rss - self._last)
+        self._last = rss
+
+
+def trimmed_rss(me: Any) -> int | None:
+    """This process's RSS after glibc's ``malloc_trim(0)`` has returned its free heap pages (None off glibc)."""
+    try:
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):
+        return None
+    return int(me.memory_info().rss)
 
 
 class ValidRefused:
@@ -89,7 +135,7 @@ class Slowest:
 
 
 def fuzz_operation(
-    operation: Any, cases: int, seed: int
+    operation: Any, cases: int, seed: int, steps: RssSteps
 ) -> tuple[collections.Counter[int], list[str], float, ValidRefused, Slowest]:
     statuses: collections.Counter[int] = collections.Counter()
     slowest = Slowest(operation.path)
@@ -109,9 +155,11 @@ def fuzz_operation(
     )
     @given(case=strategy)
     def run(case: Any) -> None:
+        steps.before_call()
         started = time.perf_counter()
         response = case.call(timeout=CALL_TIMEOUT_S)
         slowest.add(time.perf_counter() - started)
+        steps.after_call()
         statuses[response.status_code] += 1
         refused.add(case.meta, response)
         if response.status_code >= 500 and not (
@@ -137,14 +185,21 @@ def main() -> int:
     parser.add_argument("--only", default=None, help="only operations whose path contains this")
     parser.add_argument("--rules", type=int, default=5, help="most frequent invalid-input rules shown (default 5)")
     args = parser.parse_args()
-    app = create_app(FUZZ_SETTINGS)
+    app = APP  # the test module's app and schema (importing it builds them): a second pair would be in the RSS
     # one access line per case would bury the figures: warnings and errors only (a 500 logs its traceback)
     for name in APP_LOGGERS:
         logging.getLogger(name).setLevel(logging.WARNING)
-    schema = fuzz_schema(app)
     start_and_wait_ready(app)
     sampler = RssSampler()
+    start_rss = sampler.me.memory_info().rss
+    warm_up(app)
+    warmed_rss = sampler.me.memory_info().rss
+    print(
+        f"HTTP process: {start_rss / MIB:.0f} MiB at start (pool ready), {warmed_rss / MIB:.0f} MiB after every "
+        f"operation's OpenAPI example once (first use {(warmed_rss - start_rss) / MIB:+.0f} MiB)"
+    )
     sampler.start()
+    steps = RssSteps(sampler.me)
     total_start = time.perf_counter()
     total_cases, total_failures, total_valid, total_refused = 0, 0, 0, 0
     print(f"{'operation':<40} {'cases':>6} {'time s':>8}  statuses; server errors and failed checks")
@@ -152,7 +207,8 @@ def main() -> int:
         operation = result.ok()
         if args.only and args.only not in operation.path:
             continue
-        statuses, failures, elapsed, refused, slowest = fuzz_operation(operation, args.cases, args.seed)
+        in_calls, between = steps.in_calls, steps.between
+        statuses, failures, elapsed, refused, slowest = fuzz_operation(operation, args.cases, args.seed, steps)
         if slowest.over:
             failures.append(f"{slowest.over} answers slower than the budget of {slowest.budget_s:g} s")
         n = sum(statuses.values())
@@ -166,7 +222,9 @@ def main() -> int:
         total_refused += refused.types["invalid-input"]
         print(
             f"    slowest answer {slowest.worst_s:.2f} s (budget {slowest.budget_s:g} s); HTTP process "
-            f"{sampler.me.memory_info().rss / MIB:.0f} MiB (peak {sampler.peak_rss / MIB:.0f}); {refused.line()}"
+            f"{sampler.me.memory_info().rss / MIB:.0f} MiB (peak {sampler.peak_rss / MIB:.0f}; rose "
+            f"{(steps.in_calls - in_calls) / MIB:.0f} MiB in calls, {(steps.between - between) / MIB:.0f} between); "
+            f"{refused.line()}"
         )
         for rule, count in refused.rules.most_common(args.rules):
             print(f"      {count:>4} {rule}")
@@ -179,15 +237,34 @@ def main() -> int:
     sampler.stopped.set()
     sampler.join(1.0)
     workers = app.state.pool.stats()
+    end_rss = sampler.me.memory_info().rss
+    trimmed = trimmed_rss(sampler.me)
+    growth = sampler.peak_rss - warmed_rss
+    growth_ok, peak_ok = growth <= HTTP_PROCESS_GROWTH_BOUND, sampler.peak_rss <= HTTP_PEAK_TARGET
+    worst_worker = max(sampler.peak_children.values(), default=0)
     print(
-        f"peak RSS: HTTP process {sampler.peak_rss / MIB:.0f} MiB; solver workers "
+        f"HTTP process: start {start_rss / MIB:.0f} MiB, first use {(warmed_rss - start_rss) / MIB:+.0f} MiB, "
+        f"warmed {warmed_rss / MIB:.0f} MiB; peak {sampler.peak_rss / MIB:.0f} MiB = warmed + growth "
+        f"{growth / MIB:.0f} MiB (bound {HTTP_PROCESS_GROWTH_BOUND / MIB:.0f}: {_met(growth_ok)}; "
+        f"peak target {HTTP_PEAK_TARGET / MIB:.0f}: {_met(peak_ok)}); rose "
+        f"{steps.in_calls / MIB:.0f} MiB in calls, {steps.between / MIB:.0f} MiB between them; held (read after "
+        f"malloc_trim every 0.2 s, the fuzz test's bound) {sampler.peak_growth / MIB:.0f} MiB more; at the end "
+        f"{end_rss / MIB:.0f} MiB" + (f", {trimmed / MIB:.0f} MiB after malloc_trim" if trimmed is not None else "")
+    )
+    print(
+        "peak RSS of the solver workers "
         + ", ".join(f"{rss / MIB:.0f}" for rss in sampler.peak_children.values())
-        + f" MiB ({len(sampler.peak_children)} processes seen); worker restarts {workers['restarts']}, of them "
+        + f" MiB ({len(sampler.peak_children)} processes seen; bound {WORKER_RSS_BOUND / MIB:.0f}: "
+        f"{_met(worst_worker <= WORKER_RSS_BOUND)}); worker restarts {workers['restarts']}, of them "
         f"{workers['timeouts']} killed at a solve's deadline (a 504) and {workers['restarts'] - workers['timeouts']} "
         "died otherwise"
     )
     asgi.shutdown_lifespans()
     return 1 if total_failures else 0
+
+
+def _met(ok: bool) -> str:
+    return "met" if ok else "NOT met"
 
 
 if __name__ == "__main__":
