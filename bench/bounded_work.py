@@ -9,7 +9,9 @@ in the system's temporary directory) gets, one after the other on fresh connecti
   points per period of an 11 s ramp);
 - ``stiff x1000``: the same with k x 1000 (10.4 kHz), which needed tens of GB before;
 - ``compare, large torque``: ``POST /v1/compare`` on the 1000 times stiffer shaft within 1000 N m (every family;
-  time-optimal's linear programmes run in a solver worker).
+  time-optimal's linear programmes run in a solver worker);
+- ``identify, 40k columns`` / ``1M columns`` / ``50 MB record``: ``POST /v1/identify`` text/csv records whose header
+  check took 36 s (349 kB) and hours (4 MB) before, and a record above the 32 MiB body cap (a 413).
 
 A thread samples psutil's RSS of the server's whole process tree (uvicorn's supervisor, its HTTP processes,
 their solver workers, multiprocessing's resource tracker) every 50 ms from before the first request to after
@@ -62,6 +64,27 @@ REQUESTS: list[tuple[str, str, dict[str, Any]]] = [
         "/v1/compare",
         {"plant": STIFF, "target_velocity": 100, "limits": {"max_torque_nm": 1000.0}},
     ),
+]
+
+
+def csv_record(columns: int, rows: int = 2, pad_to_bytes: int = 0) -> bytes:
+    """A text/csv record for ``POST /v1/identify``: a time column and ``columns`` signals (``rows`` rows of zeros),
+    padded with comment-free rows to at least ``pad_to_bytes``."""
+    header = "time_s," + ",".join(f"s{i}" for i in range(columns))
+    row = ",".join(["0"] * (columns + 1))
+    body = "\n".join([header, *[row] * rows]) + "\n"
+    if pad_to_bytes > len(body):
+        line = "0," + "0\n"
+        body += line * ((pad_to_bytes - len(body)) // len(line) + 1)
+    return body.encode()
+
+
+# Issue 23's CSV reproducers: the header check counted each name against all others (40k columns, 349 kB: 36 s;
+# 1M columns, 4 MB: hours), and the 50 MB record of its acceptance (above the 32 MiB body cap: a 413).
+CSV_REQUESTS: list[tuple[str, bytes]] = [
+    ("identify, 40k columns", csv_record(40_000)),
+    ("identify, 1M columns", csv_record(1_000_000, rows=0)),
+    ("identify, 50 MB record", csv_record(1, pad_to_bytes=50 * 10**6)),
 ]
 
 
@@ -137,14 +160,15 @@ class Sampler(threading.Thread):
         return window
 
 
-def post(port: int, path: str, body: dict[str, Any], timeout_s: float = 300.0) -> tuple[int, float, str, bool]:
-    """One POST on a fresh connection: status, seconds, a note (the field a problem names, or its type; the
-    answer's gist) and whether a problem names a field."""
-    payload = json.dumps(body).encode()
+def post(port: int, path: str, body: dict[str, Any] | bytes, timeout_s: float = 300.0) -> tuple[int, float, str, bool]:
+    """One POST on a fresh connection (JSON, or ``bytes`` as text/csv): status, seconds, a note (the field a problem
+    names, or its type; the answer's gist) and whether a problem names a field."""
+    csv = isinstance(body, bytes)
+    payload = body if isinstance(body, bytes) else json.dumps(body).encode()
     connection = http.client.HTTPConnection("127.0.0.1", port, timeout=timeout_s)
     started = time.perf_counter()
     try:
-        connection.request("POST", path, payload, {"content-type": "application/json"})
+        connection.request("POST", path, payload, {"content-type": "text/csv" if csv else "application/json"})
         response = connection.getresponse()
         data = response.read()
         elapsed = time.perf_counter() - started
@@ -154,8 +178,9 @@ def post(port: int, path: str, body: dict[str, Any], timeout_s: float = 300.0) -
     if response.status >= 400:
         with contextlib.suppress(ValueError):
             problem = json.loads(data)
-            named = bool(problem.get("field"))
+            named = bool(problem.get("field")) or response.status == 413  # a 413 names the body, by its status
             note = problem.get("field") or problem.get("type", "")
+            note = f"{note}: {problem.get('detail', '')}"[:60]
     elif path == "/v1/compare":
         answer = json.loads(data)
         note = f"{len(answer['rows'])} rows, {len(answer['unavailable'])} unavailable"
@@ -178,7 +203,11 @@ def main() -> None:
         time.sleep(0.5)
         idle = sampler.take_window()
         results = []
-        for name, path, body in REQUESTS:
+        requests: list[tuple[str, str, dict[str, Any] | bytes]] = [
+            *REQUESTS,
+            *[(name, "/v1/identify", record) for name, record in CSV_REQUESTS],
+        ]
+        for name, path, body in requests:
             status, elapsed, note, named = post(port, path, body)
             time.sleep(0.2)  # a few samples after the answer
             results.append((name, status, elapsed, note, named, sampler.take_window()))
@@ -188,10 +217,10 @@ def main() -> None:
     print(f"server: {args.processes} HTTP processes x {args.workers} solver workers; {every}")
     print(f"{sampler.samples} samples; idle before the requests: " + ", ".join(f"{v:.0f}" for v in idle.values()))
     pids = sorted(sampler.peak, key=lambda p: (sampler.roles[p], p))
-    print(f"\n{'request':<24} {'status':>6} {'time s':>8}  {'answer':<36} peak RSS per process (MiB)")
+    print(f"\n{'request':<24} {'status':>6} {'time s':>8}  {'answer':<60} peak RSS per process (MiB)")
     for name, status, elapsed, note, _, window in results:
         peaks = ", ".join(f"{sampler.roles[p]} {window[p]:.0f}" for p in pids if p in window)
-        print(f"{name:<24} {status:>6} {elapsed:>8.3f}  {note:<36} {peaks}")
+        print(f"{name:<24} {status:>6} {elapsed:>8.3f}  {note:<60} {peaks}")
     print("\npeak RSS over the run:")
     for pid in pids:
         print(f"  {sampler.roles[pid]:<18} pid {pid:<8} {sampler.peak[pid]:7.1f} MiB")
