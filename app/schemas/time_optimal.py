@@ -12,7 +12,7 @@ from models.plants import FREQUENCY_MAX_HZ, FREQUENCY_MIN_HZ
 from optim.families.time_optimal import MAX_TRADEOFF, Robustness, TimeOptimalOptions
 from optim.family import FAMILIES
 from optim.problem import Problem
-from optim.time_optimal.types import DEFAULT_MAX_PERCENTAGE_VIBRATION, MAX_MODES
+from optim.time_optimal.types import DEFAULT_MAX_PERCENTAGE_VIBRATION, MAX_MODES, MIN_PERCENTAGE_VIBRATION
 
 FAMILY = FAMILIES["time_optimal"]
 MIN_RATIO, MAX_RATIO = 0.05, 20.0
@@ -46,10 +46,11 @@ class RobustnessIn(StrictModel):
     )
     max_percentage_vibration: float = Field(
         DEFAULT_MAX_PERCENTAGE_VIBRATION,
-        gt=0,
+        ge=MIN_PERCENTAGE_VIBRATION,
         le=100,
         description="V_max, %: residual amplitude over the unshaped rigid command's residual envelope (see "
-        "SensitivityOut), bounded over the whole band.",
+        f"SensitivityOut), bounded over the whole band; at least {MIN_PERCENTAGE_VIBRATION:g} % (below it the bound "
+        "is under the residual's rounding error).",
     )
     damping_ratio_range: list[DampingRatio] | None = Field(
         None,

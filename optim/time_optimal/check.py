@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from models.errors import InvalidParameter
 from models.sensitivity import residual_envelope
 from optim.time_optimal.lp import Cut, acceleration_moment
 from optim.time_optimal.types import Band, Spec
@@ -55,6 +56,13 @@ def band_grid(spec: Spec, band: Band, points: int) -> BandGrid:
     envelope = residual_envelope(spec.reference, omega, zeta, derivative)
     gain = amplitude_gain(poles, omega, zeta, derivative)
     bound = band.max_percentage_vibration / 100.0 * envelope / gain
+    if not np.all(np.isfinite(bound) & (bound > 0.0)):  # the LP's band rows are divided by it
+        raise InvalidParameter(
+            "robustness.max_percentage_vibration",
+            band.max_percentage_vibration,
+            "the band's bound is not a positive finite amplitude in double precision at every frequency of the band "
+            "(a bound or a band too far from the move's scale)",
+        )
     return BandGrid(band, omega, zeta, poles, bound)
 
 

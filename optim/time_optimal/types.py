@@ -11,6 +11,10 @@ from models.commands import PiecewiseCommand
 
 MAX_MODES = 6  # modes cancelled at most: each adds 2 (x derivative order + 1) equalities
 DEFAULT_MAX_PERCENTAGE_VIBRATION = 5.0
+# The smallest band bound, %: zero-vibration designs leave 1e-13 to 5e-9 % by rounding alone (the README's
+# examples), so a bound below 1e-6 % could not be told from their noise; and 5e-324 % underflowed the LP's
+# band rows to 0 (a division by zero, NaN in HiGHS's input: a 500 found by the fuzz bench).
+MIN_PERCENTAGE_VIBRATION = 1e-6
 
 
 @dataclass(frozen=True)

@@ -97,3 +97,16 @@ def test_compare_puts_it_first(client) -> None:
     assert first["endpoint"] == PATH
     again = client.post(PATH, json=first["request"]).json()  # the row's request reproduces it
     assert again["metrics"]["settling_time_s"] == pytest.approx(first["settling_time_s"], rel=1e-9)
+
+
+def test_a_band_bound_below_the_rounding_floor_is_a_422_naming_it(client):
+    # The fuzz bench's 500 (V_max 5e-324 %: NaN in the LP's band rows); the floor is MIN_PERCENTAGE_VIBRATION.
+    body = {
+        "plant": {"kind": "mode", "natural_frequency_hz": 1.41498, "damping_ratio": 1e-288},
+        "displacement": -0.28231,
+        "limits": {"max_acceleration": 13923919666.894773},
+        "robustness": {"frequency_range_hz": [11069.56, 15438.92], "max_percentage_vibration": 5e-324},
+    }
+    response = client.post("/v1/profiles/time-optimal", json=body)
+    assert response.status_code == 422, response.text
+    assert response.json()["field"] == "robustness.max_percentage_vibration"

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from models.errors import Infeasible, SolverTimedOut
+from models.errors import Infeasible, InvalidParameter, SolverTimedOut
 from models.plants import ModePlant, TransferFunctionPlant, TwoInertiaPlant
 from models.sensitivity import residual_envelope, sensitivity
 from models.simulation import simulate
@@ -195,6 +195,16 @@ def test_a_band_no_command_can_meet_within_the_cap_is_proven_infeasible() -> Non
     )
     with pytest.raises(Infeasible, match="relaxation"):
         _design(problem, options)
+
+
+def test_a_band_bound_that_underflows_is_refused_naming_the_field_not_fed_to_the_lp() -> None:
+    # The fuzz bench's 500: V_max = 5e-324 % (the schema now asks >= 1e-6 %; the Python API has no schema) made
+    # the band's bound 0.0 in double precision, the LP's band rows inf / 0 = NaN, and scipy's linprog refused them.
+    problem = Problem(ModePlant(5.0, 0.0), displacement=0.3, limits=Limits(max_velocity=1.0, max_acceleration=10.0))
+    options = TimeOptimalOptions(Robustness(frequency_ratio_range=(0.9, 1.1), max_percentage_vibration=5e-324))
+    with pytest.raises(InvalidParameter, match="positive finite") as refused:
+        _design(problem, options)
+    assert refused.value.field == "robustness.max_percentage_vibration"
 
 
 def test_a_solve_over_its_time_limit_is_a_time_out() -> None:
