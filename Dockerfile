@@ -23,7 +23,7 @@ USER 10001:10001
 EXPOSE 8000
 HEALTHCHECK --interval=30s --timeout=5s --start-period=30s --retries=3 \
     CMD ["python", "-c", "import sys, urllib.request; sys.exit(urllib.request.urlopen('http://127.0.0.1:8000/healthz', timeout=4).status != 200)"]
-# README "Deployment": `vibfree serve` runs uvicorn with the Makefile's flags, VIBFREE_PROCESSES HTTP processes
+# docs/deployment.md: `vibfree serve` runs uvicorn with the Makefile's flags, VIBFREE_PROCESSES HTTP processes
 # (set it to the container's CPU limit: the container sees the node's cores) and a fresh metrics directory in /tmp
 # (writable: an emptyDir under a read-only root). Behind a reverse proxy, pass FORWARDED_ALLOW_IPS (uvicorn reads
 # it) with the proxy's address so --proxy-headers trusts it.

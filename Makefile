@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 HOST   ?= 127.0.0.1
 PORT   ?= 8000
-# README "Deployment": JSON logs are the app's (its own access line), limits on idle and slow clients.
+# docs/deployment.md: JSON logs are the app's (its own access line), limits on idle and slow clients.
 SERVE_FLAGS ?= --no-access-log --no-server-header --http h11 --timeout-keep-alive 5 \
 	--h11-max-incomplete-event-size 16384 --timeout-graceful-shutdown 30
 
@@ -22,7 +22,7 @@ $(VENV)/.installed-test: pyproject.toml | $(BIN)/python
 	touch $@ $(VENV)/.installed-serve
 
 # VIBFREE_PROCESSES HTTP processes (default one per core) under uvicorn's supervisor, each with its solver pool;
-# their metrics in a fresh directory per start (prometheus_client multiprocess mode, README "Deployment").
+# their metrics in a fresh directory per start (prometheus_client multiprocess mode, docs/deployment.md).
 PROCESSES = $$($(BIN)/python -c 'from app.settings import Settings; print(Settings().processes)')
 
 serve: $(VENV)/.installed-serve  ## run the service on http://$(HOST):$(PORT) (docs at /docs)
@@ -31,15 +31,16 @@ serve: $(VENV)/.installed-serve  ## run the service on http://$(HOST):$(PORT) (d
 	MKL_NUM_THREADS=$${MKL_NUM_THREADS:-1} && \
 	$(BIN)/uvicorn app.main:app --workers $$VIBFREE_PROCESSES --host $(HOST) --port $(PORT) $(SERVE_FLAGS)
 
-test: $(VENV)/.installed-test  ## lint, format and type gates, then the whole test suite (installs Debian's chromium)
+test: $(VENV)/.installed-test  ## lint, format and type gates, the docs site, then the whole test suite (installs Debian's chromium)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 	$(BIN)/mypy --strict models optim
 	$(BIN)/mypy app vibfree
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --site-dir site  # docs/: a broken link or anchor fails (not --quiet: it hides them)
 	bash scripts/ensure-chromium.sh
 	$(BIN)/python -m pytest
 
-bench: $(VENV)/.installed-test  ## run the benchmarks whose figures are in README.md
+bench: $(VENV)/.installed-test  ## run the benchmarks whose figures are in docs/benchmarks.md
 	$(BIN)/python bench/simulation.py
 	$(BIN)/python bench/pipeline_stap.py  # one STAP closed form in-process, stage by stage
 	$(BIN)/python bench/http_io.py  # the HTTP path: 100k /v1/simulate (JSON, npz, fields=), 1k STAP
@@ -55,4 +56,4 @@ bench: $(VENV)/.installed-test  ## run the benchmarks whose figures are in READM
 	$(BIN)/python bench/fuzz.py  # 2000 schemathesis cases per operation (--cases N)
 
 clean:
-	rm -rf $(VENV) .pytest_cache
+	rm -rf $(VENV) .pytest_cache site

@@ -48,7 +48,7 @@ class Settings(BaseSettings):
     )
     solve_max_iterations: int = Field(3000, ge=1, description="Iteration cap of one solve (IPOPT max_iter).")
     solve_grace_s: float = Field(5.0, ge=0, description="Extra time before a stuck worker is killed.")
-    # --- processes, solver workers and their caches (README "Deployment") ---
+    # --- processes, solver workers and their caches (docs/deployment.md) ---
     processes: int = Field(
         default_factory=_default_processes,
         ge=1,

@@ -1,6 +1,6 @@
 """Benchmark: /v1/compare on its OpenAPI examples, and the pseudo-polynomial duration search it runs.
 
-Figures for README.md (issue 11's target: compare answers its examples in at most 1 s p50 on the
+Figures for docs/benchmarks.md (issue 11's target: compare answers its examples in at most 1 s p50 on the
 2-core development machine). Compare is timed through the app with its solver pool (in-process
 client, so the figure is the service's work, not the loopback's); the duration search it runs for the
 pseudo-polynomial row by bench/pseudo_polynomial_duration.py, as a ratio to one fixed-duration design.

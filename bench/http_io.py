@@ -317,7 +317,7 @@ def main(repeats: int = 15) -> int:
         servers = [
             Server("main", old_checkout, ["--loop", "asyncio"]),
             Server("new", ROOT, []),
-            Server("httptools", ROOT, [], http="httptools"),  # what the h11 pin costs (README: why it stays)
+            Server("httptools", ROOT, [], http="httptools"),  # what the h11 pin costs (docs/deployment.md)
         ]
         for server in servers:
             server.wait_ready()

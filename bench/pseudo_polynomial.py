@@ -1,6 +1,6 @@
 """Benchmark: pseudo-polynomial design on Incerti's Table III case.
 
-Figures for README.md: the one-off build of the CasADi problem, the median design time once it is
+Figures for docs/benchmarks.md: the one-off build of the CasADi problem, the median design time once it is
 built (target: under 20 ms), and designs per second through the HTTP endpoint (uvicorn started
 here with the default worker pool, requests from 4 client threads).
 """

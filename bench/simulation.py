@@ -1,6 +1,6 @@
 """Benchmark: 100k samples through one mode, ours against one exact recurrence and scipy.signal.lsim.
 
-Run with `make bench`; the figures go in README.md. Every figure is a median of several repeats taken
+Run with `make bench`; the figures go in docs/benchmarks.md. Every figure is a median of several repeats taken
 in the same run, interleaved (ours, the recurrence, ours, ...), and reported as ratios, so that the
 load of a shared machine cancels.
 

@@ -1,6 +1,6 @@
 """Benchmark: the time-optimal family against the exact minimum, the rigid move and the shaped commands.
 
-Figures for README.md. Everything goes through the app (``TestClient(app)``, its solver pool), side by side
+Figures for docs/benchmarks.md. Everything goes through the app (``TestClient(app)``, its solver pool), side by side
 on rest-to-rest moves spanning about 0.8 to 10 periods of the mode, under acceleration and velocity limits:
 
 a. nominal: time-optimal duration vs the exact minimum time (tests/time_optimal_oracle.py, undamped and
@@ -224,7 +224,7 @@ def residual_at(pieces: list[tuple[float, float, float, float]], omega: float, z
 
 def independent_v(move: Move, pieces: list[tuple[float, float, float, float]], ratios: np.ndarray) -> np.ndarray:
     """V (%) at each true/nominal frequency ratio, from the arcs alone, against the rigid reference's envelope
-    sum |delta a_k| exp(-sigma (T - t_k)) / (omega omega_d) (README, Percentage vibration)."""
+    sum |delta a_k| exp(-sigma (T - t_k)) / (omega omega_d) (docs/api.md, Percentage vibration)."""
     ramp = math.sqrt(move.d / move.a)
     if move.a * ramp > move.v:
         ramp = move.v / move.a

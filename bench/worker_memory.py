@@ -3,7 +3,7 @@
 For each family (pseudo-polynomial, time-optimal, robust time-optimal) a fresh worker-like process (spawned, warmed
 up like a pool worker) designs ``--plants`` distinct plants (one mode, natural frequency spread over
 ``--low-hz``..``--high-hz``), and its resident set size is read from /proc after the warm-up and every 50 designs.
-The documented bound is 400 MiB (README "Deployment"). ``--root`` runs the same designs on another checkout (e.g.
+The documented bound is 400 MiB (docs/deployment.md). ``--root`` runs the same designs on another checkout (e.g.
 the old main, for a side-by-side run):
 
     python bench/worker_memory.py                       # this checkout

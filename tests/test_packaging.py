@@ -1,7 +1,8 @@
-"""The set-up a new user and CI rely on: Dockerfile lint, README commands, CI script."""
+"""The set-up a new user and CI rely on: Dockerfile lint, README commands and links, the docs build, CI script."""
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
 import subprocess
@@ -46,6 +47,53 @@ def test_ci_runs_the_readme_test_command():
     ci = (ROOT / ".ci" / "run").read_text()
     assert "make test" in readme and "make serve" in readme
     assert re.search(r"^make test$", ci, re.M)
+
+
+def _blocks(text: str, language: str) -> list[str]:
+    return re.findall(rf"^```{language}\n(.*?)^```$", text, re.M | re.S)
+
+
+def test_readme_is_short_and_its_links_resolve():
+    # Issue 24: a README of at most 250 lines, the manual in docs/ (mkdocs build --strict checks the links between
+    # the documents; GitHub renders the README's relative links, which nothing else checks).
+    readme = (ROOT / "README.md").read_text()
+    assert len(readme.splitlines()) <= 250
+    links = re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", readme)
+    local = [link for link in links if "://" not in link]
+    assert local and all((ROOT / link).is_file() for link in local), local
+    documents = {path.name for path in (ROOT / "docs").glob("*.md")}
+    assert documents == {Path(link).name for link in local if link.startswith("docs/")}  # every document linked
+
+
+def test_readme_first_design_by_curl_is_the_documented_one():
+    # The README's curl examples are those of docs/try-it.md, word for word.
+    (readme,) = _blocks((ROOT / "README.md").read_text(), "sh")[1:2]
+    assert readme.startswith("until curl -sf localhost:8000/readyz")
+    assert readme in _blocks((ROOT / "docs" / "try-it.md").read_text(), "sh")
+
+
+def test_make_test_builds_the_docs_strictly():
+    # --quiet would hide the warnings that --strict turns into a failure (mkdocs 1.6), so it must not be there.
+    makefile = (ROOT / "Makefile").read_text()
+    target = makefile.split("\ntest:", 1)[1].split("\n\n", 1)[0]
+    (line,) = [line.split("#")[0] for line in target.splitlines() if "mkdocs build" in line]
+    assert "--strict" in line and "--quiet" not in line and " -q " not in line
+    assert target.index("mypy app vibfree") < target.index("mkdocs build") < target.index("pytest")
+    extra = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"]["test"]
+    assert {re.split(r"[<>=\[ ]", dep)[0] for dep in extra} >= {"mkdocs", "mkdocs-material"}
+    assert re.search(r"^site/$", (ROOT / ".gitignore").read_text(), re.M)
+
+
+def test_readme_python_snippet_runs():
+    # What a newcomer pastes after pip install .: the service's own dependencies only (no pandas), no server.
+    (snippet,) = _blocks((ROOT / "README.md").read_text(), "python")
+    assert "pandas" not in snippet
+    check = 'assert design.answer["metrics"]["settling_time_s"] > 0 and table.startswith("time_s,") and ranking\n'
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "OMP_NUM_THREADS": "1"}
+    result = subprocess.run(
+        [sys.executable, "-c", snippet + check], cwd=ROOT, env=env, capture_output=True, text=True, timeout=300
+    )
+    assert result.returncode == 0, result.stderr[-2000:]
 
 
 def test_declared_dependencies():

@@ -21,7 +21,7 @@ from typing import Any, TextIO
 
 import orjson
 
-# The flags of ``make serve`` (README "Deployment" says why each); tests check they match the Makefile's.
+# The flags of ``make serve`` (docs/deployment.md says why each); tests check they match the Makefile's.
 SERVE_FLAGS = (
     "--no-access-log",
     "--no-server-header",
@@ -130,7 +130,7 @@ def _parser() -> argparse.ArgumentParser:
     serve.add_argument(
         "--proxy-headers",
         action="store_true",
-        help="trust X-Forwarded-* from FORWARDED_ALLOW_IPS (uvicorn's flag; README 'Behind a reverse proxy')",
+        help="trust X-Forwarded-* from FORWARDED_ALLOW_IPS (uvicorn's flag; docs/deployment.md, reverse proxy)",
     )
     serve.add_argument(
         "--processes",

@@ -5,7 +5,7 @@ fuzzing phases) and checks each answer: no 5xx, only the statuses and content ty
 declares, a body that matches the declared schema (a problem for every error), and schema-invalid
 input refused. The app runs its own lifespan (a one-worker solver pool) with small solve caps so that
 random valid designs stay fast; the run is derandomised, so CI sees the same cases every time.
-``bench/fuzz.py`` is the longer run whose figures are in the README.
+``bench/fuzz.py`` is the longer run whose figures are in docs/benchmarks.md.
 
 Issue 23's budget: beside status and schema, no answer may take longer than the settings' deadline (the pool
 answers 504 at ``solve_deadline_s``; everything else is capped in samples) plus a margin for the request's own
@@ -62,7 +62,7 @@ CALL_TIMEOUT_S = COMPARE_BUDGET_S + 30.0
 MIB = 1024 * 1024
 # This process holds the whole test session: its growth from the first fuzz case on is bounded (what earlier
 # tests left is its baseline; CI's full suite reached 521 MiB of growth when it was taken at collection).
-# A worker's RSS is bounded outright: warm 250-260 MiB (README, Deployment), at most 400 MiB after 200 plants.
+# A worker's RSS is bounded outright: warm 250-260 MiB (docs/deployment.md), at most 400 MiB after 200 plants.
 HTTP_PROCESS_GROWTH_BOUND = 300 * MIB
 WORKER_RSS_BOUND = 600 * MIB
 # not_a_server_error is replaced by the assertion in the test: a 504 solve-timeout (declared) is allowed.

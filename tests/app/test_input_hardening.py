@@ -64,7 +64,7 @@ def post_operations(client: TestClient) -> list[str]:
 
 def test_every_post_refuses_a_body_that_is_not_json(client):
     paths = post_operations(client)
-    assert len(paths) >= 9  # the nine POST endpoints of the README's table
+    assert len(paths) >= 9  # the nine POST endpoints of docs/api.md's table
     for path in paths:
         for content_type in ("text/plain", "application/x-www-form-urlencoded", "application/xml"):
             response = client.post(path, content=b'{"plant": {}}', headers={"content-type": content_type})

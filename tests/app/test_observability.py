@@ -28,7 +28,7 @@ from app.settings import Settings
 ROOT = Path(__file__).resolve().parents[2]
 GENERATED_ID = re.compile(r"[0-9a-f]{32}")  # uuid.uuid4().hex, what the middleware generates
 
-# Incerti's Table III move (README "Try it"): a pseudo-polynomial design, solved by IPOPT in a worker.
+# Incerti's Table III move (the README's first curl example): a pseudo-polynomial design, solved by IPOPT in a worker.
 INCERTI_MOVE = {"plant": INCERTI_TABLE_III, "displacement": 94.24777960769379, "duration_s": 1.0}
 # Chatlatanagulchai Sec. 4 at a = 0.05: the no-overlap condition fails, a 422 /problems/infeasible
 # (the same request as tests/app/test_vocabulary.py::test_a_core_error_is_named_in_the_callers_words).

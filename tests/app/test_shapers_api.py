@@ -361,7 +361,7 @@ def test_firmware_export_of_a_40_hz_zvd_design(client):
     assert firmware["reprapfirmware"]["command"] == 'M593 P"zvd" F40 S0'
     assert firmware["marlin"]["command"] == "M493 S1 X C2 A40 I0.01"
     # Without an acceleration limit the baseline is the step, where the design's percentage vibration and
-    # 100 V of the impulses are one number (README, Percentage vibration): the Klipper type is the design's,
+    # 100 V of the impulses are one number (docs/api.md, Percentage vibration): the Klipper type is the design's,
     # so it leaves what the design leaves (~0), and Marlin's (1 ms delay grid, zeta 0.01) leaves V of its
     # impulses, measured here by exact simulation: A of ZVD at zeta 0.01 at 0, 13, 26 ms on the undamped mode.
     assert klipper["residual_percent"] == pytest.approx(body["metrics"]["percentage_vibration"], abs=1e-9)

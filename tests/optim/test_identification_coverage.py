@@ -4,7 +4,7 @@ has the record: two modes, three axes, 2 kHz, noise std 0.02).
 An interval at 95 % covers the truth in about 95 % of records: of 50, the count is binomial(50, 0.95), mean 47.5
 and standard deviation 1.5, so 44 or more (the mean minus 2.3 standard deviations) is asked of each of the four
 quantities (the seeds are fixed: the test is deterministic). ``python -m tests.optim.test_identification_coverage
-N`` prints the coverage over N seeds (README figures: 200 seeds).
+N`` prints the coverage over N seeds (docs/identification.md's figures: 200 seeds).
 """
 
 from __future__ import annotations
