@@ -207,6 +207,16 @@ def test_a_band_bound_that_underflows_is_refused_naming_the_field_not_fed_to_the
     assert refused.value.field == "robustness.max_percentage_vibration"
 
 
+def test_scales_too_far_apart_for_the_lp_are_refused_not_fed_to_it() -> None:
+    # The fuzz bench's second 500: a 1e-9 ramp at 5e11 on a 0.001 Hz mode lasts 2e-21 s; the LP's rows were
+    # inf / nan, which scipy's linprog refuses. Nothing is claimed infeasible: a 422 on the body says why.
+    problem = Problem(ModePlant(0.001, 0.0), target_velocity=1e-9, limits=Limits(max_acceleration=507287949364.63416))
+    options = TimeOptimalOptions(Robustness(derivative_order=1), max_duration_s=1e-6)
+    with pytest.raises(InvalidParameter, match="scales too far apart") as refused:
+        _design(problem, options)
+    assert refused.value.field == "body"
+
+
 def test_a_solve_over_its_time_limit_is_a_time_out() -> None:
     problem = Problem(
         ModePlant(5.0, 0.0),
