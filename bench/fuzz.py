@@ -24,12 +24,17 @@ from __future__ import annotations
 
 import argparse
 import collections
+import contextlib
 import ctypes
+import http.client
+import json
 import logging
 import sys
 import time
 from pathlib import Path
 from typing import Any
+
+import psutil
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
@@ -41,11 +46,14 @@ from schemathesis.generation.meta import CaseMetadata  # noqa: E402
 from schemathesis.python import asgi  # noqa: E402
 
 from app.observability import APP_LOGGERS  # noqa: E402
+from tests.app.openapi_examples import post_examples  # noqa: E402
+from tests.app.server import readyz, serving  # noqa: E402
 from tests.app.test_fuzz import (  # noqa: E402
     APP,
     CALL_TIMEOUT_S,
     CHECKS,
     COMPARE_BUDGET_S,
+    FUZZ_SETTINGS,
     HTTP_PROCESS_GROWTH_BOUND,
     MIB,
     RESPONSE_BUDGET_S,
@@ -135,7 +143,7 @@ class Slowest:
 
 
 def fuzz_operation(
-    operation: Any, cases: int, seed: int, steps: RssSteps
+    operation: Any, cases: int, seed: int, steps: RssSteps, base_url: str | None = None
 ) -> tuple[collections.Counter[int], list[str], float, ValidRefused, Slowest]:
     statuses: collections.Counter[int] = collections.Counter()
     slowest = Slowest(operation.path)
@@ -157,7 +165,13 @@ def fuzz_operation(
     def run(case: Any) -> None:
         steps.before_call()
         started = time.perf_counter()
-        response = case.call(timeout=CALL_TIMEOUT_S)
+        try:
+            response = case.call(base_url=base_url, timeout=CALL_TIMEOUT_S)
+        except Exception as exc:  # in-process, the app's exception comes through: a server error, the run goes on
+            steps.after_call()
+            statuses[500] += 1
+            failures.append(f"server exception {type(exc).__name__}: {str(exc)[:300]}")
+            return
         slowest.add(time.perf_counter() - started)
         steps.after_call()
         statuses[response.status_code] += 1
@@ -178,21 +192,76 @@ def fuzz_operation(
     return statuses, failures, time.perf_counter() - start, refused, slowest
 
 
+# FUZZ_SETTINGS as the server's environment (app.settings reads VIBFREE_*).
+SERVER_ENV = {
+    "VIBFREE_WORKERS": str(FUZZ_SETTINGS.workers),
+    "VIBFREE_MAX_SAMPLES": str(FUZZ_SETTINGS.max_samples),
+    "VIBFREE_MAX_BODY_BYTES": str(FUZZ_SETTINGS.max_body_bytes),
+    "VIBFREE_SOLVE_TIME_LIMIT_S": str(FUZZ_SETTINGS.solve_time_limit_s),
+    "VIBFREE_SOLVE_MAX_ITERATIONS": str(FUZZ_SETTINGS.solve_max_iterations),
+    "VIBFREE_SOLVE_GRACE_S": str(FUZZ_SETTINGS.solve_grace_s),
+}
+
+
+class ServerSampler(RssSampler):
+    """The RSS of a server's HTTP process (and its solver workers), read as it is: no fuzzer runs in it."""
+
+    def __init__(self, pid: int) -> None:
+        super().__init__()
+        self.me = psutil.Process(pid)
+
+    def held_rss(self) -> int:
+        return int(self.me.memory_info().rss)
+
+
+def warm_up_over_http(app: Any, port: int) -> None:
+    """``warm_up`` against the server: every operation's first OpenAPI example once."""
+    first: dict[str, Any] = {}
+    for path, _, body in post_examples(app.openapi()):
+        first.setdefault(path, body)
+    for path, body in first.items():
+        connection = http.client.HTTPConnection("127.0.0.1", port, timeout=120)
+        connection.request("POST", path, json.dumps(body), {"content-type": "application/json"})
+        connection.getresponse().read()
+        connection.close()
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--cases", type=int, default=2000, help="cases per operation (default 2000)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--only", default=None, help="only operations whose path contains this")
     parser.add_argument("--rules", type=int, default=5, help="most frequent invalid-input rules shown (default 5)")
+    parser.add_argument(
+        "--server",
+        action="store_true",
+        help="fuzz a real `vibfree serve` (one HTTP process, the same settings) over HTTP: the RSS is the server's "
+        "alone, without the fuzzer's own heap",
+    )
     args = parser.parse_args()
+    with contextlib.ExitStack() as stack:
+        return run_all(args, stack)
+
+
+def run_all(args: argparse.Namespace, stack: contextlib.ExitStack) -> int:
     app = APP  # the test module's app and schema (importing it builds them): a second pair would be in the RSS
     # one access line per case would bury the figures: warnings and errors only (a 500 logs its traceback)
     for name in APP_LOGGERS:
         logging.getLogger(name).setLevel(logging.WARNING)
-    start_and_wait_ready(app)
-    sampler = RssSampler()
-    start_rss = sampler.me.memory_info().rss
-    warm_up(app)
+    base_url: str | None = None
+    port = 0
+    if args.server:
+        port = stack.enter_context(serving(1, env=SERVER_ENV, extra=()))
+        base_url = f"http://127.0.0.1:{port}"
+        schema.app = None  # schemathesis then sends over HTTP (requests) to base_url
+        sampler: RssSampler = ServerSampler(readyz(port)[1]["pid"])
+        start_rss = sampler.me.memory_info().rss
+        warm_up_over_http(app, port)
+    else:
+        start_and_wait_ready(app)
+        sampler = RssSampler()
+        start_rss = sampler.me.memory_info().rss
+        warm_up(app)
     warmed_rss = sampler.me.memory_info().rss
     print(
         f"HTTP process: {start_rss / MIB:.0f} MiB at start (pool ready), {warmed_rss / MIB:.0f} MiB after every "
@@ -208,7 +277,9 @@ def main() -> int:
         if args.only and args.only not in operation.path:
             continue
         in_calls, between = steps.in_calls, steps.between
-        statuses, failures, elapsed, refused, slowest = fuzz_operation(operation, args.cases, args.seed, steps)
+        statuses, failures, elapsed, refused, slowest = fuzz_operation(
+            operation, args.cases, args.seed, steps, base_url
+        )
         if slowest.over:
             failures.append(f"{slowest.over} answers slower than the budget of {slowest.budget_s:g} s")
         n = sum(statuses.values())
@@ -236,9 +307,9 @@ def main() -> int:
     )
     sampler.stopped.set()
     sampler.join(1.0)
-    workers = app.state.pool.stats()
+    workers = readyz(port)[1] if args.server else app.state.pool.stats()
     end_rss = sampler.me.memory_info().rss
-    trimmed = trimmed_rss(sampler.me)
+    trimmed = None if args.server else trimmed_rss(sampler.me)
     growth = sampler.peak_rss - warmed_rss
     growth_ok, peak_ok = growth <= HTTP_PROCESS_GROWTH_BOUND, sampler.peak_rss <= HTTP_PEAK_TARGET
     worst_worker = max(sampler.peak_children.values(), default=0)
@@ -259,7 +330,8 @@ def main() -> int:
         f"{workers['timeouts']} killed at a solve's deadline (a 504) and {workers['restarts'] - workers['timeouts']} "
         "died otherwise"
     )
-    asgi.shutdown_lifespans()
+    if not args.server:
+        asgi.shutdown_lifespans()
     return 1 if total_failures else 0
 
 
