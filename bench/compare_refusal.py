@@ -147,7 +147,8 @@ def main() -> int:
     failures = []
     if refused:
         print(
-            f"refusals (503): p50 {statistics.median(refused):.1f} ms, p99 {percentile(refused, 0.99):.1f} ms, "
+            f"refusals (503): first {refused[0]:.1f} ms, slowest after it {max(refused[1:], default=0.0):.1f} ms; "
+            f"p50 {statistics.median(refused):.1f} ms, p99 {percentile(refused, 0.99):.1f} ms, "
             f"max {max(refused):.1f} ms; with Retry-After: {retry_after} of {len(refused)}"
         )
         if percentile(refused, 0.99) >= TARGET_P99_MS:
