@@ -73,9 +73,14 @@ def test_a_killed_solver_worker_of_one_process_is_replaced_and_counted(port):
     os.kill(worker.pid, signal.SIGKILL)
 
     def replaced():
-        status, now = readyz(port)
+        # The children first: a readyz landing on the other process reads the victim's gauges from the shared
+        # directory, stale until the victim's pool notices the death; once a new child exists, they are not.
         children = psutil.Process(victim_parent).children()
-        return status == 200 and children and children[0].pid != worker.pid and now
+        if not children or children[0].pid == worker.pid:
+            return None
+        status, now = readyz(port)
+        rows = {row["pid"]: row for row in now.get("processes") or []}
+        return status == 200 and rows.get(victim_parent, {}).get("ready") == 1 and now
 
     now = _wait(replaced)
     assert {row["pid"] for row in now["processes"]} == {row["pid"] for row in body["processes"]}
@@ -85,7 +90,7 @@ def test_a_killed_solver_worker_of_one_process_is_replaced_and_counted(port):
 
 
 def test_a_killed_http_process_is_restarted_its_gauges_dropped_its_counts_kept(port):
-    _, body = readyz(port)
+    body = _wait(lambda: (lambda status, now: status == 200 and now)(*readyz(port)))
     before = _requests_of(scrape(port), "/healthz")
     victim = body["processes"][0]["pid"]
     os.kill(victim, signal.SIGKILL)  # no shutdown: its files stay until a scrape finds it dead
