@@ -30,6 +30,7 @@ from contextlib import asynccontextmanager
 from typing import Any, TypeVar
 
 from models.errors import PoolUnavailable, SolverTimedOut
+from optim.heap import release_free_heap
 from optim.workers import RETRY_AFTER_MAX_S, RETRY_AFTER_MIN_S, Executor, HeldPlaces, PoolBusy, reservation_places
 
 log = logging.getLogger(__name__)
@@ -185,6 +186,7 @@ class ThreadLane:
                     job.state = "finished"
                     self._job_s_estimate += 0.2 * (time.monotonic() - at - self._job_s_estimate)
                 self._changed()
+                release_free_heap()  # the job's intermediates: glibc would keep them in this thread's arena
 
         try:
             future = self._executor.submit(work)

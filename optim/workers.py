@@ -46,6 +46,7 @@ from multiprocessing.process import BaseProcess
 from typing import Any, Literal, Protocol, TypeVar, runtime_checkable
 
 from models.errors import InvalidParameter, PoolUnavailable, SolverTimedOut
+from optim.heap import release_free_heap
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
@@ -235,6 +236,8 @@ def _worker_main(conn: Connection, warm_up: Callable[[], None] | None, niceness:
             conn.send(outcome)  # pickled whole before any byte is written
         except Exception as exc:
             conn.send(("error", RuntimeError(f"the solve's {outcome[0]} could not be sent back: {exc!r}")))
+        del job, fn, args, outcome
+        release_free_heap()  # the job's peak is not kept as the worker's resident set until it is replaced
 
 
 # --- the supervisor --------------------------------------------------------------------------

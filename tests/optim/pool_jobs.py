@@ -24,3 +24,16 @@ def casadi_symbols(count: int) -> int:
     import casadi
 
     return int(casadi.SX.sym("x", count).numel())
+
+
+_KEPT: list[bytes] = []
+
+
+def fragment_heap(mib: int) -> int:
+    """Allocate ``mib`` MiB of small blocks and keep one in 200 (as a cache would): glibc cannot shrink its heap
+    from the top past the kept ones, so the rest stays free heap in the process unless it is given back. The pid."""
+    import os
+
+    blocks = [bytes(2000) + bytes([i % 256]) for i in range(mib * 512)]
+    _KEPT.extend(blocks[::200])
+    return os.getpid()
