@@ -46,7 +46,7 @@ from schemathesis.generation.meta import CaseMetadata  # noqa: E402
 from schemathesis.python import asgi  # noqa: E402
 
 from app.observability import APP_LOGGERS  # noqa: E402
-from tests.app.openapi_examples import post_examples  # noqa: E402
+from tests.app.openapi_examples import first_post_examples  # noqa: E402
 from tests.app.server import readyz, serving  # noqa: E402
 from tests.app.test_fuzz import (  # noqa: E402
     APP,
@@ -216,10 +216,7 @@ class ServerSampler(RssSampler):
 
 def warm_up_over_http(app: Any, port: int) -> None:
     """``warm_up`` against the server: every operation's first OpenAPI example once."""
-    first: dict[str, Any] = {}
-    for path, _, body in post_examples(app.openapi()):
-        first.setdefault(path, body)
-    for path, body in first.items():
+    for path, body in first_post_examples(app.openapi()).items():
         connection = http.client.HTTPConnection("127.0.0.1", port, timeout=120)
         connection.request("POST", path, json.dumps(body), {"content-type": "application/json"})
         connection.getresponse().read()

@@ -41,6 +41,7 @@ class LruCache(Generic[K, V]):
         self.weigh = weigh  # an entry's estimated cost from its key (MiB); with ``budget``, the sum is capped
         self.budget = budget
         self._entries: OrderedDict[K, V] = OrderedDict()
+        self._weight = 0.0  # the weights of the held entries, kept as they come and go
         self._lock = threading.Lock()
         self.builds = 0
         self.evictions = 0
@@ -56,6 +57,8 @@ class LruCache(Generic[K, V]):
                 self._fit(self.budget - self.weigh(key))
         value = build()  # outside the lock: a build may take seconds
         with self._lock:
+            if key not in self._entries:  # another thread may have built it meanwhile
+                self._weight += self._weigh(key)
             self._entries[key] = value
             self._entries.move_to_end(key)
             self.builds += 1
@@ -69,24 +72,29 @@ class LruCache(Generic[K, V]):
             self.size = size
             self._shrink()
 
+    def _weigh(self, key: K) -> float:
+        return self.weigh(key) if self.weigh is not None else 0.0
+
+    def _evict_oldest(self) -> None:
+        key, _ = self._entries.popitem(last=False)
+        self._weight -= self._weigh(key)
+        self.evictions += 1
+
     def _shrink(self) -> None:
         while len(self._entries) > self.size:
-            self._entries.popitem(last=False)
-            self.evictions += 1
+            self._evict_oldest()
         if self.weigh is not None and self.budget is not None:
             self._fit(self.budget, keep=1)
 
     def _fit(self, room: float, keep: int = 0) -> None:
         """Evict the least recently used entries until their weights sum to at most ``room`` (or ``keep`` are left)."""
-        assert self.weigh is not None
-        while len(self._entries) > keep and sum(self.weigh(k) for k in self._entries) > room:
-            self._entries.popitem(last=False)
-            self.evictions += 1
+        while len(self._entries) > keep and self._weight > room:
+            self._evict_oldest()
 
     @property
     def weight(self) -> float:
         """The estimated cost of the entries held (0 without ``weigh``)."""
-        return sum(self.weigh(k) for k in list(self._entries)) if self.weigh is not None else 0.0
+        return self._weight
 
     def __contains__(self, key: object) -> bool:
         return key in self._entries
@@ -103,6 +111,7 @@ class LruCache(Generic[K, V]):
     def clear(self) -> None:
         with self._lock:
             self._entries.clear()
+            self._weight = 0.0
 
 
 class ArrayCache(Generic[K, V]):

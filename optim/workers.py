@@ -28,6 +28,7 @@ either would need.
 
 from __future__ import annotations
 
+import abc
 import asyncio
 import contextlib
 import logging
@@ -118,7 +119,7 @@ def reservation_places(jobs: int, workers: int) -> int:
     return max(1, min(jobs, workers))
 
 
-class HeldPlaces:
+class HeldPlaces(abc.ABC):
     """The executor of a request's reservation: ``free`` of its places wait for a job of the request; a job beyond
     them waits for one of them (``turn``), so the request never meets admission again. A subclass says how a job
     takes a held place on its executor and gives it back (``_take``, ``_give_back``), and how it runs."""
@@ -140,17 +141,17 @@ class HeldPlaces:
                 if not self.closed:  # the place is held again for the request's next job
                     self._give_back()
 
-    def _take(self) -> None:
-        raise NotImplementedError
+    @abc.abstractmethod
+    def _take(self) -> None: ...
 
-    def _give_back(self) -> None:
-        raise NotImplementedError
+    @abc.abstractmethod
+    def _give_back(self) -> None: ...
 
-    async def _run_alone(self, fn: Callable[..., T], args: tuple[Any, ...], deadline_s: float) -> T:
-        raise NotImplementedError
+    @abc.abstractmethod
+    async def _run_alone(self, fn: Callable[..., T], args: tuple[Any, ...], deadline_s: float) -> T: ...
 
-    async def _run_held(self, fn: Callable[..., T], args: tuple[Any, ...], deadline_s: float) -> T:
-        raise NotImplementedError
+    @abc.abstractmethod
+    async def _run_held(self, fn: Callable[..., T], args: tuple[Any, ...], deadline_s: float) -> T: ...
 
 
 class _Reservation(HeldPlaces):

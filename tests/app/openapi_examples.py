@@ -16,3 +16,11 @@ def post_examples(spec: dict[str, Any], paths: list[str] | None = None) -> Itera
         content = operation["requestBody"]["content"]["application/json"]
         for name, example in content.get("examples", {}).items():
             yield path, name, example["value"]
+
+
+def first_post_examples(spec: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """The first named example of every POST operation in ``spec``, by path (a warm-up calls each once)."""
+    first: dict[str, dict[str, Any]] = {}
+    for path, _, body in post_examples(spec):
+        first.setdefault(path, body)
+    return first

@@ -21,7 +21,6 @@ import ctypes
 import json
 import threading
 import time
-from typing import Any
 
 import psutil
 import pytest
@@ -40,7 +39,7 @@ from schemathesis.specs.openapi.checks import (
 from app.main import create_app
 from app.settings import Settings
 from optim.family import FAMILIES
-from tests.app.openapi_examples import post_examples
+from tests.app.openapi_examples import first_post_examples
 
 # Small caps: a random valid design takes at most about a second of solving.
 FUZZ_SETTINGS = Settings(
@@ -159,11 +158,8 @@ def warm_up(app: FastAPI) -> None:
     step of a fuzzing run (+150 to +300 MiB within its first 100 cases) is the fuzzer's own: it comes with case
     generation and no call at all (heaptrack: a 160 MB heap peak in jsonschema_rs under schemathesis' strategies),
     and glibc keeps the freed heap (malloc_trim(0) gave 147 MiB of it back). It is in the bound below."""
-    first: dict[str, dict[str, Any]] = {}
-    for path, _, body in post_examples(app.openapi()):
-        first.setdefault(path, body)
     with asgi.get_client(app) as client:
-        for path, body in first.items():
+        for path, body in first_post_examples(app.openapi()).items():
             client.post(path, json=body)
 
 
