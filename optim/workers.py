@@ -203,8 +203,8 @@ def _too_large(memory_mb: int) -> InvalidParameter:
     return InvalidParameter(
         "body",
         "too large",
-        f"the design needs more than {where}: ask for less work (a longer sample_period_s, fewer sensitivity points "
-        "or modes, a shorter move or horizon)",
+        f"the design needs more than {where}: ask for less work (fewer modes or limits, a lower order, a narrower "
+        "band, a longer sample_period_s, a shorter move or horizon)",
     )
 
 

@@ -24,6 +24,8 @@ Array = NDArray[np.float64]
 DENSE_POINTS = 1500
 CHECK_MARGIN = 1e-6  # the search's check asks |F_0| <= (1 - this) bound: the independent check then passes
 INITIAL_POINTS = 9
+# Moments (complex128) per block of worst_ratios: 16 MiB a temporary, about six of them alive at once.
+MOMENT_BLOCK_ELEMENTS = 1 << 20
 
 
 @dataclass(frozen=True)
@@ -67,9 +69,15 @@ def band_grid(spec: Spec, band: Band, points: int) -> BandGrid:
 
 
 def worst_ratios(spec: Spec, grid: BandGrid, start: Array, end: Array, level: Array, total_s: float) -> Array:
-    """|F_0| / bound at every point of ``grid`` for the command holding ``level`` on [start, end)."""
-    moment = acceleration_moment(spec, grid.poles, start, end, total_s, 0)
-    ratios: Array = np.abs(moment @ level) / grid.bound
+    """|F_0| / bound at every point of ``grid`` for the command holding ``level`` on [start, end), computed in
+    blocks of points of at most ``MOMENT_BLOCK_ELEMENTS`` moments each: the whole (points x pieces) moment matrix
+    and its temporaries reached 380 MiB in a worker (20,000 band points x 600 pieces, issue 23's fuzz run)."""
+    rows = max(1, MOMENT_BLOCK_ELEMENTS // max(1, start.size))
+    ratios: Array = np.empty(grid.bound.size)
+    for first in range(0, grid.bound.size, rows):  # blocks of >= 1 point: bounded memory, vectorised within
+        block = slice(first, first + rows)
+        moment = acceleration_moment(spec, grid.poles[block], start, end, total_s, 0)
+        ratios[block] = np.abs(moment @ level) / grid.bound[block]
     return ratios
 
 
