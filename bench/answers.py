@@ -8,7 +8,7 @@ The corpus: every named OpenAPI example of every POST operation (JSON, and ``?fo
 offers CSV), ``bench/determinism.py``'s seeded random time-optimal requests (``--count``), a few invalid requests
 of each operation (their problem+json bodies: the field and the rule), ``GET /v1/shapers`` queries, the problem
 type pages, and ``/openapi.json`` itself. Each answer is the status, the content type and the body, JSON bodies
-without their wall times (``solve_time_s``), hashed (sha256). The service runs in-process (``create_app``, its
+without their wall times (``solve_time_s``, a sweep row's ``elapsed_s``; NDJSON lines sorted), hashed (sha256). The service runs in-process (``create_app``, its
 default settings, one request at a time), so the pool's workers are this checkout's.
 """
 
@@ -18,6 +18,7 @@ import argparse
 import hashlib
 import json
 import sys
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -37,9 +38,12 @@ INVALID_BODIES: tuple[dict[str, Any], ...] = (
 SHAPER_QUERIES = ("", "?damping_ratio=0.05", "?damping_ratio=0.1&vibration_tolerance=0.02", "?damping_ratio=2")
 
 
+WALL_TIMES = TIMING_FIELDS | {"elapsed_s"}  # a sweep row's own wall time too
+
+
 def without_wall_times(value: Any) -> Any:
     if isinstance(value, dict):
-        return {k: without_wall_times(v) for k, v in value.items() if k not in TIMING_FIELDS}
+        return {k: without_wall_times(v) for k, v in value.items() if k not in WALL_TIMES}
     if isinstance(value, list):
         return [without_wall_times(v) for v in value]
     return value
@@ -48,6 +52,9 @@ def without_wall_times(value: Any) -> Any:
 def digest(status: int, content_type: str, body: bytes) -> str:
     if content_type.startswith(("application/json", "application/problem+json")):
         body = json.dumps(without_wall_times(json.loads(body)), sort_keys=True).encode()
+    elif content_type.startswith("application/x-ndjson"):  # a sweep's lines come in the order the points end
+        lines = [json.dumps(without_wall_times(json.loads(line)), sort_keys=True) for line in body.splitlines()]
+        body = "\n".join(sorted(lines)).encode()
     return hashlib.sha256(f"{status} {content_type}\n".encode() + body).hexdigest()
 
 
@@ -78,6 +85,11 @@ def answers(count: int) -> dict[str, str]:
     app = create_app()
     out: dict[str, str] = {}
     with TestClient(app) as client:
+        deadline = time.monotonic() + 300.0
+        while client.get("/readyz").status_code != 200:  # the pool warms up in the background
+            if time.monotonic() > deadline:
+                raise SystemExit("the solver workers did not become ready in 300 s")
+            time.sleep(0.5)
         spec = app.openapi()
         for key, method, path, body in corpus(spec, count):
             response = client.request(method, path, json=body, timeout=600)
