@@ -5,11 +5,12 @@
     python bench/answers.py --check answers.json    # after: lists every answer that differs
 
 The corpus: every named OpenAPI example of every POST operation (JSON, and ``?format=csv`` where the operation
-offers CSV), ``bench/determinism.py``'s seeded random time-optimal requests (``--count``), a few invalid requests
-of each operation (their problem+json bodies: the field and the rule), ``GET /v1/shapers`` queries, the problem
-type pages, and ``/openapi.json`` itself. Each answer is the status, the content type and the body, JSON bodies
-without their wall times (``solve_time_s``, a sweep row's ``elapsed_s``; NDJSON lines sorted), hashed (sha256). The service runs in-process (``create_app``, its
-default settings, one request at a time), so the pool's workers are this checkout's.
+offers CSV), ``bench/determinism.py``'s seeded random time-optimal requests (``--count``), a few invalid requests of
+each operation (their problem+json bodies: the field and the rule), ``GET /v1/shapers`` queries, the problem type
+pages, and ``/openapi.json`` itself. Each answer is the status, the content type and the body, JSON bodies without
+their wall times (``solve_time_s``, a sweep row's ``elapsed_s``; NDJSON lines sorted), hashed (sha256). The service
+runs in-process (``create_app``, its default settings, one request at a time), so the pool's workers are this
+checkout's.
 """
 
 from __future__ import annotations
