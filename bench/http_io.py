@@ -11,7 +11,7 @@ Measured, p50 over interleaved repeats (old, new, old, new, ...: both see the sa
 - a 100k-sample ``/v1/simulate`` (``time_s`` and ``velocity`` sent, a 5 Hz mode): the JSON answer (target
   <= 50 ms), the same as npz (``Accept: application/x-npz``) and with a narrow ``fields=load.position,metrics``;
 - a 1k-sample STAP closed form (``/v1/profiles/stap``, Cusimano Sec. 3, k_j = 1) over HTTP (target <= 3 ms),
-  beside the same request in-process: ``app.services.design`` (parsing the body into the model, the design,
+  beside the same request in-process: ``app.profiles.profile.design`` (parsing the body into the model, the design,
   sampling, simulation, metrics: the service layer's time) and that plus writing the JSON answer;
 - what the client itself costs: the same client (``http.client``, one persistent connection) fetching the
   same number of bytes from a raw-socket responder in this process that sends a prebuilt answer (no HTTP
@@ -226,10 +226,10 @@ def p50_ms(samples: list[float]) -> float:
 
 
 def in_process_stap(repeats: int) -> tuple[float, float]:
-    """p50 of ``services.design`` for the STAP request, and of it plus the JSON answer, in this process (ms)."""
-    from app import services
+    """p50 of ``profiles.design`` for the STAP request, and of it plus the JSON answer, in this process (ms)."""
     from app.responses import Output, render
     from app.schemas.stap import FAMILY, StapIn
+    from app.services import profile as profiles
     from app.settings import Settings
 
     settings = Settings(workers=1)
@@ -237,11 +237,11 @@ def in_process_stap(repeats: int) -> tuple[float, float]:
 
     async def design() -> None:
         body = StapIn.model_validate(STAP_REQUEST)
-        await services.design(FAMILY, body, settings, None)  # type: ignore[arg-type]  # closed form: no pool
+        await profiles.design(FAMILY, body, settings, None)  # type: ignore[arg-type]  # closed form: no pool
 
     async def answer() -> None:
         body = StapIn.model_validate(STAP_REQUEST)
-        answer, _ = await services.design(FAMILY, body, settings, None)  # type: ignore[arg-type]
+        answer, _ = await profiles.design(FAMILY, body, settings, None)  # type: ignore[arg-type]
         render(output, answer).body  # noqa: B018
 
     async def timed(call: Callable[[], Any]) -> list[float]:
@@ -398,7 +398,7 @@ def run(servers: list[Server], repeats: int) -> int:
     stap_new = p50_ms(results[("STAP 1k closed form JSON", "new")])
     stap_old = p50_ms(results[("STAP 1k closed form JSON", "main")])
     print(
-        f"\nSTAP 1k in-process (this worktree): services.design {stap_design_ms:.2f} ms, with the JSON answer "
+        f"\nSTAP 1k in-process (this worktree): profiles.design {stap_design_ms:.2f} ms, with the JSON answer "
         f"{stap_answer_ms:.2f} ms"
     )
     print(

@@ -18,11 +18,13 @@ import structlog
 from fastapi.exceptions import RequestValidationError
 from pydantic import ValidationError
 
-from app import problems, services
+from app import problems
 from app.responses import comment_lines, csv_body, drop_duplicates, dumps
-from app.routers import compare as compare_route
+from app.schemas.compare import CompareIn
 from app.schemas.family import ProfileRequest
 from app.schemas.registry import REQUEST_SCHEMAS
+from app.services import compare as compare_service
+from app.services import profile as profiles
 from app.settings import Settings, get_settings
 from models.errors import DomainError
 from optim import tables
@@ -76,14 +78,14 @@ def synthesize(family: str, request: Mapping[str, Any] | str | bytes, *, setting
     """Design ``family``'s command for ``request`` (a dict, or its JSON text), as ``POST /v1/profiles/<family>``."""
     name, model = _family(family)
     body = _validate(model, request)
-    answer, result = _run(services.design(REGISTRY[name], body, settings or get_settings(), InlineExecutor()))
+    answer, result = _run(profiles.design(REGISTRY[name], body, settings or get_settings(), InlineExecutor()))
     return Synthesis(name, body, drop_duplicates(answer), result)  # as the endpoint answers (no load.time_s)
 
 
 def compare(request: Mapping[str, Any] | str | bytes, *, settings: Settings | None = None) -> dict[str, Any]:
     """Every family on one plant, move and limits, as ``POST /v1/compare`` (its JSON answer)."""
-    body = _validate(compare_route.CompareIn, request)
-    return _run(compare_route.answer(body, settings or get_settings(), InlineExecutor()))
+    body = _validate(CompareIn, request)
+    return _run(compare_service.answer(body, settings or get_settings(), InlineExecutor()))
 
 
 def identify(record: str | bytes, *, settings: Settings | None = None, **params: Any) -> dict[str, Any]:

@@ -6,7 +6,7 @@ A ``text/csv`` body is a measured record (a time column and one or more signal c
 accelerometer's x, y, z; optionally the known command): its Welch spectrum, peaks and a sum of damped
 sinusoids fitted per mode with 95 % intervals (optim.modal), the record's quality, and with a move and
 limits in the query the fastest design whose 5 % band covers the lowest mode's interval (optim.recommend),
-each candidate run through the family endpoints' pipeline (app.services.profile).
+each candidate run through the family endpoints' pipeline (app.profiles.profile.profile).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from fastapi import APIRouter, Body, Query, Request
 from fastapi.exceptions import RequestValidationError
 from pydantic import ValidationError
 
-from app import problems, services
+from app import problems
 from app.deps import PoolDep, SettingsDep, ThreadsDep
 from app.examples import OMEGA_RAD_S, SIGMA_1_S
 from app.responses import NumpyJSONResponse
@@ -28,6 +28,7 @@ from app.schemas.identify import IdentifyMeasurementResponse, MeasurementParams
 from app.schemas.registry import REQUEST_SCHEMAS
 from app.schemas.simulate import check_sample_count
 from app.schemas.smoothers import IdentifyRequest, IdentifyResponse
+from app.services import profile as profiles
 from app.settings import Settings
 from models.errors import InvalidParameter
 from models.plants import FREQUENCY_MAX_HZ, FREQUENCY_MIN_HZ
@@ -121,13 +122,13 @@ def parse_family_request(family: str, body: Mapping[str, Any]) -> ProfileRequest
         raise InvalidParameter(problems.field_path(tuple(err["loc"])), None, str(err["msg"])) from None
 
 
-def runner(settings: Settings, executor: Executor, threads: Executor = services.INLINE) -> RunOne:
-    """A ``run_one``: each candidate through the family endpoints' service layer (app.services.profile) on
+def runner(settings: Settings, executor: Executor, threads: Executor = profiles.INLINE) -> RunOne:
+    """A ``run_one``: each candidate through the family endpoints' service layer (app.profiles.profile.profile) on
     ``executor`` and ``threads``: the route's solver pool and design threads, or in-process."""
 
     async def run_one(family: str, body: dict[str, Any]) -> dict[str, Any]:
         request = parse_family_request(family, body)
-        return await services.profile(FAMILIES[family], request, settings, executor, threads)
+        return await profiles.profile(FAMILIES[family], request, settings, executor, threads)
 
     return run_one
 
@@ -186,12 +187,12 @@ async def identify_csv(
     run_one: RunOne | None,
     *,
     max_rows: int,
-    threads: Executor = services.INLINE,
+    threads: Executor = profiles.INLINE,
     deadline_s: float = 0.0,
 ) -> dict[str, Any]:
     """The whole answer of POST /v1/identify for a CSV record, with candidates run by ``run_one(family, request)``
     (returns the endpoint's response body or raises a DomainError). The HTTP route runs them through
-    app.services.profile; a caller without a server (the CLI) passes its own runner, or None for no
+    app.profiles.profile.profile; a caller without a server (the CLI) passes its own runner, or None for no
     recommendation."""
     params.check()
     # the fit, in the route's design threads (optim.threads: bounded admission, deadline_s), or in-process

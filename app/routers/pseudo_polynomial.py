@@ -6,11 +6,12 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Body, Depends, Response
 
-from app import problems, services
+from app import problems
 from app.deps import PoolDep, SettingsDep, ThreadsDep
 from app.examples import CUSIMANO_8HZ, INCERTI_TABLE_III
 from app.responses import CSV_RESPONSE_DOC, Output, ProfileOutput, respond
 from app.schemas.pseudo_polynomial import FAMILY, PseudoPolynomialIn, PseudoPolynomialOut
+from app.services import profile as profiles
 
 router = APIRouter(prefix="/v1", tags=["pseudo-polynomial"], route_class=problems.JSONRoute)
 
@@ -56,5 +57,5 @@ async def pseudo_polynomial_profile(
     The returned profile holds the law's exact values at the sample times; the load response simulates
     the drive following them (velocity on the cubic Hermite curve through the sampled velocities and
     accelerations). A failed or timed-out solve is a problem, never a profile."""
-    answer, result = await services.design(FAMILY, body, settings, pool, threads)
+    answer, result = await profiles.design(FAMILY, body, settings, pool, threads)
     return await respond(output, answer, result, body, "pseudo-polynomial profile")

@@ -7,11 +7,12 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Body, Depends, Query, Response
 
-from app import problems, services
+from app import problems
 from app.deps import PoolDep, SettingsDep, ThreadsDep
 from app.examples import CHATLATANAGULCHAI_EQ3
 from app.responses import CSV_RESPONSE_DOC, NumpyJSONResponse, Output, ProfileOutput, respond
 from app.schemas.shapers import FAMILY, InputShapedRequest, InputShapedResponse, ShaperCatalogue
+from app.services import profile as profiles
 from optim.shapers import catalogue
 
 router = APIRouter(prefix="/v1", tags=["shapers"], route_class=problems.JSONRoute)
@@ -84,7 +85,7 @@ async def input_shaped_profile(
     The load response and ``metrics`` simulate what the drive does, exactly; ``unmodified`` gives the
     metrics of the plain shaped step after the drive, for comparison.
     """
-    answer, result = await services.design(FAMILY, body, settings, pool, threads)
+    answer, result = await profiles.design(FAMILY, body, settings, pool, threads)
     return await respond(output, answer, result, body, "input-shaped profile (the shaped command sent to the drive)")
 
 

@@ -13,11 +13,12 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Body, Depends
 from starlette.responses import Response
 
-from app import problems, services
+from app import problems
 from app.deps import PoolDep, SettingsDep, ThreadsDep
 from app.examples import BIAGIOTTI_PLANT, T0_S
 from app.responses import CSV_RESPONSE_DOC, Output, ProfileOutput, respond
 from app.schemas.smoothers import FAMILY, SmootherRequest, SmootherResponse
+from app.services import profile as profiles
 
 router = APIRouter(prefix="/v1", tags=["smoothers"], route_class=problems.JSONRoute)
 
@@ -107,5 +108,5 @@ async def smoother_profile(
     the metrics use. ``design.residual_amplitude_closed_form`` gives the same residual from the chain's
     transfer function at the plant's poles.
     """
-    answer, result = await services.design(FAMILY, body, settings, pool, threads)
+    answer, result = await profiles.design(FAMILY, body, settings, pool, threads)
     return await respond(output, answer, result, body, "smoother profile")

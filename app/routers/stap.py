@@ -6,11 +6,12 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Body, Depends, Response
 
-from app import problems, services
+from app import problems
 from app.deps import PoolDep, SettingsDep, ThreadsDep
 from app.examples import CUSIMANO_8HZ, CUSIMANO_40HZ
 from app.responses import CSV_RESPONSE_DOC, Output, ProfileOutput, respond
 from app.schemas.stap import FAMILY, StapIn, StapOut
+from app.services import profile as profiles
 
 router = APIRouter(prefix="/v1", tags=["stap"], route_class=problems.JSONRoute)
 
@@ -124,5 +125,5 @@ async def stap_profile(
 
     The profile holds the exact STAP at the sample times (corners always included): with the acceleration
     held linearly between samples it is the designed command, which load and metrics simulate exactly."""
-    answer, result = await services.design(FAMILY, body, settings, pool, threads)
+    answer, result = await profiles.design(FAMILY, body, settings, pool, threads)
     return await respond(output, answer, result, body, "STAP profile")

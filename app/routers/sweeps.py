@@ -26,12 +26,13 @@ from pydantic import BaseModel, ValidationError
 from starlette.concurrency import run_in_threadpool
 from starlette.responses import JSONResponse, StreamingResponse
 
-from app import problems, services
+from app import problems
 from app.deps import PoolDep, SettingsDep
-from app.routers.compare import DEFAULT_SENSITIVITY
+from app.schemas.compare import DEFAULT_SENSITIVITY
 from app.schemas.family import ProfileRequest
 from app.schemas.registry import REQUEST_SCHEMAS
 from app.schemas.sweeps import SweepIn, SweepLine
+from app.services import profile as profiles
 from app.settings import Settings
 from models.errors import DomainError, InvalidParameter, NotApplicable
 from optim import sweeps as engine
@@ -89,7 +90,7 @@ class Plan:
         ]
 
     def prepare(self, values: tuple[float, ...]) -> engine.Prepared:
-        """A point's request validated by the family's schema, its problem and options (``services.design``'s
+        """A point's request validated by the family's schema, its problem and options (``profiles.design``'s
         steps, errors named as the caller sent the field)."""
         raw = copy.deepcopy(self.base)
         for axis, value in zip(self.axes, values, strict=True):
@@ -102,7 +103,7 @@ class Plan:
                 raise NotApplicable(reason)
             options = request.options(problem)
         except DomainError as exc:
-            raise services._as_sent(exc, request) from None
+            raise profiles.as_sent(exc, request) from None
         return engine.Prepared(problem, options, request)
 
 
@@ -204,7 +205,7 @@ def describe(exc: Exception, request: Any) -> dict[str, Any]:
         response = problems.invalid_input(problems.validation_errors(RequestValidationError(exc.errors())))
     elif isinstance(exc, DomainError):
         if isinstance(request, ProfileRequest):
-            exc = services._as_sent(exc, request)
+            exc = profiles.as_sent(exc, request)
         response = problems.domain_problem(exc)
     else:
         log.error("sweep point failed unexpectedly", exc_info=exc)

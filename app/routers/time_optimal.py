@@ -6,10 +6,11 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Body, Depends, Response
 
-from app import problems, services
+from app import problems
 from app.deps import PoolDep, SettingsDep, ThreadsDep
 from app.responses import CSV_RESPONSE_DOC, Output, ProfileOutput, respond
 from app.schemas.time_optimal import FAMILY, TimeOptimalIn, TimeOptimalOut
+from app.services import profile as profiles
 
 router = APIRouter(prefix="/v1", tags=["time-optimal"], route_class=problems.JSONRoute)
 
@@ -105,5 +106,5 @@ async def time_optimal_profile(
     LP of the design, its tightenings and its trade-off rows.
     Infeasible within max_duration_s is a 422 /problems/infeasible only where proven; a search that found
     nothing without a proof is /problems/solver-failed; over the time limit, 504."""
-    answer, result = await services.design(FAMILY, body, settings, pool, threads)
+    answer, result = await profiles.design(FAMILY, body, settings, pool, threads)
     return await respond(output, answer, result, body, "time-optimal profile")

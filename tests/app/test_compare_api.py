@@ -244,7 +244,8 @@ def test_each_compare_row_holds_at_most_its_share_of_samples():
     # not the whole cap (200000 by default): 8 rows of 163000 samples held 271 MiB (620 MiB with include_curves)
     # in the HTTP process. A 1 s move on Cusimano's plant sampled every 20 us needs some 60000 samples (rows
     # unavailable, naming sample_period_s and the cap); every 100 us, some 12000 (answered, with its curves).
-    from app.routers.compare import CompareIn, answer
+    from app.schemas.compare import CompareIn
+    from app.services.compare import answer
     from app.settings import Settings
     from optim.workers import InlineExecutor
     from tests import aio

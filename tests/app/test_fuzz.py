@@ -54,11 +54,12 @@ FUZZ_SETTINGS = Settings(
 )
 EXAMPLES_PER_OPERATION = 100
 # Every answer within the bound the pool documents (docs/api.md): a solve waits for a worker at most its deadline
-# (after a case killed at its deadline, the replacement's warm-up: a 2000-case run answered once in 16.2 s, past
-# one deadline, which with one client at a time only such a wait explains) and then solves within it, plus 5 s for the request's own work outside the solve
-# (parsing, checks, serialising at most max_samples samples: milliseconds idle; the margin absorbs a loaded CI).
-# A compare runs its solves one after the other on the one worker, each within its deadline: one deadline per
-# family it may run. Schemathesis' own read timeout (10 s by default) is set above every budget.
+# (after a case killed at its deadline, the replacement's warm-up: a 2000-case run answered once in 16.2 s, past one
+# deadline, which with one client at a time only such a wait explains) and then solves within it, plus 5 s for the
+# request's own work outside the solve (parsing, checks, serialising at most max_samples samples: milliseconds idle;
+# the margin absorbs a loaded CI). A compare runs its solves one after the other on the one worker, each within its
+# deadline: one deadline per family it may run. Schemathesis' own read timeout (10 s by default) is set above every
+# budget.
 RESPONSE_BUDGET_S = 2 * FUZZ_SETTINGS.solve_deadline_s + 5.0
 COMPARE_BUDGET_S = len(FAMILIES) * FUZZ_SETTINGS.solve_deadline_s + 5.0
 CALL_TIMEOUT_S = COMPARE_BUDGET_S + 30.0

@@ -192,7 +192,7 @@ def test_a_worker_killed_during_warm_up_is_restarted_and_readiness_tells_the_tru
 def test_a_compare_missing_rows_only_because_the_pool_refused_them_is_a_503_not_a_ranking():
     import asyncio
 
-    from app.routers.compare import CompareIn
+    from app.schemas.compare import CompareIn
     from models.errors import PoolUnavailable
     from optim.compare import compare
     from optim.synthesis import synthesize
@@ -237,7 +237,8 @@ def test_a_compare_the_pool_has_no_room_for_is_refused_at_once_and_none_of_it_ru
     needs three (time-optimal, pseudo-polynomial, STAP optimized: ``optim.compare.plan``): it is refused while
     the workers are still busy, nothing of it is queued, and none of its designs runs (not even those that
     need no worker), where it used to queue one, run the closed forms, and refuse after the queued one ran."""
-    from app.routers.compare import EXAMPLES, CompareIn
+    from app.routers.compare import EXAMPLES
+    from app.schemas.compare import CompareIn
     from optim.compare import plan
     from tests.app.conftest import TEST_SETTINGS
 

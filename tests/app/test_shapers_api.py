@@ -425,7 +425,7 @@ def test_firmware_block_is_documented_with_an_example(client):
 
 
 def test_compare_rows_for_input_shaped_still_validate(client):
-    from app.routers.compare import CompareOut
+    from app.schemas.compare import CompareOut
 
     body = client.post(
         "/v1/compare",

@@ -16,7 +16,7 @@ import pytest
 
 import vibfree
 from app.examples import INCERTI_TABLE_III
-from app.routers.compare import CompareIn
+from app.schemas.compare import CompareIn
 from app.settings import Settings
 from models.errors import PoolUnavailable, SolverTimedOut
 from optim.compare import compare

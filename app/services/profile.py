@@ -66,13 +66,13 @@ async def design(
             raise NotApplicable(reason)
         result = await run(family, problem, body.options(problem), settings, pool, threads)
     except (InvalidParameter, Infeasible, NotApplicable) as exc:
-        raise _as_sent(exc, body) from None
+        raise as_sent(exc, body) from None
     answer = result.body()
     answer["warnings"] = [*body.deprecations, *answer["warnings"]]
     return answer, result
 
 
-def _as_sent(exc: DomainError, body: ProfileRequest) -> DomainError:
+def as_sent(exc: DomainError, body: ProfileRequest) -> DomainError:
     """The error naming the field as the caller sent it (a deprecated alias where one was used)."""
     field = body.caller_field(exc.field)
     if field == exc.field:

@@ -1,0 +1,2 @@
+"""The use cases, one module each, between the routes (HTTP only) and the pipeline (optim): ``profile`` (a family
+endpoint's design), ``compare``, ``identify`` and ``sweeps``. The Python API (vibfree.api) calls them too."""

@@ -1,0 +1,91 @@
+"""The compare use case: every family that applies, on one plant, one move and one set of limits.
+
+The families run through the same pipeline as their endpoints (``optim.compare``), each with its best options
+within the limits; ``rows[].request`` is the request that reproduces a row when POSTed to ``rows[].endpoint``.
+The route (app.routers.compare) and the Python API (vibfree.api) both call ``answer``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+from starlette.concurrency import run_in_threadpool
+
+from app.schemas.compare import DEFAULT_SENSITIVITY, CompareIn
+from app.services import profile as profiles
+from app.settings import Settings
+from models.errors import InvalidParameter
+from optim.compare import Row as ComparedRow
+from optim.compare import plan, run_plan
+from optim.family import Family
+from optim.problem import Problem
+from optim.synthesis import Result, load_arrays
+from optim.workers import Executor, reserved
+
+
+async def answer(
+    body: CompareIn, settings: Settings, pool: Executor, threads: Executor = profiles.INLINE
+) -> dict[str, Any]:
+    """The compare answer (JSON-ready apart from numpy arrays), run on ``pool`` and ``threads`` (profiles.run): the
+    route's and the Python API's."""
+    if body.sensitivity is None:
+        body = body.model_copy(update={"sensitivity": DEFAULT_SENSITIVITY})
+    problem = await run_in_threadpool(body.to_problem, settings)
+    # every row is held until the last one ends: each gets its share of the sample cap (VIBFREE_COMPARE_MAX_SAMPLES)
+    problem = dataclasses.replace(problem, max_samples=min(problem.max_samples, settings.compare_max_samples))
+    if not problem.plant.modes():
+        raise InvalidParameter("plant", problem.plant.kind, "the plant has no vibration mode to design against")
+
+    planned = plan(problem, body.families, body.options(problem))
+    # Room for every design at once, or a 503 busy before any of them ran (no ranking with a row the load removed).
+    async with (
+        reserved(pool, planned.solver_runs) as solver_executor,
+        reserved(threads, planned.thread_runs) as thread_executor,
+    ):
+
+        async def run(family: Family, p: Problem, options: Any) -> Result:
+            return await profiles.run(family, p, options, settings, solver_executor, thread_executor)
+
+        rows, unavailable = await run_plan(planned, run)
+    common = body.common_body()
+    return {
+        "move": "rest_to_rest" if problem.rest_to_rest else "rest_to_velocity",
+        "rows": [_row(body, common, row, problem.load_move) for row in rows],
+        "unavailable": [vars(u) for u in unavailable],
+    }
+
+
+def _row(request: CompareIn, common: dict[str, Any], row: ComparedRow, load_move: float) -> dict[str, Any]:
+    result: Result = row.result
+    family: Family = row.family
+    m = result.metrics
+    amplitude = m.residual_amplitude if request.displacement is not None else m.residual_velocity_amplitude
+    out: dict[str, Any] = {
+        "family": family.name,
+        "label": row.label or family.name,
+        "endpoint": family.endpoint,
+        "request": {**common, **family.request_fields(row.options)},
+        "motion_time_s": m.command_end_s - float(result.command.time_s[0]),
+        "settling_time_s": m.settling.time_s,
+        "settling_window": float(m.settling.window),
+        "settling_vibration_window": m.settling.vibration_window,
+        "percentage_vibration": result.percentage_vibration,
+        "residual_vibration": amplitude / load_move,
+        "residual_amplitude": amplitude,
+        "band_5_percent": result.sensitivity["band_5_percent"] if result.sensitivity else None,
+        "peak_velocity": m.peak_velocity,
+        "peak_acceleration": m.peak_acceleration,
+        "peak_jerk": m.peak_jerk,
+        "peak_motor_torque_nm": m.peak_motor_torque_nm,
+        "limits_met": not result.limit_violations,
+        "limit_violations": list(result.limit_violations),
+        "warnings": [*request.deprecations, *result.warnings],
+    }
+    if request.include_curves:
+        out["curves"] = {
+            "profile": result.profile,
+            "load": load_arrays(result.response),
+            "sensitivity": result.sensitivity,
+        }
+    return out
