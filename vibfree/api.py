@@ -93,8 +93,8 @@ def identify(record: str | bytes, *, settings: Settings | None = None, **params:
     and limits (``displacement`` or ``target_velocity``, ``max_velocity``, ``max_acceleration``, ``max_jerk``),
     the recommended design, as ``POST /v1/identify`` with ``text/csv`` (its JSON answer). The candidates run
     here, one after the other."""
-    from app.routers.identify import identify_csv, in_process_runner
     from app.schemas.identify import MeasurementParams
+    from app.services.identify import identify_csv, in_process_runner
 
     settings = settings or get_settings()
     text = record.decode() if isinstance(record, bytes) else record

@@ -1,4 +1,5 @@
-"""POST /v1/identify: vibration modes from a measured record, and a design for them.
+"""POST /v1/identify: vibration modes from a measured record, and a design for them (the use case:
+app.services.identify).
 
 A JSON body (``time_s``, ``signal``) is the original form: a free vibration fitted with one damped
 sinusoid (Biagiotti eq. 16, the two-peak estimate still reported for comparison) and the tuned smoother.
@@ -6,12 +7,11 @@ A ``text/csv`` body is a measured record (a time column and one or more signal c
 accelerometer's x, y, z; optionally the known command): its Welch spectrum, peaks and a sum of damped
 sinusoids fitted per mode with 95 % intervals (optim.modal), the record's quality, and with a move and
 limits in the query the fastest design whose 5 % band covers the lowest mode's interval (optim.recommend),
-each candidate run through the family endpoints' pipeline (app.profiles.profile.profile).
+each candidate run through the family endpoints' pipeline (app.services.profile.profile).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from typing import Annotated, Any
 
 import numpy as np
@@ -23,21 +23,10 @@ from app import problems
 from app.deps import PoolDep, SettingsDep, ThreadsDep
 from app.examples import OMEGA_RAD_S, SIGMA_1_S
 from app.responses import NumpyJSONResponse
-from app.schemas.family import ProfileRequest
 from app.schemas.identify import IdentifyMeasurementResponse, MeasurementParams
-from app.schemas.registry import REQUEST_SCHEMAS
-from app.schemas.simulate import check_sample_count
 from app.schemas.smoothers import IdentifyRequest, IdentifyResponse
-from app.services import profile as profiles
-from app.settings import Settings
+from app.services.identify import identify_csv, identify_respond, runner
 from models.errors import InvalidParameter
-from models.plants import FREQUENCY_MAX_HZ, FREQUENCY_MIN_HZ
-from optim.family import FAMILIES
-from optim.modal import CONFIDENCE, ModalIdentification, identify_modes
-from optim.recommend import Move, MoveLimits, RunOne, plant_interval, recommend, recommendation_candidates
-from optim.record_csv import parse_record_csv
-from optim.smoothers import identify, tuned_duration_s, vibration_free_durations_s
-from optim.workers import Executor, InlineExecutor
 
 router = APIRouter(prefix="/v1", tags=["smoothers"], route_class=problems.JSONRoute)
 
@@ -59,190 +48,6 @@ IDENTIFY_EXAMPLES: dict[str, dict[str, Any]] = {
         "value": _synthetic_record(),
     }
 }
-
-
-def identify_respond(request: IdentifyRequest, settings: Settings) -> dict[str, Any]:
-    """The full response body of POST /v1/identify."""
-    check_sample_count("time_s", len(request.time_s), settings.max_samples)
-    result = identify(np.asarray(request.time_s, dtype=float), np.asarray(request.signal, dtype=float))
-    mode = result.mode
-    if not FREQUENCY_MIN_HZ <= mode.natural_frequency_hz <= FREQUENCY_MAX_HZ:
-        raise InvalidParameter(
-            "time_s",
-            f"{len(request.time_s)} samples",
-            f"the identified natural frequency {mode.natural_frequency_hz:.6g} Hz lies outside "
-            f"[{FREQUENCY_MIN_HZ:g}, {FREQUENCY_MAX_HZ:g}] Hz (are the times in seconds?)",
-        )
-    two_peak = None
-    if result.two_peak is not None:
-        two_peak = {"damped_angular_frequency_rad_s": result.two_peak[0], "decay_rate_1_s": result.two_peak[1]}
-    return {
-        "damped_angular_frequency_rad_s": result.damped_angular_frequency_rad_s,
-        "decay_rate_1_s": result.decay_rate_1_s,
-        "natural_frequency_rad_s": mode.natural_frequency_rad_s,
-        "natural_frequency_hz": mode.natural_frequency_hz,
-        "damping_ratio": mode.damping_ratio,
-        "damped_period_s": mode.damped_period_s,
-        "fit": {
-            "r_squared": result.r_squared,
-            "rms_residual": result.rms_residual,
-            "amplitude": result.amplitude,
-            "offset": result.offset,
-            "periods": result.periods,
-            "signal_to_noise": result.signal_to_noise,
-            "damped_angular_frequency_std_rad_s": result.frequency_std_rad_s,
-            "decay_rate_std_1_s": result.decay_rate_std_1_s,
-            "samples": result.samples,
-        },
-        "two_peak_estimate": two_peak,
-        "smoother": {
-            "type": "damped_harmonic",
-            "duration_s": tuned_duration_s("damped_harmonic", mode),
-            "decay_rate_1_s": mode.decay_rate_1_s,
-            "vibration_free_durations_s": vibration_free_durations_s("damped_harmonic", mode),
-        },
-        "plant": {
-            "kind": "mode",
-            "natural_frequency_hz": mode.natural_frequency_hz,
-            "damping_ratio": mode.damping_ratio,
-        },
-        "warnings": list(result.warnings),
-    }
-
-
-# --- the measured record (text/csv) ---------------------------------------------------------------------
-
-
-def parse_family_request(family: str, body: Mapping[str, Any]) -> ProfileRequest:
-    """A recommended request parsed by its endpoint's schema (an InvalidParameter naming the field if not)."""
-    try:
-        return REQUEST_SCHEMAS[family].model_validate(body)
-    except ValidationError as exc:
-        err = exc.errors()[0]
-        raise InvalidParameter(problems.field_path(tuple(err["loc"])), None, str(err["msg"])) from None
-
-
-def runner(settings: Settings, executor: Executor, threads: Executor = profiles.INLINE) -> RunOne:
-    """A ``run_one``: each candidate through the family endpoints' service layer (app.profiles.profile.profile) on
-    ``executor`` and ``threads``: the route's solver pool and design threads, or in-process."""
-
-    async def run_one(family: str, body: dict[str, Any]) -> dict[str, Any]:
-        request = parse_family_request(family, body)
-        return await profiles.profile(FAMILIES[family], request, settings, executor, threads)
-
-    return run_one
-
-
-def in_process_runner(settings: Settings) -> RunOne:
-    """A ``run_one`` without a server or a solver pool (for the CLI): the candidates run in this process, the
-    solver ones one after the other (IPOPT is not thread-safe)."""
-    return runner(settings, InlineExecutor())
-
-
-def _mode_dict(mode: Any) -> dict[str, Any]:
-    return dict(mode.as_dict())
-
-
-def _measurement_body(result: ModalIdentification, samples: int) -> dict[str, Any]:
-    spectrum = result.spectrum
-    return {
-        "modes": [_mode_dict(m) for m in result.modes],
-        "spectrum": {
-            "frequency_hz": spectrum.frequency_hz,
-            "psd": spectrum.psd,
-            "resolution_hz": spectrum.resolution_hz,
-            "segment_samples": spectrum.segment_samples,
-            "window": "boxcar",
-        },
-        "quality": {
-            "sample_rate_hz": result.sample_rate_hz,
-            "nyquist_hz": result.sample_rate_hz / 2.0,
-            "samples": samples,
-            "signals": list(result.names),
-            "fit_start_s": result.window_start_s,
-            "fit_start_source": result.window_source,
-            "fit_samples": result.window_samples,
-            "r_squared": result.r_squared,
-            "noise_rms": list(result.noise_rms),
-            "offsets": list(result.offsets),
-            "degrees_of_freedom": result.degrees_of_freedom,
-            "confidence": CONFIDENCE,
-            "t_quantile": result.t_quantile,
-            "alias_energy_fraction": result.alias_energy_fraction,
-            "resampled": result.resampled,
-        },
-        "warnings": list(result.warnings),
-    }
-
-
-def identify_record_csv(text: str, params: MeasurementParams, max_rows: int) -> tuple[ModalIdentification, int]:
-    """Parse and fit a CSV record (pure: no I/O); the identification and the record's sample count."""
-    record = parse_record_csv(text, max_rows=max_rows, command_column=params.command_column)
-    return identify_modes(record, max_modes=params.max_modes, start_s=params.start_s), int(record.time_s.size)
-
-
-async def identify_csv(
-    text: str,
-    params: MeasurementParams,
-    run_one: RunOne | None,
-    *,
-    max_rows: int,
-    threads: Executor = profiles.INLINE,
-    deadline_s: float = 0.0,
-) -> dict[str, Any]:
-    """The whole answer of POST /v1/identify for a CSV record, with candidates run by ``run_one(family, request)``
-    (returns the endpoint's response body or raises a DomainError). The HTTP route runs them through
-    app.profiles.profile.profile; a caller without a server (the CLI) passes its own runner, or None for no
-    recommendation."""
-    params.check()
-    # the fit, in the route's design threads (optim.threads: bounded admission, deadline_s), or in-process
-    result, samples = await threads.run(identify_record_csv, text, params, max_rows, deadline_s=deadline_s)
-    body = _measurement_body(result, samples)
-    mode, interval = plant_interval(result.modes)
-    plant = {"kind": "mode", "natural_frequency_hz": mode.natural_frequency_hz, "damping_ratio": mode.damping_ratio}
-    recommendation: dict[str, Any] = {
-        "plant": plant,
-        "frequency_ratio_interval": list(interval),
-        "reason": "",
-        "candidates": [],
-    }
-    body["recommended"] = None
-    body["recommendation"] = recommendation
-    if not params.has_move():
-        recommendation["reason"] = (
-            "no move given: add displacement or target_velocity (and max_velocity, max_acceleration, max_jerk) "
-            "as query parameters for a recommended design"
-        )
-        return body
-    if run_one is None:
-        recommendation["reason"] = "no runner given: the candidates were not run"
-        return body
-    move = Move(params.displacement, params.target_velocity)
-    limits = MoveLimits(params.max_velocity, params.max_acceleration, params.max_jerk)
-    candidates = recommendation_candidates(result.modes, move, limits)
-    chosen, outcomes = await recommend(candidates, run_one, interval)
-    recommendation["candidates"] = outcomes
-    if chosen is None:
-        recommendation["reason"] = (
-            "no candidate's 5 % band covers the interval within these limits (see candidates[].reason)"
-        )
-        return body
-    best = next(o for o, c in zip(outcomes, candidates, strict=True) if c is chosen)
-    body["recommended"] = {
-        "endpoint": chosen.endpoint,
-        "request": chosen.request,
-        "family": chosen.family,
-        "label": best["label"],
-        "settling_time_s": best["settling_time_s"],
-        "band_5_percent": best["band_5_percent"],
-        "frequency_ratio_interval": list(interval),
-    }
-    covering = sum(1 for o in outcomes if o["covers"])
-    recommendation["reason"] = (
-        f"the least settling time ({best['settling_time_s']:.6g} s) of the {covering} of {len(outcomes)} candidates "
-        f"whose 5 % band covers the lowest mode's 95 % interval of f_n"
-    )
-    return body
 
 
 # --- the route --------------------------------------------------------------------------------------------

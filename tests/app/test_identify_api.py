@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.routers.identify import REQUEST_SCHEMAS
+from app.schemas.registry import REQUEST_SCHEMAS
 from optim.recommend import band_covers
 from tests import aio
 from tests.app.conftest import TEST_SETTINGS
@@ -155,8 +155,8 @@ def test_a_known_command_column_starts_the_fit_where_the_command_ends(client):
 
 def test_the_in_process_runner_recommends_the_same_request_as_the_service(client, record_csv):
     # What the CLI runs without a server: the same candidates through optim.synthesis in-process.
-    from app.routers.identify import identify_csv, in_process_runner
     from app.schemas.identify import MeasurementParams
+    from app.services.identify import identify_csv, in_process_runner
 
     served = client.post(URL, content=record_csv, headers=CSV, params=MOVE).json()
     local = aio.run(
