@@ -141,29 +141,21 @@ def sweep(
 
     The points run here, one after the other, or on the Dask cluster at ``scheduler`` (default: the setting
     ``VIBFREE_DASK_SCHEDULER``); ``on_line`` sees each line as it comes (a progress bar)."""
-    from app.routers import sweeps as route
     from app.schemas.sweeps import SweepIn
-    from optim.sweeps import DaskExecutor
+    from app.services.sweeps import SweepPlan, executor_for, lines
 
     body = _validate(SweepIn, request)
     settings = settings or get_settings()
     address = scheduler or settings.dask_scheduler
 
     async def run() -> list[dict[str, Any]]:
-        plan = route.Plan(body, settings)
+        plan = SweepPlan(body, settings)
         out: list[dict[str, Any]] = []
-
-        async def collect(executor: Any, capacity: int | None) -> None:
-            async for line in route.lines(plan, executor, capacity):
+        async with executor_for(address, InlineExecutor(), 1) as (executor, capacity):
+            async for line in lines(plan, executor, capacity):
                 out.append(line)
                 if on_line is not None:
                     on_line(line)
-
-        if address:
-            async with DaskExecutor.connect(address) as dask:
-                await collect(dask, 2 * await dask.capacity())
-        else:
-            await collect(InlineExecutor(), 1)
         return out
 
     try:

@@ -144,8 +144,8 @@ class SweepIn(StrictModel):
 
     @classmethod
     def schema_rules(cls) -> list[dict[str, Any]]:
-        # the base request is validated by the family's schema first (routers.sweeps.Plan): it needs a plant, an
-        # object tagged by its kind
+        # the base request is validated by the family's schema first (app.services.sweeps.SweepPlan): it needs a
+        # plant, an object tagged by its kind
         plant = {"type": "object", "required": ["kind"], "properties": {"kind": {"enum": list(PLANT_KINDS)}}}
         return [
             *super().schema_rules(),

@@ -137,7 +137,7 @@ CASES = [
         {},
         False,
     ),
-    # routers.sweeps.Plan: the base request is the family's body, which has a plant tagged by its kind
+    # app.services.sweeps.SweepPlan: the base request is the family's body, which has a plant tagged by its kind
     ("/v1/sweeps", {"family": "stap", "request": {**STAP, "plant": 1}, "axes": [AXIS_RANGE]}, {}, False),
     ("/v1/sweeps", {"family": "stap", "request": {**STAP, "plant": {"kind": "x"}}, "axes": [AXIS_RANGE]}, {}, False),
 ]
