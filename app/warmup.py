@@ -36,21 +36,20 @@ EXAMPLE_ROUTES = tuple(WARM_EXAMPLES)
 def example_jobs(settings: Any) -> tuple[tuple[str, Any, Any], ...]:
     """(family name, problem, options) of every example of ``EXAMPLE_ROUTES`` that uses a solver, parsed
     like a request (in the HTTP process: what a worker receives is what a request would send it)."""
-    import importlib
-
-    from app.schemas.registry import REQUEST_SCHEMAS
+    from app.families import BY_NAME
     from optim.families import REGISTRY
 
     jobs: list[tuple[str, Any, Any]] = []
     for name in EXAMPLE_ROUTES:
-        examples: dict[str, dict[str, Any]] = importlib.import_module(f"app.routers.{name}").EXAMPLES
+        entry = BY_NAME[name]
+        examples = entry.examples
         family = REGISTRY[name]
         chosen = WARM_EXAMPLES[name]
         for key, example in examples.items():
             if chosen is not None and key not in chosen:
                 continue
             try:
-                body = REQUEST_SCHEMAS[name].model_validate(example["value"])
+                body = entry.request.model_validate(example["value"])
                 problem = body.to_problem(settings)
                 options = body.options(problem)
             except Exception:  # an example the schema refuses is the docs' test's business, not a start-up failure

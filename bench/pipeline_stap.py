@@ -19,7 +19,7 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from app.routers.stap import EXAMPLES
+from app.examples.stap import EXAMPLES
 from app.schemas.stap import FAMILY, StapIn
 from app.settings import Settings
 from models.simulation import simulate

@@ -53,7 +53,7 @@ PSEUDO_POLYNOMIAL = {
     "duration_s": 1.0,
 }
 
-from app.routers.stap import EXAMPLES as STAP_EXAMPLES  # noqa: E402
+from app.examples.stap import EXAMPLES as STAP_EXAMPLES  # noqa: E402
 
 STAP = STAP_EXAMPLES["section_3_k1"]["value"]
 LOADS = {

@@ -52,7 +52,7 @@ class Row:
 class Unavailable:
     family: str
     reason: str
-    problem_type: str
+    problem_type: str  # the slug of the problem type its endpoint answers with (models.errors)
 
 
 def reason_of(exc: DomainError) -> str:
@@ -75,7 +75,7 @@ async def _one(family: Family, problem: Problem, candidate: Candidate, run: Runn
     except NOT_AN_ANSWER:
         raise
     except DomainError as exc:
-        return Unavailable(family.name, reason_of(exc), f"/problems/{exc.problem_type}")
+        return Unavailable(family.name, reason_of(exc), exc.problem_type)
 
 
 def _best_of_groups(candidates: tuple[Candidate, ...], outcomes: list[Row | Unavailable]) -> list[Row | Unavailable]:
@@ -116,13 +116,13 @@ def plan(problem: Problem, names: Iterable[str] | None = None, overrides: Mappin
     for family in families:
         reason = family.not_applicable(problem)
         if reason is not None:
-            unavailable.append(Unavailable(family.name, reason, "/problems/not-applicable"))
+            unavailable.append(Unavailable(family.name, reason, "not-applicable"))
             continue
         override = overrides.get(family.name)
         try:
             candidates = (Candidate(family.name, override, family.name),) if override else family.candidates(problem)
         except DomainError as exc:  # its default options cannot be built for this problem
-            unavailable.append(Unavailable(family.name, reason_of(exc), f"/problems/{exc.problem_type}"))
+            unavailable.append(Unavailable(family.name, reason_of(exc), exc.problem_type))
             continue
         runs.append((family, candidates))
     return Plan(problem, tuple(runs), tuple(unavailable))

@@ -127,7 +127,6 @@ class Candidate:
 @runtime_checkable
 class Family(Protocol):
     name: ClassVar[str]
-    endpoint: ClassVar[str]
 
     def not_applicable(self, problem: Problem) -> str | None: ...
 
@@ -159,11 +158,10 @@ class Family(Protocol):
 
 
 class BaseFamily:
-    """Defaults of the hooks a family may override; a family sets ``name`` and ``endpoint`` and
+    """Defaults of the hooks a family may override; a family sets ``name`` (app.family_names) and
     implements ``design``."""
 
     name: ClassVar[str] = ""
-    endpoint: ClassVar[str] = ""
 
     def not_applicable(self, problem: Problem) -> str | None:
         return None

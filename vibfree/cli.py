@@ -21,6 +21,8 @@ from typing import Any, TextIO
 
 import orjson
 
+from app.family_names import SLUGS
+
 # The flags of ``make serve`` (docs/deployment.md says why each); tests check they match the Makefile's.
 SERVE_FLAGS = (
     "--no-access-log",
@@ -39,7 +41,7 @@ SERVE_FLAGS = (
 # OpenBLAS's threads on the loaded machine, 0.47 ms without), and a solve's last bits depend on the thread count, so
 # the pool's rows equal a Dask worker's (whose nanny sets the same) bit for bit.
 SINGLE_THREADED_BLAS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
-FAMILY_NAMES = ("time-optimal", "pseudo-polynomial", "stap", "smoother", "input-shaped")
+FAMILY_NAMES = SLUGS
 HTTP_TIMEOUT_S = 300.0
 
 

@@ -6,6 +6,7 @@ from typing import Any, ClassVar, Literal
 
 from pydantic import Field
 
+from app.family_names import FamilyName
 from app.schemas.common import OutModel
 from app.schemas.family import ProfileRequest, SensitivityIn, SensitivityOut
 from app.schemas.simulate import LoadOut, ProfileOut
@@ -13,7 +14,6 @@ from app.schemas.stap import StapSensitivityOut
 from optim.families.pseudo_polynomial import PseudoPolynomialOptions
 from optim.problem import Problem
 
-FamilyName = Literal["time_optimal", "pseudo_polynomial", "stap", "smoother", "input_shaped"]
 DEFAULT_SENSITIVITY = SensitivityIn(min_ratio=0.5, max_ratio=1.5, count=201)
 
 

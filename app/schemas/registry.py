@@ -10,7 +10,7 @@ from app.schemas.smoothers import SmootherRequest
 from app.schemas.stap import StapIn
 from app.schemas.time_optimal import TimeOptimalIn
 
-REQUEST_SCHEMAS: dict[str, type[ProfileRequest]] = {
+REQUEST_SCHEMAS: dict[str, type[ProfileRequest]] = {  # in the order of app.family_names.NAMES (a test checks)
     "time_optimal": TimeOptimalIn,
     "pseudo_polynomial": PseudoPolynomialIn,
     "stap": StapIn,

@@ -7,18 +7,18 @@ from typing import Annotated, Any, ClassVar, Literal
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
+from app.family_names import SLUGS, FamilySlug, name_of
 from app.schemas.common import INTEGRAL, Int, OutModel, StrictModel, is_value, leaf, never
 from app.schemas.plants import PLANT_KINDS
-from app.schemas.registry import REQUEST_SCHEMAS
 
-FAMILY_NAMES = tuple(name.replace("_", "-") for name in REQUEST_SCHEMAS)  # the endpoint names
+FAMILY_NAMES = SLUGS  # the endpoints' names
 MAX_AXES = 4
 MAX_AXIS_VALUES = 1000  # per axis (the default point cap); bounds the body too
 PATH_PATTERN = r"^[A-Za-z_][A-Za-z0-9_]*(\[[0-9]+\])?(\.[A-Za-z_][A-Za-z0-9_]*(\[[0-9]+\])?)*$"
 DEFAULT_THRESHOLD_PERCENT = 5.0
 MAX_REFINED_POINTS = 1000
 RANGE = ("start", "stop", "num")
-SweepFamily = Literal["time-optimal", "pseudo-polynomial", "stap", "smoother", "input-shaped"]
+SweepFamily = FamilySlug
 
 
 class AxisIn(StrictModel):
@@ -162,7 +162,7 @@ class SweepIn(StrictModel):
 
     @property
     def family_key(self) -> str:
-        return self.family.replace("-", "_")
+        return name_of(self.family)
 
     @property
     def points(self) -> int:

@@ -12,6 +12,7 @@ from typing import Any
 
 from starlette.concurrency import run_in_threadpool
 
+from app.family_names import endpoint_of
 from app.schemas.compare import DEFAULT_SENSITIVITY, CompareIn
 from app.services import profile as profiles
 from app.settings import Settings
@@ -52,7 +53,7 @@ async def answer(
     return {
         "move": "rest_to_rest" if problem.rest_to_rest else "rest_to_velocity",
         "rows": [_row(body, common, row, problem.load_move) for row in rows],
-        "unavailable": [vars(u) for u in unavailable],
+        "unavailable": [{**vars(u), "problem_type": f"/problems/{u.problem_type}"} for u in unavailable],
     }
 
 
@@ -64,7 +65,7 @@ def _row(request: CompareIn, common: dict[str, Any], row: ComparedRow, load_move
     out: dict[str, Any] = {
         "family": family.name,
         "label": row.label or family.name,
-        "endpoint": family.endpoint,
+        "endpoint": endpoint_of(family.name),
         "request": {**common, **family.request_fields(row.options)},
         "motion_time_s": m.command_end_s - float(result.command.time_s[0]),
         "settling_time_s": m.settling.time_s,

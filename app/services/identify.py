@@ -4,7 +4,7 @@ A free vibration (JSON ``time_s``, ``signal``) is fitted with one damped sinusoi
 estimate still reported for comparison) and gives the tuned smoother. A measured record (CSV: a time column and one
 or more signal columns, optionally the known command) gives its Welch spectrum, peaks and a sum of damped sinusoids
 fitted per mode with 95 % intervals (optim.modal), the record's quality, and with a move and limits the fastest
-design whose 5 % band covers the lowest mode's interval (optim.recommend), each candidate run through the family
+design whose 5 % band covers the lowest mode's interval (app.services.recommend), each candidate run through the family
 endpoints' use case (app.services.profile.profile). The route (app.routers.identify), the Python API and the CLI
 call it.
 """
@@ -24,12 +24,12 @@ from app.schemas.registry import REQUEST_SCHEMAS
 from app.schemas.simulate import check_sample_count
 from app.schemas.smoothers import IdentifyRequest
 from app.services import profile as profiles
+from app.services.recommend import Move, MoveLimits, RunOne, plant_interval, recommend, recommendation_candidates
 from app.settings import Settings
 from models.errors import InvalidParameter
 from models.plants import FREQUENCY_MAX_HZ, FREQUENCY_MIN_HZ
 from optim.family import FAMILIES
 from optim.modal import CONFIDENCE, ModalIdentification, identify_modes
-from optim.recommend import Move, MoveLimits, RunOne, plant_interval, recommend, recommendation_candidates
 from optim.record_csv import parse_record_csv
 from optim.smoothers import identify, tuned_duration_s, vibration_free_durations_s
 from optim.workers import Executor, InlineExecutor

@@ -421,7 +421,6 @@ def shaper_design(problem: Problem, options: InputShapedOptions) -> ShaperDesign
 
 class InputShapedFamily(BaseFamily):
     name: ClassVar[str] = "input_shaped"
-    endpoint: ClassVar[str] = "/v1/profiles/input-shaped"
 
     def not_applicable(self, problem: Problem) -> str | None:
         if problem.limits.max_jerk is not None:

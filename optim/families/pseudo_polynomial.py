@@ -99,7 +99,6 @@ def sampled_peaks(problem: Problem) -> pp.PeaksOf:
 
 class PseudoPolynomialFamily(BaseFamily):
     name: ClassVar[str] = "pseudo_polynomial"
-    endpoint: ClassVar[str] = "/v1/profiles/pseudo-polynomial"
 
     def not_applicable(self, problem: Problem) -> str | None:
         if not problem.rest_to_rest:

@@ -106,7 +106,6 @@ def hold_residual(chain: Chain, command: PiecewiseCommand, problem: Problem) -> 
 
 class SmootherFamily(BaseFamily):
     name: ClassVar[str] = "smoother"
-    endpoint: ClassVar[str] = "/v1/profiles/smoother"
 
     def not_applicable(self, problem: Problem) -> str | None:
         if not problem.rest_to_rest:

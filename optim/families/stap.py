@@ -200,7 +200,6 @@ def _design_block(problem: Problem, detail: _Detail) -> dict[str, Any]:
 
 class StapFamily(BaseFamily):
     name: ClassVar[str] = "stap"
-    endpoint: ClassVar[str] = "/v1/profiles/stap"
 
     def default_options(self, problem: Problem) -> StapOptions:
         return StapOptions()

@@ -260,7 +260,6 @@ def _arc_block(arc: Arc, order: int, unit: float) -> dict[str, Any]:
 
 class TimeOptimalFamily(BaseFamily):
     name: ClassVar[str] = "time_optimal"
-    endpoint: ClassVar[str] = "/v1/profiles/time-optimal"
 
     def not_applicable(self, problem: Problem) -> str | None:
         if not problem.plant.modes():

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from app.schemas.registry import REQUEST_SCHEMAS
-from optim.recommend import band_covers
+from app.services.recommend import band_covers
 from tests import aio
 from tests.app.conftest import TEST_SETTINGS
 from tests.app.test_errors import assert_problem

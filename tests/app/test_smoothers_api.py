@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from app.examples import BIAGIOTTI_PLANT
-from app.routers.smoothers import SMOOTHER_EXAMPLES
+from app.examples.smoother import EXAMPLES as SMOOTHER_EXAMPLES
 from app.schemas.smoothers import FAMILY, SmootherRequest
 from app.settings import Settings
 from models.commands import PiecewiseCommand

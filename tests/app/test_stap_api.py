@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from app.examples import CUSIMANO_40HZ
-from app.routers.stap import EXAMPLES
+from app.examples.stap import EXAMPLES
 from app.schemas.stap import StapOut
 from tests.app.test_errors import assert_problem
 

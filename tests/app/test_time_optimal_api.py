@@ -7,7 +7,7 @@ import io
 import numpy as np
 import pytest
 
-from app.routers.time_optimal import EXAMPLES
+from app.examples.time_optimal import EXAMPLES
 from app.schemas.time_optimal import TimeOptimalOut
 from tests.app.test_errors import assert_problem
 

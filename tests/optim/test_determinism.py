@@ -15,7 +15,6 @@ STAP multistart stopped after 2 x the wall-time cap, the duration search after 3
 
 from __future__ import annotations
 
-import importlib
 import time
 from collections.abc import Callable, Iterator
 from typing import Any
@@ -26,6 +25,7 @@ import pytest
 
 import optim.families.time_optimal as time_optimal_family
 import optim.time_optimal.lp as lp
+from app.families import BY_NAME
 from app.schemas.registry import REQUEST_SCHEMAS
 from app.settings import Settings
 from models.errors import SolverTimedOut
@@ -94,7 +94,7 @@ def answer_bytes(family: str, problem: Problem, options: Any) -> bytes:
 
 
 def _example(route: str, name: str) -> tuple[Problem, Any]:
-    payload = importlib.import_module(f"app.routers.{route}").EXAMPLES[name]["value"]
+    payload = BY_NAME[route].examples[name]["value"]
     body = REQUEST_SCHEMAS[route].model_validate(payload)
     problem = body.to_problem(Settings(workers=1))
     return problem, body.options(problem)

@@ -7,7 +7,6 @@ sum (exact integers: no tolerance)."""
 from __future__ import annotations
 
 import dataclasses
-import importlib
 from typing import Any
 
 import pytest
@@ -15,6 +14,7 @@ import pytest
 import optim.pseudo_polynomial.problem as pp_problem
 import optim.stap.problem as stap_problem
 import optim.time_optimal.lp as lp
+from app.families import BY_NAME
 from app.schemas.registry import REQUEST_SCHEMAS
 from app.settings import Settings
 from optim.cache import LruCache
@@ -75,7 +75,7 @@ def calls(monkeypatch: pytest.MonkeyPatch) -> Calls:
 
 
 def _example(route: str, name: str) -> tuple[Any, Any, Any]:
-    payload = importlib.import_module(f"app.routers.{route}").EXAMPLES[name]["value"]
+    payload = BY_NAME[route].examples[name]["value"]
     body = REQUEST_SCHEMAS[route].model_validate(payload)
     problem = body.to_problem(Settings(workers=1))
     return REGISTRY[route], problem, body.options(problem)

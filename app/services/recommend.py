@@ -1,4 +1,5 @@
-"""The fastest design whose 5 % band covers an identified mode's frequency interval.
+"""The fastest design whose 5 % band covers an identified mode's frequency interval (the identify use case's
+recommendation: requests to the family endpoints, and their answers read).
 
 The plant designed for is the identified mode of lowest frequency, as ``{"kind": "mode"}`` with its
 estimated natural frequency and damping ratio: every family designs for (and reports ``sensitivity`` and
@@ -24,8 +25,8 @@ from collections.abc import Awaitable, Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
+from app.family_names import endpoint_of
 from models.errors import DomainError, InvalidParameter, PoolUnavailable
-from optim.family import FAMILIES
 from optim.modal import IdentifiedMode
 from optim.shapers import CATALOGUE_NAMES
 
@@ -118,7 +119,7 @@ def recommendation_candidates(
     out: list[RecommendationCandidate] = []
 
     def add(family: str, extra: dict[str, Any]) -> None:
-        out.append(RecommendationCandidate(family, FAMILIES[family].endpoint, {**common, **extra}))
+        out.append(RecommendationCandidate(family, endpoint_of(family), {**common, **extra}))
 
     if limits.max_acceleration is not None or limits.max_jerk is not None:
         # the band a little wider than the interval: its V <= 5 % then holds at the interval's ends with margin

@@ -1,4 +1,4 @@
-"""optim.recommend: the candidates for an identified mode's interval, and the choice among their results.
+"""app.services.recommend: the candidates for an identified mode's interval, and the choice among their results.
 
 The runner is a fake (a table of answers), so the choice is tested by itself: the least settling time among the
 candidates whose returned band covers the interval; failures and uncovered bands are listed, never chosen.
@@ -8,9 +8,7 @@ from __future__ import annotations
 
 import pytest
 
-from models.errors import Infeasible, PoolUnavailable
-from optim.modal import IdentifiedMode
-from optim.recommend import (
+from app.services.recommend import (
     Move,
     MoveLimits,
     RecommendationCandidate,
@@ -19,6 +17,8 @@ from optim.recommend import (
     recommend,
     recommendation_candidates,
 )
+from models.errors import Infeasible, PoolUnavailable
+from optim.modal import IdentifiedMode
 from tests import aio
 
 

@@ -1,0 +1,36 @@
+"""The family table: what the service has for each design family, by its name (app.family_names): its request
+schema and its worked examples. The routes, the Python API, identify's recommendation and the warm-up read it;
+nothing reads a router for it."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from app.examples import input_shaped, pseudo_polynomial, smoother, stap, time_optimal
+from app.family_names import NAMES, endpoint_of, slug_of
+from app.schemas.family import ProfileRequest
+from app.schemas.registry import REQUEST_SCHEMAS
+
+_EXAMPLES: dict[str, dict[str, dict[str, Any]]] = {
+    "time_optimal": time_optimal.EXAMPLES,
+    "pseudo_polynomial": pseudo_polynomial.EXAMPLES,
+    "stap": stap.EXAMPLES,
+    "smoother": smoother.EXAMPLES,
+    "input_shaped": input_shaped.EXAMPLES,
+}
+
+
+@dataclass(frozen=True)
+class FamilyEntry:
+    name: str
+    slug: str
+    endpoint: str
+    request: type[ProfileRequest]
+    examples: dict[str, dict[str, Any]]  # OpenAPI examples: {key: {"summary", "value", ...}}
+
+
+FAMILY_TABLE: tuple[FamilyEntry, ...] = tuple(
+    FamilyEntry(name, slug_of(name), endpoint_of(name), REQUEST_SCHEMAS[name], _EXAMPLES[name]) for name in NAMES
+)
+BY_NAME: dict[str, FamilyEntry] = {entry.name: entry for entry in FAMILY_TABLE}
