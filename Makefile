@@ -35,7 +35,7 @@ test: $(VENV)/.installed-test  ## lint, format and type gates, the docs site, th
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 	$(BIN)/mypy --strict models optim
-	$(BIN)/mypy app vibfree
+	$(BIN)/mypy --strict app vibfree
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --site-dir site  # docs/: a broken link or anchor fails (not --quiet: it hides them)
 	bash scripts/ensure-chromium.sh
 	$(BIN)/python -m pytest

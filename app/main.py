@@ -93,7 +93,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             await pool.close()
             directory = app.state.metrics.multiprocess_dir
             if directory is not None:  # this process's live gauges leave the sums; its counters stay
-                prometheus_multiprocess.mark_process_dead(os.getpid(), directory)
+                prometheus_multiprocess.mark_process_dead(os.getpid(), directory)  # type: ignore[no-untyped-call]
 
     app = FastAPI(
         title="Vibration-free motion profiles",
@@ -136,7 +136,7 @@ def _declare_problem_schema(app: FastAPI) -> None:
     status it can answer with (``problems.declared_statuses``), whatever the route itself lists."""
     original = app.openapi
 
-    def openapi() -> dict:
+    def openapi() -> dict[str, Any]:
         if app.openapi_schema:
             return app.openapi_schema
         schema = original()

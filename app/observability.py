@@ -53,7 +53,7 @@ APP_LOGGERS = ("app", "optim", "models", "vibfree")
 class _StderrHandler(logging.StreamHandler):  # type: ignore[type-arg]
     """A handler writing to whatever ``sys.stderr`` is at the time of each record (test capture included)."""
 
-    @property  # type: ignore[override]
+    @property
     def stream(self) -> TextIO:
         return sys.stderr
 
@@ -282,7 +282,7 @@ def forget_dead_processes(path: str) -> list[int]:
             if match and not _alive(int(match.group(1))):
                 dead.add(int(match.group(1)))
     for pid in dead:
-        prometheus_multiprocess.mark_process_dead(pid, path)
+        prometheus_multiprocess.mark_process_dead(pid, path)  # type: ignore[no-untyped-call]
     return sorted(dead)
 
 
@@ -327,7 +327,7 @@ def processes_state(path: str) -> dict[int, dict[str, int]]:
     queued, workers} (for /readyz: a probe lands on one process and answers for all)."""
     forget_dead_processes(path)
     registry = CollectorRegistry()
-    prometheus_multiprocess.MultiProcessCollector(registry, path)
+    prometheus_multiprocess.MultiProcessCollector(registry, path)  # type: ignore[no-untyped-call]
     out: dict[int, dict[str, int]] = {}
     keys = {"vibfree_pool_queue_depth": "queued", "vibfree_pool_configured_workers": "workers"}
     for metric in registry.collect():
@@ -394,7 +394,7 @@ class Metrics:
             return self.registry
         forget_dead_processes(self.multiprocess_dir)
         registry = CollectorRegistry()
-        prometheus_multiprocess.MultiProcessCollector(registry, self.multiprocess_dir)
+        prometheus_multiprocess.MultiProcessCollector(registry, self.multiprocess_dir)  # type: ignore[no-untyped-call]
         return registry
 
 

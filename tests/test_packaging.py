@@ -78,7 +78,7 @@ def test_make_test_builds_the_docs_strictly():
     target = makefile.split("\ntest:", 1)[1].split("\n\n", 1)[0]
     (line,) = [line.split("#")[0] for line in target.splitlines() if "mkdocs build" in line]
     assert "--strict" in line and "--quiet" not in line and " -q " not in line
-    assert target.index("mypy app vibfree") < target.index("mkdocs build") < target.index("pytest")
+    assert target.index("mypy --strict app vibfree") < target.index("mkdocs build") < target.index("pytest")
     extra = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"]["test"]
     assert {re.split(r"[<>=\[ ]", dep)[0] for dep in extra} >= {"mkdocs", "mkdocs-material"}
     assert re.search(r"^site/$", (ROOT / ".gitignore").read_text(), re.M)

@@ -85,7 +85,8 @@ def synthesize(family: str, request: Mapping[str, Any] | str | bytes, *, setting
 def compare(request: Mapping[str, Any] | str | bytes, *, settings: Settings | None = None) -> dict[str, Any]:
     """Every family on one plant, move and limits, as ``POST /v1/compare`` (its JSON answer)."""
     body = _validate(CompareIn, request)
-    return _run(compare_service.answer(body, settings or get_settings(), InlineExecutor()))
+    answer: dict[str, Any] = _run(compare_service.answer(body, settings or get_settings(), InlineExecutor()))
+    return answer
 
 
 def identify(record: str | bytes, *, settings: Settings | None = None, **params: Any) -> dict[str, Any]:

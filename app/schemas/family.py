@@ -13,7 +13,7 @@ from typing import Annotated, Any, ClassVar
 
 import numpy as np
 from pydantic import Field, PrivateAttr, model_validator
-from pydantic.json_schema import JsonDict
+from pydantic.config import JsonDict
 
 from app.schemas.common import (
     TOLERANCE_MIN,
