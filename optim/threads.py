@@ -30,8 +30,8 @@ from contextlib import asynccontextmanager
 from typing import Any, TypeVar
 
 from models.errors import PoolUnavailable, SolverTimedOut
-from optim.heap import release_free_heap
 from optim.workers import RETRY_AFTER_MAX_S, RETRY_AFTER_MIN_S, Executor, HeldPlaces, PoolBusy, reservation_places
+from runtime.heap import release_free_heap
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")

@@ -47,7 +47,7 @@ from multiprocessing.process import BaseProcess
 from typing import Any, Literal, Protocol, TypeVar, runtime_checkable
 
 from models.errors import InvalidParameter, PoolUnavailable, SolverTimedOut
-from optim.heap import release_free_heap
+from runtime.heap import release_free_heap
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
