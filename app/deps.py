@@ -8,7 +8,7 @@ from fastapi import Depends, Request
 
 from app.settings import Settings
 from optim.threads import ThreadLane
-from optim.workers import SolverPool
+from runtime.pool import SolverPool
 
 
 async def get_app_settings(request: Request) -> Settings:

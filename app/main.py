@@ -35,7 +35,7 @@ from app.schemas.common import unschemed_rules
 from app.settings import Settings, get_settings
 from app.warmup import example_jobs, warm_up_worker
 from optim.threads import ThreadLane
-from optim.workers import SolverPool
+from runtime.pool import SolverPool
 
 DESCRIPTION = """
 Designs motor commands for machines whose load hangs on something elastic (belts, compliant

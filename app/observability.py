@@ -47,7 +47,7 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 # --- logging -------------------------------------------------------------------------------------
 
 #: The service's own loggers, shown from INFO (everything else from WARNING, the root's level).
-APP_LOGGERS = ("app", "optim", "models", "vibfree")
+APP_LOGGERS = ("app", "optim", "runtime", "models", "vibfree")
 
 
 class _StderrHandler(logging.StreamHandler):  # type: ignore[type-arg]

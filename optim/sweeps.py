@@ -36,7 +36,7 @@ from models.errors import InvalidParameter, PoolUnavailable
 from optim.family import FAMILIES
 from optim.problem import Problem
 from optim.synthesis import Result, nominal_percentage_vibration, synthesize
-from optim.workers import Executor, PoolBusy, SolveTimeout
+from runtime.executor import Executor, PoolBusy, SolveTimeout
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")

@@ -32,7 +32,7 @@ from optim.family import FAMILIES
 from optim.modal import CONFIDENCE, ModalIdentification, identify_modes
 from optim.record_csv import parse_record_csv
 from optim.smoothers import identify, tuned_duration_s, vibration_free_durations_s
-from optim.workers import Executor, InlineExecutor
+from runtime.executor import Executor, InlineExecutor
 
 
 def identify_respond(request: IdentifyRequest, settings: Settings) -> dict[str, Any]:

@@ -20,7 +20,7 @@ from models.errors import DomainError, Infeasible, InvalidParameter, NotApplicab
 from optim.family import Family
 from optim.problem import Problem
 from optim.synthesis import Result, synthesize
-from optim.workers import Executor, InlineExecutor
+from runtime.executor import Executor, InlineExecutor
 
 INLINE = InlineExecutor()
 

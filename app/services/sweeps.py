@@ -32,7 +32,8 @@ from app.settings import Settings
 from models.errors import DomainError, InvalidParameter, NotApplicable
 from optim import sweeps as engine
 from optim.family import FAMILIES
-from optim.workers import Executor, SolverPool
+from runtime.executor import Executor
+from runtime.pool import SolverPool
 
 log = logging.getLogger(__name__)
 _SEGMENT = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)(?:\[([0-9]+)\])?$")

@@ -196,7 +196,7 @@ def test_a_compare_missing_rows_only_because_the_pool_refused_them_is_a_503_not_
     from models.errors import PoolUnavailable
     from optim.compare import compare
     from optim.synthesis import synthesize
-    from optim.workers import PoolBusy
+    from runtime.executor import PoolBusy
     from tests import aio
     from tests.app.conftest import TEST_SETTINGS
 

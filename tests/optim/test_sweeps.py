@@ -16,7 +16,7 @@ from models.plants import make_plant
 from optim import sweeps
 from optim.families.input_shaped import InputShapedOptions
 from optim.problem import Problem
-from optim.workers import InlineExecutor, PoolBusy
+from runtime.executor import InlineExecutor, PoolBusy
 from tests import aio
 
 BASE_HZ = 10.0

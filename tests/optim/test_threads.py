@@ -14,7 +14,7 @@ from typing import Any
 import pytest
 
 from optim.threads import ThreadLane, WorkTimeout
-from optim.workers import PoolBusy
+from runtime.executor import PoolBusy
 from tests import aio
 
 
