@@ -191,7 +191,7 @@ class PoolCollector(Collector):
 
 
 class ThreadsCollector(Collector):
-    """The design threads' state (``optim.threads.ThreadLane.stats()``), read at scrape time (skipped while none)."""
+    """The design threads' state (``runtime.threads.ThreadLane.stats()``), read at scrape time (skipped while none)."""
 
     GAUGES = (
         ("vibfree_threads_configured", "threads", "Design threads configured (closed-form designs and fits)."),
