@@ -32,6 +32,7 @@ from app.settings import Settings
 from models.errors import DomainError, InvalidParameter, NotApplicable
 from optim import sweeps as engine
 from optim.family import FAMILIES
+from runtime.dask import DaskExecutor
 from runtime.executor import Executor
 from runtime.pool import SolverPool
 
@@ -231,7 +232,7 @@ async def executor_for(
     """Where the points run and how many are in flight: the Dask cluster at ``scheduler`` (twice its threads),
     connected for the block, or ``default`` with ``capacity`` (None: ``capacity_of``)."""
     if scheduler:
-        async with engine.DaskExecutor.connect(scheduler) as dask:
+        async with DaskExecutor.connect(scheduler) as dask:
             yield dask, 2 * await dask.capacity()
     else:
         yield default, capacity
