@@ -13,6 +13,7 @@ WORKDIR /srv
 COPY pyproject.toml README.md ./
 COPY models ./models
 COPY optim ./optim
+COPY runtime ./runtime
 COPY app ./app
 COPY vibfree ./vibfree
 RUN pip install --no-cache-dir . \

@@ -34,7 +34,7 @@ serve: $(VENV)/.installed-serve  ## run the service on http://$(HOST):$(PORT) (d
 test: $(VENV)/.installed-test  ## lint, format and type gates, the docs site, then the whole test suite (installs Debian's chromium)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
-	$(BIN)/mypy --strict models optim
+	$(BIN)/mypy --strict models optim runtime
 	$(BIN)/mypy --strict app vibfree
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --site-dir site  # docs/: a broken link or anchor fails (not --quiet: it hides them)
 	bash scripts/ensure-chromium.sh

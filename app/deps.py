@@ -7,8 +7,8 @@ from typing import Annotated
 from fastapi import Depends, Request
 
 from app.settings import Settings
-from optim.threads import ThreadLane
-from optim.workers import SolverPool
+from runtime.pool import SolverPool
+from runtime.threads import ThreadLane
 
 
 async def get_app_settings(request: Request) -> Settings:
@@ -25,7 +25,7 @@ async def get_pool(request: Request) -> SolverPool:  # async: FastAPI would run 
 
 
 async def get_threads(request: Request) -> ThreadLane:
-    """The process's design threads (``optim.threads``): where the closed-form designs and fits run."""
+    """The process's design threads (``runtime.threads``): where the closed-form designs and fits run."""
     threads: ThreadLane = request.app.state.threads
     return threads
 

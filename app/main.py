@@ -34,8 +34,8 @@ from app.routers import (
 from app.schemas.common import unschemed_rules
 from app.settings import Settings, get_settings
 from app.warmup import example_jobs, warm_up_worker
-from optim.threads import ThreadLane
-from optim.workers import SolverPool
+from runtime.pool import SolverPool
+from runtime.threads import ThreadLane
 
 DESCRIPTION = """
 Designs motor commands for machines whose load hangs on something elastic (belts, compliant
@@ -84,7 +84,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             settings.thread_queue_limit,
             on_change=thread_gauges.update if thread_gauges is not None else None,
         )
-        app.state.threads = threads  # the closed-form designs and fits of this process (optim.threads)
+        app.state.threads = threads  # the closed-form designs and fits of this process (runtime.threads)
         pool.start_in_background()
         try:
             yield

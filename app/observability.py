@@ -47,7 +47,7 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 # --- logging -------------------------------------------------------------------------------------
 
 #: The service's own loggers, shown from INFO (everything else from WARNING, the root's level).
-APP_LOGGERS = ("app", "optim", "models", "vibfree")
+APP_LOGGERS = ("app", "optim", "runtime", "models", "vibfree")
 
 
 class _StderrHandler(logging.StreamHandler):  # type: ignore[type-arg]
@@ -191,7 +191,7 @@ class PoolCollector(Collector):
 
 
 class ThreadsCollector(Collector):
-    """The design threads' state (``optim.threads.ThreadLane.stats()``), read at scrape time (skipped while none)."""
+    """The design threads' state (``runtime.threads.ThreadLane.stats()``), read at scrape time (skipped while none)."""
 
     GAUGES = (
         ("vibfree_threads_configured", "threads", "Design threads configured (closed-form designs and fits)."),

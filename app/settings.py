@@ -90,7 +90,7 @@ class Settings(BaseSettings):
         ge=1,
         le=64,
         description="Design threads of each HTTP process: at most this many closed-form designs and fits compute at "
-        "once (optim.threads); default one per core.",
+        "once (runtime.threads); default one per core.",
     )
     max_thread_queued: int | None = Field(
         None,

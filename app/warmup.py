@@ -5,7 +5,7 @@ people send first are the documented ones (the routes' OpenAPI examples, which t
 repeat), and those have active limits, torque limits and duration searches whose problems the families'
 warm-ups do not build: the first such request after readiness paid about 2 s more (issue 15). So each new
 worker also runs every example design once, and only then says it is ready. What it builds stays in its
-bounded caches (``optim.cache``, ``VIBFREE_SOLVER_CACHE_SIZE``).
+bounded caches (``runtime.cache``, ``VIBFREE_SOLVER_CACHE_SIZE``).
 """
 
 from __future__ import annotations
@@ -63,10 +63,10 @@ def example_jobs(settings: Any) -> tuple[tuple[str, Any, Any], ...]:
 def warm_up_worker(caps: SolveCaps, cache_size: int, jobs: tuple[tuple[str, Any, Any], ...]) -> None:
     """Run in each new solver worker: size its caches, build the families' problems, design each example."""
     from models.errors import DomainError
-    from optim import cache
     from optim.families import REGISTRY
     from optim.family import warm_up_all
     from optim.synthesis import synthesize
+    from runtime import cache
 
     cache.set_size(cache_size)
     warm_up_all(caps)

@@ -167,7 +167,7 @@ def _server_pid(port: int) -> int | None:
 def measure(label: str, root: Path, processes: int | None, env: dict[str, str], seconds: float) -> dict:
     out: dict = {"label": label, "load_before": os.getloadavg()}
     # The old main ran on asyncio's loop (uvloop was not installed then; under uvloop its pool breaks on large
-    # answers, fixed in optim.workers): plain uvicorn --loop asyncio with its serve flags.
+    # answers, fixed in runtime.pool): plain uvicorn --loop asyncio with its serve flags.
     extra = ("--http", "h11", "--timeout-keep-alive", "5", "--loop", "asyncio") if processes == 0 else ()
     with serving(processes, root=root, env=env, extra=extra) as port:
         pid = _server_pid(port)

@@ -12,7 +12,7 @@ take (``PoolUnavailable``: starting, busy, or its worker died) or whose solve ra
 error, the other runs cancelled (one still queued never runs; one a worker runs ends within its
 deadline, and the pool's reservation ends after it). ``plan`` says, before anything runs, how many
 runs need a solver, so that the caller can reserve room for all of them at once
-(``optim.workers.reserved``) and be refused before any work. The runner is injected (the pool for
+(``runtime.executor.reserved``) and be refused before any work. The runner is injected (the pool for
 solver families, a thread otherwise), so this module does no I/O.
 """
 

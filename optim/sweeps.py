@@ -1,9 +1,9 @@
 """Design sweeps: one design per point of a grid of requests, and the table check between neighbours.
 
 A point runs as one call of ``run_point`` (module-level, picklable) on an ``Executor``: the supervised solver
-pool, the calling process (``InlineExecutor``) or a Dask cluster (``DaskExecutor``). It returns the point's row
-(the numbers of the family endpoint's ``metrics``, ``sensitivity.band_5_percent`` and ``solver``) and the design's
-command, which is all the table check needs: the sampled ``Result`` stays in the worker.
+pool, the calling process (``InlineExecutor``) or a Dask cluster (``runtime.dask.DaskExecutor``). It returns the
+point's row (the numbers of the family endpoint's ``metrics``, ``sensitivity.band_5_percent`` and ``solver``) and
+the design's command, which is all the table check needs: the sampled ``Result`` stays in the worker.
 
 The table check, for each pair of neighbouring points (consecutive values along one axis, the other
 coordinates equal): the percentage vibration V of each point's command on the other's plant, in the product's
@@ -21,13 +21,10 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import inspect
 import itertools
-import logging
 import math
 import time
 from collections.abc import AsyncIterator, Callable, Sequence
-from contextlib import asynccontextmanager
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
@@ -36,9 +33,8 @@ from models.errors import InvalidParameter, PoolUnavailable
 from optim.family import FAMILIES
 from optim.problem import Problem
 from optim.synthesis import Result, nominal_percentage_vibration, synthesize
-from optim.workers import Executor, PoolBusy, SolveTimeout
+from runtime.executor import Executor, PoolBusy
 
-log = logging.getLogger(__name__)
 T = TypeVar("T")
 
 RETRY_FIRST_S = 0.05  # a refused submission (pool busy or starting) is retried after this, doubling
@@ -398,53 +394,3 @@ def _check(pair: Pair, axes: Sequence[Axis], state: _State, threshold_percent: f
         "worst_percentage_vibration": worst,
         "passes": passes,
     }
-
-
-# --- Dask ---------------------------------------------------------------------------------------
-
-
-class DaskExecutor:
-    """The ``Executor`` of a Dask cluster (``dask.distributed``, an asynchronous ``Client``): each job is one task.
-
-    IPOPT is not thread-safe: run the workers with one thread each (``dask worker --nthreads 1``). A worker builds
-    its family's solvers on its first point (``run_point``). A task that overruns ``deadline_s`` is reported as a
-    timeout and cancelled (a running task finishes under the solver's own caps)."""
-
-    def __init__(self, client: Any) -> None:
-        self.client = client
-
-    @classmethod
-    @asynccontextmanager
-    async def connect(cls, address: str, timeout_s: float = 10.0) -> AsyncIterator[DaskExecutor]:
-        from distributed import Client
-
-        try:
-            client = await Client(address, asynchronous=True, timeout=timeout_s)  # type: ignore[no-untyped-call]
-        except (OSError, TimeoutError) as exc:
-            raise PoolUnavailable(f"cannot reach the Dask scheduler at {address}: {exc}") from None
-        try:
-            yield cls(client)
-        finally:
-            await client.close()
-
-    async def capacity(self) -> int:
-        """Threads across the cluster's workers (one point each)."""
-        threads = self.client.nthreads()
-        if inspect.isawaitable(threads):
-            threads = await threads
-        several = [w for w, n in threads.items() if n > 1]
-        if several:
-            log.warning("dask workers with several threads: IPOPT is not thread-safe", extra={"workers": several})
-        return max(1, int(sum(threads.values())))
-
-    async def run(self, fn: Callable[..., T], *args: Any, deadline_s: float) -> T:
-        future = self.client.submit(fn, *args, pure=False)
-        try:
-            result: T = await asyncio.wait_for(future, deadline_s)
-            return result
-        except TimeoutError:
-            raise SolveTimeout(deadline_s) from None
-        finally:
-            if not future.done():
-                with contextlib.suppress(Exception):
-                    await self.client.cancel([future])

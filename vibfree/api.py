@@ -30,7 +30,7 @@ from models.errors import DomainError
 from optim import tables
 from optim.families import REGISTRY
 from optim.synthesis import Result
-from optim.workers import InlineExecutor
+from runtime.executor import InlineExecutor
 
 if not structlog.is_configured():  # the service's log lines go to stdlib logging: the caller's config decides
     structlog.configure(

@@ -70,7 +70,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 @contextlib.contextmanager
 def _quiet_service_logs() -> Iterator[None]:
     """The service's info lines (one per solve) are for servers: a person sees the summary, and warnings."""
-    loggers = [logging.getLogger(name) for name in ("app", "optim", "models")]
+    loggers = [logging.getLogger(name) for name in ("app", "optim", "runtime", "models")]
     levels = [logger.level for logger in loggers]
     for logger in loggers:
         logger.setLevel(logging.WARNING)

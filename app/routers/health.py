@@ -57,7 +57,7 @@ class Ready(OutModel):
         None, description="Every live HTTP process's pool (several processes only); 200 needs each one ready."
     )
     threads: Threads | None = Field(
-        None, description="The answering process's design threads (optim.threads), where closed forms and fits run."
+        None, description="The answering process's design threads (runtime.threads), where closed forms and fits run."
     )
 
 

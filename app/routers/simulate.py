@@ -35,7 +35,7 @@ async def simulate_profile(
     """Simulate the plant, started at rest, driven by the command, exactly for the chosen hold
     between samples. The metrics measure the load's free oscillation from the state at the
     command's end (not a sampled peak), so they do not depend on the horizon."""
-    # up to VIBFREE_MAX_SAMPLES samples: in the design threads (optim.threads), not starlette's 40 of a sync route
+    # up to VIBFREE_MAX_SAMPLES samples: in the design threads (runtime.threads), not starlette's 40 of a sync route
     return await threads.run(_simulate, request, settings, output, deadline_s=settings.thread_deadline_s)
 
 

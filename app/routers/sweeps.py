@@ -19,7 +19,7 @@ from app import problems
 from app.deps import PoolDep, SettingsDep
 from app.schemas.sweeps import SweepIn, SweepLine
 from app.services.sweeps import SweepPlan, executor_for, lines
-from optim.workers import Executor
+from runtime.executor import Executor
 
 router = APIRouter(prefix="/v1", tags=["sweeps"], route_class=problems.JSONRoute)
 NDJSON = "application/x-ndjson"

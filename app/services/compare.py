@@ -22,7 +22,7 @@ from optim.compare import plan, run_plan
 from optim.family import Family
 from optim.problem import Problem
 from optim.synthesis import Result, load_arrays
-from optim.workers import Executor, reserved
+from runtime.executor import Executor, reserved
 
 
 async def answer(

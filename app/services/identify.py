@@ -32,7 +32,7 @@ from optim.family import FAMILIES
 from optim.modal import CONFIDENCE, ModalIdentification, identify_modes
 from optim.record_csv import parse_record_csv
 from optim.smoothers import identify, tuned_duration_s, vibration_free_durations_s
-from optim.workers import Executor, InlineExecutor
+from runtime.executor import Executor, InlineExecutor
 
 
 def identify_respond(request: IdentifyRequest, settings: Settings) -> dict[str, Any]:
@@ -166,7 +166,7 @@ async def identify_csv(
     app.services.profile.profile; a caller without a server (the CLI) passes its own runner, or None for no
     recommendation."""
     params.check()
-    # the fit, in the route's design threads (optim.threads: bounded admission, deadline_s), or in-process
+    # the fit, in the route's design threads (runtime.threads: bounded admission, deadline_s), or in-process
     result, samples = await threads.run(identify_record_csv, text, params, max_rows, deadline_s=deadline_s)
     body = _measurement_body(result, samples)
     mode, interval = plant_interval(result.modes)

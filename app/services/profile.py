@@ -1,7 +1,7 @@
 """The service layer between the routes and the pipeline: where a design runs, and its answer.
 
 A family whose options need a solver runs the whole pipeline in a worker process (IPOPT is not
-thread-safe); the others run it in one of the HTTP process's design threads (``optim.threads.ThreadLane``:
+thread-safe); the others run it in one of the HTTP process's design threads (``runtime.threads.ThreadLane``:
 bounded admission and a deadline), off the event loop. Without a server (the Python API, the CLI) both are
 the calling process (``InlineExecutor``).
 """
@@ -20,7 +20,7 @@ from models.errors import DomainError, Infeasible, InvalidParameter, NotApplicab
 from optim.family import Family
 from optim.problem import Problem
 from optim.synthesis import Result, synthesize
-from optim.workers import Executor, InlineExecutor
+from runtime.executor import Executor, InlineExecutor
 
 INLINE = InlineExecutor()
 

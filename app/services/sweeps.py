@@ -32,7 +32,9 @@ from app.settings import Settings
 from models.errors import DomainError, InvalidParameter, NotApplicable
 from optim import sweeps as engine
 from optim.family import FAMILIES
-from optim.workers import Executor, SolverPool
+from runtime.dask import DaskExecutor
+from runtime.executor import Executor
+from runtime.pool import SolverPool
 
 log = logging.getLogger(__name__)
 _SEGMENT = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)(?:\[([0-9]+)\])?$")
@@ -230,7 +232,7 @@ async def executor_for(
     """Where the points run and how many are in flight: the Dask cluster at ``scheduler`` (twice its threads),
     connected for the block, or ``default`` with ``capacity`` (None: ``capacity_of``)."""
     if scheduler:
-        async with engine.DaskExecutor.connect(scheduler) as dask:
+        async with DaskExecutor.connect(scheduler) as dask:
             yield dask, 2 * await dask.capacity()
     else:
         yield default, capacity

@@ -31,9 +31,9 @@ from models.errors import InvalidParameter
 from models.plants import Mode, Plant
 from models.simulation import ModalForm, modal_form
 from models.stap import ComplexArray, FloatArray, Stap
-from optim.cache import LruCache
 from optim.solver import SolveCaps, ipopt_options, parameter_layout
 from optim.stap.types import StapRequest
+from runtime.cache import LruCache
 
 if TYPE_CHECKING:
     import casadi as ca
@@ -162,7 +162,7 @@ def build_problem(kind: str, points: int, torque_modes: int, torque_grid: int, c
 
 
 def compiled_problem(kind: str, points: int, torque_modes: int, torque_grid: int, caps: SolveCaps) -> CompiledProblem:
-    """The cached problem of this shape, built on first use (least recently used dropped: ``optim.cache``)."""
+    """The cached problem of this shape, built on first use (least recently used dropped: ``runtime.cache``)."""
     key: ProblemKey = (kind, points, torque_modes, torque_grid, caps)
     return _CACHE.get(key, lambda: build_problem(kind, points, torque_modes, torque_grid, caps))
 

@@ -247,7 +247,7 @@ def test_each_compare_row_holds_at_most_its_share_of_samples():
     from app.schemas.compare import CompareIn
     from app.services.compare import answer
     from app.settings import Settings
-    from optim.workers import InlineExecutor
+    from runtime.executor import InlineExecutor
     from tests import aio
 
     settings = Settings(max_samples=200_000)

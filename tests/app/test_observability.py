@@ -146,7 +146,7 @@ def test_configure_logging_is_idempotent():
     observability.configure_logging()
     handlers = [h for h in logging.getLogger().handlers if isinstance(h, observability._StderrHandler)]
     assert len(handlers) == 1
-    assert logging.getLogger("optim.workers").getEffectiveLevel() == logging.INFO  # the app's loggers show
+    assert logging.getLogger("runtime.pool").getEffectiveLevel() == logging.INFO  # the app's loggers show
 
 
 # --- solves -----------------------------------------------------------------------------------------

@@ -196,7 +196,7 @@ def test_a_compare_missing_rows_only_because_the_pool_refused_them_is_a_503_not_
     from models.errors import PoolUnavailable
     from optim.compare import compare
     from optim.synthesis import synthesize
-    from optim.workers import PoolBusy
+    from runtime.executor import PoolBusy
     from tests import aio
     from tests.app.conftest import TEST_SETTINGS
 
@@ -215,7 +215,7 @@ def test_a_compare_missing_rows_only_because_the_pool_refused_them_is_a_503_not_
 
     families = ["stap", "input_shaped"]
     rows, unavailable = aio.run(compare(problem, refusing(PoolBusy("x"), "pseudo_polynomial"), families))
-    assert rows and [u.problem_type for u in unavailable] == ["/problems/not-applicable"]
+    assert rows and [u.problem_type for u in unavailable] == ["not-applicable"]
     with pytest.raises(PoolBusy, match="queue"):
         aio.run(compare(problem, refusing(PoolBusy("the queue is full"), "input_shaped"), families))
     with pytest.raises(PoolUnavailable, match="starting"):

@@ -24,7 +24,7 @@ from app.schemas.family import SensitivityIn
 from app.schemas.stap import StapOut
 from models.errors import DomainError, PoolUnavailable
 from optim import tables
-from optim.workers import InlineExecutor
+from runtime.executor import InlineExecutor
 from tests.app.conftest import TEST_SETTINGS
 
 MODE = {"kind": "mode", "natural_frequency_hz": 5.0, "damping_ratio": 0.05}

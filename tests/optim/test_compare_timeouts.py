@@ -21,7 +21,7 @@ from app.settings import Settings
 from models.errors import PoolUnavailable, SolverTimedOut
 from optim.compare import compare
 from optim.synthesis import synthesize
-from optim.workers import SolveTimeout
+from runtime.executor import SolveTimeout
 from tests import aio
 from tests.optim.compare_runner import run_compare
 

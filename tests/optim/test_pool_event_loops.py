@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from optim.workers import SolverPool
+from runtime.pool import SolverPool
 from tests import aio
 from tests.optim.pool_jobs import big_answer
 

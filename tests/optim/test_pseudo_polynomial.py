@@ -305,7 +305,7 @@ def test_a_duration_search_that_finds_nothing_falls_back_to_the_design_at_durati
 
 
 def test_cache_budget_evicts_before_building_and_keeps_the_newest():
-    from optim.cache import LruCache
+    from runtime.cache import LruCache
 
     built: list[str] = []
     cache: LruCache[str, str] = LruCache("test-budget", size=64, weigh=lambda key: float(len(key)), budget=10.0)

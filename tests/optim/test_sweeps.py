@@ -16,7 +16,8 @@ from models.plants import make_plant
 from optim import sweeps
 from optim.families.input_shaped import InputShapedOptions
 from optim.problem import Problem
-from optim.workers import InlineExecutor, PoolBusy
+from runtime.dask import DaskExecutor
+from runtime.executor import InlineExecutor, PoolBusy
 from tests import aio
 
 BASE_HZ = 10.0
@@ -236,7 +237,7 @@ def test_the_same_sweep_on_a_local_dask_cluster_gives_identical_rows():
     local = run(axes, refine=True, max_refined_points=4)
 
     async def on_cluster(address: str) -> list[dict[str, Any]]:
-        async with sweeps.DaskExecutor.connect(address) as dask:
+        async with DaskExecutor.connect(address) as dask:
             capacity = 2 * await dask.capacity()
             lines = sweeps.sweep(
                 "input_shaped",

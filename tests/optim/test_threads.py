@@ -1,4 +1,4 @@
-"""The bounded thread lane (optim.threads), driven directly: admission, the queue's and the work's deadlines.
+"""The bounded thread lane (runtime.threads), driven directly: admission, the queue's and the work's deadlines.
 
 The jobs block on events the test sets, so what runs when is decided by the test, not by timing; the deadlines
 are short (0.2-0.5 s) only so that the tests end soon, and nothing asserts how long anything took.
@@ -13,8 +13,8 @@ from typing import Any
 
 import pytest
 
-from optim.threads import ThreadLane, WorkTimeout
-from optim.workers import PoolBusy
+from runtime.executor import PoolBusy
+from runtime.threads import ThreadLane, WorkTimeout
 from tests import aio
 
 

@@ -18,7 +18,8 @@ from typing import Any
 import pytest
 
 from models.errors import PoolUnavailable
-from optim.workers import InlineExecutor, PoolBusy, SolverPool, SolveTimeout, reserved
+from runtime.executor import InlineExecutor, PoolBusy, SolveTimeout, reserved
+from runtime.pool import SolverPool
 from tests import aio
 from tests.app import slow_solves
 

@@ -28,130 +28,39 @@ either would need.
 
 from __future__ import annotations
 
-import abc
 import asyncio
 import contextlib
 import logging
 import math
 import multiprocessing
 import os
-import resource
-import signal
 import time
 from collections import deque
 from collections.abc import AsyncIterator, Callable
-from contextlib import AbstractAsyncContextManager, asynccontextmanager
+from contextlib import asynccontextmanager
 from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
 from multiprocessing.process import BaseProcess
-from typing import Any, Literal, Protocol, TypeVar, runtime_checkable
+from typing import Any, Literal, TypeVar
 
-from models.errors import InvalidParameter, PoolUnavailable, SolverTimedOut
-from optim.heap import release_free_heap
+from models.errors import PoolUnavailable
+from runtime.executor import (
+    RETRY_AFTER_MAX_S,
+    RETRY_AFTER_MIN_S,
+    Executor,
+    HeldPlaces,
+    PoolBusy,
+    SolveTimeout,
+    reservation_places,
+)
+from runtime.worker_process import _worker_main
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
 
 BACKOFF_FIRST_S = 0.5
 BACKOFF_MAX_S = 30.0
-RETRY_AFTER_MIN_S = 1
-RETRY_AFTER_MAX_S = 60
 SETTLE_POLL_S = 0.02  # how often a reservation's exit looks whether its cancelled solves have left the workers
-
-
-class Executor(Protocol):
-    """Where the service layer runs a design: the supervised pool, or in-process (``InlineExecutor``)."""
-
-    async def run(self, fn: Callable[..., T], *args: Any, deadline_s: float) -> T: ...
-
-
-@runtime_checkable
-class Reserving(Executor, Protocol):
-    """An executor that can hold room for several jobs of one request at once (the supervised pool)."""
-
-    def reserve(self, jobs: int) -> AbstractAsyncContextManager[Executor]: ...
-
-
-@asynccontextmanager
-async def reserved(executor: Executor, jobs: int) -> AsyncIterator[Executor]:
-    """Room for ``jobs`` concurrent jobs of one request, held while the block runs: the executor to run them on.
-
-    On a ``Reserving`` executor (the pool) this is all or nothing: either every job gets a place, or the block
-    does not start (``PoolBusy``, ``PoolUnavailable``). Any other executor (``InlineExecutor``, Dask) has no
-    admission to ask: the block runs on the executor itself."""
-    if jobs < 1 or not isinstance(executor, Reserving):
-        yield executor
-        return
-    async with executor.reserve(jobs) as held:
-        yield held
-
-
-class InlineExecutor:
-    """Runs each job in the calling process, one at a time: the Python API and the CLI without a server.
-
-    One caller owns the process, so there is nothing to supervise; the deadline is not enforced (the solvers'
-    own caps, ``optim.solver.SolveCaps``, still bound every solve, and Ctrl-C stops the rest)."""
-
-    async def run(self, fn: Callable[..., T], *args: Any, deadline_s: float) -> T:
-        return fn(*args)
-
-
-class SolveTimeout(SolverTimedOut):
-    """A solve overran its deadline and its worker was killed."""
-
-    def __init__(self, limit_s: float) -> None:
-        self.limit_s = limit_s
-        super().__init__(None, f"the solve did not finish within {limit_s:g} s")
-
-    def __reduce__(self) -> tuple[Any, ...]:
-        return (type(self), (self.limit_s,))
-
-
-class PoolBusy(PoolUnavailable):
-    """Every worker is busy and the queue is full, or a job waited its whole deadline for a worker."""
-
-    problem_type = "busy"
-
-
-def reservation_places(jobs: int, workers: int) -> int:
-    """Places a request of ``jobs`` concurrent jobs holds on an executor of ``workers``: no more than can compute
-    at once (its other jobs wait for one of its own places, not in the shared queue), and at least one."""
-    return max(1, min(jobs, workers))
-
-
-class HeldPlaces(abc.ABC):
-    """The executor of a request's reservation: ``free`` of its places wait for a job of the request; a job beyond
-    them waits for one of them (``turn``), so the request never meets admission again. A subclass says how a job
-    takes a held place on its executor and gives it back (``_take``, ``_give_back``), and how it runs."""
-
-    def __init__(self, places: int) -> None:
-        self.places = places
-        self.free = places
-        self.turn = asyncio.Semaphore(places)
-        self.closed = False  # the request left its block: a job still running gives its place back to nobody
-
-    async def run(self, fn: Callable[..., T], *args: Any, deadline_s: float) -> T:
-        if self.closed:  # after the request's block: an ordinary job
-            return await self._run_alone(fn, args, deadline_s)
-        async with self.turn:
-            self._take()
-            try:
-                return await self._run_held(fn, args, deadline_s)
-            finally:
-                if not self.closed:  # the place is held again for the request's next job
-                    self._give_back()
-
-    @abc.abstractmethod
-    def _take(self) -> None: ...
-
-    @abc.abstractmethod
-    def _give_back(self) -> None: ...
-
-    @abc.abstractmethod
-    async def _run_alone(self, fn: Callable[..., T], args: tuple[Any, ...], deadline_s: float) -> T: ...
-
-    @abc.abstractmethod
-    async def _run_held(self, fn: Callable[..., T], args: tuple[Any, ...], deadline_s: float) -> T: ...
 
 
 class _Reservation(HeldPlaces):
@@ -176,69 +85,6 @@ class _Reservation(HeldPlaces):
     async def _run_held(self, fn: Callable[..., T], args: tuple[Any, ...], deadline_s: float) -> T:
         wait_s = deadline_s * self.pool.turns_ahead()
         return await self.pool._submit(fn, args, deadline_s, wait_s=wait_s, track=self.jobs)
-
-
-# --- the worker process ---------------------------------------------------------------------
-
-
-def limit_memory(memory_mb: int) -> None:
-    """Cap this process's address space (RLIMIT_AS) at ``memory_mb`` MiB (0: no cap): an allocation past it raises
-    MemoryError here instead of growing the process until the kernel kills one (possibly the HTTP process).
-    RLIMIT_AS counts virtual memory: a warm worker maps ~370 MiB more than it has resident (app.settings
-    ``worker_memory_mb`` gives the measured figures)."""
-    if memory_mb > 0:
-        limit = memory_mb * 1024 * 1024
-        _, hard = resource.getrlimit(resource.RLIMIT_AS)
-        resource.setrlimit(resource.RLIMIT_AS, (limit if hard == resource.RLIM_INFINITY else min(limit, hard), hard))
-
-
-def _out_of_memory(exc: BaseException) -> bool:
-    """A C++ allocation failure surfaced as a Python exception (CasADi's bindings give RuntimeError)."""
-    return "std::bad_alloc" in str(exc)
-
-
-def _too_large(memory_mb: int) -> InvalidParameter:
-    """What a job that ran out of memory answers (a 422: the same request would run out again)."""
-    where = f"the {memory_mb} MiB a solver worker may use (VIBFREE_WORKER_MEMORY_MB)" if memory_mb else "memory"
-    return InvalidParameter(
-        "body",
-        "too large",
-        f"the design needs more than {where}: ask for less work (fewer modes or limits, a lower order, a narrower "
-        "band, a longer sample_period_s, a shorter move or horizon)",
-    )
-
-
-def _worker_main(conn: Connection, warm_up: Callable[[], None] | None, niceness: int, memory_mb: int = 0) -> None:
-    """A worker: cap its memory, warm up, say ready, then run ``(fn, args)`` jobs until told to stop (``None``)."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C stops the server, which stops its workers
-    limit_memory(memory_mb)  # before the warm-up: a worker that cannot warm up within it fails to start, visibly
-    if warm_up is not None:
-        warm_up()  # an exception ends the process: the pool sees a failed start and backs off
-    if niceness:  # after the warm-up: a replacement warming up niced on a loaded machine took 25-30 s, not ~4 s
-        with contextlib.suppress(OSError):
-            os.nice(niceness)  # the HTTP process keeps answering while every worker computes
-    conn.send(("ready", os.getpid()))
-    while True:
-        try:
-            job = conn.recv()
-        except EOFError:
-            return
-        if job is None:
-            return
-        fn, args = job
-        try:
-            outcome: tuple[str, Any] = ("ok", fn(*args))
-        except MemoryError:  # past limit_memory: the job's arrays are freed with its frames, the worker serves on
-            outcome = ("error", _too_large(memory_mb))
-        except Exception as exc:
-            # C++ libraries (CasADi, IPOPT) past limit_memory throw std::bad_alloc, raised as a RuntimeError
-            outcome = ("error", _too_large(memory_mb) if _out_of_memory(exc) else exc)
-        try:
-            conn.send(outcome)  # pickled whole before any byte is written
-        except Exception as exc:
-            conn.send(("error", RuntimeError(f"the solve's {outcome[0]} could not be sent back: {exc!r}")))
-        del job, fn, args, outcome
-        release_free_heap()  # the job's peak is not kept as the worker's resident set until it is replaced
 
 
 # --- the supervisor --------------------------------------------------------------------------

@@ -1,7 +1,7 @@
 """The bounded thread lane: where an HTTP process runs its own designs (the closed forms) and fits.
 
 Closed-form families need no solver, so they run in the HTTP process, off the event loop; this lane bounds
-that work the way ``optim.workers.SolverPool`` bounds the solves:
+that work the way ``runtime.pool.SolverPool`` bounds the solves:
 
 - at most ``workers`` jobs compute at once (one per core by default), each in a thread of the lane's own
   executor (never starlette's shared thread pool, which takes up to 40 jobs);
@@ -30,8 +30,8 @@ from contextlib import asynccontextmanager
 from typing import Any, TypeVar
 
 from models.errors import PoolUnavailable, SolverTimedOut
-from optim.heap import release_free_heap
-from optim.workers import RETRY_AFTER_MAX_S, RETRY_AFTER_MIN_S, Executor, HeldPlaces, PoolBusy, reservation_places
+from runtime.executor import RETRY_AFTER_MAX_S, RETRY_AFTER_MIN_S, Executor, HeldPlaces, PoolBusy, reservation_places
+from runtime.heap import release_free_heap
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")

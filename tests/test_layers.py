@@ -1,0 +1,63 @@
+"""The packages import one way (issue 24, docs/layout.md): vibfree and app over optim, runtime and models; optim
+over models and runtime; runtime (the process plumbing) over models.errors only; models over none of them.
+
+Read from the source (every import, at module level or in a function), so a lazy import counts too."""
+
+from __future__ import annotations
+
+import ast
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+PACKAGES = ("vibfree", "app", "optim", "runtime", "models")
+ALLOWED = {  # the service's packages each may import (besides itself)
+    "vibfree": {"app", "optim", "runtime", "models"},
+    "app": {"optim", "runtime", "models"},
+    "optim": {"models", "runtime"},
+    "runtime": {"models.errors"},
+    "models": set(),
+}
+RUNTIME_THIRD_PARTY = {"numpy", "distributed"}  # distributed: runtime.dask, imported when a client connects
+
+
+def _imports(package: str) -> list[tuple[str, str]]:
+    """(file, module) of every absolute import in the package's source."""
+    found = []
+    for path in sorted((ROOT / package).rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Import):
+                found += [(str(path.relative_to(ROOT)), alias.name) for alias in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module is not None:
+                if node.module in PACKAGES:  # from runtime import cache: the submodule is what is imported
+                    found += [(str(path.relative_to(ROOT)), f"{node.module}.{alias.name}") for alias in node.names]
+                else:
+                    found.append((str(path.relative_to(ROOT)), node.module))
+    return found
+
+
+def _allowed(module: str, allowed: set[str]) -> bool:
+    return any(module == name or module.startswith(name + ".") for name in allowed)
+
+
+@pytest.mark.parametrize("package", PACKAGES)
+def test_a_package_imports_only_the_layers_below_it(package: str) -> None:
+    wrong = [
+        (path, module)
+        for path, module in _imports(package)
+        if module.split(".")[0] in PACKAGES
+        and module.split(".")[0] != package
+        and not _allowed(module, ALLOWED[package])
+    ]
+    assert not wrong, f"{package} may import {sorted(ALLOWED[package])} of the service's packages: {wrong}"
+
+
+def test_runtime_needs_only_the_standard_library_numpy_and_models_errors() -> None:
+    outside = [
+        (path, module)
+        for path, module in _imports("runtime")
+        if module.split(".")[0] not in {*PACKAGES, *sys.stdlib_module_names, *RUNTIME_THIRD_PARTY}
+    ]
+    assert not outside, outside
