@@ -61,3 +61,19 @@ def test_runtime_needs_only_the_standard_library_numpy_and_models_errors() -> No
         if module.split(".")[0] not in {*PACKAGES, *sys.stdlib_module_names, *RUNTIME_THIRD_PARTY}
     ]
     assert not outside, outside
+
+
+def test_no_router_is_imported_outside_the_app_factory() -> None:
+    """Routers are HTTP only (issue 24): the services, the Python API and the warm-up import none, and no router
+    imports another; only the app factory (app/main.py) mounts them. A string import (importlib) counts too."""
+    offenders = {
+        (name, module)
+        for package in PACKAGES
+        for name, module in _imports(package)
+        if module.startswith("app.routers.) and name != "app/main.py"
+    }
+    for package in PACKAGES:
+        for path in (ROOT / package).rglob("*.py"):
+            if '"app.routers.' in path.read_text():
+                offenders.add((str(path.relative_to(ROOT)), "app.routers.(by string)"))
+    assert sorted(offenders) == []
