@@ -22,7 +22,9 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.responses import Response
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
+from app.encoding import dumps
 from models.errors import DomainError, Infeasible, InvalidParameter, NotApplicable, PoolUnavailable, SolverFailed
+from models.plants import PLANT_KINDS
 
 log = logging.getLogger(__name__)
 PROBLEM_MEDIA_TYPE = "application/problem+json"
@@ -149,7 +151,6 @@ def render_problem(slug: str, detail: str, *, field: str | None = None, **extra:
 
     Every echoed part is made safe (``summarise``, ``safe_text``); if the body is still above the
     budget, the ``errors`` that do not fit are dropped, then every extra member."""
-    from app.responses import dumps
 
     status, title, _ = PROBLEM_TYPES[slug]
     head: dict[str, Any] = {"type": f"/problems/{slug}", "title": title, "status": status}
@@ -194,7 +195,7 @@ def problem_response(slug: str, detail: str, *, field: str | None = None, **extr
 
 # Discriminated unions put the tag in the error location (plant -> mode -> field); the user
 # wrote plant.field, so tags are dropped from the reported path.
-UNION_TAGS: set[str] = set()
+UNION_TAGS: frozenset[str] = frozenset(PLANT_KINDS)
 
 
 def field_path(loc: tuple[Any, ...]) -> str:
@@ -305,8 +306,6 @@ def install(app: FastAPI) -> None:
             415: "unsupported-media-type",
         }.get(exc.status_code)
         if slug is None:
-            from app.responses import dumps
-
             text = safe_text(str(exc.detail))
             body = {"type": "about:blank", "title": text, "status": exc.status_code, "detail": text}
             return Response(dumps(body), status_code=exc.status_code, media_type=PROBLEM_MEDIA_TYPE)

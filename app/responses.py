@@ -19,18 +19,13 @@ from pydantic import BaseModel
 from starlette.concurrency import run_in_threadpool
 from starlette.responses import Response
 
+from app.encoding import dumps
 from app.schemas.family import ProfileRequest
 from models.errors import InvalidParameter
 from optim import tables
 from optim.synthesis import Result
 
 __version__ = version("vibfree")
-
-_OPTIONS = orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS
-
-
-def dumps(content: Any) -> bytes:
-    return orjson.dumps(content, option=_OPTIONS)
 
 
 class NumpyJSONResponse(Response):

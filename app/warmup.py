@@ -1,6 +1,6 @@
 """The solver workers' warm-up: the families' own problems, then the documented example requests.
 
-``optim.family.warm_up_all`` builds the shapes each family knows to be common (no limits). The requests
+``optim.registry.warm_up_all`` builds the shapes each family knows to be common (no limits). The requests
 people send first are the documented ones (the routes' OpenAPI examples, which the README's curl lines
 repeat), and those have active limits, torque limits and duration searches whose problems the families'
 warm-ups do not build: the first such request after readiness paid about 2 s more (issue 15). So each new
@@ -37,13 +37,13 @@ def example_jobs(settings: Any) -> tuple[tuple[str, Any, Any], ...]:
     """(family name, problem, options) of every example of ``EXAMPLE_ROUTES`` that uses a solver, parsed
     like a request (in the HTTP process: what a worker receives is what a request would send it)."""
     from app.families import BY_NAME
-    from optim.families import REGISTRY
+    from optim.registry import FAMILIES
 
     jobs: list[tuple[str, Any, Any]] = []
     for name in EXAMPLE_ROUTES:
         entry = BY_NAME[name]
         examples = entry.examples
-        family = REGISTRY[name]
+        family = FAMILIES[name]
         chosen = WARM_EXAMPLES[name]
         for key, example in examples.items():
             if chosen is not None and key not in chosen:
@@ -63,8 +63,7 @@ def example_jobs(settings: Any) -> tuple[tuple[str, Any, Any], ...]:
 def warm_up_worker(caps: SolveCaps, cache_size: int, jobs: tuple[tuple[str, Any, Any], ...]) -> None:
     """Run in each new solver worker: size its caches, build the families' problems, design each example."""
     from models.errors import DomainError
-    from optim.families import REGISTRY
-    from optim.family import warm_up_all
+    from optim.registry import FAMILIES, warm_up_all
     from optim.synthesis import synthesize
     from runtime import cache
 
@@ -73,5 +72,5 @@ def warm_up_worker(caps: SolveCaps, cache_size: int, jobs: tuple[tuple[str, Any,
     started = time.perf_counter()
     for name, problem, options in jobs:
         with contextlib.suppress(DomainError):  # an example whose answer is a 422 still built its problems
-            synthesize(REGISTRY[name], problem, options)
+            synthesize(FAMILIES[name], problem, options)
     log.info("examples designed", extra={"examples": len(jobs), "seconds": round(time.perf_counter() - started, 3)})

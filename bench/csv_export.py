@@ -14,7 +14,8 @@ from __future__ import annotations
 import statistics
 import time
 
-from app.responses import csv_body, dumps
+from app.encoding import dumps
+from app.responses import csv_body
 from app.settings import Settings
 from optim import tables
 from vibfree import synthesize

@@ -54,8 +54,8 @@ def _worker(root: str, family_key: str, frequencies: list[float], conn: Any) -> 
     from app.schemas.registry import REQUEST_SCHEMAS
     from app.settings import Settings
     from models.errors import DomainError
-    from optim.families import REGISTRY
-    from optim.family import warm_up_all
+    from optim.registry import FAMILIES as REGISTRY
+    from optim.registry import warm_up_all
     from optim.synthesis import synthesize
 
     settings = Settings(workers=1)

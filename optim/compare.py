@@ -24,9 +24,10 @@ from collections.abc import Awaitable, Callable, Coroutine, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from models.errors import DomainError, Infeasible, InvalidParameter, PoolUnavailable, SolverTimedOut
-from optim.family import FAMILIES, Candidate, Family
+from models.errors import DomainError, InvalidParameter, PoolUnavailable, SolverTimedOut
+from optim.family import Candidate, Family
 from optim.problem import Problem
+from optim.registry import FAMILIES
 from optim.synthesis import Result
 
 Runner = Callable[[Family, Problem, Any], Awaitable[Result]]
@@ -65,13 +66,7 @@ def reason_of(exc: DomainError) -> str:
 async def _one(family: Family, problem: Problem, candidate: Candidate, run: Runner) -> Row | Unavailable:
     options = candidate.options
     try:
-        try:
-            return Row(family, options, await run(family, problem, options), candidate.label)
-        except Infeasible:
-            fallback = family.fallback(problem, options)
-            if fallback is None:
-                raise
-            return Row(family, fallback, await run(family, problem, fallback), candidate.label)
+        return Row(family, options, await run(family, problem, options), candidate.label)
     except NOT_AN_ANSWER:
         raise
     except DomainError as exc:

@@ -150,8 +150,6 @@ class Family(Protocol):
         self, problem: Problem, design: Design, ratios: NDArray[np.float64], zetas: NDArray[np.float64]
     ) -> dict[str, Any] | None: ...
 
-    def fallback(self, problem: Problem, options: Any) -> Any | None: ...
-
     def candidates(self, problem: Problem) -> tuple[Candidate, ...]: ...
 
     def request_fields(self, options: Any) -> dict[str, Any]: ...
@@ -200,9 +198,6 @@ class BaseFamily:
     ) -> dict[str, Any] | None:
         return None
 
-    def fallback(self, problem: Problem, options: Any) -> Any | None:
-        return None
-
     def candidates(self, problem: Problem) -> tuple[Candidate, ...]:
         """What compare runs for this family (default: its ``default_options``, one row)."""
         return (Candidate(self.name, self.default_options(problem), self.name),)
@@ -214,25 +209,7 @@ class BaseFamily:
         return {k: v for k, v in asdict(options).items() if v is not None}
 
 
-def warm_up_all(solver: SolveCaps) -> None:
-    """Build every family's solver problems (run once in each new worker process)."""
-    from optim.families import REGISTRY
-
-    for family in REGISTRY.values():
-        family.warm_up(solver)
-
-
-def __getattr__(name: str) -> dict[str, Family]:
-    """``FAMILIES``, the registry, resolved on first use: the families import this module's types, so
-    importing any family module first must not need the registry yet (PEP 562)."""
-    if name == "FAMILIES":
-        from optim.families import REGISTRY
-
-        return REGISTRY
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-__all__ = [  # and FAMILIES, through __getattr__
+__all__ = [
     "BaseFamily",
     "Candidate",
     "Design",
@@ -242,7 +219,6 @@ __all__ = [  # and FAMILIES, through __getattr__
     "Run",
     "SolverSummary",
     "counted",
-    "warm_up_all",
 ]
 
 

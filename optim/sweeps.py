@@ -30,8 +30,8 @@ from typing import Any, TypeVar
 
 from models.commands import PiecewiseCommand
 from models.errors import InvalidParameter, PoolUnavailable
-from optim.family import FAMILIES
 from optim.problem import Problem
+from optim.registry import FAMILIES
 from optim.synthesis import Result, nominal_percentage_vibration, synthesize
 from runtime.executor import Executor, PoolBusy
 

@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 from models.commands import MIN_STEP_S
 from models.errors import InvalidParameter
 from models.simulation import Response
+from optim.registry import FAMILIES
 from optim.synthesis import Result
 
 PROFILE_COLUMNS = ("time_s", "position", "velocity", "acceleration", "jerk")
@@ -75,8 +76,6 @@ def check_columns(columns: tuple[str, ...]) -> tuple[str, ...]:
 def table(result: Result, columns: tuple[str, ...] = PROFILE_COLUMNS) -> Table:
     """The design's profile (and load columns when asked; ``all``: every column the plant defines) at
     t_k = k * grid period up to the horizon."""
-    from optim.families import REGISTRY  # the registry imports every family: not at module load
-
     columns = check_columns(columns)
     if columns == ("all",):
         response = result.response
@@ -84,7 +83,7 @@ def table(result: Result, columns: tuple[str, ...] = PROFILE_COLUMNS) -> Table:
         columns = tuple(c for c in COLUMNS if c not in undefined or undefined[c] is not None)
     grid = result.run.grid
     t = uniform_times(grid.period_s, grid.horizon_s)
-    family = REGISTRY[result.family]
+    family = FAMILIES[result.family]
     values: dict[str, NDArray[np.float64] | None] = {"time_s": t}
     if any(c in PROFILE_COLUMNS for c in columns[1:]):
         profile = family.profile_at(result.design, result.run.command, t)

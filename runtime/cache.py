@@ -3,7 +3,7 @@
 A worker builds a CasADi problem once per shape and keeps it (building costs 0.1-2 s); without a bound
 a worker serving many plant kinds, orders and limit combinations grows for ever. Every module-level
 cache of built problems is a ``LruCache`` registered here, so one setting sizes them all
-(``VIBFREE_SOLVER_CACHE_SIZE``, applied in each new worker by ``optim.family.warm_up_all``).
+(``VIBFREE_SOLVER_CACHE_SIZE``, applied in each new worker by ``optim.registry.warm_up_all``).
 ``ArrayCache`` bounds numpy tables by their bytes instead (the pseudo-polynomial quadrature rules:
 one entry is up to 12.6 MB). A ``LruCache`` may also carry a budget in units of work (``weigh`` gives an
 entry's estimated MiB from its key): entries are evicted before a build so that the kept ones and the new one
@@ -22,7 +22,7 @@ import numpy as np
 K = TypeVar("K", bound=Hashable)
 V = TypeVar("V")
 
-DEFAULT_SIZE = 64  # problems per cache: more than every warm-up builds (optim.family.warm_up_all)
+DEFAULT_SIZE = 64  # problems per cache: more than every warm-up builds (optim.registry.warm_up_all)
 _registry: list[LruCache[object, object]] = []
 
 

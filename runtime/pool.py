@@ -2,7 +2,7 @@
 
 IPOPT with MUMPS is not thread-safe, so every CasADi solve runs in a worker process, never on the
 event loop or in a thread. Each worker builds its solvers once, when it starts (the families'
-warm-ups, ``optim.family.warm_up_all``), and keeps them in its module-level caches.
+warm-ups, ``optim.registry.warm_up_all``), and keeps them in its module-level caches.
 
 The pool supervises its own processes, one pipe each, watched from the event loop
 (``loop.add_reader`` on the pipe and on the process sentinel), so that

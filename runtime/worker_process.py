@@ -1,7 +1,7 @@
 """The solver worker process: what ``runtime.pool.SolverPool`` runs in each process it starts ("spawn").
 
 A worker caps its memory (``limit_memory``), builds its solvers once, when it starts (the families' warm-ups,
-``optim.family.warm_up_all``), keeps them in its module-level caches, says it is ready, then runs jobs sent down
+``optim.registry.warm_up_all``), keeps them in its module-level caches, says it is ready, then runs jobs sent down
 its pipe until told to stop. A job that runs out of memory is answered "too large" (a 422) and the worker serves
 on; after each job it gives the freed heap back (``runtime.heap``).
 """

@@ -19,7 +19,8 @@ from fastapi.exceptions import RequestValidationError
 from pydantic import ValidationError
 
 from app import problems
-from app.responses import comment_lines, csv_body, drop_duplicates, dumps
+from app.encoding import dumps
+from app.responses import comment_lines, csv_body, drop_duplicates
 from app.schemas.compare import CompareIn
 from app.schemas.family import ProfileRequest
 from app.schemas.registry import REQUEST_SCHEMAS
@@ -28,7 +29,7 @@ from app.services import profile as profiles
 from app.settings import Settings, get_settings
 from models.errors import DomainError
 from optim import tables
-from optim.families import REGISTRY
+from optim.registry import FAMILIES as REGISTRY
 from optim.synthesis import Result
 from runtime.executor import InlineExecutor
 

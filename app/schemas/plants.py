@@ -6,7 +6,6 @@ from typing import Annotated, Any, ClassVar, Literal
 
 from pydantic import Field
 
-from app.problems import UNION_TAGS
 from app.schemas.common import OutModel, StrictModel
 from models.errors import InvalidParameter
 from models.plants import (
@@ -151,7 +150,6 @@ PlantIn = Annotated[
     ModeIn | TwoInertiaIn | BeltPlatformIn | RigidFlexibleIn | TransferFunctionIn, Field(discriminator="kind")
 ]
 PLANT_KINDS = ("mode", "two_inertia", "belt_platform", "rigid_flexible", "transfer_function")
-UNION_TAGS.update(PLANT_KINDS)
 
 
 def to_plant(schema: ModeIn | TwoInertiaIn | BeltPlatformIn | RigidFlexibleIn | TransferFunctionIn) -> Plant:

@@ -11,9 +11,9 @@ from app.schemas.family import FamilyResponse, ProfileRequest
 from app.schemas.simulate import MetricsOut, ProfileOut
 from models.errors import InvalidParameter
 from optim.families.input_shaped import MAX_SHAPED_MODES, MAX_SHAPED_RAMPS, InputShapedOptions
-from optim.family import FAMILIES
 from optim.firmware import KLIPPER_VERSION, MARLIN_VERSION, RRF_VERSION
 from optim.problem import MAX_MOVE, MIN_LIMIT, Problem
+from optim.registry import FAMILIES
 from optim.shapers import CATALOGUE_NAMES, DEFAULT_VIBRATION_TOLERANCE, EI_HUMPS, MAX_DERIVATIVE_ORDER
 
 FAMILY = FAMILIES["input_shaped"]

@@ -12,8 +12,8 @@ from app.schemas.plants import ModeOut
 from models.commands import MIN_STEP_S
 from models.smoothers import MAX_DURATION_S, MAX_REQUESTED_FILTERS, MIN_DURATION_S
 from optim.families.smoother import SmootherOptions
-from optim.family import FAMILIES
 from optim.problem import Problem
+from optim.registry import FAMILIES
 from optim.smoothers import FilterSpec
 
 FAMILY = FAMILIES["smoother"]

@@ -21,8 +21,8 @@ from app.schemas.common import (
 from app.schemas.family import FamilyResponse, ProfileRequest, SensitivityOut, SolverOut
 from models.errors import InvalidParameter
 from optim.families.stap import AUTO_RULE, StapOptimization, StapOptions
-from optim.family import FAMILIES
 from optim.problem import MIN_LIMIT, Problem
+from optim.registry import FAMILIES
 from optim.stap import (
     DEFAULT_FREQUENCY_UNCERTAINTY,
     DEFAULT_RESIDUAL_TOLERANCE,

@@ -10,8 +10,8 @@ from app.schemas.common import INTEGRAL, DampingRatio, OutModel, StrictModel, ei
 from app.schemas.family import FamilyResponse, ProfileRequest
 from models.plants import FREQUENCY_MAX_HZ, FREQUENCY_MIN_HZ
 from optim.families.time_optimal import MAX_TRADEOFF, Robustness, TimeOptimalOptions
-from optim.family import FAMILIES
 from optim.problem import Problem
+from optim.registry import FAMILIES
 from optim.time_optimal.types import DEFAULT_MAX_PERCENTAGE_VIBRATION, MAX_MODES, MIN_PERCENTAGE_VIBRATION
 
 FAMILY = FAMILIES["time_optimal"]

@@ -31,7 +31,7 @@ from app.services import profile as profiles
 from app.settings import Settings
 from models.errors import DomainError, InvalidParameter, NotApplicable
 from optim import sweeps as engine
-from optim.family import FAMILIES
+from optim.registry import FAMILIES
 from runtime.dask import DaskExecutor
 from runtime.executor import Executor
 from runtime.pool import SolverPool

@@ -9,7 +9,7 @@ from app.family_names import NAMES, SLUGS, endpoint_of, name_of, slug_of
 from app.schemas.compare import CompareOut
 from app.schemas.registry import REQUEST_SCHEMAS
 from app.schemas.sweeps import SweepIn
-from optim.families import REGISTRY
+from optim.registry import FAMILIES as REGISTRY
 
 
 def test_the_schemas_the_families_and_the_enums_list_the_same_names_in_the_same_order() -> None:

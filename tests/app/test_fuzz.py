@@ -38,7 +38,7 @@ from schemathesis.specs.openapi.checks import (
 
 from app.main import create_app
 from app.settings import Settings
-from optim.family import FAMILIES
+from optim.registry import FAMILIES
 from tests.app.openapi_examples import first_post_examples
 
 # Small caps: a random valid design takes at most about a second of solving.

@@ -31,9 +31,9 @@ from app.settings import Settings
 from models.errors import SolverTimedOut
 from models.plants import ModePlant
 from optim import stap as S
-from optim.families import REGISTRY
 from optim.families.time_optimal import Robustness, TimeOptimalOptions
 from optim.problem import Limits, Problem
+from optim.registry import FAMILIES as REGISTRY
 from optim.solver import SolveCaps
 from optim.synthesis import synthesize
 

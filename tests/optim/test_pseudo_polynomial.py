@@ -288,8 +288,8 @@ def test_a_duration_search_that_finds_nothing_falls_back_to_the_design_at_durati
     within the limits (one exists: a fixed 0.225 s design reaches it through the multi-start), so the search
     is no proof of infeasibility: the answer is the design at duration_s, with a warning naming the scan."""
     from optim.families.pseudo_polynomial import PseudoPolynomialOptions
-    from optim.family import FAMILIES
     from optim.problem import Limits, Problem
+    from optim.registry import FAMILIES
 
     family = FAMILIES["pseudo_polynomial"]
     problem = Problem(ModePlant(40.0, 0.1), displacement=0.05, limits=Limits(max_velocity=0.5, max_acceleration=20.0))

@@ -14,8 +14,8 @@ from scipy import signal
 from models.commands import PiecewiseCommand
 from models.plants import make_plant
 from models.simulation import metrics, simulate, vibration_envelope
-from optim.family import FAMILIES
 from optim.problem import Limits, Problem
+from optim.registry import FAMILIES
 from optim.synthesis import evaluate
 
 NOMINAL = make_plant("mode", natural_frequency_hz=5.0, damping_ratio=0.05)

@@ -18,7 +18,7 @@ from models.errors import Infeasible, InvalidParameter
 from models.plants import Mode, example_plants, make_plant
 from models.shapers import RampTrain, rate_limit
 from models.simulation import metrics, simulate
-from optim.family import FAMILIES  # before the families' modules: the registry imports them
+from optim.registry import FAMILIES  # before the families' modules: the registry imports them
 
 # isort: split
 from optim.families.input_shaped import InputShapedOptions

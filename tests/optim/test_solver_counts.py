@@ -17,7 +17,7 @@ import optim.time_optimal.lp as lp
 from app.families import BY_NAME
 from app.schemas.registry import REQUEST_SCHEMAS
 from app.settings import Settings
-from optim.families import REGISTRY
+from optim.registry import FAMILIES as REGISTRY
 from optim.solver import report_of
 from runtime.cache import LruCache
 

@@ -9,8 +9,8 @@ import pytest
 
 from models.plants import ModePlant
 from optim.families.stap import StapFamily, StapOptions
-from optim.family import FAMILIES
 from optim.problem import Limits, Problem
+from optim.registry import FAMILIES
 from optim.synthesis import synthesize
 from tests.optim.compare_runner import run_compare
 

@@ -10,8 +10,8 @@ import pytest
 
 from models.errors import Infeasible, NotApplicable
 from models.plants import make_plant
-from optim.family import FAMILIES
 from optim.problem import Limits, Problem, Settling, nice_period
+from optim.registry import FAMILIES
 from optim.synthesis import synthesize
 
 PLANT = make_plant("mode", natural_frequency_hz=5.0, damping_ratio=0.05)  # period 0.2 s

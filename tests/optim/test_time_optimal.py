@@ -23,8 +23,8 @@ from models.plants import ModePlant, TransferFunctionPlant, TwoInertiaPlant
 from models.sensitivity import residual_envelope, sensitivity
 from models.simulation import simulate
 from optim.families.time_optimal import Robustness, TimeOptimalOptions
-from optim.family import FAMILIES
 from optim.problem import Limits, Problem
+from optim.registry import FAMILIES
 from optim.solver import SolveCaps
 from optim.synthesis import Result, rigid_reference, synthesize
 from optim.time_optimal import lp
