@@ -24,7 +24,7 @@ sys.path.insert(0, str(ROOT))
 
 from app.examples import INCERTI_TABLE_III  # noqa: E402
 from models.plants import example_plants  # noqa: E402
-from optim import pseudo_polynomial as pp  # noqa: E402
+from optim.families import pseudo_polynomial as pp  # noqa: E402
 
 REQUEST = {"plant": INCERTI_TABLE_III, "displacement": 30 * math.pi, "duration_s": 1.0}
 

@@ -19,7 +19,7 @@ sys.path.insert(0, str(ROOT))
 
 from app.routers.compare import EXAMPLES  # noqa: E402
 from models.plants import example_plants  # noqa: E402
-from optim import pseudo_polynomial as pp  # noqa: E402
+from optim.families import pseudo_polynomial as pp  # noqa: E402
 from optim.problem import Limits, Problem  # noqa: E402
 from optim.registry import FAMILIES  # noqa: E402
 

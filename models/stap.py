@@ -27,7 +27,7 @@ k_j = f_n,e t_j and D of (A9), for any real k_j (checked in tests/models/test_st
 
 The design formulas are small pure functions here too: the limits (eqs. 19, 21, 27-28), the
 zero-vibration jerk times (eqs. 44, 48-50), eqs. (45)-(46) as printed and the worst torque
-overshoot over a frequency band (eqs. 57-59); ``optim.stap`` composes them into designs.
+overshoot over a frequency band (eqs. 57-59); ``optim.families.stap`` composes them into designs.
 
 A rest-to-rest move (``RestToRest``, beyond the paper) is an accelerating STAP to the cruise
 velocity, a cruise phase and the mirrored decelerating STAP. The decelerating ramp leaves minus

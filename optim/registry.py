@@ -4,10 +4,10 @@ between the pipeline (optim.synthesis) and each family's synthesis, and the warm
 from __future__ import annotations
 
 from optim.families.input_shaped import InputShapedFamily
-from optim.families.pseudo_polynomial import PseudoPolynomialFamily
+from optim.families.pseudo_polynomial.family import PseudoPolynomialFamily
 from optim.families.smoother import SmootherFamily
-from optim.families.stap import StapFamily
-from optim.families.time_optimal import TimeOptimalFamily
+from optim.families.stap.family import StapFamily
+from optim.families.time_optimal.family import TimeOptimalFamily
 from optim.family import Family
 from optim.solver import SolveCaps
 

@@ -3,7 +3,7 @@ undamped mode still.
 
 The plant is the 'mode' kind with zero damping: the load follows the motor through
 w^2 / (s^2 + w^2). The motor acceleration is bounded by ``a`` (and its velocity by ``v``); the move is
-``D``. Nothing here imports ``optim.time_optimal``: the answer comes from the structure alone.
+``D``. Nothing here imports ``optim.families.time_optimal``: the answer comes from the structure alone.
 
 Structure (Singh & Vadali 1993, "Robust time-optimal control: frequency domain approach", J. Guid.
 Control Dyn. 16(2); Pao & Singhose 1995, "On the equivalence of minimum time input shaping with

@@ -11,7 +11,7 @@ from app.schemas.common import OutModel
 from app.schemas.family import ProfileRequest, SensitivityIn, SensitivityOut
 from app.schemas.simulate import LoadOut, ProfileOut
 from app.schemas.stap import StapSensitivityOut
-from optim.families.pseudo_polynomial import PseudoPolynomialOptions
+from optim.families.pseudo_polynomial.family import PseudoPolynomialOptions
 from optim.problem import Problem
 
 DEFAULT_SENSITIVITY = SensitivityIn(min_ratio=0.5, max_ratio=1.5, count=201)

@@ -9,9 +9,9 @@ from pydantic import Field
 from app.schemas.common import Int, OutModel
 from app.schemas.family import REST_TO_REST_ONLY, FamilyResponse, ProfileRequest, SolverOut
 from app.schemas.simulate import LoadOut, MetricsOut, ProfileOut
-from optim.families.pseudo_polynomial import PseudoPolynomialOptions
+from optim.families.pseudo_polynomial import MAX_EXPONENT, MAX_ORDER, MIN_SEPARATION
+from optim.families.pseudo_polynomial.family import PseudoPolynomialOptions
 from optim.problem import Problem
-from optim.pseudo_polynomial import MAX_EXPONENT, MAX_ORDER, MIN_SEPARATION
 from optim.registry import FAMILIES
 
 FAMILY = FAMILIES["pseudo_polynomial"]

@@ -20,16 +20,16 @@ from app.schemas.common import (
 )
 from app.schemas.family import FamilyResponse, ProfileRequest, SensitivityOut, SolverOut
 from models.errors import InvalidParameter
-from optim.families.stap import AUTO_RULE, StapOptimization, StapOptions
-from optim.problem import MIN_LIMIT, Problem
-from optim.registry import FAMILIES
-from optim.stap import (
+from optim.families.stap import (
     DEFAULT_FREQUENCY_UNCERTAINTY,
     DEFAULT_RESIDUAL_TOLERANCE,
     MAX_BAND_DAMPING_RATIOS,
     MAX_FREQUENCY_POINTS,
     OBJECTIVES,
 )
+from optim.families.stap.family import AUTO_RULE, StapOptimization, StapOptions
+from optim.problem import MIN_LIMIT, Problem
+from optim.registry import FAMILIES
 
 MAX_JERK_PERIODS = 10_000
 FAMILY = FAMILIES["stap"]
@@ -155,7 +155,7 @@ class StapIn(ProfileRequest):
     @classmethod
     def schema_rules(cls) -> list[dict[str, Any]]:
         # (k_j, delta) = (0, 0) is no zero of eq. (44); a side band (delta = 1) needs a whole k_j
-        # (optim.stap.check_request) and t_a (eq. 49, optim.stap.ramp): one rule of two alternatives
+        # (optim.families.stap.check_request) and t_a (eq. 49, optim.families.stap.ramp): one rule of two alternatives
         fundamental = both(is_value("delta", 0, default=True), ~is_value("jerk_periods", 0))
         side_band = both(
             is_value("delta", 1), ~is_value("jerk_periods", "auto", default=True), given("acceleration_time_s")

@@ -91,7 +91,7 @@ CASES = [
     ("/v1/profiles/input-shaped", {**SHAPED, "sensitivity": {"count": 11.0}}, {}, True),
     # StapIn._legacy_move: both move fields (deprecated: target_velocity is the cruise speed)
     ("/v1/profiles/stap", {**STAP, "displacement": 2.0}, {}, True),
-    # optim.stap.check_request and stap.ramp: a side band needs a whole k_j and t_a
+    # optim.families.stap.check_request and stap.ramp: a side band needs a whole k_j and t_a
     ("/v1/profiles/stap", {**STAP, "delta": 1}, {}, False),
     ("/v1/profiles/stap", {**STAP, "delta": 1, "jerk_periods": 1}, {}, False),
     ("/v1/profiles/stap", {**STAP, "delta": 1, "jerk_periods": 1, "acceleration_time_s": 1.0}, {}, True),

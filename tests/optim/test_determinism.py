@@ -23,15 +23,15 @@ import numpy as np
 import orjson
 import pytest
 
-import optim.families.time_optimal as time_optimal_family
-import optim.time_optimal.lp as lp
+import optim.families.time_optimal.family as time_optimal_family
+import optim.families.time_optimal.lp as lp
 from app.families import BY_NAME
 from app.schemas.registry import REQUEST_SCHEMAS
 from app.settings import Settings
 from models.errors import SolverTimedOut
 from models.plants import ModePlant
-from optim import stap as S
-from optim.families.time_optimal import Robustness, TimeOptimalOptions
+from optim.families import stap as S
+from optim.families.time_optimal.family import Robustness, TimeOptimalOptions
 from optim.problem import Limits, Problem
 from optim.registry import FAMILIES as REGISTRY
 from optim.solver import SolveCaps

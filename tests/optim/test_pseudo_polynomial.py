@@ -12,7 +12,7 @@ from models.errors import Infeasible, InvalidParameter, SolverTimedOut
 from models.plants import ModePlant, RigidFlexiblePlant, TransferFunctionPlant, TwoInertiaPlant, example_plants
 from models.pseudo_polynomial import PseudoPolynomial
 from models.simulation import metrics, simulate
-from optim import pseudo_polynomial as pp
+from optim.families import pseudo_polynomial as pp
 from optim.solver import SolveCaps
 
 TABLE_III = example_plants()["incerti_table_iii"]
@@ -287,7 +287,7 @@ def test_a_duration_search_that_finds_nothing_falls_back_to_the_design_at_durati
     """40 Hz, zeta 0.1, 0.05 within v <= 0.5, a <= 20: the whole-period scan finds no zero-energy design
     within the limits (one exists: a fixed 0.225 s design reaches it through the multi-start), so the search
     is no proof of infeasibility: the answer is the design at duration_s, with a warning naming the scan."""
-    from optim.families.pseudo_polynomial import PseudoPolynomialOptions
+    from optim.families.pseudo_polynomial.family import PseudoPolynomialOptions
     from optim.problem import Limits, Problem
     from optim.registry import FAMILIES
 
@@ -325,7 +325,7 @@ def test_every_problem_a_request_can_ask_for_fits_the_worker_budget():
     # MAX_MODES modes with the three kinematic ones) are estimated at ~100 MiB (measured: 93 MiB resident),
     # below the budget, so one request's problem is always built; the fuzz bench's (order 4, minimize_duration
     # with all four limits) 57 MiB. The warm-up's problems fit the budget together.
-    from optim.pseudo_polynomial.problem import PROBLEM_CACHE_MIB, build_mib
+    from optim.families.pseudo_polynomial.problem import PROBLEM_CACHE_MIB, build_mib
 
     largest = max(
         build_mib(pp.MAX_ORDER, 1, (True,) * 4), build_mib(pp.MAX_ORDER, pp.MAX_MODES, (True,) * 3 + (False,))
@@ -342,7 +342,7 @@ def test_a_built_problem_costs_no_more_than_its_estimate():
     # the estimate (the fit's largest error was 1.6 MiB on consecutive builds, 6 MiB on a fresh process's first).
     import resource
 
-    from optim.pseudo_polynomial.problem import build_mib
+    from optim.families.pseudo_polynomial.problem import build_mib
     from optim.solver import SolveCaps
 
     active = (True, False, True, False)

@@ -11,9 +11,9 @@ from typing import Any
 
 import pytest
 
-import optim.pseudo_polynomial.problem as pp_problem
-import optim.stap.problem as stap_problem
-import optim.time_optimal.lp as lp
+import optim.families.pseudo_polynomial.problem as pp_problem
+import optim.families.stap.problem as stap_problem
+import optim.families.time_optimal.lp as lp
 from app.families import BY_NAME
 from app.schemas.registry import REQUEST_SCHEMAS
 from app.settings import Settings

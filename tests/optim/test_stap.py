@@ -11,7 +11,7 @@ from models.errors import Infeasible, InvalidParameter
 from models.plants import ModePlant, TwoInertiaPlant
 from models.simulation import metrics, simulate
 from models.stap import Stap, sensitivity_appendix_b
-from optim import stap as S
+from optim.families import stap as S
 from optim.solver import SolveCaps
 
 MODE_40 = ModePlant(40.0, 0.0)

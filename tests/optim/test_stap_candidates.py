@@ -8,7 +8,7 @@ from dataclasses import replace
 import pytest
 
 from models.plants import ModePlant
-from optim.families.stap import StapFamily, StapOptions
+from optim.families.stap.family import StapFamily, StapOptions
 from optim.problem import Limits, Problem
 from optim.registry import FAMILIES
 from optim.synthesis import synthesize

@@ -9,8 +9,8 @@ import pytest
 from models.plants import TwoInertiaPlant
 from models.simulation import simulate
 from models.stap import peak_motor_torque_nm
-from optim import stap as S
-from optim.stap.moves import closed_form
+from optim.families import stap as S
+from optim.families.stap.moves import closed_form
 
 # The audit's reproducer (issue 11, section 3): a 200 with torque 71.6956 > 71.6677 N m (method optimized).
 AUDIT_PLANT = TwoInertiaPlant(0.43113191982048643, 0.7689037090974283, 2693.50111016888, 26.490867301436257)

@@ -22,12 +22,12 @@ from models.errors import Infeasible, InvalidParameter, SolverTimedOut
 from models.plants import ModePlant, TransferFunctionPlant, TwoInertiaPlant
 from models.sensitivity import residual_envelope, sensitivity
 from models.simulation import simulate
-from optim.families.time_optimal import Robustness, TimeOptimalOptions
+from optim.families.time_optimal import lp
+from optim.families.time_optimal.family import Robustness, TimeOptimalOptions
 from optim.problem import Limits, Problem
 from optim.registry import FAMILIES
 from optim.solver import SolveCaps
 from optim.synthesis import Result, rigid_reference, synthesize
-from optim.time_optimal import lp
 
 FAMILY = FAMILIES["time_optimal"]
 KNOWN = Problem(ModePlant(40.0, 0.0), displacement=0.12, limits=Limits(max_velocity=5.0, max_acceleration=10.0))
@@ -284,7 +284,7 @@ def test_a_band_reaching_low_frequencies_keeps_a_fine_grid() -> None:
 def test_snapped_grid_commands_keep_the_acceleration_limit(monkeypatch: pytest.MonkeyPatch) -> None:
     # Found with a coarser search grid: snapping a held jerk to its bang levels moved the acceleration at the
     # nodes past max_acceleration by 4e-8 (the pipeline's hard check refused the design).
-    from optim.time_optimal import search
+    from optim.families.time_optimal import search
 
     monkeypatch.setattr(search, "STEPS", 80)
     limits = Limits(max_velocity=1.0, max_acceleration=20.0, max_jerk=1000.0)
@@ -346,8 +346,8 @@ def test_the_band_check_is_computed_in_blocks_of_bounded_memory_with_the_same_ra
     import tracemalloc
     from types import SimpleNamespace
 
-    from optim.time_optimal import check
-    from optim.time_optimal.weights import mode_poles
+    from optim.families.time_optimal import check
+    from optim.families.time_optimal.weights import mode_poles
 
     points, pieces, total_s = 20_000, 600, 3.0
     omega = np.linspace(2 * np.pi * 5.0, 2 * np.pi * 80.0, points)

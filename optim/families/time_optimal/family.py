@@ -1,5 +1,5 @@
 """The time-optimal family: the shortest command that leaves no residual vibration, or whose percentage
-vibration stays below a bound over a band of frequencies (optim.time_optimal).
+vibration stays below a bound over a band of frequencies (optim.families.time_optimal).
 
 Literature: time-optimal rest-to-rest control of flexible systems (Singh and Vadali 1993; Pao and
 Singhose 1996, 1998, on the robust and jerk-limited forms), computed as linear programs on a grid as in
@@ -22,12 +22,12 @@ from models.errors import DomainError, Infeasible, InvalidParameter, SolverFaile
 from models.plant_base import Mode
 from models.sensitivity import band_below, sensitivity
 from models.simulation import simulate
+from optim.families.time_optimal import Arc, Band, Solution, Spec, Torque, command_of, solve
+from optim.families.time_optimal.types import DEFAULT_MAX_PERCENTAGE_VIBRATION, MAX_MODES
 from optim.family import BaseFamily, Candidate, Design, Run, SolverSummary, counted
 from optim.problem import Problem
 from optim.solver import SolverReport
 from optim.synthesis import percentage_vibration, rigid_reference
-from optim.time_optimal import Arc, Band, Solution, Spec, Torque, command_of, solve
-from optim.time_optimal.types import DEFAULT_MAX_PERCENTAGE_VIBRATION, MAX_MODES
 
 LIMIT_RTOL = 1e-10  # a refined command must meet its limits this tightly (the pipeline refuses above 1e-9)
 CHECK_POINTS = 2001  # the independent dense check of a band: at least this many frequencies,

@@ -1,7 +1,7 @@
 """The closed-form design of a request: rest-to-velocity, or rest-to-rest (beyond Cusimano 2022).
 
 ``check_request`` refuses what no design can mean (the HTTP schema catches most of it first);
-``closed_form`` signs the ramp of ``optim.stap.ramp`` (Secs. 2-4) or builds the move. Rest-to-rest:
+``closed_form`` signs the ramp of ``optim.families.stap.ramp`` (Secs. 2-4) or builds the move. Rest-to-rest:
 each ramp is the rest-to-velocity design at the cruise speed. When the displacement D is too short
 for the requested speed (v t_a > D), the speed is lowered to the largest one whose ramps fit with no
 cruise, with the same rule (the same k_j, or the same t_a and t_j): v = 2 D / (t_j + sqrt(t_j^2 +
@@ -16,10 +16,10 @@ from dataclasses import replace
 
 from models.errors import InvalidParameter
 from models.stap import MAX_TIME_S, RestToRest, Stap
-from optim.stap.limits import estimated_mode, no_acceleration_limit_error, torque_plant
-from optim.stap.ramp import rest_to_velocity
-from optim.stap.torque import lower_acceleration
-from optim.stap.types import (
+from optim.families.stap.limits import estimated_mode, no_acceleration_limit_error, torque_plant
+from optim.families.stap.ramp import rest_to_velocity
+from optim.families.stap.torque import lower_acceleration
+from optim.families.stap.types import (
     MAX_BAND_DAMPING_RATIOS,
     MAX_FREQUENCY_POINTS,
     OBJECTIVES,
@@ -184,6 +184,6 @@ def check_request(request: StapRequest) -> StapRequest:
 
 def design(request: StapRequest) -> StapDesign:
     """The closed-form design (in-process: no solver), its acceleration lowered where the real motor
-    torque would break max_torque_nm (``optim.stap.torque``)."""
+    torque would break max_torque_nm (``optim.families.stap.torque``)."""
     request = check_request(request)
     return lower_acceleration(request, closed_form(request), closed_form)

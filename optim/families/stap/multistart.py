@@ -9,7 +9,7 @@ spread over the band (its ends and quartiles), with the plant's damping.
 
 Starts are the closed-form design and the other zero-vibration jerk times at its t_a (or the
 eq. 61/66 designs for k_j = 1..3 when t_a is free). The closed-form design (whose real torque fits,
-``optim.stap.torque``) competes with every converged solve: a solve is kept only where it meets the
+``optim.families.stap.torque``) competes with every converged solve: a solve is kept only where it meets the
 limits (the acceleration projected onto its constraint exactly, the real torque J_M a_M + J_L a_L
 checked on its exact peak, the sampled torque rows tightened by the excess and solved again where
 it slipped through) and beats the closed form (lower objective, then shorter). Otherwise the closed
@@ -33,10 +33,9 @@ import numpy as np
 
 from models.errors import Infeasible, InvalidParameter, SolverTimedOut
 from models.stap import FloatArray, RestToRest, Stap, max_jerk_time
-from optim.solver import SolverReport, report_of
-from optim.stap.limits import estimated_mode, has_no_acceleration_limit, torque_plant
-from optim.stap.moves import check_request
-from optim.stap.problem import (
+from optim.families.stap.limits import estimated_mode, has_no_acceleration_limit, torque_plant
+from optim.families.stap.moves import check_request
+from optim.families.stap.problem import (
     ResidualPoints,
     amplitudes,
     band_poles,
@@ -46,9 +45,10 @@ from optim.stap.problem import (
     residual_points,
     torque_grid_size,
 )
-from optim.stap.ramp import periods_rule, zero_vibration_candidates
-from optim.stap.torque import command_of, fits_torque
-from optim.stap.types import OptimizedDesign, StapDesign, StapRequest
+from optim.families.stap.ramp import periods_rule, zero_vibration_candidates
+from optim.families.stap.torque import command_of, fits_torque
+from optim.families.stap.types import OptimizedDesign, StapDesign, StapRequest
+from optim.solver import SolverReport, report_of
 
 TORQUE_BAND_POINTS = 5  # band frequencies where the torque is constrained (ends and quartiles)
 JERK_PERIODS_FLOOR = 1e-3  # the optimiser keeps t_j >= 0.001 / f_n,e

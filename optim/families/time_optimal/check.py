@@ -16,9 +16,9 @@ from numpy.typing import NDArray
 
 from models.errors import InvalidParameter
 from models.sensitivity import residual_envelope
-from optim.time_optimal.lp import Cut, acceleration_moment
-from optim.time_optimal.types import Band, Spec
-from optim.time_optimal.weights import amplitude_gain, mode_poles
+from optim.families.time_optimal.lp import Cut, acceleration_moment
+from optim.families.time_optimal.types import Band, Spec
+from optim.families.time_optimal.weights import amplitude_gain, mode_poles
 
 Array = NDArray[np.float64]
 DENSE_POINTS = 1500

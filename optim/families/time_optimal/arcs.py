@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from models.commands import PiecewiseCommand
-from optim.time_optimal.types import Arc
+from optim.families.time_optimal.types import Arc
 
 Array = NDArray[np.float64]
 SNAP = 1e-5  # a step within this of +-1 or 0 (of the unit) is on that level

@@ -115,7 +115,7 @@ class Solution:
     solve_time_s: float  # reported only
     cut_frequencies: int
     notes: tuple[str, ...] = field(default=())
-    max_lp_iterations: int = 0  # the caps the search ran with (optim.time_optimal.lp)
+    max_lp_iterations: int = 0  # the caps the search ran with (optim.families.time_optimal.lp)
     max_lp_solves: int = 0
     capped_runs: int = 0  # HiGHS runs stopped at max_lp_iterations
     capped_lps: int = 0  # LPs counted as "not found" because both methods stopped there

@@ -49,7 +49,7 @@ from models.errors import InvalidParameter
 from models.plants import Plant, TwoInertiaPlant
 from models.pseudo_polynomial import boundary_matrix, derivative_terms
 from models.simulation import ModalForm, modal_form
-from optim.pseudo_polynomial.types import FloatArray, Limits, PseudoPolynomialRequest
+from optim.families.pseudo_polynomial.types import FloatArray, Limits, PseudoPolynomialRequest
 from optim.solver import SolveCaps, ipopt_options, parameter_layout
 from runtime.cache import ArrayCache, LruCache
 

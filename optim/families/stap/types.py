@@ -1,10 +1,10 @@
 """Requests and designs of the STAP family (Cusimano 2022, Machines 10, 767).
 
 Frozen dataclasses: they cross the worker-process boundary. ``StapRequest`` is what a caller asks
-for; ``StapDesign`` the closed-form design (``optim.stap.ramp``, ``optim.stap.moves``) with its
+for; ``StapDesign`` the closed-form design (``optim.families.stap.ramp``, ``optim.families.stap.moves``) with its
 ``TorqueLimit`` (eqs. 19, 57-59), zero-vibration ``Candidate`` jerk times (eqs. 44, 49) and the
 ``AutoStep`` trail of the Fig. 25 flowchart; ``OptimizedDesign`` the CasADi/IPOPT one
-(``optim.stap.multistart``).
+(``optim.families.stap.multistart``).
 """
 
 from __future__ import annotations
@@ -108,7 +108,7 @@ class StapDesign:
     move_notes: tuple[str, ...] = ()  # what the rest-to-rest rules did (lowered speed, ...)
     requested_velocity: float | None = None
     velocity_lowered: bool = False
-    # the real torque (optim.stap.torque): its exact peak, and the acceleration cap that made it fit
+    # the real torque (optim.families.stap.torque): its exact peak, and the acceleration cap that made it fit
     peak_torque_nm: float | None = None
     torque_lowered_acceleration: float | None = None
 

@@ -1,6 +1,6 @@
 """Closed-form STAP ramps at one speed and the Fig. 25 flowchart (Cusimano 2022, Secs. 2-4).
 
-In-process, no solver. v is the target speed, a_Max the limit of ``optim.stap.limits``.
+In-process, no solver. v is the target speed, a_Max the limit of ``optim.families.stap.limits``.
 
 - t_a,min = v / a_Max (eq. 21); t_j = k_j / f_n,e (eq. 50 for k_j = 1, eq. 48 for multiples).
 - k_j / f_n,e <= t_a,min (eq. 60): t_a = t_a,min + k_j / f_n,e (eq. 61), reaching a_Max;
@@ -50,7 +50,7 @@ from models.stap import (
     paper_k_j_max,
     zero_vibration_jerk_time,
 )
-from optim.stap.limits import (
+from optim.families.stap.limits import (
     LIMIT_RTOL,
     acceleration_limit,
     band_worst,
@@ -59,7 +59,7 @@ from optim.stap.limits import (
     no_acceleration_limit_error,
     torque_plant,
 )
-from optim.stap.types import AutoStep, Candidate, StapDesign, StapRequest
+from optim.families.stap.types import AutoStep, Candidate, StapDesign, StapRequest
 
 AUTO_MAX_PERIODS = 10  # the longest f_n,e t_a auto tries in the triangle case (Figs. 11-13)
 MAX_LISTED_CANDIDATES = 64  # zero-vibration jerk times listed (and considered by auto) at a fixed t_a

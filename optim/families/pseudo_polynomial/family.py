@@ -1,7 +1,7 @@
 """The pseudo-polynomial family (Incerti): exponents chosen by IPOPT for zero final energy.
 
 phi(t) = Phi [1 - sum C_i (1 - t/T)^gamma_i] (eq. 17); the exponents make the plant's vibration
-energy vanish when the move ends (eqs. 24-31), within the limits (see optim.pseudo_polynomial).
+energy vanish when the move ends (eqs. 24-31), within the limits (see optim.families.pseudo_polynomial).
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 from models.errors import InvalidParameter
 from models.pseudo_polynomial import PseudoPolynomial
 from models.simulation import simulate
-from optim import pseudo_polynomial as pp
+from optim.families import pseudo_polynomial as pp
 from optim.family import BaseFamily, Design, Grid, Profile, Run, SolverSummary, counted
 from optim.problem import Problem
 from optim.solver import SolveCaps
@@ -110,7 +110,7 @@ class PseudoPolynomialFamily(BaseFamily):
     def default_options(self, problem: Problem) -> PseudoPolynomialOptions:
         """Without limits, 5 periods of the slowest mode; with limits, the shortest duration: whole periods
         scanned from the kinematic floor (order-2 zero-energy designs live near them) up to those above twice
-        the floor, here the duration_s of the options (optim.pseudo_polynomial.duration_search)."""
+        the floor, here the duration_s of the options (optim.families.pseudo_polynomial.duration_search)."""
         period = problem.slowest_period_s
         if not problem.limits.any:
             return PseudoPolynomialOptions(duration_s=5 * period)

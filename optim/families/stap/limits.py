@@ -24,7 +24,7 @@ from models.stap import (
     torque_coefficient,
     worst_torque_overshoot,
 )
-from optim.stap.types import StapRequest, TorqueLimit
+from optim.families.stap.types import StapRequest, TorqueLimit
 
 BAND_POINTS = 401  # SC samples over the band for auto and the reported worst case
 LIMIT_RTOL = 1e-9  # a peak within this fraction of a_Max counts as reaching it

@@ -1,7 +1,7 @@
 """The STAP family (Cusimano 2022): symmetric trapezoidal acceleration with jerk times tuned to the mode.
 
 Rest-to-velocity, or a rest-to-rest move of two STAPs and a cruise at ``limits.max_velocity``.
-Closed-form rules and the Fig. 25 flowchart, or IPOPT over (t_a, t_j) (see optim.stap).
+Closed-form rules and the Fig. 25 flowchart, or IPOPT over (t_a, t_j) (see optim.families.stap).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 
 from models.errors import NotApplicable
 from models.stap import load_acceleration_oscillation, stap_sensitivity
-from optim import stap as S
+from optim.families import stap as S
 from optim.family import BaseFamily, Candidate, Design, Run, SolverSummary, counted
 from optim.problem import Problem
 from optim.solver import SolveCaps

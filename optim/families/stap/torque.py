@@ -17,7 +17,7 @@ from models.commands import PiecewiseCommand
 from models.errors import Infeasible, InvalidParameter
 from models.plants import Plant
 from models.stap import RestToRest, Stap, peak_motor_torque_nm
-from optim.stap.types import StapDesign, StapRequest
+from optim.families.stap.types import StapDesign, StapRequest
 
 TORQUE_RTOL = 1e-12  # round-off allowed above M (a design touching eq. 19 exactly); the pipeline refuses 1e-9
 SEARCH_RTOL = 1e-7  # the acceleration cap is found to this fraction

@@ -24,8 +24,8 @@ import numpy as np
 
 from models.errors import Infeasible, SolverFailed
 from models.pseudo_polynomial import PseudoPolynomial
-from optim.pseudo_polynomial.problem import _active, _oscillatory
-from optim.pseudo_polynomial.solve import (
+from optim.families.pseudo_polynomial.problem import _active, _oscillatory
+from optim.families.pseudo_polynomial.solve import (
     PeaksOf,
     _Attempt,
     _solve_at,
@@ -34,7 +34,7 @@ from optim.pseudo_polynomial.solve import (
     solve_within,
     total,
 )
-from optim.pseudo_polynomial.types import FloatArray, Limits, PseudoPolynomialRequest
+from optim.families.pseudo_polynomial.types import FloatArray, Limits, PseudoPolynomialRequest
 from optim.solver import SolverReport
 
 __all__ = ["EXTRA_PERIODS", "MAX_SEARCH_SOLVES", "REFINE_STEPS", "SEARCH_METHOD", "Search", "kinematic_floor_s"]

@@ -26,8 +26,8 @@ import numpy as np
 from models.errors import Infeasible, SolverTimedOut
 from models.plants import Plant
 from models.pseudo_polynomial import PseudoPolynomial
-from optim.pseudo_polynomial.problem import MAX_EXPONENT, MIN_SEPARATION, _active, _prepare, lower_bound
-from optim.pseudo_polynomial.types import FloatArray, Limits, PseudoPolynomialRequest
+from optim.families.pseudo_polynomial.problem import MAX_EXPONENT, MIN_SEPARATION, _active, _prepare, lower_bound
+from optim.families.pseudo_polynomial.types import FloatArray, Limits, PseudoPolynomialRequest
 from optim.solver import SolverReport, raise_for_status, report_of
 
 __all__ = [

@@ -31,8 +31,8 @@ from models.errors import InvalidParameter
 from models.plants import Mode, Plant
 from models.simulation import ModalForm, modal_form
 from models.stap import ComplexArray, FloatArray, Stap
+from optim.families.stap.types import StapRequest
 from optim.solver import SolveCaps, ipopt_options, parameter_layout
-from optim.stap.types import StapRequest
 from runtime.cache import LruCache
 
 if TYPE_CHECKING:

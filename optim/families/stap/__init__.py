@@ -22,7 +22,7 @@ from models.stap import (
     paper_k_j_max,
     worst_torque_overshoot,
 )
-from optim.stap.limits import (
+from optim.families.stap.limits import (
     BAND_POINTS,
     LIMIT_RTOL,
     acceleration_limit,
@@ -31,8 +31,8 @@ from optim.stap.limits import (
     estimated_mode,
     torque_limit,
 )
-from optim.stap.moves import check_request, closed_form, design
-from optim.stap.multistart import (
+from optim.families.stap.moves import check_request, closed_form, design
+from optim.families.stap.multistart import (
     FEASIBLE,
     JERK_PERIODS_FLOOR,
     MAX_STARTS,
@@ -40,17 +40,17 @@ from optim.stap.multistart import (
     TORQUE_BAND_POINTS,
     optimize,
 )
-from optim.stap.problem import _CACHE as _CACHE
-from optim.stap.problem import (
+from optim.families.stap.problem import _CACHE as _CACHE
+from optim.families.stap.problem import (
     OPTIONS,
     TORQUE_GRID_SIZES,
     TORQUE_MARGIN,
     TORQUE_POINTS_PER_PERIOD,
     warm_up,
 )
-from optim.stap.ramp import AUTO_MAX_PERIODS, MAX_LISTED_CANDIDATES, zero_vibration_candidates
-from optim.stap.torque import fits_torque, lower_acceleration
-from optim.stap.types import (
+from optim.families.stap.ramp import AUTO_MAX_PERIODS, MAX_LISTED_CANDIDATES, zero_vibration_candidates
+from optim.families.stap.torque import fits_torque, lower_acceleration
+from optim.families.stap.types import (
     DEFAULT_FREQUENCY_UNCERTAINTY,
     DEFAULT_RESIDUAL_TOLERANCE,
     MAX_BAND_DAMPING_RATIOS,

@@ -4,12 +4,12 @@
    feasibility is monotone in the number of steps (a feasible command padded with rest stays
    feasible: its residual at the end only decays), so bisection finds the grid's shortest command.
    Bands enter as cutting planes: each LP holds the band at the points found so far, the dense check
-   (optim.time_optimal.check) adds the worst violating points until it passes.
-2. The grid optimum's structure is refined to exact switching times (optim.time_optimal.refine), kept
+   (optim.families.time_optimal.check) adds the worst violating points until it passes.
+2. The grid optimum's structure is refined to exact switching times (optim.families.time_optimal.refine), kept
    only if it meets every constraint on the dense check and is shorter; a probe on a finer grid looks for
    a better structure (see ``solve``). With a torque limit or a band, the grid optimum on a 4x finer grid
    is the answer (within one of its steps of that grid's optimum).
-3. ``lower_bound_s``: the largest duration whose relaxed LP (optim.time_optimal.lp.relaxed_lp) HiGHS
+3. ``lower_bound_s``: the largest duration whose relaxed LP (optim.families.time_optimal.lp.relaxed_lp) HiGHS
    proves infeasible, found by bisection, or the rigid kinematic floor: no command at all (not only on
    the grid) that short meets the constraints.
 """
@@ -24,8 +24,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from models.errors import Infeasible, SolverFailed
-from optim.time_optimal.arcs import SNAP, arcs_of, merged, structure
-from optim.time_optimal.check import (
+from optim.families.time_optimal.arcs import SNAP, arcs_of, merged, structure
+from optim.families.time_optimal.check import (
     CHECK_MARGIN,
     INITIAL_POINTS,
     band_grid,
@@ -33,11 +33,11 @@ from optim.time_optimal.check import (
     violations,
     worst_ratios,
 )
-from optim.time_optimal.lp import MARGIN, Cut, LpCounter, grid_lp, pieces, relaxed_lp
-from optim.time_optimal.refine import refine
-from optim.time_optimal.shaped import shaped_start
-from optim.time_optimal.types import Arc, Band, GridSolution, Solution, Spec
-from optim.time_optimal.weights import exponential_moment, integrated_box
+from optim.families.time_optimal.lp import MARGIN, Cut, LpCounter, grid_lp, pieces, relaxed_lp
+from optim.families.time_optimal.refine import refine
+from optim.families.time_optimal.shaped import shaped_start
+from optim.families.time_optimal.types import Arc, Band, GridSolution, Solution, Spec
+from optim.families.time_optimal.weights import exponential_moment, integrated_box
 
 Array = NDArray[np.float64]
 FALLBACK_FINER = 4  # without a refinement, the grid optimum is sought again on steps this much shorter
@@ -285,7 +285,7 @@ def _shaped_best(
     check_limits: Callable[[tuple[Arc, ...]], bool] | None,
     grid_s: float,
 ) -> tuple[tuple[Arc, ...] | None, str]:
-    """The shaped rigid move (optim.time_optimal.shaped), refined, or as it is, where it is shorter than
+    """The shaped rigid move (optim.families.time_optimal.shaped), refined, or as it is, where it is shorter than
     ``best`` and than the grid optimum (``grid_s``): the answer is never longer than ZV shaping of the rigid
     move (ZV^(n+1) for derivative order n)."""
     start = shaped_start(spec)
@@ -319,7 +319,7 @@ def solve(
     times finer for the early-acting vertex at the refined duration: if one exists, its structure is refined in
     turn (at most PROBES times), so that a local optimum of one structure is not returned where a shorter one
     exists on the fine grid."""
-    began = time.perf_counter()  # for solve_time_s only: the search's caps are counts (optim.time_optimal.lp)
+    began = time.perf_counter()  # for solve_time_s only: the search's caps are counts (optim.families.time_optimal.lp)
     search = _Search(spec)
     grid = search.grid_optimum()
     values = _clip(spec, project(spec, grid))

@@ -22,8 +22,8 @@ import numpy as np
 from models.errors import InvalidParameter, SolverFailed, SolverTimedOut
 from models.plants import TwoInertiaPlant
 from models.pseudo_polynomial import PseudoPolynomial, check_exponents
-from optim.pseudo_polynomial.duration_search import SEARCH_METHOD, Search, shortest
-from optim.pseudo_polynomial.problem import (
+from optim.families.pseudo_polynomial.duration_search import SEARCH_METHOD, Search, shortest
+from optim.families.pseudo_polynomial.problem import (
     _CACHE,
     CONSTRAINT_INTERVALS,
     INTERPOLATION_NODES,
@@ -47,7 +47,7 @@ from optim.pseudo_polynomial.problem import (
     product_weights,
     warm_up,
 )
-from optim.pseudo_polynomial.solve import (
+from optim.families.pseudo_polynomial.solve import (
     SPREAD_STARTS,
     ZERO_ENERGY,
     Peaks,
@@ -60,7 +60,7 @@ from optim.pseudo_polynomial.solve import (
     spread_starts,
     total,
 )
-from optim.pseudo_polynomial.types import Limits, PseudoPolynomialDesign, PseudoPolynomialRequest
+from optim.families.pseudo_polynomial.types import Limits, PseudoPolynomialDesign, PseudoPolynomialRequest
 from optim.solver import SolverReport, tally
 
 __all__ = [

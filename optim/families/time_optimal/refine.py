@@ -21,8 +21,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import minimize
 
-from optim.time_optimal.lp import Cut
-from optim.time_optimal.types import Arc, Spec
+from optim.families.time_optimal.lp import Cut
+from optim.families.time_optimal.types import Arc, Spec
 
 Array = NDArray[np.float64]
 MAX_ITERATIONS = 80  # SLSQP's cap: a structure that needs more is not the optimum's (the grid's is kept)

@@ -16,7 +16,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from optim.time_optimal.types import Spec
+from optim.families.time_optimal.types import Spec
 
 Array = NDArray[np.float64]
 
@@ -43,7 +43,7 @@ def zv_impulses(pole: complex) -> tuple[Array, Array]:
 
 
 def shaped_start(spec: Spec) -> tuple[list[float], list[float], list[bool]] | None:
-    """(durations, levels, free) of the shaped rigid move, in optim.time_optimal.arcs.structure's form, or None
+    """(durations, levels, free) of the shaped rigid move, in optim.families.time_optimal.arcs.structure's form, or None
     where it does not apply (a held jerk, a torque limit, a band, no acceleration limit)."""
     if spec.order != 2 or spec.torque is not None or spec.bands or spec.max_acceleration is None:
         return None

@@ -10,7 +10,7 @@ z_(k+1) = Phi z_k + Gamma u_k. The states are LP variables, so that the LP stays
   linear); the velocity of a jerk-limited command is also bounded mid-step (not exact: it may exceed
   the bound by up to J dt^2 / 32 between, which the family measures and tightens), the torque
   J_M a + J_L a_L at five points of every step, both sides of each node (rows C z_k + D u_k);
-- zero residual at each cancelled pole: Re F_n = Im F_n = 0 (optim.time_optimal.weights), two dense rows;
+- zero residual at each cancelled pole: Re F_n = Im F_n = 0 (optim.families.time_optimal.weights), two dense rows;
 - each band point |F_0| <= (1 - BAND_MARGIN) c, by the 16-gon inscribed in that circle.
 
 ``relaxed_lp`` is the LP every continuous command of duration T satisfies in its step averages of the
@@ -40,9 +40,9 @@ from scipy.linalg import expm
 from scipy.optimize import linprog
 
 from models.errors import InvalidParameter, SolverFailed, SolverTimedOut
+from optim.families.time_optimal.types import Spec
+from optim.families.time_optimal.weights import exponential_moment
 from optim.solver import SolverReport, record_solve
-from optim.time_optimal.types import Spec
-from optim.time_optimal.weights import exponential_moment
 
 Array = NDArray[np.float64]
 CArray = NDArray[np.complex128]
