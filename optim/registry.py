@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from optim.families.input_shaped import InputShapedFamily
 from optim.families.pseudo_polynomial.family import PseudoPolynomialFamily
-from optim.families.smoother import SmootherFamily
+from optim.families.smoother.family import SmootherFamily
 from optim.families.stap.family import StapFamily
 from optim.families.time_optimal.family import TimeOptimalFamily
 from optim.family import Family

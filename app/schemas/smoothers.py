@@ -11,10 +11,10 @@ from app.schemas.family import REST_TO_REST_ONLY, FamilyResponse, ProfileRequest
 from app.schemas.plants import ModeOut
 from models.commands import MIN_STEP_S
 from models.smoothers import MAX_DURATION_S, MAX_REQUESTED_FILTERS, MIN_DURATION_S
-from optim.families.smoother import SmootherOptions
+from optim.families.smoother.family import SmootherOptions
+from optim.families.smoother.smoothers import FilterSpec
 from optim.problem import Problem
 from optim.registry import FAMILIES
-from optim.smoothers import FilterSpec
 
 FAMILY = FAMILIES["smoother"]
 
@@ -73,7 +73,8 @@ class SmootherRequest(ProfileRequest):
 
     @classmethod
     def schema_rules(cls) -> list[dict[str, Any]]:
-        # no filter needs a limit to design the chain for (optim.smoothers.design_chain; the torque is only checked)
+        # no filter needs a limit to design the chain for (optim.families.smoother.smoothers.design_chain; the torque
+        # is only checked)
         no_filter = leaf("filters", {"type": "array", "maxItems": 0}, {"minItems": 1})
         limits = (limit_given("max_velocity"), limit_given("max_acceleration"), limit_given("max_jerk"))
         return [*super().schema_rules(), never(no_filter, *(~limit for limit in limits))]

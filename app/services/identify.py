@@ -28,10 +28,10 @@ from app.services.recommend import Move, MoveLimits, RunOne, plant_interval, rec
 from app.settings import Settings
 from models.errors import InvalidParameter
 from models.plants import FREQUENCY_MAX_HZ, FREQUENCY_MIN_HZ
+from optim.families.smoother.smoothers import identify, tuned_duration_s, vibration_free_durations_s
 from optim.modal import CONFIDENCE, ModalIdentification, identify_modes
 from optim.record_csv import parse_record_csv
 from optim.registry import FAMILIES
-from optim.smoothers import identify, tuned_duration_s, vibration_free_durations_s
 from runtime.executor import Executor, InlineExecutor
 
 

@@ -108,7 +108,7 @@ CASES = [
     ("/v1/profiles/pseudo-polynomial", {"plant": MODE, "displacement": 1.0}, {}, True),
     ("/v1/profiles/smoother", {"plant": MODE, "target_velocity": 1.0}, {}, False),
     ("/v1/profiles/smoother", {"plant": MODE, "displacement": 1.0}, {}, True),
-    # optim.smoothers.design_chain: no filter needs a limit to design for
+    # optim.families.smoother.smoothers.design_chain: no filter needs a limit to design for
     ("/v1/profiles/smoother", {"plant": MODE, "displacement": 1.0, "filters": []}, {}, False),
     ("/v1/profiles/smoother", {"plant": MODE, "displacement": 1.0, "filters": [], "limits": LIMITS}, {}, True),
     # RobustnessIn._check: exactly one kind of robustness

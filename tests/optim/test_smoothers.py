@@ -16,7 +16,7 @@ from models.errors import Infeasible, InvalidParameter
 from models.plants import ModePlant, TransferFunctionPlant
 from models.simulation import metrics, simulate
 from models.smoothers import Chain, Smoother, step_response
-from optim.smoothers import (
+from optim.families.smoother.smoothers import (
     FilterSpec,
     Limits,
     cancels,

@@ -6,9 +6,9 @@ from __future__ import annotations
 import pytest
 
 from models.plants import ModePlant
-from optim.families.smoother import SmootherFamily, SmootherOptions
+from optim.families.smoother.family import SmootherFamily, SmootherOptions
+from optim.families.smoother.smoothers import FilterSpec
 from optim.problem import Problem
-from optim.smoothers import FilterSpec
 from optim.synthesis import synthesize
 from tests.optim.compare_runner import run_compare
 

@@ -16,9 +16,7 @@ from models.errors import InvalidParameter
 from models.simulation import metrics, simulate
 from models.smoother_filters import FilterKind
 from models.smoothers import MAX_RATE_TIMES_PERIOD, Chain, refinement, step_response
-from optim.family import BaseFamily, Candidate, Design, Run
-from optim.problem import Problem
-from optim.smoothers import (
+from optim.families.smoother.smoothers import (
     ChainDesign,
     DiscreteDesign,
     FilterSpec,
@@ -31,6 +29,8 @@ from optim.smoothers import (
     same_time_ratio,
     vibration_free_durations_s,
 )
+from optim.family import BaseFamily, Candidate, Design, Run
+from optim.problem import Problem
 
 # The kinds a duration tuned to the mode makes vibration-free on a damped mode (models.smoother_filters.DAMPED).
 TUNED_KINDS: tuple[FilterKind, ...] = ("damped_harmonic", "exponential")

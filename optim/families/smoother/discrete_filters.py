@@ -27,7 +27,7 @@ from models.smoothers import (
     discrete_step_response,
     step_response,
 )
-from optim.filter_tuning import cancels
+from optim.families.smoother.filter_tuning import cancels
 
 __all__ = ["DiscreteDesign", "commensurate_sample_period_s", "design_discrete"]
 

@@ -4,12 +4,12 @@
   (eq. 3); where eq. 3 fails a bound is not reached and the level's peak is lowered until eq. 3 holds
   with equality (the time-optimal multi-segment law of the paper's ref. [8]). The harmonic filter's
   duration under limits is eq. (6).
-- Vibration: the filters tuned to the plant's mode (eqs. 11, 13, 15 corrected; ``optim.filter_tuning``).
+- Vibration: the filters tuned to the plant's mode (eqs. 11, 13, 15 corrected; ``filter_tuning`` here).
 - Both: the vibration filters are kept and rectangular filters are put in front of them, with eq. (3)
   extended to the whole chain, so every peak has a closed form (see ``design_chain``).
 
-The eq. (17) discrete filters of a drive are in ``optim.discrete_filters`` and the identification of the mode
-from a free vibration (eq. 16) in ``optim.identification``; both are re-exported here.
+The eq. (17) discrete filters of a drive are in ``discrete_filters`` (this package) and the identification of
+the mode from a free vibration (eq. 16) in ``optim.identification``; both are re-exported here.
 """
 
 from __future__ import annotations
@@ -34,8 +34,8 @@ from models.smoothers import (
     refinement,
     step_response,
 )
-from optim.discrete_filters import DiscreteDesign, commensurate_sample_period_s, design_discrete
-from optim.filter_tuning import (
+from optim.families.smoother.discrete_filters import DiscreteDesign, commensurate_sample_period_s, design_discrete
+from optim.families.smoother.filter_tuning import (
     VIBRATION_FREE_TOLERANCE,
     cancels,
     same_time_ratio,
