@@ -6,7 +6,7 @@ baseline command convolved with it, v_s(t) = sum_i A_i v_b(t - t_i); the drive t
 slope of the velocity command to the acceleration limit a, v_a = rate_limit(v_s).
 
 Everything here is pure: the design of a shaper (which A_i, t_i) and of a baseline lives in
-``optim.shapers``. Velocity commands made of steps and ramps (the baseline v_b, the shaped v_s
+``optim.families.input_shaped.shapers``. Velocity commands made of steps and ramps (the baseline v_b, the shaped v_s
 and the rate-limited v_a) are described exactly by a ``RampTrain`` and become exact
 ``PiecewiseCommand`` objects (velocity piecewise linear, a breakpoint at every kink), so that the
 simulation of the load is exact.

@@ -3,7 +3,7 @@ between the pipeline (optim.synthesis) and each family's synthesis, and the warm
 
 from __future__ import annotations
 
-from optim.families.input_shaped import InputShapedFamily
+from optim.families.input_shaped.family import InputShapedFamily
 from optim.families.pseudo_polynomial.family import PseudoPolynomialFamily
 from optim.families.smoother.family import SmootherFamily
 from optim.families.stap.family import StapFamily

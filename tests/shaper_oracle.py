@@ -1,6 +1,6 @@
 """Independent references for the input-shaper tests.
 
-They share nothing with models.shapers or optim.shapers:
+They share nothing with models.shapers or optim.families.input_shaped.shapers:
 
 - ``v_by_simulation``: the percentage vibration V of Sec. 3.1 measured by two exact simulations of
   a mode plant (models.simulation): the residual amplitude left when the shaped velocity step ends

@@ -14,7 +14,7 @@ from app.family_names import slug_of
 from app.responses import CSV_RESPONSE_DOC, NumpyJSONResponse, Output, ProfileOutput, respond
 from app.schemas.shapers import FAMILY, InputShapedRequest, InputShapedResponse, ShaperCatalogue
 from app.services import profile as profiles
-from optim.shapers import catalogue
+from optim.families.input_shaped.shapers import catalogue
 
 router = APIRouter(prefix="/v1", tags=["shapers"], route_class=problems.JSONRoute)
 

@@ -10,11 +10,16 @@ from app.schemas.common import Int, OutModel, given, limit_given, never
 from app.schemas.family import FamilyResponse, ProfileRequest
 from app.schemas.simulate import MetricsOut, ProfileOut
 from models.errors import InvalidParameter
-from optim.families.input_shaped import MAX_SHAPED_MODES, MAX_SHAPED_RAMPS, InputShapedOptions
-from optim.firmware import KLIPPER_VERSION, MARLIN_VERSION, RRF_VERSION
+from optim.families.input_shaped.family import MAX_SHAPED_MODES, MAX_SHAPED_RAMPS, InputShapedOptions
+from optim.families.input_shaped.firmware import KLIPPER_VERSION, MARLIN_VERSION, RRF_VERSION
+from optim.families.input_shaped.shapers import (
+    CATALOGUE_NAMES,
+    DEFAULT_VIBRATION_TOLERANCE,
+    EI_HUMPS,
+    MAX_DERIVATIVE_ORDER,
+)
 from optim.problem import MAX_MOVE, MIN_LIMIT, Problem
 from optim.registry import FAMILIES
-from optim.shapers import CATALOGUE_NAMES, DEFAULT_VIBRATION_TOLERANCE, EI_HUMPS, MAX_DERIVATIVE_ORDER
 
 FAMILY = FAMILIES["input_shaped"]
 
@@ -23,7 +28,8 @@ def _any_case(word: str) -> str:
     return "".join(f"[{c}{c.upper()}]" if c.isalpha() else c for c in word)
 
 
-# The names optim.shapers accepts (after strip and lower): zv and up to MAX_DERIVATIVE_ORDER letters d, mzv, the EIs.
+# The names optim.families.input_shaped.shapers accepts (after strip and lower): zv and up to MAX_DERIVATIVE_ORDER
+# letters d, mzv, the EIs.
 SHAPER_PATTERN = (
     rf"^\s*(?:{_any_case('zv')}{_any_case('d')}{{0,{MAX_DERIVATIVE_ORDER}}}|"
     + "|".join(_any_case(name) for name in ("mzv", *EI_HUMPS))

@@ -76,7 +76,7 @@ CASES = [
     ("/v1/profiles/input-shaped", {"plant": MODE, "target_velocity": 1.0, "cruise_velocity": 1.0}, {}, False),
     # the family's not_applicable: no jerk limit
     ("/v1/profiles/input-shaped", {**SHAPED, "limits": {**LIMITS, "max_jerk": 100.0}}, {}, False),
-    # optim.shapers._check_name: the shaper names, in any case
+    # optim.families.input_shaped.shapers._check_name: the shaper names, in any case
     ("/v1/profiles/input-shaped", {**SHAPED, "shaper": " ZVDD"}, {}, True),
     ("/v1/profiles/input-shaped", {**SHAPED, "shaper": "zvx"}, {}, False),
     # ProfileRequest._resolved: settling_tolerance (deprecated) not beside settling

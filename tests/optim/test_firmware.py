@@ -1,8 +1,8 @@
-"""optim.firmware: the Klipper, RepRapFirmware and Marlin settings of a designed shaper.
+"""optim.families.input_shaped.firmware: the Klipper, RepRapFirmware and Marlin settings of a designed shaper.
 
 Independent references: the impulses printed by Klipper's own code (klippy/extras/shaper_defs.py at
 Klipper3d/klipper 84104bbbd, run as init_shaper(name, f, zeta) and normalised as kin_shaper.c does);
-the catalogue's shapers (optim.shapers) where a firmware type should coincide with them; Klipper's
+the catalogue's shapers (optim.families.input_shaped.shapers) where a firmware type should coincide with them; Klipper's
 transcription in tests/shaper_oracle.py; V measured by exact simulation (tests.shaper_oracle
 .v_by_simulation), never by the V formula the module uses; and the firmware strings parsed back by
 the rules their documentation states:
@@ -33,7 +33,7 @@ import pytest
 
 from models.plants import Mode
 from models.shapers import ImpulseSequence
-from optim.firmware import (
+from optim.families.input_shaped.firmware import (
     KLIPPER_MAX_DAMPING,
     closest,
     curve_distance,
@@ -43,7 +43,7 @@ from optim.firmware import (
     marlin_impulses,
     rrf_impulses,
 )
-from optim.shapers import design_for_modes, design_shaper
+from optim.families.input_shaped.shapers import design_for_modes, design_shaper
 from tests.shaper_oracle import klipper_ei, klipper_hump_ei, klipper_mzv, v_by_simulation
 
 

@@ -1,4 +1,4 @@
-"""Shaper design and baselines under an acceleration limit (optim.shapers).
+"""Shaper design and baselines under an acceleration limit (optim.families.input_shaped.shapers).
 
 The paper is Chatlatanagulchai & Pongpanich (papers/chatlatanagulchai-zvd-acceleration-limit.txt);
 PAPER-NOTES.md gives the exact-pole values. Defining conditions are checked with an independent V
@@ -21,9 +21,8 @@ from models.simulation import metrics, simulate
 from optim.registry import FAMILIES  # before the families' modules: the registry imports them
 
 # isort: split
-from optim.families.input_shaped import InputShapedOptions
-from optim.problem import Limits, Problem
-from optim.shapers import (
+from optim.families.input_shaped.family import InputShapedOptions
+from optim.families.input_shaped.shapers import (
     CATALOGUE_NAMES,
     catalogue,
     design_baseline,
@@ -37,6 +36,7 @@ from optim.shapers import (
     single_ramp_baseline,
     single_ramp_time_s,
 )
+from optim.problem import Limits, Problem
 from optim.synthesis import synthesize
 from tests.shaper_oracle import klipper_ei, klipper_hump_ei, klipper_mzv, v_by_simulation
 

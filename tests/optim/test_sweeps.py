@@ -14,7 +14,7 @@ import pytest
 from models.errors import InvalidParameter, PoolUnavailable
 from models.plants import make_plant
 from optim import sweeps
-from optim.families.input_shaped import InputShapedOptions
+from optim.families.input_shaped.family import InputShapedOptions
 from optim.problem import Problem
 from runtime.dask import DaskExecutor
 from runtime.executor import InlineExecutor, PoolBusy

@@ -43,7 +43,7 @@ import numpy as np
 from models.errors import InvalidParameter
 from models.plants import Mode
 from models.shapers import ImpulseSequence, percentage_vibration
-from optim.shapers import ShaperDesign
+from optim.families.input_shaped.shapers import ShaperDesign
 
 ResidualPercent = Callable[[ImpulseSequence], float]
 

@@ -35,9 +35,7 @@ from models.shapers import (
     shape_command,
 )
 from models.torque import peak_motor_torque_nm as exact_peak_motor_torque_nm
-from optim.family import BaseFamily, Candidate, Design, Grid, Profile, Run, profile_at_instants
-from optim.problem import Problem
-from optim.shapers import (
+from optim.families.input_shaped.shapers import (
     DEFAULT_VIBRATION_TOLERANCE,
     MAX_COMMAND_S,
     Baseline,
@@ -51,6 +49,8 @@ from optim.shapers import (
     single_ramp_baseline,
     step_baseline,
 )
+from optim.family import BaseFamily, Candidate, Design, Grid, Profile, Run, profile_at_instants
+from optim.problem import Problem
 
 MAX_SHAPED_MODES = 3
 MAX_SHAPED_RAMPS = 1000  # impulses x baseline steps: bounds the limiter's corners and the step programme
@@ -386,7 +386,7 @@ def firmware_residual(problem: Problem, commands: Commands) -> Callable[[Impulse
     baseline (the baseline shaped by them, exactly: models.shapers.shape_command), in the definition of
     metrics.percentage_vibration; 100 V of the impulses alone (its value on a step) where that is not
     representable."""
-    from optim.firmware import shaper_residual_percent
+    from optim.families.input_shaped.firmware import shaper_residual_percent
     from optim.synthesis import nominal_percentage_vibration
 
     mode = problem.plant.modes()[0]
@@ -443,7 +443,7 @@ class InputShapedFamily(BaseFamily):
         )
 
     def design(self, problem: Problem, options: InputShapedOptions) -> Design:
-        from optim.firmware import firmware_block
+        from optim.families.input_shaped.firmware import firmware_block
 
         design = shaper_design(problem, options)
         shaper, limit = design.impulses, problem.acceleration_limit

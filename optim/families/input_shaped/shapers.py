@@ -25,7 +25,7 @@ Shapers (all damping-aware; the conventional definitions of Singhose's papers an
   exists; that is reported as infeasible.
 
 The baselines under the acceleration limit (Sec. 4 of Chatlatanagulchai & Pongpanich) are in
-``optim.shaper_baselines``; they are re-exported here.
+``optim.families.input_shaped.shaper_baselines``; they are re-exported here.
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ from scipy.optimize import root
 from models.errors import Infeasible, InvalidParameter
 from models.plants import Mode
 from models.shapers import ImpulseSequence, convolve, vibration_band
-from optim.shaper_baselines import (
+from optim.families.input_shaped.shaper_baselines import (
     Baseline,
     BaselineChoice,
     BaselineKind,
