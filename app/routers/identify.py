@@ -5,7 +5,7 @@ A JSON body (``time_s``, ``signal``) is the original form: a free vibration fitt
 sinusoid (Biagiotti eq. 16, the two-peak estimate still reported for comparison) and the tuned smoother.
 A ``text/csv`` body is a measured record (a time column and one or more signal columns, e.g. an
 accelerometer's x, y, z; optionally the known command): its Welch spectrum, peaks and a sum of damped
-sinusoids fitted per mode with 95 % intervals (optim.modal), the record's quality, and with a move and
+sinusoids fitted per mode with 95 % intervals (optim.identification.modal), the record's quality, and with a move and
 limits in the query the fastest design whose 5 % band covers the lowest mode's interval (app.services.recommend),
 each candidate run through the family endpoints' pipeline (app.services.profile.profile).
 """

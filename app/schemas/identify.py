@@ -10,7 +10,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from app.schemas.common import OutModel
 from app.schemas.smoothers import IdentifyRequest, IdentifyResponse
 from models.errors import InvalidParameter
-from optim.modal import MAX_MODES
+from optim.identification.modal import MAX_MODES
 from optim.problem import MAX_MOVE
 
 __all__ = [

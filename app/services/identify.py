@@ -3,10 +3,10 @@
 A free vibration (JSON ``time_s``, ``signal``) is fitted with one damped sinusoid (Biagiotti eq. 16, the two-peak
 estimate still reported for comparison) and gives the tuned smoother. A measured record (CSV: a time column and one
 or more signal columns, optionally the known command) gives its Welch spectrum, peaks and a sum of damped sinusoids
-fitted per mode with 95 % intervals (optim.modal), the record's quality, and with a move and limits the fastest
-design whose 5 % band covers the lowest mode's interval (app.services.recommend), each candidate run through the family
-endpoints' use case (app.services.profile.profile). The route (app.routers.identify), the Python API and the CLI
-call it.
+fitted per mode with 95 % intervals (optim.identification.modal), the record's quality, and with a move and limits
+the fastest design whose 5 % band covers the lowest mode's interval (app.services.recommend), each candidate run
+through the family endpoints' use case (app.services.profile.profile). The route (app.routers.identify), the Python
+API and the CLI call it.
 """
 
 from __future__ import annotations
@@ -29,8 +29,8 @@ from app.settings import Settings
 from models.errors import InvalidParameter
 from models.plants import FREQUENCY_MAX_HZ, FREQUENCY_MIN_HZ
 from optim.families.smoother.smoothers import identify, tuned_duration_s, vibration_free_durations_s
-from optim.modal import CONFIDENCE, ModalIdentification, identify_modes
-from optim.record_csv import parse_record_csv
+from optim.identification.modal import CONFIDENCE, ModalIdentification, identify_modes
+from optim.identification.record_csv import parse_record_csv
 from optim.registry import FAMILIES
 from runtime.executor import Executor, InlineExecutor
 

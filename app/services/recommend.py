@@ -28,7 +28,7 @@ from typing import Any, NamedTuple
 from app.family_names import endpoint_of
 from models.errors import DomainError, InvalidParameter, PoolUnavailable
 from optim.families.input_shaped.shapers import CATALOGUE_NAMES
-from optim.modal import IdentifiedMode
+from optim.identification.modal import IdentifiedMode
 
 __all__ = [
     "Move",

@@ -18,7 +18,7 @@ from app.services.recommend import (
     recommendation_candidates,
 )
 from models.errors import Infeasible, PoolUnavailable
-from optim.modal import IdentifiedMode
+from optim.identification.modal import IdentifiedMode
 from tests import aio
 
 

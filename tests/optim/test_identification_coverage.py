@@ -1,5 +1,5 @@
-"""Coverage of the 95 % intervals of optim.modal over 50 seeded noisy records (tests/optim/test_identification_modal
-has the record: two modes, three axes, 2 kHz, noise std 0.02).
+"""Coverage of the 95 % intervals of optim.identification.modal over 50 seeded noisy records
+(tests/optim/test_identification_modal has the record: two modes, three axes, 2 kHz, noise std 0.02).
 
 An interval at 95 % covers the truth in about 95 % of records: of 50, the count is binomial(50, 0.95), mean 47.5
 and standard deviation 1.5, so 44 or more (the mean minus 2.3 standard deviations) is asked of each of the four
@@ -13,7 +13,7 @@ import sys
 
 import numpy as np
 
-from optim.modal import Record, identify_modes
+from optim.identification.modal import Record, identify_modes
 from tests.optim.test_identification_modal import NAMES, TRUTH, accelerometer_record
 
 SEEDS = 50

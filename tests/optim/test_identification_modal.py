@@ -1,4 +1,5 @@
-"""Modes from a measured record (optim.modal, optim.record_csv): frequencies, dampings and their 95 % intervals.
+"""Modes from a measured record (optim.identification.modal, optim.identification.record_csv): frequencies, dampings
+and their 95 % intervals.
 
 The record is synthesised, so the truth is known: a three-axis accelerometer on a structure with two modes,
 23 Hz (zeta 0.03) and 61 Hz (zeta 0.05), each seen by every axis with its own gain and phase, an offset per
@@ -15,8 +16,8 @@ import pytest
 from scipy.signal import welch
 
 from models.errors import InvalidParameter
-from optim.modal import Record, identify_modes, uniform_record
-from optim.record_csv import parse_record_csv
+from optim.identification.modal import Record, identify_modes, uniform_record
+from optim.identification.record_csv import parse_record_csv
 
 TRUTH = ((23.0, 0.03), (61.0, 0.05))  # (f_n Hz, zeta)
 RATE_HZ = 2000.0
@@ -175,7 +176,7 @@ def test_a_fit_larger_than_its_cap_is_refused_before_it_runs():
     # MAX_FIT_VALUES (131072; the fit's Jacobians take ~800 B per value: 2.2 GB and minutes for the 200000 rows x
     # 16 signals a CSV may hold). Fitted from t = 0 (start_s), it is refused as invalid input naming start_s, the
     # field that sets the fit's window; its first 10 s (20000 samples x 3 signals) are fitted.
-    from optim.modal import MAX_FIT_VALUES
+    from optim.identification.modal import MAX_FIT_VALUES
 
     t = np.arange(43_700) / RATE_HZ
     assert 3 * t.size > MAX_FIT_VALUES >= 3 * 20_000

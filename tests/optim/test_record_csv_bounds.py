@@ -15,7 +15,7 @@ import tracemalloc
 import pytest
 
 from models.errors import InvalidParameter
-from optim.record_csv import MAX_CELL_CHARS, MAX_EXTRA_LINES, parse_record_csv
+from optim.identification.record_csv import MAX_CELL_CHARS, MAX_EXTRA_LINES, parse_record_csv
 
 MAX_ROWS = 200_000  # the service's default VIBFREE_MAX_SAMPLES
 

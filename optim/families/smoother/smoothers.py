@@ -9,7 +9,7 @@
   extended to the whole chain, so every peak has a closed form (see ``design_chain``).
 
 The eq. (17) discrete filters of a drive are in ``discrete_filters`` (this package) and the identification of
-the mode from a free vibration (eq. 16) in ``optim.identification``; both are re-exported here.
+the mode from a free vibration (eq. 16) in ``optim.identification.free_vibration``; both are re-exported here.
 """
 
 from __future__ import annotations
@@ -43,7 +43,7 @@ from optim.families.smoother.filter_tuning import (
     tuned_filter,
     vibration_free_durations_s,
 )
-from optim.identification import Identification, identify, two_peak_estimate
+from optim.identification.free_vibration import Identification, identify, two_peak_estimate
 
 __all__ = [
     "VIBRATION_FREE_TOLERANCE",
