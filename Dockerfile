@@ -16,7 +16,7 @@ COPY optim ./optim
 COPY runtime ./runtime
 COPY app ./app
 COPY vibfree ./vibfree
-RUN pip install --no-cache-dir . \
+RUN pip install --no-cache-dir ".[dask]" \
     && groupadd --gid 10001 vibfree \
     && useradd --create-home --uid 10001 --gid 10001 --shell /usr/sbin/nologin vibfree
 

@@ -34,6 +34,7 @@ from app.routers import (
 from app.schemas.common import unschemed_rules
 from app.settings import Settings, get_settings
 from app.warmup import example_jobs, warm_up_worker
+from runtime.dask import require_distributed
 from runtime.pool import SolverPool
 from runtime.threads import ThreadLane
 
@@ -64,6 +65,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         # Each HTTP process (uvicorn --workers) runs this: its own pool, warmed up on the documented examples
         # (app.warmup), its caches sized by the settings, its state written to the metrics' files.
+        if settings.dask_scheduler:
+            require_distributed()  # a server that cannot reach its cluster's client refuses to start, saying why
         warm_up = functools.partial(
             warm_up_worker, settings.solve_caps, settings.solver_cache_size, example_jobs(settings)
         )

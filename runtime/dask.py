@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import importlib.util
 import inspect
 import logging
 from collections.abc import AsyncIterator, Callable
@@ -19,6 +20,16 @@ from runtime.executor import SolveTimeout
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
+
+
+DASK_EXTRA = "pip install 'vibfree[dask]'"
+
+
+def require_distributed() -> None:
+    """Raise a ModuleNotFoundError that says what to install where Dask's ``distributed`` is missing (an optional
+    extra: the service runs without it unless VIBFREE_DASK_SCHEDULER is set)."""
+    if importlib.util.find_spec("distributed") is None:
+        raise ModuleNotFoundError(f"design sweeps on a Dask cluster need Dask's distributed: {DASK_EXTRA}")
 
 
 class DaskExecutor:
@@ -34,6 +45,7 @@ class DaskExecutor:
     @classmethod
     @asynccontextmanager
     async def connect(cls, address: str, timeout_s: float = 10.0) -> AsyncIterator[DaskExecutor]:
+        require_distributed()
         from distributed import Client
 
         try:

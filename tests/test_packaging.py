@@ -10,6 +10,8 @@ import sys
 import tomllib
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parent.parent
 
 
@@ -101,3 +103,39 @@ def test_declared_dependencies():
     names = {re.split(r"[<>=\[ ]", dep)[0] for dep in project["dependencies"]}
     assert {"casadi", "numpy", "scipy", "fastapi", "uvicorn", "pydantic", "pydantic-settings"} <= names
     assert project["requires-python"] == ">=3.11"
+
+
+def test_dask_and_the_progress_bar_are_optional_extras():
+    # issue 24: the service installs without Dask (only VIBFREE_DASK_SCHEDULER needs it) and without tqdm (only
+    # vibfree sweep's bar); the image installs the dask extra (the Kubernetes manifest runs a Dask scheduler), and
+    # the tests install both.
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    names = {re.split(r"[<>=\[ ]", dep)[0] for dep in project["dependencies"]}
+    assert not names & {"dask", "distributed", "tqdm"}
+    extras = project["optional-dependencies"]
+    assert extras["dask"] == ["dask[distributed]>=2024.1"] and extras["cli"] == ["tqdm>=4.66,<5"]
+    assert {"dask[distributed]>=2024.1", "tqdm>=4.66,<5"} <= set(extras["test"])
+    assert 'pip install --no-cache-dir ".[dask]"' in (ROOT / "Dockerfile").read_text()
+
+
+def test_without_an_extra_the_feature_says_what_to_install(monkeypatch, capsys):
+    import importlib.util
+
+    from fastapi.testclient import TestClient
+
+    from app.main import create_app
+    from app.settings import Settings
+    from vibfree import cli
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "distributed" else real(name, *a))
+    app = create_app(Settings(workers=1, dask_scheduler="tcp://127.0.0.1:8786"))
+    # the server refuses to start, saying why, rather than fail each sweep
+    with pytest.raises(ModuleNotFoundError, match=r"pip install 'vibfree\[dask\]'"), TestClient(app):
+        pass
+    monkeypatch.setitem(sys.modules, "tqdm", None)  # import tqdm then raises ModuleNotFoundError
+    bar = cli._progress_bar()
+    assert "pip install 'vibfree[cli]'" in capsys.readouterr().err
+    with bar(total=3, unit="point") as drawn:
+        drawn.update(1)
+        assert drawn.total == 3

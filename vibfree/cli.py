@@ -216,9 +216,34 @@ def _identify(args: argparse.Namespace) -> int:
     return 0
 
 
-def _sweep(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
+class _NoBar:
+    """Where tqdm (the cli extra) is not installed: counts, draws nothing."""
 
+    def __init__(self, total: int | None = None, **_: Any) -> None:
+        self.total = total
+
+    def __enter__(self) -> _NoBar:
+        return self
+
+    def __exit__(self, *_: object) -> None:
+        return None
+
+    def update(self, n: int = 1) -> None:
+        return None
+
+
+def _progress_bar() -> Any:
+    """tqdm, or a bar that draws nothing (with a line saying what to install) where the cli extra is missing."""
+    try:
+        from tqdm import tqdm
+    except ModuleNotFoundError:
+        print("(no progress bar: pip install 'vibfree[cli]' for one)", file=sys.stderr)
+        return _NoBar
+    return tqdm
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    tqdm = _progress_bar()
     from vibfree.sweep_table import flat_rows, summary_text, write_table
 
     request = _read(args.request)
