@@ -266,7 +266,8 @@ def in_process_simulate(body: bytes, repeats: int) -> dict[str, float]:
     from app.responses import Output, render
     from app.schemas.plants import to_plant
     from app.schemas.simulate import SimulateRequest, load_out, metrics_out, profile_out, to_command
-    from models.simulation import metrics, simulate
+    from models.metrics import metrics
+    from models.simulation import simulate
     from optim.problem import VIBRATION_FRACTION_OF_MOVE
 
     steps: dict[str, list[float]] = {

@@ -36,8 +36,9 @@ from scipy import signal
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from models.commands import PiecewiseCommand
+from models.metrics import metrics
 from models.plants import ModePlant
-from models.simulation import metrics, simulate
+from models.simulation import simulate
 
 SAMPLES = 100_000
 REPEATS = 25

@@ -19,7 +19,8 @@ from numpy.typing import NDArray
 
 from models.commands import PiecewiseCommand
 from models.errors import SolverFailed
-from models.simulation import Metrics, Response
+from models.metrics import Metrics
+from models.simulation import Response
 from optim.problem import Problem
 from optim.solver import SolveCaps, SolverReport, Tally, tally
 

@@ -22,8 +22,9 @@ from numpy.typing import NDArray
 
 from models.commands import PiecewiseCommand
 from models.errors import Infeasible, InvalidParameter, NotApplicable
+from models.metrics import Metrics, metrics
 from models.sensitivity import band_below, move_scale, residual_envelope, sensitivity
-from models.simulation import Metrics, Response, metrics, simulate
+from models.simulation import Response, simulate
 from optim.family import Design, Family, Grid, Profile, Run, SolverSummary
 from optim.problem import TAIL_PERIODS, Limits, Problem, SensitivityGrid, nice_period
 

@@ -22,8 +22,9 @@ import math
 import numpy as np
 
 from models.commands import PiecewiseCommand
+from models.metrics import metrics
 from models.plants import ModePlant
-from models.simulation import metrics, simulate
+from models.simulation import simulate
 
 
 def v_by_simulation(amplitudes, times_s, natural_frequency_rad_s: float, damping_ratio: float) -> float:

@@ -14,7 +14,8 @@ from app.responses import ARRAY_RESPONSE_DOC, ArrayOutput, Output, render
 from app.schemas.plants import to_plant
 from app.schemas.simulate import SimulateRequest, SimulateResponse, load_out, metrics_out, profile_out, to_command
 from app.settings import Settings
-from models.simulation import metrics, simulate
+from models.metrics import metrics
+from models.simulation import simulate
 from optim.problem import VIBRATION_FRACTION_OF_MOVE
 
 router = APIRouter(prefix="/v1", tags=["simulation"], route_class=problems.JSONRoute)

@@ -11,8 +11,9 @@ import pytest
 from app.examples import CHATLATANAGULCHAI_EQ3
 from app.schemas.shapers import FAMILY, InputShapedRequest, InputShapedResponse, ShaperCatalogue
 from models.commands import PiecewiseCommand
+from models.metrics import metrics
 from models.plants import make_plant
-from models.simulation import metrics, simulate
+from models.simulation import simulate
 from tests.app.conftest import TEST_SETTINGS, direct_body
 from tests.app.test_errors import assert_problem
 from tests.shaper_oracle import v_by_simulation

@@ -15,8 +15,9 @@ from app.schemas.smoothers import FAMILY, SmootherRequest
 from app.settings import Settings
 from models.commands import PiecewiseCommand
 from models.errors import InvalidParameter
+from models.metrics import metrics
 from models.plants import make_plant
-from models.simulation import metrics, simulate
+from models.simulation import simulate
 from tests.app.conftest import TEST_SETTINGS, direct_body
 from tests.app.test_errors import assert_problem
 

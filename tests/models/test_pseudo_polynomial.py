@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 
 from models.errors import InvalidParameter
+from models.metrics import metrics
 from models.plants import example_plants
 from models.pseudo_polynomial import PseudoPolynomial, check_exponents, coefficients, coefficients_order_2
-from models.simulation import metrics, simulate
+from models.simulation import simulate
 
 
 def test_table_ii_coefficients():

@@ -7,10 +7,11 @@ import pytest
 
 from models.commands import PiecewiseCommand
 from models.errors import InvalidParameter
+from models.metrics import metrics
 from models.plants import ModePlant
 from models.pseudo_polynomial import PseudoPolynomial
 from models.sensitivity import band_below, sensitivity
-from models.simulation import metrics, simulate
+from models.simulation import simulate
 
 STAP_40HZ = PiecewiseCommand.from_samples(np.array([0, 0.025, 0.15, 0.175, 0.3]), np.array([0, 1000, 1000, 0, 0.0]), 2)
 

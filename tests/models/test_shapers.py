@@ -14,6 +14,7 @@ import pytest
 
 from models.commands import PiecewiseCommand
 from models.errors import InvalidParameter
+from models.metrics import metrics
 from models.plants import TransferFunctionPlant
 from models.shapers import (
     ImpulseSequence,
@@ -27,7 +28,7 @@ from models.shapers import (
     shape_samples,
     vibration_band,
 )
-from models.simulation import metrics, simulate
+from models.simulation import simulate
 from tests.shaper_oracle import discrete_rate_limiter, v_by_simulation
 
 RNG = np.random.default_rng(11)

@@ -9,8 +9,9 @@ import pytest
 from scipy import integrate, signal
 
 from models.commands import PiecewiseCommand
+from models.metrics import metrics
 from models.plants import BeltPlatformPlant, ModePlant, TransferFunctionPlant, TwoInertiaPlant, example_plants
-from models.simulation import first_order_scan, metrics, simulate
+from models.simulation import first_order_scan, simulate
 from tests.oracle import ivp_response
 
 PLANTS = {

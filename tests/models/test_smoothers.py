@@ -15,8 +15,9 @@ from scipy import integrate, signal
 
 from models.commands import PiecewiseCommand
 from models.errors import InvalidParameter
+from models.metrics import metrics
 from models.plants import ModePlant, TwoInertiaPlant
-from models.simulation import metrics, simulate
+from models.simulation import simulate
 from models.smoothers import (
     Chain,
     Smoother,

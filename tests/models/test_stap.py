@@ -9,8 +9,9 @@ import pytest
 
 from models.commands import PiecewiseCommand
 from models.errors import InvalidParameter
+from models.metrics import metrics
 from models.plants import ModePlant, TwoInertiaPlant
-from models.simulation import metrics, simulate
+from models.simulation import simulate
 from models.stap import (
     RestToRest,
     Stap,

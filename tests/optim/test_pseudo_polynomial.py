@@ -9,9 +9,10 @@ import pytest
 from scipy import integrate
 
 from models.errors import Infeasible, InvalidParameter, SolverTimedOut
+from models.metrics import metrics
 from models.plants import ModePlant, RigidFlexiblePlant, TransferFunctionPlant, TwoInertiaPlant, example_plants
 from models.pseudo_polynomial import PseudoPolynomial
-from models.simulation import metrics, simulate
+from models.simulation import simulate
 from optim.families import pseudo_polynomial as pp
 from optim.solver import SolveCaps
 

@@ -12,8 +12,9 @@ import pytest
 from scipy import signal
 
 from models.commands import PiecewiseCommand
+from models.metrics import metrics, vibration_envelope
 from models.plants import make_plant
-from models.simulation import metrics, simulate, vibration_envelope
+from models.simulation import simulate
 from optim.problem import Limits, Problem
 from optim.registry import FAMILIES
 from optim.synthesis import evaluate

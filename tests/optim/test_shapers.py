@@ -15,9 +15,10 @@ import pytest
 from scipy.optimize import minimize_scalar
 
 from models.errors import Infeasible, InvalidParameter
+from models.metrics import metrics
 from models.plants import Mode, example_plants, make_plant
 from models.shapers import RampTrain, rate_limit
-from models.simulation import metrics, simulate
+from models.simulation import simulate
 from optim.registry import FAMILIES  # before the families' modules: the registry imports them
 
 # isort: split

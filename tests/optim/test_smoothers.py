@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 
 from models.errors import Infeasible, InvalidParameter
+from models.metrics import metrics
 from models.plants import ModePlant, TransferFunctionPlant
-from models.simulation import metrics, simulate
+from models.simulation import simulate
 from models.smoothers import Chain, Smoother, step_response
 from optim.families.smoother.smoothers import (
     FilterSpec,

@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from models.errors import Infeasible, InvalidParameter
+from models.metrics import metrics
 from models.plants import ModePlant, TwoInertiaPlant
-from models.simulation import metrics, simulate
+from models.simulation import simulate
 from models.stap import Stap, sensitivity_appendix_b
 from optim.families import stap as S
 from optim.solver import SolveCaps

@@ -17,8 +17,9 @@ import numpy as np
 
 from models.commands import PiecewiseCommand
 from models.errors import InvalidParameter
+from models.metrics import metrics
 from models.plants import Mode, Plant
-from models.simulation import metrics, simulate
+from models.simulation import simulate
 from models.smoothers import (
     SINUSOIDAL,
     Chain,

@@ -13,7 +13,8 @@ from typing import Any, ClassVar, Literal
 
 from models.commands import PiecewiseCommand
 from models.errors import InvalidParameter
-from models.simulation import metrics, simulate
+from models.metrics import metrics
+from models.simulation import simulate
 from models.smoother_filters import FilterKind
 from models.smoothers import MAX_RATE_TIMES_PERIOD, Chain, refinement, step_response
 from optim.families.smoother.smoothers import (
