@@ -22,6 +22,7 @@ from typing import Any, TextIO
 import orjson
 
 from app.family_names import SLUGS
+from vibfree.summaries import compare_summary, design_summary, identify_summary
 
 # The flags of ``make serve`` (docs/deployment.md says why each); tests check they match the Makefile's.
 SERVE_FLAGS = (
@@ -321,86 +322,6 @@ def _serve(args: argparse.Namespace) -> int:
     command = _uvicorn_command(args, processes)
     # Replaces this process: signals reach uvicorn's supervisor, which passes them to its processes.
     os.execve(sys.executable, command, serve_environment(processes))
-
-
-# --- summaries ---------------------------------------------------------------------------------
-
-
-def _number(value: Any, unit: str = "") -> str:
-    if value is None:
-        return "-"
-    text = f"{value:.4g}"
-    return f"{text} {unit}".rstrip()
-
-
-def _band(band: Any) -> str:
-    if not band:
-        return "none"
-    lo, hi = band
-    return f"{_number(lo)}..{_number(hi)} x f_n"
-
-
-def design_summary(family: str, answer: dict[str, Any]) -> str:
-    """Duration, settling, residual and band of one design, a line each."""
-    m = answer["metrics"]
-    sensitivity = answer.get("sensitivity") or {}
-    broken = "; ".join(answer.get("limit_violations", []))
-    settling = _number(m.get("settling_time_s"), "s") if m.get("settled") else "never (an undamped mode rings)"
-    percent = _number(m.get("percentage_vibration"), "%")
-    band = _band(sensitivity.get("band_5_percent")) if sensitivity else "(ask sensitivity to compute it)"
-    lines = [
-        f"{family}: {'limits met' if answer.get('limits_met') else 'LIMITS BROKEN: ' + broken}",
-        f"  duration  {_number(m.get('motion_time_s'), 's')}",
-        f"  settling  {settling}",
-        f"  residual  {_number(m.get('residual_amplitude'))} (load units), V = {percent}",
-        f"  band 5 %  {band}",
-    ]
-    lines += [f"  warning: {w}" for w in answer.get("warnings", [])]
-    return "\n".join(lines)
-
-
-def compare_summary(answer: dict[str, Any]) -> str:
-    """One line per row, in the ranking's order, then what could not run."""
-    head = f"{'design':28s} {'settling':>11s} {'duration':>11s} {'V %':>9s}  band 5 %"
-    lines = [head]
-    for row in answer["rows"]:
-        settling = _number(row["settling_time_s"], "s") if row["settling_time_s"] is not None else "never"
-        lines.append(
-            f"{row['label']:28s} {settling:>11s} {_number(row['motion_time_s'], 's'):>11s} "
-            f"{_number(row['percentage_vibration']):>9s}  {_band(row['band_5_percent'])}"
-        )
-    lines += [f"unavailable: {u['family']}: {u['reason']}" for u in answer.get("unavailable", [])]
-    return "\n".join(lines)
-
-
-def identify_summary(answer: dict[str, Any]) -> str:
-    """The modes with their 95 % intervals, and the recommendation."""
-    lines = []
-    for mode in answer.get("modes") or []:
-        lo, hi = mode.get("natural_frequency_ci_hz") or (None, None)
-        zlo, zhi = mode.get("damping_ratio_ci") or (None, None)
-        lines.append(
-            f"mode {_precise(mode['natural_frequency_hz'])} Hz (95 %: {_precise(lo)}..{_precise(hi)} Hz), "
-            f"zeta {_precise(mode['damping_ratio'])} (95 %: {_precise(zlo)}..{_precise(zhi)})"
-        )
-    lines += [f"warning: {w}" for w in answer.get("warnings", [])]
-    recommended = answer.get("recommended")
-    reason = (answer.get("recommendation") or {}).get("reason", "")
-    if recommended:
-        lines.append(
-            f"recommended: {recommended.get('label', recommended['endpoint'])}, settling "
-            f"{_number(recommended.get('settling_time_s'), 's')}, band 5 % {_band(recommended.get('band_5_percent'))}"
-        )
-        lines.append(f"  ({reason})")
-        lines.append(f"  POST {recommended['endpoint']}")
-        lines.append("  " + orjson.dumps(recommended["request"]).decode())
-    else:
-        lines.append(f"no recommendation: {reason or 'give the move (--displacement or --target-velocity)'}")
-    return "\n".join(lines)
-
-
-def _precise(value: Any) -> str:
-    return "-" if value is None else f"{value:.6g}"
 
 
 # --- I/O ---------------------------------------------------------------------------------------

@@ -17,7 +17,7 @@ import pytest
 import vibfree
 from tests import aio
 from tests.app.conftest import TEST_SETTINGS
-from vibfree import cli
+from vibfree import cli, summaries
 
 ROOT = Path(__file__).resolve().parents[2]
 STAP = {
@@ -127,8 +127,8 @@ def test_vibfree_serve_uses_the_flags_of_make_serve():
 
 
 def test_summaries_of_a_never_settling_row_and_an_empty_band():
-    assert cli._band(None) == "none"
-    assert "never" in cli.compare_summary(
+    assert summaries.band_text(None) == "none"
+    assert "never" in summaries.compare_summary(
         {
             "rows": [
                 {
