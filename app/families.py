@@ -1,6 +1,5 @@
-"""The family table: what the service has for each design family, by its name (app.family_names): its request
-schema and its worked examples. The routes, the Python API, identify's recommendation and the warm-up read it;
-nothing reads a router for it."""
+"""The family table: what the service has for each design family, by its name (app.family_names): its slug,
+endpoint, request schema and worked examples, in one row. The warm-up reads it (no router is read for it)."""
 
 from __future__ import annotations
 

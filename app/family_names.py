@@ -1,7 +1,7 @@
 """The design families' names, stated once: the name optim and compare use (``time_optimal``) and the slug of
 the endpoint and of sweeps (``time-optimal``), in the same order. Every list of families in the service is
 derived from these (request schemas, compare's and sweeps' enums, the endpoints, the CLI's choices); the table
-of what each family has (schema, examples, warm-up) is ``app.families``. Light on purpose: the CLI's ``--help``
+of what each family has (schema, examples) is ``app.families``. Light on purpose: the CLI's ``--help``
 imports it without the solver stack.
 """
 

@@ -66,7 +66,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         # Each HTTP process (uvicorn --workers) runs this: its own pool, warmed up on the documented examples
         # (app.warmup), its caches sized by the settings, its state written to the metrics' files.
         if settings.dask_scheduler:
-            require_distributed()  # a server that cannot reach its cluster's client refuses to start, saying why
+            require_distributed()  # without Dask installed the server refuses to start, saying what to install
         warm_up = functools.partial(
             warm_up_worker, settings.solve_caps, settings.solver_cache_size, example_jobs(settings)
         )

@@ -19,7 +19,7 @@ from optim.solver import SolveCaps
 
 log = logging.getLogger(__name__)
 
-#: The OpenAPI examples designed at warm-up, by route (None: every example that runs a solver). Measured
+#: The OpenAPI examples designed at warm-up, by family (None: every example that runs a solver). Measured
 #: in one process, first design / second design (s): pseudo-polynomial shortest_with_limits 0.59 / 0.34
 #: (a problem with active limits is built), STAP table_2_torque_limit 0.049 / 0.041 (a torque problem),
 #: time-optimal two_inertia_torque 0.91 / 0.83 alone. Time-optimal designs are linear programs (HiGHS) and
@@ -30,17 +30,17 @@ WARM_EXAMPLES: dict[str, tuple[str, ...] | None] = {
     "pseudo_polynomial": None,
     "stap": None,
 }
-EXAMPLE_ROUTES = tuple(WARM_EXAMPLES)
+EXAMPLE_FAMILIES = tuple(WARM_EXAMPLES)
 
 
 def example_jobs(settings: Any) -> tuple[tuple[str, Any, Any], ...]:
-    """(family name, problem, options) of every example of ``EXAMPLE_ROUTES`` that uses a solver, parsed
+    """(family name, problem, options) of every example of ``EXAMPLE_FAMILIES`` that uses a solver, parsed
     like a request (in the HTTP process: what a worker receives is what a request would send it)."""
     from app.families import BY_NAME
     from optim.registry import FAMILIES
 
     jobs: list[tuple[str, Any, Any]] = []
-    for name in EXAMPLE_ROUTES:
+    for name in EXAMPLE_FAMILIES:
         entry = BY_NAME[name]
         examples = entry.examples
         family = FAMILIES[name]

@@ -11,7 +11,7 @@ Measured, p50 over interleaved repeats (old, new, old, new, ...: both see the sa
 - a 100k-sample ``/v1/simulate`` (``time_s`` and ``velocity`` sent, a 5 Hz mode): the JSON answer (target
   <= 50 ms), the same as npz (``Accept: application/x-npz``) and with a narrow ``fields=load.position,metrics``;
 - a 1k-sample STAP closed form (``/v1/profiles/stap``, Cusimano Sec. 3, k_j = 1) over HTTP (target <= 3 ms),
-  beside the same request in-process: ``app.profiles.profile.design`` (parsing the body into the model, the design,
+  beside the same request in-process: ``app.services.profile.design`` (parsing the body into the model, the design,
   sampling, simulation, metrics: the service layer's time) and that plus writing the JSON answer;
 - what the client itself costs: the same client (``http.client``, one persistent connection) fetching the
   same number of bytes from a raw-socket responder in this process that sends a prebuilt answer (no HTTP

@@ -1,4 +1,4 @@
-"""The Family protocol and the FAMILIES registry.
+"""The Family protocol and its base (the registry of families is optim.registry).
 
 A family turns a ``Problem`` and its own options into a ``Design``: the exact command the drive
 receives, the family's ``design`` block and its notes. Everything after that (sampling to the

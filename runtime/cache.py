@@ -77,7 +77,7 @@ class LruCache(Generic[K, V]):
 
     def _evict_oldest(self) -> None:
         key, _ = self._entries.popitem(last=False)
-        self._weight -= self._weigh(key)
+        self._weight = self._weight - self._weigh(key) if self._entries else 0.0  # no float drift left when empty
         self.evictions += 1
 
     def _shrink(self) -> None:

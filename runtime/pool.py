@@ -53,7 +53,7 @@ from runtime.executor import (
     SolveTimeout,
     reservation_places,
 )
-from runtime.worker_process import _worker_main
+from runtime.worker_process import worker_main
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
@@ -240,7 +240,7 @@ class SolverPool:
         assert self._loop is not None
         parent, child = self._context.Pipe(duplex=True)
         process = self._context.Process(
-            target=_worker_main,
+            target=worker_main,
             args=(child, self.warm_up, self.niceness, self.memory_mb),
             name="vibfree-solver",
             daemon=True,

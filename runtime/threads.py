@@ -186,7 +186,6 @@ class ThreadLane:
                     job.state = "finished"
                     self._job_s_estimate += 0.2 * (time.monotonic() - at - self._job_s_estimate)
                 self._changed()
-                release_free_heap()  # the job's intermediates: glibc would keep them in this thread's arena
 
         try:
             future = self._executor.submit(work)
@@ -195,6 +194,9 @@ class ThreadLane:
                 self._queued -= 1
             raise PoolUnavailable("the service is shutting down") from None
         answer = asyncio.wrap_future(future, loop=loop)
+        # The job's intermediates, which glibc would keep in the thread's arena, given back once the answer is on its
+        # way: this callback runs in the thread after the loop was told (wrap_future's callback came first).
+        future.add_done_callback(_give_back_heap)
         answer.add_done_callback(_consume)  # an answer nobody awaits any more (a 504) is not logged as lost
         try:
             either: set[asyncio.Future[Any]] = {started, answer}
@@ -270,6 +272,10 @@ class _Job:
     def __init__(self) -> None:
         self.state = "queued"  # then running and finished, or dropped while queued
         self.overran = 0  # 1 once its request was answered 504 while it ran
+
+
+def _give_back_heap(_: concurrent.futures.Future[Any]) -> None:
+    release_free_heap()
 
 
 def _consume(future: asyncio.Future[Any]) -> None:

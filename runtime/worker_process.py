@@ -47,7 +47,7 @@ def _too_large(memory_mb: int) -> InvalidParameter:
     )
 
 
-def _worker_main(conn: Connection, warm_up: Callable[[], None] | None, niceness: int, memory_mb: int = 0) -> None:
+def worker_main(conn: Connection, warm_up: Callable[[], None] | None, niceness: int, memory_mb: int = 0) -> None:
     """A worker: cap its memory, warm up, say ready, then run ``(fn, args)`` jobs until told to stop (``None``)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C stops the server, which stops its workers
     limit_memory(memory_mb)  # before the warm-up: a worker that cannot warm up within it fails to start, visibly

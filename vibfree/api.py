@@ -20,6 +20,7 @@ from pydantic import ValidationError
 
 from app import problems
 from app.encoding import dumps
+from app.family_names import name_of, slug_of
 from app.responses import comment_lines, csv_body, drop_duplicates
 from app.schemas.compare import CompareIn
 from app.schemas.family import ProfileRequest
@@ -168,14 +169,14 @@ def sweep(
 
 
 def _family(family: str) -> tuple[str, type[ProfileRequest]]:
-    name = family.replace("-", "_")
+    name = name_of(family)
     if name not in FAMILIES:
         raise VibfreeError(_problem("not-found", f"no family {family!r}; one of {', '.join(FAMILIES)}", "family"))
     return name, FAMILIES[name]
 
 
 def _title(family: str) -> str:
-    return f"{family.replace('_', '-')} profile"
+    return f"{slug_of(family)} profile"
 
 
 def _validate(model: type[Any], request: Mapping[str, Any] | str | bytes) -> Any:

@@ -218,7 +218,7 @@ def _identify(args: argparse.Namespace) -> int:
 
 
 class _NoBar:
-    """Where tqdm (the cli extra) is not installed: counts, draws nothing."""
+    """Where tqdm (the cli extra) is not installed: keeps the total, draws nothing."""
 
     def __init__(self, total: int | None = None, **_: Any) -> None:
         self.total = total
@@ -233,18 +233,20 @@ class _NoBar:
         return None
 
 
-def _progress_bar() -> Any:
-    """tqdm, or a bar that draws nothing (with a line saying what to install) where the cli extra is missing."""
+def _progress_bar(wanted: bool = True) -> Any:
+    """tqdm, or a bar that draws nothing where the cli extra is missing (saying what to install, if a bar was
+    wanted)."""
     try:
         from tqdm import tqdm
     except ModuleNotFoundError:
-        print("(no progress bar: pip install 'vibfree[cli]' for one)", file=sys.stderr)
+        if wanted:
+            print("(no progress bar: pip install 'vibfree[cli]' for one)", file=sys.stderr)
         return _NoBar
     return tqdm
 
 
 def _sweep(args: argparse.Namespace) -> int:
-    tqdm = _progress_bar()
+    tqdm = _progress_bar(wanted=not args.no_progress)
     from vibfree.sweep_table import flat_rows, summary_text, write_table
 
     request = _read(args.request)

@@ -1,13 +1,13 @@
 """POST /v1/identify: vibration modes from a measured record, and a design for them (the use case:
 app.services.identify).
 
-A JSON body (``time_s``, ``signal``) is the original form: a free vibration fitted with one damped
-sinusoid (Biagiotti eq. 16, the two-peak estimate still reported for comparison) and the tuned smoother.
-A ``text/csv`` body is a measured record (a time column and one or more signal columns, e.g. an
-accelerometer's x, y, z; optionally the known command): its Welch spectrum, peaks and a sum of damped
-sinusoids fitted per mode with 95 % intervals (optim.identification.modal), the record's quality, and with a move and
-limits in the query the fastest design whose 5 % band covers the lowest mode's interval (app.services.recommend),
-each candidate run through the family endpoints' pipeline (app.services.profile.profile).
+A JSON body (``time_s``, ``signal``) is the original form: a free vibration fitted with one damped sinusoid
+(Biagiotti eq. 16, the two-peak estimate still reported for comparison) and the tuned smoother. A ``text/csv``
+body is a measured record (a time column and one or more signal columns, e.g. an accelerometer's x, y, z;
+optionally the known command): its Welch spectrum, peaks and a sum of damped sinusoids fitted per mode with 95 %
+intervals (optim.identification.modal), the record's quality, and with a move and limits in the query the
+fastest design whose 5 % band covers the lowest mode's interval (app.services.recommend), each candidate run
+through the family endpoints' pipeline (app.services.profile.profile).
 """
 
 from __future__ import annotations
@@ -48,9 +48,6 @@ IDENTIFY_EXAMPLES: dict[str, dict[str, Any]] = {
         "value": _synthetic_record(),
     }
 }
-
-
-# --- the route --------------------------------------------------------------------------------------------
 
 
 def _csv_example() -> str:
@@ -94,6 +91,9 @@ def _decode(raw: bytes) -> str:
         raise problems.ProblemError(
             "malformed-body", rule, field="body", errors=[{"field": "body", "value": None, "rule": rule}]
         ) from None
+
+
+# --- the route --------------------------------------------------------------------------------------------
 
 
 @router.post(

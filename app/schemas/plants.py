@@ -18,6 +18,9 @@ from models.plants import (
     Plant,
     make_plant,
 )
+from models.plants import (
+    PLANT_KINDS as MODEL_PLANT_KINDS,
+)
 
 # Physical lower bounds: far below any machine (a 1e-9 kg m^2 rotor is a watch's; a 1e-6 kg mass a grain of
 # sand), and high enough that every derived quantity (k/J, k J, c0 k, m0 m1, 2 k R^2) stays a normal double.
@@ -149,7 +152,7 @@ class TransferFunctionIn(StrictModel):
 PlantIn = Annotated[
     ModeIn | TwoInertiaIn | BeltPlatformIn | RigidFlexibleIn | TransferFunctionIn, Field(discriminator="kind")
 ]
-PLANT_KINDS = ("mode", "two_inertia", "belt_platform", "rigid_flexible", "transfer_function")
+PLANT_KINDS = tuple(MODEL_PLANT_KINDS)  # the model's kinds, in its order: mode, two_inertia, ... transfer_function
 
 
 def to_plant(schema: ModeIn | TwoInertiaIn | BeltPlatformIn | RigidFlexibleIn | TransferFunctionIn) -> Plant:

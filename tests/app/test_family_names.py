@@ -38,3 +38,19 @@ def test_the_warm_up_designs_the_solver_examples_of_the_family_table() -> None:
     assert names.count("time_optimal") == 1
     assert names.count("pseudo_polynomial") == len(BY_NAME["pseudo_polynomial"].examples) == 3
     assert names.count("stap") == 2 and set(names) == {"time_optimal", "pseudo_polynomial", "stap"}
+
+
+def test_every_family_has_its_endpoint_in_the_openapi_and_its_slug_in_the_cli() -> None:
+    """The routes' paths and the CLI's choices come from the names: the app serves exactly one profile endpoint per
+    family (endpoint_of), and `vibfree design` offers exactly the slugs."""
+    import argparse
+
+    from app.main import create_app
+    from vibfree import cli
+
+    paths = {p for p in create_app().openapi()["paths"] if p.startswith("/v1/profiles/")}
+    assert paths == {endpoint_of(name) for name in NAMES}
+    commands = next(a for a in cli._parser()._actions if isinstance(a, argparse._SubParsersAction))
+    design = commands.choices["design"]
+    family = next(a for a in design._actions if a.dest == "family")
+    assert tuple(family.choices) == SLUGS

@@ -579,8 +579,6 @@ def test_compare_candidates_are_one_group_per_shaper_with_the_automatic_baseline
     # Every shaper of the rows is in the catalogue, and the default is one design, ZVD with auto.
     assert {c.options.shaper for c in candidates} <= set(CATALOGUE_NAMES)
     assert FAMILY.default_options(problem) == InputShapedOptions(shaper="zvd", baseline="auto")
-    # No fallback is needed any more: auto never refuses where a baseline meets the limits.
-    assert FAMILY.fallback(problem, FAMILY.default_options(problem)) is None
 
 
 @pytest.mark.parametrize("shaper", ["mzv", "zvd", "ei"])

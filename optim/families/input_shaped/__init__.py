@@ -1,2 +1,2 @@
-"""The input-shaping family (Chatlatanagulchai): the shapers under an acceleration limit, their baselines, the
-firmware settings, and the adapter (family.py)."""
+"""The input-shaping family (Chatlatanagulchai & Pongpanich): the shapers under an acceleration limit, their
+baselines, the firmware settings, and the adapter (family.py)."""
