@@ -16,6 +16,8 @@ COPY optim ./optim
 COPY runtime ./runtime
 COPY app ./app
 COPY vibfree ./vibfree
+# DL3013: this installs the project itself (with its dask extra), whose dependencies pyproject.toml bounds
+# hadolint ignore=DL3013
 RUN pip install --no-cache-dir ".[dask]" \
     && groupadd --gid 10001 vibfree \
     && useradd --create-home --uid 10001 --gid 10001 --shell /usr/sbin/nologin vibfree
