@@ -18,8 +18,8 @@ sys.path.insert(0, str(ROOT))
 
 from fastapi.testclient import TestClient  # noqa: E402
 
+from app.examples.compare import EXAMPLES  # noqa: E402
 from app.main import app  # noqa: E402
-from app.routers.compare import EXAMPLES  # noqa: E402
 
 RUNS = 15
 

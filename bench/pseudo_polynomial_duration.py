@@ -17,7 +17,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from app.routers.compare import EXAMPLES  # noqa: E402
+from app.examples.compare import EXAMPLES  # noqa: E402
 from models.plants import example_plants  # noqa: E402
 from optim.families import pseudo_polynomial as pp  # noqa: E402
 from optim.problem import Limits, Problem  # noqa: E402

@@ -3,34 +3,18 @@ app.services.compare)."""
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Annotated
 
 from fastapi import APIRouter, Body
 
 from app import problems
 from app.deps import PoolDep, SettingsDep, ThreadsDep
-from app.examples import CUSIMANO_8HZ, INCERTI_TABLE_III
+from app.examples.compare import EXAMPLES
 from app.responses import NumpyJSONResponse
 from app.schemas.compare import CompareIn, CompareOut
 from app.services.compare import answer
 
 router = APIRouter(prefix="/v1", tags=["compare"], route_class=problems.JSONRoute)
-
-
-EXAMPLES: dict[str, dict[str, Any]] = {
-    "incerti_rest_to_rest": {
-        "summary": "Incerti Table III platform: 15 motor revolutions within velocity and acceleration limits",
-        "value": {
-            "plant": INCERTI_TABLE_III,
-            "displacement": 94.24777960769379,
-            "limits": {"max_velocity": 200.0, "max_acceleration": 700.0},
-        },
-    },
-    "cusimano_rest_to_velocity": {
-        "summary": "Cusimano 8 Hz two-inertia plant: up to 150 rad/s within the 10 N m motor",
-        "value": {"plant": CUSIMANO_8HZ, "target_velocity": 150.0, "limits": {"max_torque_nm": 10.0}},
-    },
-}
 
 
 @router.post(

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import AsyncIterator
-from typing import Annotated, Any
+from typing import Annotated
 
 import orjson
 from fastapi import APIRouter, Body
@@ -17,6 +17,7 @@ from starlette.responses import JSONResponse, StreamingResponse
 
 from app import problems
 from app.deps import PoolDep, SettingsDep
+from app.examples.sweeps import EXAMPLES
 from app.schemas.sweeps import SweepIn, SweepLine
 from app.services.sweeps import SweepPlan, executor_for, lines
 from runtime.executor import Executor
@@ -42,41 +43,6 @@ async def _stream(
     async with stack:  # the Dask client, closed when the stream ends or the client goes away
         async for line in lines(plan, executor, capacity):
             yield orjson.dumps(line, option=orjson.OPT_SERIALIZE_NUMPY) + b"\n"
-
-
-EXAMPLES: dict[str, dict[str, Any]] = {
-    "time_optimal_frequency": {
-        "summary": "The README's 40 Hz time-optimal move, for 38 to 42 Hz (5 plants), refined where too coarse",
-        "value": {
-            "family": "time-optimal",
-            "request": {
-                "plant": {"kind": "mode", "natural_frequency_hz": 40.0, "damping_ratio": 0.0},
-                "displacement": 0.12,
-                "limits": {"max_velocity": 5.0, "max_acceleration": 10.0},
-            },
-            "axes": [{"path": "plant.natural_frequency_hz", "start": 38.0, "stop": 42.0, "num": 5}],
-            "refine": True,
-            "max_refined_points": 4,
-        },
-    },
-    "zv_payload": {
-        "summary": "A ZV-shaped velocity step over the payload of a two-inertia drive",
-        "value": {
-            "family": "input-shaped",
-            "request": {
-                "plant": {
-                    "kind": "two_inertia",
-                    "motor_inertia_kgm2": 0.005,
-                    "load_inertia_kgm2": 0.005,
-                    "stiffness_nm_per_rad": 12.633093633,
-                },
-                "target_velocity": 100.0,
-                "shaper": "zv",
-            },
-            "axes": [{"path": "plant.load_inertia_kgm2", "start": 0.004, "stop": 0.008, "num": 9, "scale": "log"}],
-        },
-    },
-}
 
 
 @router.post(

@@ -13,7 +13,7 @@ from app.main import create_app
 from app.settings import Settings
 from optim.solver import raise_for_status
 from tests.app import slow_solves
-from tests.optim import pool_jobs
+from tests.runtime import pool_jobs
 
 TEST_SETTINGS = Settings(workers=2, max_samples=5000, max_body_bytes=2 * 1024 * 1024)
 

@@ -1,6 +1,6 @@
 """Bounded work per request through HTTP (issue 23): the reproducers answer, closed-form designs run in the
 process's design threads (runtime.threads) with their admission and deadlines, whose counts /readyz and /metrics
-show. The lane itself is tested directly in tests/optim/test_threads.py."""
+show. The lane itself is tested directly in tests/runtime/test_threads.py."""
 
 from __future__ import annotations
 

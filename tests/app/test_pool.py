@@ -3,7 +3,7 @@
 These use test-only routes (tests/app/conftest.py) that run deliberately slow solves in the app's
 own pool, through the same error handlers as the real endpoints, and a real solver request (Incerti's
 Table III move, whose residual the pseudo-polynomial tests pin) to show the service answers correctly
-after each failure. The pool itself is tested directly in tests/optim/test_workers.py.
+after each failure. The pool itself is tested directly in tests/runtime/test_solver_pool.py.
 """
 
 from __future__ import annotations
@@ -237,7 +237,7 @@ def test_a_compare_the_pool_has_no_room_for_is_refused_at_once_and_none_of_it_ru
     needs three (time-optimal, pseudo-polynomial, STAP optimized: ``optim.compare.plan``): it is refused while
     the workers are still busy, nothing of it is queued, and none of its designs runs (not even those that
     need no worker), where it used to queue one, run the closed forms, and refuse after the queued one ran."""
-    from app.routers.compare import EXAMPLES
+    from app.examples.compare import EXAMPLES
     from app.schemas.compare import CompareIn
     from optim.compare import plan
     from tests.app.conftest import TEST_SETTINGS

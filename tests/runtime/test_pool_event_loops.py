@@ -8,7 +8,7 @@ import pytest
 
 from runtime.pool import SolverPool
 from tests import aio
-from tests.optim.pool_jobs import big_answer
+from tests.runtime.pool_jobs import big_answer
 
 
 async def _round_trip(size: int) -> tuple[int, int]:

@@ -345,7 +345,7 @@ async def test_a_job_past_the_memory_limit_is_a_422_and_the_worker_serves_on(poo
     # for 1 GiB past a 512 MiB cap gets MemoryError in the worker, answered as a 422 naming the work too large
     # (the same request would run out again); the same worker then serves a job within the cap.
     from models.errors import InvalidParameter
-    from tests.optim import pool_jobs
+    from tests.runtime import pool_jobs
 
     pid = pool.pids()[0]
     assert await pool.run(pool_jobs.address_space_limit, deadline_s=10) == 512 * 1024 * 1024
@@ -370,7 +370,7 @@ async def test_a_worker_gives_a_jobs_freed_heap_back(pool: SolverPool) -> None:
     # it stays ~195 MiB higher.
     import psutil
 
-    from tests.optim import pool_jobs
+    from tests.runtime import pool_jobs
 
     worker = psutil.Process(pool.pids()[0])
     before = worker.memory_info().rss
