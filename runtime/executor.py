@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import abc
 import asyncio
+import logging
 from collections.abc import AsyncIterator, Callable
 from contextlib import AbstractAsyncContextManager, asynccontextmanager
 from typing import Any, Protocol, TypeVar, runtime_checkable
@@ -78,6 +79,18 @@ class PoolBusy(PoolUnavailable):
     """Every worker is busy and the queue is full, or a job waited its whole deadline for a worker."""
 
     problem_type = "busy"
+
+
+def report_change(
+    on_change: Callable[[dict[str, int]], None] | None, stats: Callable[[], dict[str, int]], log: logging.Logger
+) -> None:
+    """Tell ``on_change`` (the metrics' gauges) the executor's new ``stats()``; a failing callback is logged on
+    ``log``, never raised: metrics must not break the pool or the lane."""
+    if on_change is not None:
+        try:
+            on_change(stats())
+        except Exception:
+            log.exception("the on_change callback failed")
 
 
 def reservation_places(jobs: int, workers: int) -> int:

@@ -51,6 +51,7 @@ from runtime.executor import (
     HeldPlaces,
     PoolBusy,
     SolveTimeout,
+    report_change,
     reservation_places,
 )
 from runtime.worker_process import worker_main
@@ -181,11 +182,7 @@ class SolverPool:
         }
 
     def _changed(self) -> None:
-        if self.on_change is not None:
-            try:
-                self.on_change(self.stats())
-            except Exception:  # metrics must never break the pool
-                log.exception("the pool's on_change callback failed")
+        report_change(self.on_change, self.stats, log)
 
     def pids(self, state: Literal["starting", "idle", "busy"] | None = None) -> list[int]:
         """Process ids of the live workers, or of those in one state (for tests and operators)."""

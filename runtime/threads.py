@@ -30,7 +30,15 @@ from contextlib import asynccontextmanager
 from typing import Any, TypeVar
 
 from models.errors import PoolUnavailable, SolverTimedOut
-from runtime.executor import RETRY_AFTER_MAX_S, RETRY_AFTER_MIN_S, Executor, HeldPlaces, PoolBusy, reservation_places
+from runtime.executor import (
+    RETRY_AFTER_MAX_S,
+    RETRY_AFTER_MIN_S,
+    Executor,
+    HeldPlaces,
+    PoolBusy,
+    report_change,
+    reservation_places,
+)
 from runtime.heap import release_free_heap
 
 log = logging.getLogger(__name__)
@@ -88,11 +96,7 @@ class ThreadLane:
             }
 
     def _changed(self) -> None:
-        if self.on_change is not None:
-            try:
-                self.on_change(self.stats())
-            except Exception:  # metrics must never break the lane
-                log.exception("the thread lane's on_change callback failed")
+        report_change(self.on_change, self.stats, log)
 
     def retry_after_s(self) -> int:
         """When a thread is likely to free: the mean job time times the jobs ahead per thread."""
