@@ -144,7 +144,7 @@ def _declare_problem_schema(app: FastAPI) -> None:
             return app.openapi_schema
         schema = original()
         components = schema.setdefault("components", {}).setdefault("schemas", {})
-        components["Problem"] = problems.Problem.model_json_schema(ref_template="#/components/schemas/{model}")
+        components["Problem"] = problems.ProblemDetails.model_json_schema(ref_template="#/components/schemas/{model}")
         components.update(components["Problem"].pop("$defs", {}))
         # FastAPI documents its own 422 (HTTPValidationError); ours is a problem.
         for path in schema.get("paths", {}).values():

@@ -342,7 +342,7 @@ def processes_state(path: str) -> dict[int, dict[str, int]]:
     return out
 
 
-class Metrics:
+class ServiceMetrics:
     """One app's metrics, in a registry of its own (an app factory may run several times in a process).
 
     In multiprocess mode (``multiprocess_dir()``) the values also go to the shared directory, and
@@ -399,7 +399,9 @@ class Metrics:
 
 
 # The metrics of the app serving the current request (set by the middleware), for record_solve.
-_current_metrics: contextvars.ContextVar[Metrics | None] = contextvars.ContextVar("vibfree_metrics", default=None)
+_current_metrics: contextvars.ContextVar[ServiceMetrics | None] = contextvars.ContextVar(
+    "vibfree_metrics", default=None
+)
 
 
 def record_solve(
@@ -560,7 +562,7 @@ class ObservabilityMiddleware:
     security headers, no ``server`` header, the request metrics and one access line.
     """
 
-    def __init__(self, app: ASGIApp, metrics: Metrics, router: Router | None = None) -> None:
+    def __init__(self, app: ASGIApp, metrics: ServiceMetrics, router: Router | None = None) -> None:
         self.app = app
         self.metrics = metrics
         self.router = router
@@ -611,13 +613,13 @@ class ObservabilityMiddleware:
             structlog.contextvars.reset_contextvars(**context)
 
 
-def install(app: FastAPI) -> Metrics:
+def install(app: FastAPI) -> ServiceMetrics:
     """Give ``app`` its metrics (``app.state.metrics``) and wrap its whole middleware stack.
 
     The wrapper goes outside Starlette's ``ServerErrorMiddleware`` (which ``add_middleware`` cannot
     do), so that a 500 problem carries the request id and the security headers too.
     """
-    metrics = Metrics(lambda: getattr(app.state, "pool", None), lambda: getattr(app.state, "threads", None))
+    metrics = ServiceMetrics(lambda: getattr(app.state, "pool", None), lambda: getattr(app.state, "threads", None))
     app.state.metrics = metrics
     build_stack = app.build_middleware_stack
 

@@ -64,7 +64,7 @@ class FieldError(BaseModel):
     rule: str = Field(description="The rule the value breaks.")
 
 
-class Problem(BaseModel):
+class ProblemDetails(BaseModel):
     """RFC 9457 problem details."""
 
     model_config = ConfigDict(extra="allow")

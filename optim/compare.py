@@ -36,7 +36,7 @@ NOT_AN_ANSWER = (PoolUnavailable, SolverTimedOut)
 
 
 @dataclass(frozen=True)
-class Row:
+class ComparedRow:
     family: Family
     options: Any
     result: Result
@@ -50,7 +50,7 @@ class Row:
 
 
 @dataclass(frozen=True)
-class Unavailable:
+class UnavailableFamily:
     family: str
     reason: str
     problem_type: str  # the slug of the problem type its endpoint answers with (models.errors)
@@ -63,33 +63,35 @@ def reason_of(exc: DomainError) -> str:
     return str(exc)
 
 
-async def _one(family: Family, problem: Problem, candidate: Candidate, run: Runner) -> Row | Unavailable:
+async def _one(family: Family, problem: Problem, candidate: Candidate, run: Runner) -> ComparedRow | UnavailableFamily:
     options = candidate.options
     try:
-        return Row(family, options, await run(family, problem, options), candidate.label)
+        return ComparedRow(family, options, await run(family, problem, options), candidate.label)
     except NOT_AN_ANSWER:
         raise
     except DomainError as exc:
-        return Unavailable(family.name, reason_of(exc), exc.problem_type)
+        return UnavailableFamily(family.name, reason_of(exc), exc.problem_type)
 
 
-def _best_of_groups(candidates: tuple[Candidate, ...], outcomes: list[Row | Unavailable]) -> list[Row | Unavailable]:
+def _best_of_groups(
+    candidates: tuple[Candidate, ...], outcomes: list[ComparedRow | UnavailableFamily]
+) -> list[ComparedRow | UnavailableFamily]:
     """Per group, the row that settles first; a group with no row gives its first failure."""
-    out: list[Row | Unavailable] = []
+    out: list[ComparedRow | UnavailableFamily] = []
     for group in dict.fromkeys(c.group for c in candidates):
         members = [o for c, o in zip(candidates, outcomes, strict=True) if c.group == group]
-        rows = [o for o in members if isinstance(o, Row)]
+        rows = [o for o in members if isinstance(o, ComparedRow)]
         out.append(min(rows, key=lambda r: r.settling_key) if rows else members[0])
     return out
 
 
 @dataclass(frozen=True)
-class Plan:
+class ComparePlan:
     """What compare runs: each applicable family's candidates, and the families that gave none."""
 
     problem: Problem
     runs: tuple[tuple[Family, tuple[Candidate, ...]], ...]
-    unavailable: tuple[Unavailable, ...]
+    unavailable: tuple[UnavailableFamily, ...]
 
     @property
     def solver_runs(self) -> int:
@@ -102,52 +104,56 @@ class Plan:
         return sum(not family.uses_solver(c.options) for family, candidates in self.runs for c in candidates)
 
 
-def plan(problem: Problem, names: Iterable[str] | None = None, overrides: Mapping[str, Any] | None = None) -> Plan:
+def plan(
+    problem: Problem, names: Iterable[str] | None = None, overrides: Mapping[str, Any] | None = None
+) -> ComparePlan:
     """The families that apply and their candidates (the caller's override, or the family's own)."""
     overrides = overrides or {}
     families = [FAMILIES[n] for n in (names or FAMILIES) if n in FAMILIES]
     runs: list[tuple[Family, tuple[Candidate, ...]]] = []
-    unavailable: list[Unavailable] = []
+    unavailable: list[UnavailableFamily] = []
     for family in families:
         reason = family.not_applicable(problem)
         if reason is not None:
-            unavailable.append(Unavailable(family.name, reason, "not-applicable"))
+            unavailable.append(UnavailableFamily(family.name, reason, "not-applicable"))
             continue
         override = overrides.get(family.name)
         try:
             candidates = (Candidate(family.name, override, family.name),) if override else family.candidates(problem)
         except DomainError as exc:  # its default options cannot be built for this problem
-            unavailable.append(Unavailable(family.name, reason_of(exc), exc.problem_type))
+            unavailable.append(UnavailableFamily(family.name, reason_of(exc), exc.problem_type))
             continue
         runs.append((family, candidates))
-    return Plan(problem, tuple(runs), tuple(unavailable))
+    return ComparePlan(problem, tuple(runs), tuple(unavailable))
 
 
-async def run_plan(planned: Plan, run: Runner) -> tuple[list[Row], list[Unavailable]]:
+async def run_plan(planned: ComparePlan, run: Runner) -> tuple[list[ComparedRow], list[UnavailableFamily]]:
     """Rows sorted by settling time (never-settling designs last), and the families that gave none; the first
     ``NOT_AN_ANSWER`` error (or unexpected error) is raised instead, once the other runs are cancelled."""
     outcomes = await _every_or_first_error(
         [_one(f, planned.problem, c, run) for f, cands in planned.runs for c in cands]
     )
-    kept: list[Row | Unavailable] = []
+    kept: list[ComparedRow | UnavailableFamily] = []
     start = 0
     for _, cands in planned.runs:
         kept += _best_of_groups(cands, outcomes[start : start + len(cands)])
         start += len(cands)
-    rows = sorted((o for o in kept if isinstance(o, Row)), key=lambda r: r.settling_key)
-    failures = [o for o in kept if isinstance(o, Unavailable)]
+    rows = sorted((o for o in kept if isinstance(o, ComparedRow)), key=lambda r: r.settling_key)
+    failures = [o for o in kept if isinstance(o, UnavailableFamily)]
     # a reason once per family (the shapers share one)
     return rows, list(planned.unavailable) + list(dict.fromkeys(failures))
 
 
 async def compare(
     problem: Problem, run: Runner, names: Iterable[str] | None = None, overrides: Mapping[str, Any] | None = None
-) -> tuple[list[Row], list[Unavailable]]:
+) -> tuple[list[ComparedRow], list[UnavailableFamily]]:
     """``run_plan`` of ``plan``: rows sorted by settling time, and the families that gave none."""
     return await run_plan(plan(problem, names, overrides), run)
 
 
-async def _every_or_first_error(coroutines: list[Coroutine[Any, Any, Row | Unavailable]]) -> list[Row | Unavailable]:
+async def _every_or_first_error(
+    coroutines: list[Coroutine[Any, Any, ComparedRow | UnavailableFamily]],
+) -> list[ComparedRow | UnavailableFamily]:
     """Every outcome in order, or the first error: the runs still going are then cancelled (a queued solve leaves
     the queue; one already in a worker ends under its own deadline) and awaited, and the error raised."""
     tasks = [asyncio.ensure_future(c) for c in coroutines]

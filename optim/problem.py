@@ -55,7 +55,7 @@ VIBRATION_FRACTION_OF_MOVE = 1e-3  # ... or, without an acceleration limit, 1e-3
 
 
 @dataclass(frozen=True)
-class Settling:
+class SettlingCriteria:
     """The settling criteria: |load - target| <= position_tolerance x the load's move, and the load's
     free-vibration envelope <= vibration_tolerance (load units; None: the default of ``Problem``)."""
 
@@ -80,7 +80,7 @@ class Problem:
     limits: Limits = field(default_factory=Limits)
     sample_period_s: float | None = None
     horizon_s: float | None = None
-    settling: Settling = field(default_factory=Settling)
+    settling: SettlingCriteria = field(default_factory=SettlingCriteria)
     sensitivity: SensitivityGrid | None = None
     max_samples: int = 200_000
     solver: SolveCaps = field(default_factory=SolveCaps)

@@ -70,7 +70,7 @@ class _Reservation(HeldPlaces):
     def __init__(self, pool: SolverPool, places: int) -> None:
         super().__init__(places)
         self.pool = pool
-        self.jobs: set[_Job] = set()  # every job it submitted: those still in a worker are waited for on exit
+        self.jobs: set[_PoolJob] = set()  # every job it submitted: those still in a worker are waited for on exit
 
     def _take(self) -> None:
         self.free -= 1
@@ -92,7 +92,7 @@ class _Reservation(HeldPlaces):
 
 
 @dataclass(eq=False)
-class _Job:
+class _PoolJob:
     fn: Callable[..., Any]
     args: tuple[Any, ...]
     deadline_s: float
@@ -106,7 +106,7 @@ class _Worker:
     process: BaseProcess
     conn: Connection
     state: Literal["starting", "idle", "busy", "gone"] = "starting"
-    job: _Job | None = None
+    job: _PoolJob | None = None
     started_at: float = 0.0
     timer: asyncio.TimerHandle | None = None
     killed_for: str = field(default="")
@@ -136,7 +136,7 @@ class SolverPool:
         self._context = multiprocessing.get_context("spawn")
         self._loop: asyncio.AbstractEventLoop | None = None
         self._workers: list[_Worker] = []
-        self._queue: deque[_Job] = deque()
+        self._queue: deque[_PoolJob] = deque()
         self._ready_event = asyncio.Event()
         self._closing = False
         self._start_failures = 0
@@ -328,7 +328,7 @@ class SolverPool:
                 reservation.closed = True
                 self._changed()
 
-    async def _settled(self, jobs: set[_Job]) -> None:
+    async def _settled(self, jobs: set[_PoolJob]) -> None:
         """Until no worker runs one of ``jobs`` (each ends within its deadline, or its worker is killed)."""
         while jobs and any(worker.job in jobs for worker in self._workers):
             await asyncio.sleep(SETTLE_POLL_S)
@@ -345,13 +345,13 @@ class SolverPool:
         args: tuple[Any, ...],
         deadline_s: float,
         wait_s: float | None = None,
-        track: set[_Job] | None = None,
+        track: set[_PoolJob] | None = None,
     ) -> T:
         """Queue an admitted job and wait for its outcome; it waits for a worker at most ``wait_s`` (default: its
         deadline). ``track`` collects the job (a reservation's)."""
         if self._closing or self._loop is None:
             raise PoolUnavailable("the solver pool is not running")
-        job = _Job(fn, args, deadline_s, self._loop.create_future(), time.monotonic())
+        job = _PoolJob(fn, args, deadline_s, self._loop.create_future(), time.monotonic())
         if track is not None:
             track.add(job)
         job.timer = self._loop.call_later(deadline_s if wait_s is None else wait_s, self._expire_queued, job)
@@ -399,7 +399,7 @@ class SolverPool:
             worker.state, worker.job, worker.started_at = "busy", job, time.monotonic()
             worker.timer = self._loop.call_later(job.deadline_s, self._on_deadline, worker, job)
 
-    def _expire_queued(self, job: _Job) -> None:
+    def _expire_queued(self, job: _PoolJob) -> None:
         if job in self._queue:
             self._queue.remove(job)
             self.rejected += 1
@@ -413,7 +413,7 @@ class SolverPool:
                 ),
             )
 
-    def _on_deadline(self, worker: _Worker, job: _Job) -> None:
+    def _on_deadline(self, worker: _Worker, job: _PoolJob) -> None:
         if worker.job is job and worker.state == "busy":
             self.timeouts += 1
             self._fail(job, SolveTimeout(job.deadline_s))
@@ -502,12 +502,12 @@ class SolverPool:
             self._loop.remove_reader(worker.process.sentinel)
 
     @staticmethod
-    def _cancel_timer(item: _Worker | _Job) -> None:
+    def _cancel_timer(item: _Worker | _PoolJob) -> None:
         if item.timer is not None:
             item.timer.cancel()
             item.timer = None
 
     @staticmethod
-    def _fail(job: _Job, exc: BaseException) -> None:
+    def _fail(job: _PoolJob, exc: BaseException) -> None:
         if not job.future.done():
             job.future.set_exception(exc)

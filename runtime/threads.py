@@ -166,7 +166,7 @@ class ThreadLane:
         """Run an admitted job (counted in ``_queued``): wait at most ``wait_s`` for a thread, ``deadline_s`` in it."""
         loop = asyncio.get_running_loop()
         started: asyncio.Future[float] = loop.create_future()
-        job = _Job()
+        job = _LaneJob()
 
         def tell_started(at: float) -> None:
             if not started.done():
@@ -231,7 +231,7 @@ class ThreadLane:
             if not answer.done() and self._drop(job, future):  # the caller went away while the job waited
                 self._changed()
 
-    def _drop(self, job: _Job, future: concurrent.futures.Future[Any]) -> bool:
+    def _drop(self, job: _LaneJob, future: concurrent.futures.Future[Any]) -> bool:
         """Cancel a job that still waits for a thread (True), once; False when it has started."""
         with self._lock:
             if job.state != "queued" or not future.cancel():
@@ -268,7 +268,7 @@ class _LaneReservation(HeldPlaces):
         return await self.lane._submit(fn, args, deadline_s, wait_s=deadline_s * self.lane.turns_ahead())
 
 
-class _Job:
+class _LaneJob:
     """One job's place in the lane, changed under the lane's lock."""
 
     __slots__ = ("overran", "state")

@@ -31,7 +31,7 @@ from app.schemas.plants import PlantIn, to_plant
 from app.schemas.simulate import LoadOut, MetricsOut, ProfileOut, SettlingIn
 from app.settings import Settings
 from models.errors import InvalidParameter
-from optim.problem import MAX_MOVE, MIN_MOVE, Limits, Problem, SensitivityGrid, Settling
+from optim.problem import MAX_MOVE, MIN_MOVE, Limits, Problem, SensitivityGrid, SettlingCriteria
 
 MAX_SENSITIVITY_POINTS = 4001
 # The smallest limit: a micrometre (or microradian) per second, per s^2, per s^3, a micronewton metre.
@@ -316,7 +316,7 @@ class ProfileRequest(StrictModel):
             limits=Limits(lim.max_velocity, lim.max_acceleration, lim.max_jerk, lim.max_torque_nm),
             sample_period_s=self.sample_period_s,
             horizon_s=self.horizon_s,
-            settling=Settling(settling.position_tolerance, settling.vibration_tolerance),
+            settling=SettlingCriteria(settling.position_tolerance, settling.vibration_tolerance),
             allow_limit_violation=self.allow_limit_violation,
             sensitivity=grid,
             max_samples=settings.max_samples,

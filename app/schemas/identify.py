@@ -121,7 +121,7 @@ class RecommendedOut(OutModel):
     frequency_ratio_interval: list[float] = Field(description="The interval the band covers, f/f_estimated.")
 
 
-class CandidateOut(OutModel):
+class RecommendedCandidateOut(OutModel):
     family: str
     label: str
     endpoint: str
@@ -136,7 +136,7 @@ class RecommendationOut(OutModel):
     plant: dict[str, Any] | None = Field(description="The plant designed for: the lowest identified mode.")
     frequency_ratio_interval: list[float] | None = Field(description="Its 95 % interval of f_n over f_n.")
     reason: str = Field(description="Why this design, or why none.")
-    candidates: list[CandidateOut]
+    candidates: list[RecommendedCandidateOut]
 
 
 class IdentifyMeasurementResponse(OutModel):

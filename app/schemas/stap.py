@@ -239,7 +239,7 @@ class TorqueLimitOut(OutModel):
     )
 
 
-class CandidateOut(OutModel):
+class StapCandidateOut(OutModel):
     k_j: int
     delta: int
     jerk_time_s: float
@@ -316,7 +316,7 @@ class StapDesignOut(OutModel):
     frequency_uncertainty: float
     residual_tolerance: float
     band_worst_residual: float = Field(description="Largest undamped SC (Appendix B) over [1 - u, 1 + u].")
-    candidates: list[CandidateOut] | None = Field(
+    candidates: list[StapCandidateOut] | None = Field(
         None, description="With acceleration_time_s: the zero-vibration jerk times that fit (eqs. 44, 49), marked."
     )
     candidates_truncated: bool | None = None

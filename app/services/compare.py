@@ -17,8 +17,7 @@ from app.schemas.compare import DEFAULT_SENSITIVITY, CompareIn
 from app.services import profile as profiles
 from app.settings import Settings
 from models.errors import InvalidParameter
-from optim.compare import Row as ComparedRow
-from optim.compare import plan, run_plan
+from optim.compare import ComparedRow, plan, run_plan
 from optim.family import Family
 from optim.problem import Problem
 from optim.synthesis import Result, load_arrays

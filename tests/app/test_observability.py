@@ -344,7 +344,7 @@ def test_the_middleware_drops_a_server_header_the_app_sets():
         await send({"type": "http.response.start", "status": 200, "headers": [(b"server", b"leaky/1.0")]})
         await send({"type": "http.response.body", "body": b"ok"})
 
-    metrics = observability.Metrics(lambda: None)
+    metrics = observability.ServiceMetrics(lambda: None)
     response = TestClient(ObservabilityMiddleware(app, metrics)).get("/")
     assert response.text == "ok" and "server" not in response.headers
     assert GENERATED_ID.fullmatch(response.headers["x-request-id"])

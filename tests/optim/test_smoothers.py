@@ -19,7 +19,7 @@ from models.simulation import simulate
 from models.smoothers import Chain, Smoother, step_response
 from optim.families.smoother.smoothers import (
     FilterSpec,
-    Limits,
+    SmootherLimits,
     cancels,
     chain_residual,
     commensurate_sample_period_s,
@@ -50,22 +50,22 @@ def measured_peaks(chain: Chain, displacement: float, period: float) -> tuple[fl
 
 def test_acceptance_chain_for_v1_a2_j8_h1():
     # Eq. (2): T1 = h/v = 1, T2 = v/a = 0.5, T3 = a/j = 0.25; eq. (3) holds (1 >= 0.75, 0.5 >= 0.25).
-    assert rectangular_durations_s(1.0, Limits(1.0, 2.0, 8.0)) == pytest.approx((1.0, 0.5, 0.25), rel=1e-15)
+    assert rectangular_durations_s(1.0, SmootherLimits(1.0, 2.0, 8.0)) == pytest.approx((1.0, 0.5, 0.25), rel=1e-15)
 
 
 @pytest.mark.parametrize(
     ("h", "limits", "expected"),
     [
         # v not reached with a = 2 (n = 2): triangle, T1 = T2 = sqrt(h/a).
-        (1.0, Limits(10.0, 2.0), (math.sqrt(0.5), math.sqrt(0.5))),
+        (1.0, SmootherLimits(10.0, 2.0), (math.sqrt(0.5), math.sqrt(0.5))),
         # a not reachable (a^2 > v j): a = sqrt(v j) = 1, T2 = T3 = sqrt(v/j) = 1, T1 = h/v = 10.
-        (10.0, Limits(1.0, 10.0, 1.0), (10.0, 1.0, 1.0)),
+        (10.0, SmootherLimits(1.0, 10.0, 1.0), (10.0, 1.0, 1.0)),
         # v not reachable with a reached: h/v = v/a + a/j gives v = (-a^2/j + sqrt(a^4/j^2 + 4 h a))/2.
-        (1.0, Limits(10.0, 1.0, 10.0), (1 / 0.95124921972503936, 0.95124921972503936, 0.1)),
+        (1.0, SmootherLimits(10.0, 1.0, 10.0), (1 / 0.95124921972503936, 0.95124921972503936, 0.1)),
         # neither: T2 = T3 = (h/(2j))^(1/3), T1 = 2 T2.
-        (1.0, Limits(10.0, 10.0, 1.0), (2 * 0.5 ** (1 / 3), 0.5 ** (1 / 3), 0.5 ** (1 / 3))),
+        (1.0, SmootherLimits(10.0, 10.0, 1.0), (2 * 0.5 ** (1 / 3), 0.5 ** (1 / 3), 0.5 ** (1 / 3))),
         # only a jerk bound: the same cube-root law with j = 8.
-        (1.0, Limits(None, None, 8.0), (2 * (1 / 16) ** (1 / 3), (1 / 16) ** (1 / 3), (1 / 16) ** (1 / 3))),
+        (1.0, SmootherLimits(None, None, 8.0), (2 * (1 / 16) ** (1 / 3), (1 / 16) ** (1 / 3), (1 / 16) ** (1 / 3))),
     ],
 )
 def test_time_optimal_chains_match_the_double_s_closed_forms(h, limits, expected):
@@ -82,7 +82,7 @@ def test_time_optimal_chains_match_the_double_s_closed_forms(h, limits, expected
 
 def test_a_shorter_chain_breaks_a_limit():
     # Time-optimality: scaling the optimal chain down by 1 % raises some peak above its bound.
-    limits = Limits(10.0, 1.0, 10.0)
+    limits = SmootherLimits(10.0, 1.0, 10.0)
     durations = rectangular_durations_s(1.0, limits)
     chain = Chain(tuple(Smoother("rectangular", 0.99 * t) for t in durations))
     peaks = measured_peaks(chain, 1.0, 1e-3)
@@ -139,7 +139,7 @@ def test_tuned_filter_gives_the_papers_t1_and_sigma():
 
 def test_chain_meets_limits_and_keeps_the_mode_cancelled():
     # A rectangular filter is put in front of the tuned S_sigma: T1 = max(h/v, h c0/a, T_S) (eq. 3 extended).
-    limits = Limits(0.3, 10.0, None)
+    limits = SmootherLimits(0.3, 10.0, None)
     design = design_chain(PLANT, H, [FilterSpec("damped_harmonic")], limits)
     kinds = [f.kind for f in design.chain.filters]
     assert kinds == ["rectangular", "damped_harmonic"] and design.roles == ("limits", "tuned")
@@ -156,12 +156,12 @@ def test_chain_meets_limits_and_keeps_the_mode_cancelled():
 
 
 def test_loose_limits_add_nothing_and_tight_ones_add_three_filters():
-    free = design_chain(PLANT, H, [FilterSpec("damped_harmonic")], Limits(10.0, 1000.0))
+    free = design_chain(PLANT, H, [FilterSpec("damped_harmonic")], SmootherLimits(10.0, 1000.0))
     assert [f.kind for f in free.chain.filters] == ["damped_harmonic"]  # S_sigma alone: 0.64 m/s, 44 m/s^2
     # Any jerk bound needs a rectangular filter: S_sigma's acceleration jumps at 0 and T (class C^1).
-    jerk = design_chain(PLANT, H, [FilterSpec("damped_harmonic")], Limits(10.0, 1000.0, 1e6))
+    jerk = design_chain(PLANT, H, [FilterSpec("damped_harmonic")], SmootherLimits(10.0, 1000.0, 1e6))
     assert [f.kind for f in jerk.chain.filters] == ["rectangular", "damped_harmonic"]
-    tight = design_chain(PLANT, H, [FilterSpec("damped_harmonic")], Limits(0.05, 0.5, 5.0))
+    tight = design_chain(PLANT, H, [FilterSpec("damped_harmonic")], SmootherLimits(0.05, 0.5, 5.0))
     kinds = [f.kind for f in tight.chain.filters]
     assert kinds[-1] == "damped_harmonic" and set(kinds[:-1]) == {"rectangular"}
     # Here two rectangular filters suffice (S_sigma carries the jerk: h c0/(T1 T2) <= j), which is shorter
@@ -176,14 +176,14 @@ def test_loose_limits_add_nothing_and_tight_ones_add_three_filters():
 
 def test_design_errors():
     with pytest.raises(InvalidParameter) as info:
-        design_chain(PLANT, H, [], Limits())
+        design_chain(PLANT, H, [], SmootherLimits())
     assert info.value.field == "filters"
     no_mode = TransferFunctionPlant((1e6,), (1.0, 2500.0, 1e6))  # real poles only
     with pytest.raises(InvalidParameter) as info:
-        design_chain(no_mode, H, [FilterSpec("rectangular", 0.1), FilterSpec("harmonic")], Limits())
+        design_chain(no_mode, H, [FilterSpec("rectangular", 0.1), FilterSpec("harmonic")], SmootherLimits())
     assert info.value.field == "filters[1].duration_s"
     with pytest.raises(Infeasible):
-        design_chain(PLANT, 1e6, [], Limits(1e-3))  # 1e9 s at 1 mm/s
+        design_chain(PLANT, 1e6, [], SmootherLimits(1e-3))  # 1e9 s at 1 mm/s
 
 
 def test_discrete_design_reports_rounding_and_the_exact_period():

@@ -10,7 +10,7 @@ import pytest
 
 from models.errors import Infeasible, NotApplicable
 from models.plants import make_plant
-from optim.problem import Limits, Problem, Settling, nice_period
+from optim.problem import Limits, Problem, SettlingCriteria, nice_period
 from optim.registry import FAMILIES
 from optim.synthesis import synthesize
 
@@ -71,7 +71,9 @@ def test_default_horizon_and_sampling(name, move):
 def test_requested_sampling_horizon_and_settling_are_honoured(name, move):
     first = run(name, move)
     horizon = first.design.command_end_s + 0.37
-    result = run(name, move, sample_period_s=1e-3, horizon_s=horizon, settling=Settling(position_tolerance=0.02))
+    result = run(
+        name, move, sample_period_s=1e-3, horizon_s=horizon, settling=SettlingCriteria(position_tolerance=0.02)
+    )
     assert result.run.grid.period_s == 1e-3
     assert result.command.time_s[-1] == pytest.approx(horizon, abs=1e-12)
     # The settling window is the tolerance times the load's simulated move (|G(0)| = 1, the move is 1; the

@@ -87,7 +87,7 @@ class Commands:
 
 
 @dataclass(frozen=True)
-class Plan:
+class ShaperPlan:
     """The baseline of one design and why it was chosen: velocity V, cruise time D/V (rest-to-rest)."""
 
     baseline: Baseline
@@ -158,7 +158,7 @@ def _why(chosen: Baseline, single_ramp: bool) -> str:
     return "it ends before the single ramp"
 
 
-def _auto(problem: Problem, shaper: ImpulseSequence, limit: float | None) -> Plan:
+def _auto(problem: Problem, shaper: ImpulseSequence, limit: float | None) -> ShaperPlan:
     """The fastest baseline whose shaped command meets the limits, by the shaped command's end: the
     plain step without an acceleration limit; else the shortest single ramp (the modified baseline where
     its ramps do not overlap, lengthened where they do) at its fastest cruise, against the multi-step
@@ -168,7 +168,7 @@ def _auto(problem: Problem, shaper: ImpulseSequence, limit: float | None) -> Pla
     where the modified ramp fits none can, as its second step starts at t_2 >= min gap >= Delta."""
     if limit is None:
         velocity, cruise = _velocity_and_cruise(problem, shaper, "step", limit)
-        return Plan(step_baseline(velocity), velocity, cruise, "auto: no acceleration limit, so the plain step")
+        return ShaperPlan(step_baseline(velocity), velocity, cruise, "auto: no acceleration limit, so the plain step")
     velocity, cruise = _velocity_and_cruise(problem, shaper, "ramp", limit)
     options = [single_ramp_baseline(velocity, shaper, limit)]
     if options[0].kind != "modified" and shaper.count <= AUTO_MULTI_STEP_MAX_IMPULSES:
@@ -196,10 +196,10 @@ def _auto(problem: Problem, shaper: ImpulseSequence, limit: float | None) -> Pla
         f"(shaped end {ends[best]:.6g} s): "
         f"{_why(options[best], best == 0)}"
     )
-    return Plan(options[best], velocity, cruise, reason, alternatives)
+    return ShaperPlan(options[best], velocity, cruise, reason, alternatives)
 
 
-def plan(problem: Problem, options: InputShapedOptions, shaper: ImpulseSequence, limit: float | None) -> Plan:
+def plan(problem: Problem, options: InputShapedOptions, shaper: ImpulseSequence, limit: float | None) -> ShaperPlan:
     """The baseline and cruise of a design: ``auto``'s choice, or the requested kind at its fastest cruise
     within max_velocity (modified refuses where its ramps would overlap at the speed asked)."""
     if options.baseline == "auto":
@@ -207,7 +207,7 @@ def plan(problem: Problem, options: InputShapedOptions, shaper: ImpulseSequence,
     kind = options.baseline
     velocity, cruise = _velocity_and_cruise(problem, shaper, kind, limit)
     baseline = design_baseline(kind, velocity, shaper, limit, options.baseline_steps)
-    return Plan(baseline, velocity, cruise, f"requested: {kind}")
+    return ShaperPlan(baseline, velocity, cruise, f"requested: {kind}")
 
 
 def _largest_gap(first: PiecewiseCommand, second: PiecewiseCommand) -> float:
@@ -227,7 +227,7 @@ def _drive(command: PiecewiseCommand, limit: float | None, top: float | None, re
     return rate_limit(command, limit)  # a velocity step, or ramps over the limit by round-off
 
 
-def _commands(problem: Problem, chosen: Plan, shaper: ImpulseSequence, limit: float | None) -> Commands:
+def _commands(problem: Problem, chosen: ShaperPlan, shaper: ImpulseSequence, limit: float | None) -> Commands:
     """v_b, v_s = v_b * impulses, v_a = what the drive makes of v_s, and the plain shaped step after the
     drive; refuses commands longer than the service simulates before building them."""
     baseline, velocity, cruise_s = chosen.baseline, chosen.velocity, chosen.cruise_s
@@ -276,7 +276,7 @@ def _overshoot(command: PiecewiseCommand, limit: float | None) -> float:
 
 def _designed(
     problem: Problem, options: InputShapedOptions, shaper: ImpulseSequence, limit: float | None
-) -> tuple[Plan, Commands]:
+) -> tuple[ShaperPlan, Commands]:
     """The plan and commands for the drive's limit. The command's kinks sit on merged breakpoints (moved by
     up to 2e-9 s, or 1e-12 of the command's length), which can put a short ramp's slope above the limit by
     round-off (up to 2e-8 seen): then the baseline is redesigned twice that much inside the limit."""
@@ -293,7 +293,7 @@ def _designed(
 
 def within_torque(
     problem: Problem, options: InputShapedOptions, shaper: ImpulseSequence
-) -> tuple[Plan, Commands, float | None]:
+) -> tuple[ShaperPlan, Commands, float | None]:
     """The plan and commands at the problem's acceleration limit, lowered where the motor torque would pass
     limits.max_torque_nm: M / (J_M + J_L) (Cusimano eq. 19) bounds the inertial torque only, the shaft adds
     J_L times the load's excess acceleration. The torque scales about as the limit, so each pass scales the
@@ -323,7 +323,7 @@ def _drive_name(unchanged: bool, rest_to_rest: bool) -> str:
     return "position follower (time-optimal, arrives)" if rest_to_rest else "velocity rate limiter (Fig. 5)"
 
 
-def _check_length(longest: float, shaper: ImpulseSequence, chosen: Plan, limit: float | None) -> None:
+def _check_length(longest: float, shaper: ImpulseSequence, chosen: ShaperPlan, limit: float | None) -> None:
     if longest > MAX_COMMAND_S:
         raise Infeasible(
             f"the command could last up to {longest:.6g} s (shaper {shaper.duration_s:.6g} s, ramp "
@@ -360,7 +360,7 @@ def _shaper_block(design: ShaperDesign) -> dict[str, Any]:
     }
 
 
-def _baseline_block(chosen: Plan, requested: str) -> dict[str, Any]:
+def _baseline_block(chosen: ShaperPlan, requested: str) -> dict[str, Any]:
     baseline, velocity, cruise_s = chosen.baseline, chosen.velocity, chosen.cruise_s
     return {
         "kind": baseline.kind,

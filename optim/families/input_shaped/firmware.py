@@ -81,7 +81,7 @@ _CURVE_RATIOS = np.linspace(0.25, 1.75, 301)  # where two shapers' V curves are 
 
 
 @dataclass(frozen=True)
-class Settings:
+class FirmwareSettings:
     """What one firmware is told (its type, frequency, damping) and the impulses it then applies."""
 
     kind: str
@@ -286,7 +286,7 @@ def shaper_residual_percent(impulses: ImpulseSequence, mode: Mode) -> float:
     return 100.0 * float(percentage_vibration(impulses, mode.natural_frequency_rad_s, mode.damping_ratio))
 
 
-def _residuals(settings: Settings, design: ShaperDesign, residual: ResidualPercent) -> dict[str, Any]:
+def _residuals(settings: FirmwareSettings, design: ShaperDesign, residual: ResidualPercent) -> dict[str, Any]:
     mode = design.modes[0]
     others = [shaper_residual_percent(settings.impulses, m) for m in design.modes[1:]]
     return {
@@ -323,7 +323,7 @@ def klipper_block(design: ShaperDesign, residual: ResidualPercent) -> dict[str, 
     )
     kind = design.name if design.name in options else closest(options, design.impulses, mode)
     damping = min(_rounded(zeta), KLIPPER_MAX_DAMPING[kind])
-    settings = Settings(kind, frequency, damping, options[kind])
+    settings = FirmwareSettings(kind, frequency, damping, options[kind])
     section = (
         f"[input_shaper]\nshaper_type_{AXIS}: {kind}\nshaper_freq_{AXIS}: {fixed(frequency)}\n"
         f"damping_ratio_{AXIS}: {fixed(damping)}\n"
@@ -396,17 +396,17 @@ def reprapfirmware_block(design: ShaperDesign, residual: ResidualPercent) -> tup
     if named and zeta == _rounded(mode.damping_ratio):
         kind = named[0]
         command = command_35 = f'M593 P"{kind}" F{fixed(frequency)} S{fixed(zeta)}'
-        settings = Settings(kind, frequency, zeta, options[kind])
+        settings = FirmwareSettings(kind, frequency, zeta, options[kind])
     elif design.impulses.count <= RRF_MAX_IMPULSES:
         kind = "custom"
         command, command_35, applied = _rrf_custom(design.impulses)
-        settings = Settings(kind, frequency, zeta, applied)
+        settings = FirmwareSettings(kind, frequency, zeta, applied)
         note = f"RRF's own {RRF_NAMES[design.name]} differs from the design here." if design.name in RRF_NAMES else None
     else:
         mapped = RRF_NAMES.get(design.name)
         kind = mapped if mapped in options else closest(options, design.impulses, mode)
         command = command_35 = f'M593 P"{kind}" F{fixed(frequency)} S{fixed(zeta)}'
-        settings = Settings(kind, frequency, zeta, options[kind])
+        settings = FirmwareSettings(kind, frequency, zeta, options[kind])
         note = (
             f'the design has {design.impulses.count} impulses, more than the {RRF_MAX_IMPULSES} P"custom" takes: '
             f"{kind} is the nearest named type."
@@ -451,7 +451,7 @@ def marlin_block(design: ShaperDesign, residual: ResidualPercent) -> tuple[dict[
         vtol = _rounded(vtol)
         command += f" Q{fixed(vtol)}"
     impulses = marlin_impulses(design.name, frequency, zeta, KLIPPER_DEFAULT_V_TOL if vtol is None else vtol)
-    settings = Settings(design.name, frequency, zeta, impulses)
+    settings = FirmwareSettings(design.name, frequency, zeta, impulses)
     notes = [
         f"Marlin delays the impulses by whole {1e3 / MARLIN_FTM_FS_HZ:g} ms samples "
         f"(FTM_FS = {MARLIN_FTM_FS_HZ:g} Hz): "

@@ -21,7 +21,7 @@ from optim.families.smoother.smoothers import (
     ChainDesign,
     DiscreteDesign,
     FilterSpec,
-    Limits,
+    SmootherLimits,
     cancels,
     chain_residual,
     commensurate_sample_period_s,
@@ -129,7 +129,10 @@ class SmootherFamily(BaseFamily):
         h = problem.move
         lim = problem.limits
         design = design_chain(
-            problem.plant, h, list(options.filters), Limits(lim.max_velocity, lim.max_acceleration, lim.max_jerk)
+            problem.plant,
+            h,
+            list(options.filters),
+            SmootherLimits(lim.max_velocity, lim.max_acceleration, lim.max_jerk),
         )
         chain, mode = design.chain, design.mode
         residual = chain_residual(chain, problem.plant, h, mode)

@@ -52,7 +52,7 @@ __all__ = [
     "DiscreteDesign",
     "FilterSpec",
     "Identification",
-    "Limits",
+    "SmootherLimits",
     "cancels",
     "chain_residual",
     "commensurate_sample_period_s",
@@ -79,7 +79,7 @@ _MAX_PEAK_SAMPLES = 1 << 17  # bounds that work for chains mixing very different
 
 
 @dataclass(frozen=True)
-class Limits:
+class SmootherLimits:
     """Bounds on |velocity|, |acceleration| and |jerk| of the motor command (None: unbounded)."""
 
     velocity: float | None = None
@@ -143,7 +143,7 @@ def limited_durations_s(amount: float, caps: list[float], tail_s: float = 0.0) -
     return [amount / v, *rest(v)]
 
 
-def rectangular_durations_s(displacement: float, limits: Limits) -> tuple[float, ...]:
+def rectangular_durations_s(displacement: float, limits: SmootherLimits) -> tuple[float, ...]:
     """T_1..T_n of the time-optimal chain of n rectangular filters (eqs. 2-3), n = highest bounded order.
 
     v = 1, a = 2, j = 8 and h = 1 give (1, 0.5, 0.25) s.
@@ -213,7 +213,7 @@ def fixed_chain_peaks(filters: tuple[Smoother, ...]) -> tuple[float, float, floa
 
 
 def _prefix_for(
-    displacement: float, limits: Limits, fixed_s: float, peaks: tuple[float, float, float], m: int
+    displacement: float, limits: SmootherLimits, fixed_s: float, peaks: tuple[float, float, float], m: int
 ) -> tuple[list[float], list[float | None]] | None:
     """m rectangular filters in front of the fixed ones (duration fixed_s, unit-step peaks ``peaks``)
     that keep every bounded derivative within its limit, or None when m filters cannot.
@@ -254,7 +254,7 @@ def _prefix_for(
     return durations, predicted
 
 
-def design_chain(plant: Plant, displacement: float, specs: list[FilterSpec], limits: Limits) -> ChainDesign:
+def design_chain(plant: Plant, displacement: float, specs: list[FilterSpec], limits: SmootherLimits) -> ChainDesign:
     """The requested filters (tuned to the plant's first mode where no duration is given) preceded by
     the rectangular filters that the limits need: the shortest such chain satisfying eq. (3)."""
     if not (math.isfinite(displacement) and displacement != 0.0):

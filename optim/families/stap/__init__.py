@@ -57,11 +57,11 @@ from optim.families.stap.types import (
     MAX_FREQUENCY_POINTS,
     OBJECTIVES,
     AutoStep,
-    Candidate,
     OptimizedDesign,
     StapDesign,
     StapRequest,
     TorqueLimit,
+    ZeroVibrationCandidate,
 )
 
 __all__ = [
@@ -84,11 +84,11 @@ __all__ = [
     "TORQUE_MARGIN",
     "TORQUE_POINTS_PER_PERIOD",
     "AutoStep",
-    "Candidate",
     "OptimizedDesign",
     "StapDesign",
     "StapRequest",
     "TorqueLimit",
+    "ZeroVibrationCandidate",
     "acceleration_limit",
     "band_ratios",
     "band_worst",

@@ -51,7 +51,7 @@ class StapOptions:
 
 
 @dataclass(frozen=True)
-class _Detail:
+class _StapDetail:
     closed: S.StapDesign
     optimized: S.OptimizedDesign | None
     options: StapOptions
@@ -136,7 +136,7 @@ def _optimization_block(optimized: S.OptimizedDesign, torque_limited: bool) -> d
     }
 
 
-def _design_block(problem: Problem, detail: _Detail) -> dict[str, Any]:
+def _design_block(problem: Problem, detail: _StapDetail) -> dict[str, Any]:
     closed, optimized, options = detail.closed, detail.optimized, detail.options
     stap, move = detail.stap, detail.move
     f = closed.estimated_frequency_hz
@@ -230,7 +230,7 @@ class StapFamily(BaseFamily):
         closed = S.design(core)
         with counted():  # a failure's report: every solve of the multistart
             optimized = S.optimize(core, closed) if options.method == "optimized" else None
-        detail = _Detail(closed, optimized, options)
+        detail = _StapDetail(closed, optimized, options)
         stap, move = detail.stap, detail.move
         command = stap.command() if move is None else move.command()
         notes = (
@@ -242,7 +242,7 @@ class StapFamily(BaseFamily):
         return Design(command, _design_block(problem, detail), notes, solver, detail=detail)
 
     def finish(self, problem: Problem, design: Design, run: Run) -> dict[str, Any]:
-        detail: _Detail = design.detail
+        detail: _StapDetail = design.detail
         m = run.metrics
         amplitude = m.residual_velocity_amplitude if detail.move is None else m.residual_amplitude
         residual = amplitude / problem.load_move
@@ -268,7 +268,7 @@ class StapFamily(BaseFamily):
         from models.sensitivity import sensitivity
         from optim.synthesis import sensitivity_curve
 
-        detail: _Detail = design.detail
+        detail: _StapDetail = design.detail
         if design.command is None:
             return None
         mode = problem.plant.modes()[0]

@@ -59,7 +59,7 @@ from optim.families.stap.limits import (
     no_acceleration_limit_error,
     torque_plant,
 )
-from optim.families.stap.types import AutoStep, Candidate, StapDesign, StapRequest
+from optim.families.stap.types import AutoStep, StapDesign, StapRequest, ZeroVibrationCandidate
 
 AUTO_MAX_PERIODS = 10  # the longest f_n,e t_a auto tries in the triangle case (Figs. 11-13)
 MAX_LISTED_CANDIDATES = 64  # zero-vibration jerk times listed (and considered by auto) at a fixed t_a
@@ -131,14 +131,14 @@ def _candidate_note(
 
 def zero_vibration_candidates(
     request: StapRequest, velocity: float, frequency_hz: float, t_a: float
-) -> tuple[list[Candidate], bool, int | None, int | None]:
+) -> tuple[list[ZeroVibrationCandidate], bool, int | None, int | None]:
     """The zeros of eq. (44) at a fixed t_a that meet t_j <= t_a/2 (eq. 9) and the acceleration limit
     (eqs. 20, 27), in increasing t_j; whether the list was cut at MAX_LISTED_CANDIDATES; and the last
     one's (k_j, delta) (the exact k_j,max and delta_f). When f_n,e t_a is whole the side bands
     (k_j >= 1, delta = 1) coincide with the multiples and only (0, 1), the rectangle, is listed."""
     r = frequency_hz * t_a
     dec = float(decimal_part(r))
-    out: list[Candidate] = []
+    out: list[ZeroVibrationCandidate] = []
     last: tuple[int, int] | None = None
     order = [(0, 1)] + [(k, d) for k in range(1, MAX_LISTED_CANDIDATES + 1) for d in (0, 1) if d == 0 or dec > 0.0]
     a_max: float | None = None
@@ -155,7 +155,7 @@ def zero_vibration_candidates(
         reaches = a_max is not None and abs(peak - a_max) <= LIMIT_RTOL * a_max
         t_a_min = None if a_max is None else min_acceleration_time(velocity, a_max)
         kind, note = _candidate_note(k, delta, reaches, frequency_hz, t_a, t_a_min)
-        out.append(Candidate(k, delta, t_j, kind, peak, a_max, reaches, note))
+        out.append(ZeroVibrationCandidate(k, delta, t_j, kind, peak, a_max, reaches, note))
     # More zeros fit than are listed: the last one in closed form, with the last listed a_Max
     # (the torque-lowered limit changes by less than 1 % past k_j = 32).
     reach = max_jerk_time(t_a, velocity, a_max)

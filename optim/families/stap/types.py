@@ -2,7 +2,7 @@
 
 Frozen dataclasses: they cross the worker-process boundary. ``StapRequest`` is what a caller asks
 for; ``StapDesign`` the closed-form design (``optim.families.stap.ramp``, ``optim.families.stap.moves``) with its
-``TorqueLimit`` (eqs. 19, 57-59), zero-vibration ``Candidate`` jerk times (eqs. 44, 49) and the
+``TorqueLimit`` (eqs. 19, 57-59), zero-vibration ``ZeroVibrationCandidate`` jerk times (eqs. 44, 49) and the
 ``AutoStep`` trail of the Fig. 25 flowchart; ``OptimizedDesign`` the CasADi/IPOPT one
 (``optim.families.stap.multistart``).
 """
@@ -56,7 +56,7 @@ class TorqueLimit:
 
 
 @dataclass(frozen=True)
-class Candidate:
+class ZeroVibrationCandidate:
     """A zero-vibration jerk time at a fixed t_a (eq. 49), marked."""
 
     k_j: int
@@ -91,7 +91,7 @@ class StapDesign:
     min_acceleration_time_s: float | None  # eq. (21) with it
     limit_reached: bool
     torque: TorqueLimit | None
-    candidates: tuple[Candidate, ...] = ()
+    candidates: tuple[ZeroVibrationCandidate, ...] = ()
     candidates_truncated: bool = False
     k_j_max: int | None = None  # exact enumeration at a fixed t_a
     delta_f: int | None = None

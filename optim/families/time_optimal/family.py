@@ -63,7 +63,7 @@ class TimeOptimalOptions:
 
 
 @dataclass(frozen=True)
-class _Detail:
+class _TimeOptimalDetail:
     solution: Solution
     modes: tuple[int, ...]
     robustness: Robustness | None
@@ -295,7 +295,7 @@ class TimeOptimalFamily(BaseFamily):
             tradeoff, row_capped = None, 0
             if options.tradeoff is not None:
                 tradeoff, row_capped = self._tradeoff(problem, options, chosen)
-        detail = _Detail(solution, chosen, options.robustness, tradeoff)
+        detail = _TimeOptimalDetail(solution, chosen, options.robustness, tradeoff)
         extra: tuple[str, ...] = (
             () if solution.refined else (f"the switching times are the grid's ({solution.refinement})",)
         )
@@ -357,7 +357,7 @@ class TimeOptimalFamily(BaseFamily):
         return tuple(rows), capped
 
     def finish(self, problem: Problem, design: Design, run: Run) -> dict[str, Any]:
-        detail: _Detail = design.detail
+        detail: _TimeOptimalDetail = design.detail
         out: dict[str, Any] = {"design": {"robustness": robustness_report(problem, design, detail)}}
         if detail.tradeoff is not None:
             nominal = next((r["duration_s"] for r in detail.tradeoff if r["half_width"] == 0), None)
@@ -438,7 +438,7 @@ def _design_block(
     }
 
 
-def robustness_report(problem: Problem, design: Design, detail: _Detail) -> dict[str, Any] | None:
+def robustness_report(problem: Problem, design: Design, detail: _TimeOptimalDetail) -> dict[str, Any] | None:
     """The requested band, the achieved one and the worst V inside the request, by models.sensitivity on the
     exact command (CHECK_POINTS frequencies, every damping ratio asked): independent of the LP's weights. One
     entry per band (a ratio range gives one per cancelled mode); the top level is the first."""

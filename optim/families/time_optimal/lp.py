@@ -108,7 +108,7 @@ def acceleration_moment(spec: Spec, poles: CArray, start: Array, end: Array, tot
 
 
 @dataclass(frozen=True)
-class Chain:
+class StateChain:
     """z' = A z + B u: the motor's derivatives (p, v[, a]) and, with a torque, G's two states."""
 
     a: Array
@@ -119,7 +119,7 @@ class Chain:
     torque: tuple[Array, float] | None = None  # (row c, d): tau = c z + d u
 
 
-def chain(spec: Spec, total_s: float) -> Chain:
+def chain(spec: Spec, total_s: float) -> StateChain:
     q, unit = spec.order, spec.scale
     n = q + (2 if spec.torque is not None else 0)
     a = np.zeros((n, n))
@@ -158,10 +158,10 @@ def chain(spec: Spec, total_s: float) -> Chain:
         a_size = spec.max_acceleration or unit * (total_s if q == 3 else 1.0)
         scale[q:] = [a_size / w2, a_size / math.sqrt(w2)]
         torque = (row, d)
-    return Chain(a, b, scale, 1, 2 if q == 3 else None, torque)
+    return StateChain(a, b, scale, 1, 2 if q == 3 else None, torque)
 
 
-def discretise(c: Chain, h: float) -> tuple[Array, Array]:
+def discretise(c: StateChain, h: float) -> tuple[Array, Array]:
     """Phi = e^(A h), Gamma = int_0^h e^(A s) ds B."""
     n = c.a.shape[0]
     big = np.zeros((n + 1, n + 1))
@@ -252,7 +252,7 @@ class _Lp:
         self.ub.append(m)
         self.ub_rhs.append(np.asarray(rhs, dtype=float))
 
-    def dynamics(self, c: Chain, h: float, unit: float) -> None:
+    def dynamics(self, c: StateChain, h: float, unit: float) -> None:
         """z_(k+1) - Phi z_k - Gamma U x_k = 0, in scaled states (row i divided by scale_i)."""
         phi, gamma = discretise(c, h)
         n, s = self.states, c.scale
@@ -281,7 +281,7 @@ class _Lp:
         self.add_eq(m, np.zeros(self.steps * n))
 
     def output_rows(
-        self, c: Chain, row: Array, d: float, h: float, unit: float, points: tuple[float, ...]
+        self, c: StateChain, row: Array, d: float, h: float, unit: float, points: tuple[float, ...]
     ) -> sp.coo_matrix:
         """Rows of row . z(t_k + theta h) + d u_k for each step and theta (scaled states)."""
         mats = []
