@@ -265,10 +265,13 @@ def in_process_simulate(body: bytes, repeats: int) -> dict[str, float]:
     from app.problems import parse_json
     from app.responses import Output, render
     from app.schemas.plants import to_plant
-    from app.schemas.simulate import SimulateRequest, load_out, metrics_out, profile_out, to_command
+    from app.presenters import load_json, metrics_json
+    from app.schemas.simulate import SimulateRequest, to_command
     from models.metrics import metrics
     from models.simulation import simulate
     from optim.problem import VIBRATION_FRACTION_OF_MOVE
+    from optim.results import MetricsReport
+    from optim.synthesis import profile_arrays
 
     steps: dict[str, list[float]] = {
         k: [] for k in ("json.loads", "orjson parse", "validate", "to numpy", "simulate", "metrics", "render JSON")
@@ -289,7 +292,11 @@ def in_process_simulate(body: bytes, repeats: int) -> dict[str, float]:
         tolerance, window = request.settling_criteria()
         result = metrics(response, tolerance, None, window, vibration_fraction=VIBRATION_FRACTION_OF_MOVE)
         marks.append(time.perf_counter())
-        answer = {"profile": profile_out(command), "load": load_out(response), "metrics": metrics_out(result)}
+        answer = {
+            "profile": profile_arrays(command),
+            "load": load_json(response),
+            "metrics": metrics_json(MetricsReport(result)),
+        }
         render(output, {**answer, "warnings": []}).body  # noqa: B018
         marks.append(time.perf_counter())
         for name, start, end in zip(steps, marks, marks[1:], strict=False):

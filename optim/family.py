@@ -22,6 +22,7 @@ from models.errors import SolverFailed
 from models.metrics import Metrics
 from models.simulation import Response
 from optim.problem import Problem
+from optim.results import Block, Finish, SensitivityCurve
 from optim.solver import SolveCaps, SolverReport, Tally, tally
 
 
@@ -46,14 +47,6 @@ class SolverSummary:
     def of_tally(cls, status: str, counts: Tally) -> SolverSummary:
         return cls(status, counts.iterations, counts.seconds, counts.solves)
 
-    def as_dict(self) -> dict[str, Any]:
-        return {
-            "status": self.status,
-            "iterations": self.iterations,
-            "solve_time_s": self.solve_time_s,
-            "solves": self.solves,
-        }
-
 
 @contextlib.contextmanager
 def counted() -> Iterator[Tally]:
@@ -77,7 +70,7 @@ class Design:
     family's own payload for its sampling and extra blocks (picklable)."""
 
     command: PiecewiseCommand | None
-    summary: Mapping[str, Any]
+    summary: Block
     warnings: tuple[str, ...] = ()
     solver: SolverSummary | None = None
     end_s: float | None = None
@@ -145,15 +138,13 @@ class Family(Protocol):
 
     def profile_at(self, design: Design, sampled: PiecewiseCommand, time_s: NDArray[np.float64]) -> Profile: ...
 
-    def finish(self, problem: Problem, design: Design, run: Run) -> dict[str, Any]: ...
+    def finish(self, problem: Problem, design: Design, run: Run) -> Finish: ...
 
     def sensitivity(
         self, problem: Problem, design: Design, ratios: NDArray[np.float64], zetas: NDArray[np.float64]
-    ) -> dict[str, Any] | None: ...
+    ) -> SensitivityCurve | None: ...
 
     def candidates(self, problem: Problem) -> tuple[Candidate, ...]: ...
-
-    def request_fields(self, options: Any) -> dict[str, Any]: ...
 
 
 class BaseFamily:
@@ -189,25 +180,20 @@ class BaseFamily:
         where the design has one, else the sampled one (whose samples hold the instants)."""
         return profile_at_instants(design.command if design.command is not None else sampled, time_s)
 
-    def finish(self, problem: Problem, design: Design, run: Run) -> dict[str, Any]:
-        """Extra top-level blocks of the answer; the keys ``design`` (merged into the design block)
-        and ``warnings`` (appended) are the pipeline's."""
-        return {}
+    def finish(self, problem: Problem, design: Design, run: Run) -> Finish:
+        """The design block completed after sampling, the family's own top-level blocks and warnings (default:
+        nothing to add)."""
+        return Finish()
 
     def sensitivity(
         self, problem: Problem, design: Design, ratios: NDArray[np.float64], zetas: NDArray[np.float64]
-    ) -> dict[str, Any] | None:
+    ) -> SensitivityCurve | None:
+        """The family's own sensitivity curve where it has a closed form (default None: the pipeline's)."""
         return None
 
     def candidates(self, problem: Problem) -> tuple[Candidate, ...]:
         """What compare runs for this family (default: its ``default_options``, one row)."""
         return (Candidate(self.name, self.default_options(problem), self.name),)
-
-    def request_fields(self, options: Any) -> dict[str, Any]:
-        """The family's own request fields that reproduce ``options`` (for compare's rows[].request)."""
-        from dataclasses import asdict
-
-        return {k: v for k, v in asdict(options).items() if v is not None}
 
 
 __all__ = [

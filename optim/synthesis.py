@@ -14,6 +14,7 @@ the simulated load, the metrics, the sensitivity, the limit check and the warnin
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -26,6 +27,7 @@ from models.metrics import Metrics, metrics
 from models.sensitivity import band_below, move_scale, residual_envelope, sensitivity
 from models.simulation import Response, simulate
 from optim.family import Design, Family, Grid, Profile, Run, SolverSummary
+from optim.results import Block, MetricsReport, SensitivityCurve
 from optim.problem import TAIL_PERIODS, Limits, Problem, SensitivityGrid, nice_period
 
 LIMIT_RTOL = 1e-9  # a peak within this fraction above a limit counts as meeting it (round-off)
@@ -35,21 +37,27 @@ MAX_SENSITIVITY_WORK = 20_000_000  # frequency points x damping ratios x breakpo
 
 @dataclass(frozen=True)
 class Result:
+    """One design through the pipeline: what the drive receives, what the load does, and what the family says."""
+
     family: str
     design: Design
     run: Run
     profile: Profile
-    sensitivity: dict[str, Any] | None
+    sensitivity: SensitivityCurve | None
     limit_violations: tuple[str, ...]
     warnings: tuple[str, ...]
     solver: SolverSummary | None
-    extras: dict[str, Any]
-    summary: dict[str, Any]  # the design block, completed after sampling
+    extras: Block | None  # the family's own top-level blocks (Finish.extras)
+    summary: Block  # the design block, completed after sampling
     percentage_vibration: float | None = None  # V at the nominal first mode, % (None: no mode)
 
     @property
     def metrics(self) -> Metrics:
         return self.run.metrics
+
+    @property
+    def metrics_report(self) -> MetricsReport:
+        return MetricsReport(self.run.metrics, self.percentage_vibration)
 
     @property
     def response(self) -> Response:
@@ -58,21 +66,6 @@ class Result:
     @property
     def command(self) -> PiecewiseCommand:
         return self.run.command
-
-    def body(self) -> dict[str, Any]:
-        """The answer of a family endpoint (JSON-ready apart from numpy arrays)."""
-        return {
-            "profile": self.profile,
-            "design": self.summary,
-            "load": load_arrays(self.response),
-            "metrics": metrics_dict(self.metrics, self.percentage_vibration),
-            "limits_met": not self.limit_violations,
-            "sensitivity": self.sensitivity,
-            "solver": None if self.solver is None else self.solver.as_dict(),
-            "limit_violations": list(self.limit_violations),
-            "warnings": list(self.warnings),
-            **self.extras,
-        }
 
 
 def synthesize(family: Family, problem: Problem, options: Any) -> Result:
@@ -98,15 +91,14 @@ def evaluate(family: Family, problem: Problem, design: Design) -> Result:
     response = simulate(problem.plant, sampled)
     run = Run(grid, sampled, response, metrics_of(problem, response))
     profile = family.profile(design, sampled, grid) or profile_arrays(sampled)
-    _check_finite(problem, profile, load_arrays(response))
+    _check_finite(problem, profile, _load_arrays(response))
     curve = None
     if problem.sensitivity is not None:
         zetas, ratios = _sensitivity_axes(problem, problem.sensitivity)
         _check_sensitivity_work(problem.sensitivity, zetas.size, ratios.size, sampled, problem.max_samples)
         curve = family.sensitivity(problem, design, ratios, zetas) or sensitivity_curve(problem, sampled, ratios, zetas)
     nominal = nominal_percentage_vibration(problem, sampled)
-    extras = dict(family.finish(problem, design, run))
-    summary = {**design.summary, **extras.pop("design", {})}
+    finished = family.finish(problem, design, run)
     violations = limit_violations(problem.limits, run.metrics)
     if violations and not problem.allow_limit_violation:
         raise Infeasible(
@@ -114,7 +106,7 @@ def evaluate(family: Family, problem: Problem, design: Design) -> Result:
             "to see it anyway",
             violations[0].split(":")[0],
         )
-    warnings = (*design.warnings, *extras.pop("warnings", ()), *violations)
+    warnings = (*design.warnings, *finished.warnings, *violations)
     return Result(
         family=family.name,
         design=design,
@@ -124,8 +116,8 @@ def evaluate(family: Family, problem: Problem, design: Design) -> Result:
         limit_violations=violations,
         warnings=warnings,
         solver=design.solver,
-        extras=extras,
-        summary=summary,
+        extras=finished.extras,
+        summary=finished.design or design.summary,
         percentage_vibration=nominal,
     )
 
@@ -191,7 +183,7 @@ def limit_violations(limits: Limits, result: Metrics) -> tuple[str, ...]:
     return tuple(out)
 
 
-def _check_finite(problem: Problem, *blocks: dict[str, Any]) -> None:
+def _check_finite(problem: Problem, *blocks: Mapping[str, NDArray[np.float64] | None]) -> None:
     for block in blocks:
         for key, array in block.items():
             if array is not None and not np.all(np.isfinite(np.asarray(array, dtype=float))):
@@ -306,7 +298,7 @@ def sensitivity_curve(
     ratios: NDArray[np.float64],
     zetas: NDArray[np.float64],
     rows: NDArray[np.float64] | None = None,
-) -> dict[str, Any]:
+) -> SensitivityCurve:
     """Percentage vibration versus f_n / f_n,e around the plant's first mode (exact free state, one dot
     product per frequency; models.sensitivity), from the residual fractions of the move ``rows`` when a
     family gives them (one per damping ratio)."""
@@ -322,19 +314,19 @@ def sensitivity_curve(
     amplitude, envelope = gain * amplitude, gain * envelope
     band = band_below(ratios, percent[0], 100.0 * BAND_LEVEL)
     several = zetas.size > 1
-    return {
-        "frequency_ratio": ratios,
-        "percentage_vibration": percent[0],
-        "reference_amplitude": envelope[0],
-        "reference": reference_wording(problem),
-        "residual_amplitude": amplitude[0],
-        "residual_vibration": rows[0],
-        "quantity": quantity,
-        "damping_ratio": zetas,
-        "percentage_vibration_grid": percent if several else None,
-        "residual_vibration_grid": rows if several else None,
-        "band_5_percent": list(band) if band else None,
-    }
+    return SensitivityCurve(
+        frequency_ratio=ratios,
+        percentage_vibration=percent[0],
+        reference_amplitude=envelope[0],
+        reference=reference_wording(problem),
+        residual_amplitude=amplitude[0],
+        residual_vibration=rows[0],
+        quantity=quantity,
+        damping_ratio=zetas,
+        percentage_vibration_grid=percent if several else None,
+        residual_vibration_grid=rows if several else None,
+        band_5_percent=band or None,
+    )
 
 
 # --- the answer's blocks -----------------------------------------------------------------------
@@ -350,9 +342,9 @@ def profile_arrays(command: PiecewiseCommand) -> Profile:
     }
 
 
-def load_arrays(response: Response) -> dict[str, NDArray[np.float64] | None]:
+def _load_arrays(response: Response) -> dict[str, NDArray[np.float64] | None]:
+    """The simulated load's series (the ones the answer's ``load`` block shows), to check they are finite."""
     return {
-        "time_s": response.time_s,
         "position": response.load_position,
         "velocity": response.load_velocity,
         "acceleration": response.load_acceleration,
@@ -361,29 +353,8 @@ def load_arrays(response: Response) -> dict[str, NDArray[np.float64] | None]:
     }
 
 
-def metrics_block(problem: Problem, command: PiecewiseCommand) -> dict[str, Any]:
-    """The ``metrics`` block of any command the answer shows beside the design (simulated here)."""
-    return metrics_dict(
+def metrics_report(problem: Problem, command: PiecewiseCommand) -> MetricsReport:
+    """The metrics of any command the answer shows beside the design (simulated here)."""
+    return MetricsReport(
         metrics_of(problem, simulate(problem.plant, command)), nominal_percentage_vibration(problem, command)
     )
-
-
-def metrics_dict(m: Metrics, percentage_vibration: float | None = None) -> dict[str, Any]:
-    return {
-        "command_end_s": m.command_end_s,
-        "motion_time_s": m.command_end_s,
-        "residual_amplitude": m.residual_amplitude,
-        "residual_velocity_amplitude": m.residual_velocity_amplitude,
-        "modes": [vars(mode) for mode in m.modes],
-        "final_energy_j": m.final_energy_j,
-        "settling_time_s": m.settling.time_s,
-        "settled": m.settling.time_s is not None,
-        "settling_quantity": m.settling.quantity,
-        "settling_window": float(m.settling.window),
-        "settling_vibration_window": m.settling.vibration_window,
-        "peak_velocity": m.peak_velocity,
-        "peak_acceleration": m.peak_acceleration,
-        "peak_jerk": m.peak_jerk,
-        "peak_motor_torque_nm": m.peak_motor_torque_nm,
-        "percentage_vibration": percentage_vibration,
-    }

@@ -11,12 +11,9 @@ from app import problems
 from app.deps import SettingsDep, ThreadsDep
 from app.examples import SIMULATE_EXAMPLES
 from app.responses import ARRAY_RESPONSE_DOC, ArrayOutput, Output, render
-from app.schemas.plants import to_plant
-from app.schemas.simulate import SimulateRequest, SimulateResponse, load_out, metrics_out, profile_out, to_command
+from app.schemas.simulate import SimulateRequest, SimulateResponse
+from app.services import simulate as simulation
 from app.settings import Settings
-from models.metrics import metrics
-from models.simulation import simulate
-from optim.problem import VIBRATION_FRACTION_OF_MOVE
 
 router = APIRouter(prefix="/v1", tags=["simulation"], route_class=problems.JSONRoute)
 
@@ -41,19 +38,4 @@ async def simulate_profile(
 
 
 def _simulate(request: SimulateRequest, settings: Settings, output: Output) -> Response:
-    plant = to_plant(request.plant)
-    command, warnings = to_command(request.profile, request, settings.max_samples)
-    response = simulate(plant, command)
-    tolerance, vibration_window = request.settling_criteria()
-    if "settling_tolerance" in request.model_fields_set:
-        warnings = [*warnings, "settling_tolerance is deprecated: use settling.position_tolerance"]
-    result = metrics(
-        response, tolerance, request.settling_window, vibration_window, vibration_fraction=VIBRATION_FRACTION_OF_MOVE
-    )
-    answer = {
-        "profile": profile_out(command),
-        "load": load_out(response),
-        "metrics": metrics_out(result),
-        "warnings": warnings,
-    }
-    return render(output, answer)
+    return render(output, simulation.answer(request, settings.max_samples))

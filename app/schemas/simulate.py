@@ -24,7 +24,6 @@ from app.schemas.common import (
 from app.schemas.plants import PlantIn
 from models.commands import DERIVATIVE_NAMES, PiecewiseCommand
 from models.errors import InvalidParameter
-from optim.synthesis import load_arrays, metrics_dict, profile_arrays
 
 Quantity = Literal["position", "velocity", "acceleration", "jerk"]
 _CONSISTENCY_TOLERANCE = 1e-6
@@ -281,9 +280,3 @@ def to_command(profile: ProfileIn, options: SimulationOptions, max_samples: int)
                     f"(at t = {command.time_s[k]:.6g} s); the simulation uses profile.{held}"
                 )
     return command, warnings
-
-
-# The answer's blocks are the pipeline's (one definition for every endpoint).
-profile_out = profile_arrays
-load_out = load_arrays
-metrics_out = metrics_dict

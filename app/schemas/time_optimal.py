@@ -9,7 +9,7 @@ from pydantic import Field, field_validator, model_validator
 from app.schemas.common import INTEGRAL, DampingRatio, OutModel, StrictModel, either, given, limit_given
 from app.schemas.family import FamilyResponse, ProfileRequest
 from models.plants import FREQUENCY_MAX_HZ, FREQUENCY_MIN_HZ
-from optim.families.time_optimal.family import MAX_TRADEOFF, Robustness, TimeOptimalOptions
+from optim.families.time_optimal.options import MAX_TRADEOFF, Robustness, TimeOptimalOptions
 from optim.families.time_optimal.types import DEFAULT_MAX_PERCENTAGE_VIBRATION, MAX_MODES, MIN_PERCENTAGE_VIBRATION
 from optim.problem import Problem
 from optim.registry import FAMILIES

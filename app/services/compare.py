@@ -13,6 +13,8 @@ from typing import Any
 from starlette.concurrency import run_in_threadpool
 
 from app.family_names import endpoint_of
+from app.presenters import load_json, present
+from app.request_bodies import request_fields
 from app.schemas.compare import DEFAULT_SENSITIVITY, CompareIn
 from app.services import profile as profiles
 from app.settings import Settings
@@ -20,7 +22,7 @@ from models.errors import InvalidParameter
 from optim.compare import ComparedRow, plan, run_plan
 from optim.family import Family
 from optim.problem import Problem
-from optim.synthesis import Result, load_arrays
+from optim.synthesis import Result
 from runtime.executor import Executor, reserved
 
 
@@ -65,7 +67,7 @@ def _row(request: CompareIn, common: dict[str, Any], row: ComparedRow, load_move
         "family": family.name,
         "label": row.label or family.name,
         "endpoint": endpoint_of(family.name),
-        "request": {**common, **family.request_fields(row.options)},
+        "request": {**common, **request_fields(family.name, row.options)},
         "motion_time_s": m.command_end_s - float(result.command.time_s[0]),
         "settling_time_s": m.settling.time_s,
         "settling_window": float(m.settling.window),
@@ -73,7 +75,7 @@ def _row(request: CompareIn, common: dict[str, Any], row: ComparedRow, load_move
         "percentage_vibration": result.percentage_vibration,
         "residual_vibration": amplitude / load_move,
         "residual_amplitude": amplitude,
-        "band_5_percent": result.sensitivity["band_5_percent"] if result.sensitivity else None,
+        "band_5_percent": result.sensitivity.band_5_percent if result.sensitivity else None,
         "peak_velocity": m.peak_velocity,
         "peak_acceleration": m.peak_acceleration,
         "peak_jerk": m.peak_jerk,
@@ -85,7 +87,7 @@ def _row(request: CompareIn, common: dict[str, Any], row: ComparedRow, load_move
     if request.include_curves:
         out["curves"] = {
             "profile": result.profile,
-            "load": load_arrays(result.response),
-            "sensitivity": result.sensitivity,
+            "load": load_json(result.response),
+            "sensitivity": present(result.sensitivity),
         }
     return out

@@ -14,6 +14,7 @@ from typing import Any
 from starlette.concurrency import run_in_threadpool
 
 from app.observability import record_solve
+from app.presenters import answer_body
 from app.schemas.family import ProfileRequest
 from app.settings import Settings
 from models.errors import DomainError, Infeasible, InvalidParameter, NotApplicable
@@ -67,7 +68,7 @@ async def design(
         result = await run(family, problem, body.options(problem), settings, pool, threads)
     except (InvalidParameter, Infeasible, NotApplicable) as exc:
         raise as_sent(exc, body) from None
-    answer = result.body()
+    answer = answer_body(result)
     answer["warnings"] = [*body.deprecations, *answer["warnings"]]
     return answer, result
 

@@ -31,7 +31,7 @@ from app.settings import Settings
 from models.errors import SolverTimedOut
 from models.plants import ModePlant
 from optim.families import stap as S
-from optim.families.time_optimal.family import Robustness, TimeOptimalOptions
+from optim.families.time_optimal.options import Robustness, TimeOptimalOptions
 from optim.problem import Limits, Problem
 from optim.registry import FAMILIES as REGISTRY
 from optim.solver import SolveCaps

@@ -23,7 +23,7 @@ from models.plants import ModePlant, TransferFunctionPlant, TwoInertiaPlant
 from models.sensitivity import residual_envelope, sensitivity
 from models.simulation import simulate
 from optim.families.time_optimal import lp
-from optim.families.time_optimal.family import Robustness, TimeOptimalOptions
+from optim.families.time_optimal.options import Robustness, TimeOptimalOptions
 from optim.problem import Limits, Problem
 from optim.registry import FAMILIES
 from optim.solver import SolveCaps
