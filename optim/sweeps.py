@@ -13,8 +13,8 @@ stay <= the threshold. Refinement bisects a failing pair along its axis (the mid
 unchanged) and checks both halves, round after round, up to a budget of new points; rounds and the order of the
 new points do not depend on which point finishes first, so the same sweep gives the same rows on any executor.
 
-This module does no HTTP: ``prepare`` (a point's values -> its problem and options) and ``describe`` (a failure
--> its problem+json fields) are the caller's.
+This module does no HTTP: ``prepare`` (a point's values -> its problem and options) is the caller's, and so is
+the lines' JSON (a failed row carries the error, which the caller describes).
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ from models.commands import PiecewiseCommand
 from models.errors import InvalidParameter, PoolUnavailable
 from optim.problem import Problem
 from optim.registry import FAMILIES
+from optim.results import Block
 from optim.synthesis import Result, nominal_percentage_vibration, synthesize
 from runtime.executor import Executor, PoolBusy
 
@@ -49,11 +50,75 @@ _warm: set[str] = set()  # the families whose solvers this process has built
 
 
 @dataclass(frozen=True)
+class PointSolver(Block):
+    status: str
+    iterations: int
+    solves: int
+
+
+@dataclass(frozen=True)
+class PointRow(Block):
+    """The numbers of one point, named as in the family endpoint's answer (``metrics``, ``sensitivity``)."""
+
+    duration_s: float
+    settling_time_s: float | None
+    percentage_vibration: float | None
+    residual_amplitude: float
+    residual_velocity_amplitude: float
+    band_5_percent: tuple[float | None, float | None] | None
+    limits_met: bool
+    solver: PointSolver | None
+    warnings: tuple[str, ...]
+    elapsed_s: float
+
+
+@dataclass(frozen=True)
 class PointOutcome:
     """What a point's worker sends back: the row's numbers and the command the table check simulates."""
 
-    row: dict[str, Any]
+    row: PointRow
     command: PiecewiseCommand
+
+
+@dataclass(frozen=True)
+class RowLine:
+    """A point done: its row, or its failure (the error and the context ``prepare`` gave, None if it failed there)."""
+
+    index: int
+    values: dict[str, float]  # axis path -> value
+    between: tuple[int, int] | None  # the pair a refinement point bisects
+    row: PointRow | None
+    error: Exception | None = None
+    context: Any = None
+
+
+@dataclass(frozen=True)
+class CheckLine(Block):
+    """The table check of one pair of neighbours; passes is None where a point failed or V is undefined."""
+
+    axis: str
+    pair: tuple[int, int]
+    values: tuple[float, float]
+    a_at_b_percentage_vibration: float | None
+    b_at_a_percentage_vibration: float | None
+    worst_percentage_vibration: float | None
+    passes: bool | None
+
+
+@dataclass(frozen=True)
+class SummaryLine(Block):
+    points: int
+    failed: int
+    refined: int
+    pairs: int
+    pairs_failing: int
+    pairs_unchecked: int
+    interpolable: bool
+    threshold_percent: float
+    elapsed_s: float
+
+
+Line = RowLine | CheckLine | SummaryLine
 
 
 def run_point(family_name: str, problem: Problem, options: Any) -> PointOutcome:
@@ -67,24 +132,22 @@ def run_point(family_name: str, problem: Problem, options: Any) -> PointOutcome:
     return PointOutcome(point_row(result, time.perf_counter() - started), check_command(result))
 
 
-def point_row(result: Result, elapsed_s: float) -> dict[str, Any]:
+def point_row(result: Result, elapsed_s: float) -> PointRow:
     """The numbers of one point, named as in the family endpoint's answer (``metrics``, ``sensitivity``)."""
     m = result.metrics
     solver = result.solver
-    return {
-        "duration_s": m.command_end_s,
-        "settling_time_s": m.settling.time_s,
-        "percentage_vibration": result.percentage_vibration,
-        "residual_amplitude": m.residual_amplitude,
-        "residual_velocity_amplitude": m.residual_velocity_amplitude,
-        "band_5_percent": None if result.sensitivity is None else result.sensitivity["band_5_percent"],
-        "limits_met": not result.limit_violations,
-        "solver": None
-        if solver is None
-        else {"status": solver.status, "iterations": solver.iterations, "solves": solver.solves},
-        "warnings": list(result.warnings),
-        "elapsed_s": elapsed_s,
-    }
+    return PointRow(
+        duration_s=m.command_end_s,
+        settling_time_s=m.settling.time_s,
+        percentage_vibration=result.percentage_vibration,
+        residual_amplitude=m.residual_amplitude,
+        residual_velocity_amplitude=m.residual_velocity_amplitude,
+        band_5_percent=None if result.sensitivity is None else result.sensitivity.band_5_percent,
+        limits_met=not result.limit_violations,
+        solver=None if solver is None else PointSolver(solver.status, solver.iterations, solver.solves),
+        warnings=result.warnings,
+        elapsed_s=elapsed_s,
+    )
 
 
 def check_command(result: Result) -> PiecewiseCommand:
@@ -180,7 +243,6 @@ class _Failed(Exception):
 
 
 Prepare = Callable[[tuple[float, ...]], Prepared]
-Describe = Callable[[Exception, Any], dict[str, Any]]  # a failure and its point's context (None: not prepared)
 
 
 async def submit(executor: Executor, fn: Callable[..., T], *args: Any, deadline_s: float) -> T:
@@ -208,7 +270,6 @@ async def sweep(
     family_name: str,
     axes: Sequence[Axis],
     prepare: Prepare,
-    describe: Describe,
     executor: Executor,
     *,
     capacity: int,
@@ -217,7 +278,7 @@ async def sweep(
     refine: bool = False,
     max_refined_points: int = 0,
     max_points: int | None = None,
-) -> AsyncIterator[dict[str, Any]]:
+) -> AsyncIterator[Line]:
     """The sweep's lines, as they come: a ``row`` per point as it finishes, a ``check`` per neighbouring pair once
     both ends are done, a ``summary`` last. At most ``capacity`` points are in flight; leaving the generator (a
     client that went away) cancels the rest."""
@@ -240,7 +301,6 @@ async def sweep(
             pending,
             state,
             prepare,
-            describe,
             executor,
             capacity,
             deadline_s,
@@ -267,18 +327,17 @@ async def sweep(
             refined += 1
         _release(state, pending, keep_failing=False)  # only the ends of the pairs still to check stay
     leaves = [state.checks.get(p) for p in state.leaves]
-    yield {
-        "line": "summary",
-        "points": len(state.values),
-        "failed": len(state.failed),
-        "refined": refined,
-        "pairs": len(state.checks),
-        "pairs_failing": sum(1 for c in leaves if c is False),
-        "pairs_unchecked": sum(1 for c in leaves if c is None),
-        "interpolable": not state.failed and all(c is True for c in leaves),
-        "threshold_percent": threshold_percent,
-        "elapsed_s": time.perf_counter() - started,
-    }
+    yield SummaryLine(
+        points=len(state.values),
+        failed=len(state.failed),
+        refined=refined,
+        pairs=len(state.checks),
+        pairs_failing=sum(1 for c in leaves if c is False),
+        pairs_unchecked=sum(1 for c in leaves if c is None),
+        interpolable=not state.failed and all(c is True for c in leaves),
+        threshold_percent=threshold_percent,
+        elapsed_s=time.perf_counter() - started,
+    )
 
 
 async def _run_round(
@@ -288,13 +347,12 @@ async def _run_round(
     pairs: list[Pair],
     state: _State,
     prepare: Prepare,
-    describe: Describe,
     executor: Executor,
     capacity: int,
     deadline_s: float,
     threshold_percent: float,
     keep_failing: bool,
-) -> AsyncIterator[dict[str, Any]]:
+) -> AsyncIterator[Line]:
     waiting = iter(round_points)
     running: dict[asyncio.Task[tuple[Problem, PointOutcome]], tuple[int, tuple[float, ...], Pair | None]] = {}
     open_pairs = list(pairs)
@@ -322,24 +380,19 @@ async def _run_round(
             done, _ = await asyncio.wait(running, return_when=asyncio.FIRST_COMPLETED)
             for task in sorted(done, key=lambda t: running[t][0]):
                 index, values, between = running.pop(task)
-                row: dict[str, Any] = {
-                    "line": "row",
-                    "index": index,
-                    "values": {a.path: v for a, v in zip(axes, values, strict=True)},
-                    "between": None if between is None else [between.a, between.b],
-                }
+                at = {a.path: v for a, v in zip(axes, values, strict=True)}
+                bisected = None if between is None else (between.a, between.b)
                 exc = task.exception()
                 if exc is None:
                     problem, outcome = task.result()
                     state.problems[index], state.commands[index] = problem, outcome.command
-                    row |= {"ok": True, **outcome.row, "problem": None}
+                    yield RowLine(index, at, bisected, outcome.row)
                 else:
                     state.failed.add(index)
                     if not isinstance(exc, Exception):
                         raise exc
                     failure, context = (exc.error, exc.context) if isinstance(exc, _Failed) else (exc, None)
-                    row |= {"ok": False, "problem": describe(failure, context)}
-                yield row
+                    yield RowLine(index, at, bisected, None, failure, context)
                 for pair in [p for p in open_pairs if _finished(p, state)]:
                     open_pairs.remove(pair)
                     # two simulations of a command (a sampled one may hold thousands of samples): off the loop
@@ -375,7 +428,7 @@ def _finished(pair: Pair, state: _State) -> bool:
     return done(pair.a) and done(pair.b)
 
 
-def _check(pair: Pair, axes: Sequence[Axis], state: _State, threshold_percent: float) -> dict[str, Any]:
+def _check(pair: Pair, axes: Sequence[Axis], state: _State, threshold_percent: float) -> CheckLine:
     """The check line of one pair; passes is None where a point failed or V is undefined (no mode)."""
     a_at_b = b_at_a = None
     if pair.a in state.commands and pair.b in state.commands:
@@ -384,13 +437,12 @@ def _check(pair: Pair, axes: Sequence[Axis], state: _State, threshold_percent: f
     worst = None if a_at_b is None or b_at_a is None else max(a_at_b, b_at_a)
     passes = None if worst is None else worst <= threshold_percent
     state.checks[pair] = passes
-    return {
-        "line": "check",
-        "axis": axes[pair.axis].path,
-        "pair": [pair.a, pair.b],
-        "values": [state.values[pair.a][pair.axis], state.values[pair.b][pair.axis]],
-        "a_at_b_percentage_vibration": a_at_b,
-        "b_at_a_percentage_vibration": b_at_a,
-        "worst_percentage_vibration": worst,
-        "passes": passes,
-    }
+    return CheckLine(
+        axis=axes[pair.axis].path,
+        pair=(pair.a, pair.b),
+        values=(state.values[pair.a][pair.axis], state.values[pair.b][pair.axis]),
+        a_at_b_percentage_vibration=a_at_b,
+        b_at_a_percentage_vibration=b_at_a,
+        worst_percentage_vibration=worst,
+        passes=passes,
+    )

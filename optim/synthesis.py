@@ -27,8 +27,8 @@ from models.metrics import Metrics, metrics
 from models.sensitivity import band_below, move_scale, residual_envelope, sensitivity
 from models.simulation import Response, simulate
 from optim.family import Design, Family, Grid, Profile, Run, SolverSummary
-from optim.results import Block, MetricsReport, SensitivityCurve
 from optim.problem import TAIL_PERIODS, Limits, Problem, SensitivityGrid, nice_period
+from optim.results import Block, MetricsReport, SensitivityCurve
 
 LIMIT_RTOL = 1e-9  # a peak within this fraction above a limit counts as meeting it (round-off)
 BAND_LEVEL = 0.05

@@ -10,8 +10,8 @@ from app.schemas.common import Int, OutModel, given, limit_given, never
 from app.schemas.family import FamilyResponse, ProfileRequest
 from app.schemas.simulate import MetricsOut, ProfileOut
 from models.errors import InvalidParameter
-from optim.families.input_shaped.family import MAX_SHAPED_MODES, MAX_SHAPED_RAMPS, InputShapedOptions
 from optim.families.input_shaped.firmware import KLIPPER_VERSION, MARLIN_VERSION, RRF_VERSION
+from optim.families.input_shaped.options import MAX_SHAPED_MODES, MAX_SHAPED_RAMPS, InputShapedOptions
 from optim.families.input_shaped.shapers import (
     CATALOGUE_NAMES,
     DEFAULT_VIBRATION_TOLERANCE,

@@ -15,7 +15,7 @@ import logging
 import re
 import types
 import typing
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Callable
 from typing import Annotated, Any
 
 import orjson
@@ -23,6 +23,7 @@ from fastapi.exceptions import RequestValidationError
 from pydantic import BaseModel, ValidationError
 
 from app import problems
+from app.presenters import present
 from app.schemas.compare import DEFAULT_SENSITIVITY
 from app.schemas.family import ProfileRequest
 from app.schemas.registry import REQUEST_SCHEMAS
@@ -206,6 +207,18 @@ def capacity_of(executor: Executor) -> int:
     return 1
 
 
+def line_json(line: engine.Line, described: Callable[[Exception, Any], dict[str, Any]] | None = None) -> dict[str, Any]:
+    """One NDJSON line: ``row`` (the point's numbers, or its failure as problem+json: ``describe``), ``check`` or
+    ``summary``."""
+    if isinstance(line, engine.RowLine):
+        out: dict[str, Any] = {"line": "row", "index": line.index, "values": line.values, "between": line.between}
+        if line.row is not None:
+            return out | {"ok": True, **present(line.row), "problem": None}
+        assert line.error is not None
+        return out | {"ok": False, "problem": (described or describe)(line.error, line.context)}
+    return {"line": "check" if isinstance(line, engine.CheckLine) else "summary", **present(line)}
+
+
 async def lines(plan: SweepPlan, executor: Executor, capacity: int | None = None) -> AsyncIterator[dict[str, Any]]:
     """The sweep's lines (the route's, the Python API's and the CLI's)."""
     body = plan.body
@@ -213,7 +226,6 @@ async def lines(plan: SweepPlan, executor: Executor, capacity: int | None = None
         body.family_key,
         plan.axes,
         plan.prepare,
-        describe,
         executor,
         capacity=capacity or capacity_of(executor),
         deadline_s=plan.settings.solve_deadline_s,
@@ -222,7 +234,7 @@ async def lines(plan: SweepPlan, executor: Executor, capacity: int | None = None
         max_refined_points=body.max_refined_points,
         max_points=plan.settings.sweep_max_points,
     ):
-        yield line
+        yield line_json(line)
 
 
 @contextlib.asynccontextmanager

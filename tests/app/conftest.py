@@ -10,6 +10,7 @@ from fastapi import Request
 from fastapi.testclient import TestClient
 
 from app.main import create_app
+from app.presenters import answer_body
 from app.settings import Settings
 from optim.solver import raise_for_status
 from tests.app import slow_solves
@@ -61,6 +62,6 @@ def direct_body(family, schema, payload: dict, settings: Settings) -> dict:
 
     body = schema.model_validate(payload)
     problem = body.to_problem(settings)
-    answer = synthesize(family, problem, body.options(problem)).body()
+    answer = answer_body(synthesize(family, problem, body.options(problem)))
     answer["warnings"] = [*body.deprecations, *answer["warnings"]]
     return drop_duplicates(answer)  # as the endpoint answers by default: no load.time_s

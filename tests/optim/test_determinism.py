@@ -6,8 +6,8 @@ The load is simulated by a clock that runs FACTOR times faster than real time an
 reading (``fast_clock``): Python's ``time.perf_counter`` and ``time.monotonic``, which every module reads, and
 HiGHS's own clock (its ``time_limit`` option divided by FACTOR, the same as its clock running FACTOR times
 faster). The expected answer is the same request's answer on the real clock in the same process: the answers
-(``Result.body()``, the endpoint's JSON) must be byte-identical apart from the ``solve_time_s`` fields, the only
-wall times an answer reports. IPOPT's clock is not sped up (its max_wall_time is compiled into the cached
+(``app.presenters.answer_body``, the endpoint's JSON) must be byte-identical apart from the ``solve_time_s``
+fields, the only wall times an answer reports. IPOPT's clock is not sped up (its max_wall_time is compiled into the cached
 solvers): it is a last resort, tested below to raise SolverTimedOut. Each of the four determinism tests fails on
 the code before issue 23 (checked: the time-optimal search timed out or counted LPs past 1 s as not found, the
 STAP multistart stopped after 2 x the wall-time cap, the duration search after 3 x).
@@ -26,6 +26,7 @@ import pytest
 import optim.families.time_optimal.family as time_optimal_family
 import optim.families.time_optimal.lp as lp
 from app.families import BY_NAME
+from app.presenters import answer_body
 from app.schemas.registry import REQUEST_SCHEMAS
 from app.settings import Settings
 from models.errors import SolverTimedOut
@@ -89,7 +90,7 @@ def answer_bytes(family: str, problem: Problem, options: Any) -> bytes:
             return np.ascontiguousarray(value)
         return value
 
-    body = strip(synthesize(REGISTRY[family], problem, options).body())
+    body = strip(answer_body(synthesize(REGISTRY[family], problem, options)))
     return orjson.dumps(body, option=orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_SORT_KEYS)
 
 

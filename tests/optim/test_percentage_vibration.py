@@ -13,7 +13,7 @@ from scipy.optimize import brentq
 
 from models.plants import make_plant
 from models.sensitivity import residual_envelope
-from optim.families.input_shaped.family import InputShapedOptions
+from optim.families.input_shaped.options import InputShapedOptions
 from optim.problem import Limits, Problem, SensitivityGrid
 from optim.registry import FAMILIES
 from optim.synthesis import rigid_reference, synthesize

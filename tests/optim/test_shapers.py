@@ -22,7 +22,7 @@ from models.simulation import simulate
 from optim.registry import FAMILIES  # before the families' modules: the registry imports them
 
 # isort: split
-from optim.families.input_shaped.family import InputShapedOptions
+from optim.families.input_shaped.options import InputShapedOptions
 from optim.families.input_shaped.shapers import (
     CATALOGUE_NAMES,
     catalogue,
@@ -514,7 +514,7 @@ def test_cruise_never_exceeds_max_velocity_and_every_limit_holds(shaper):
     for top in (None, 0.5, 10.0):
         problem = Problem(plant, displacement=0.2, limits=Limits(max_velocity=top, max_acceleration=20.0))
         result = _design(problem, shaper=shaper)
-        m, cruise = result.metrics, abs(result.summary["baseline"]["velocity"])
+        m, cruise = result.metrics, abs(result.summary.baseline.velocity)
         free = cruise if top is None else free
         if top is not None:
             assert cruise == pytest.approx(min(top, free), rel=1e-12)
@@ -523,7 +523,7 @@ def test_cruise_never_exceeds_max_velocity_and_every_limit_holds(shaper):
         assert m.peak_acceleration <= 20.0 * (1 + 1e-12)
         assert not result.limit_violations
         assert result.command.derivative(0)[-1] == pytest.approx(0.2, rel=1e-12)
-        assert result.summary["passes_limiter_unchanged"] is True
+        assert result.summary.passes_limiter_unchanged is True
 
 
 def _end(problem: Problem, baseline: str, steps: int = 2) -> float | None:
@@ -532,7 +532,7 @@ def _end(problem: Problem, baseline: str, steps: int = 2) -> float | None:
         result = _design(problem, baseline=baseline, baseline_steps=steps)
     except Infeasible:
         return None
-    return result.summary["duration_s"] if result.summary["passes_limiter_unchanged"] else None
+    return result.summary.duration_s if result.summary.passes_limiter_unchanged else None
 
 
 @pytest.mark.parametrize("limit", [0.2, 0.1, 0.08, 0.05])
@@ -545,11 +545,11 @@ def test_auto_is_the_fastest_baseline_that_meets_the_limit(limit, move):
     problem = Problem(PLANT, **move, limits=Limits(max_acceleration=limit))
     auto = _design(problem)
     ends = [_end(problem, "modified")] + [_end(problem, "multi_step", steps) for steps in (1, 2, 3)]
-    assert auto.summary["duration_s"] <= min(e for e in ends if e is not None) * (1 + 1e-12)
-    assert auto.summary["passes_limiter_unchanged"] is True
+    assert auto.summary.duration_s <= min(e for e in ends if e is not None) * (1 + 1e-12)
+    assert auto.summary.passes_limiter_unchanged is True
     if "target_velocity" in move:  # a rest-to-rest move may cruise slower so that the modified ramp fits
-        assert (auto.summary["baseline"]["kind"] == "modified") == (limit >= 0.0909)
-    assert auto.summary["baseline"]["requested"] == "auto" and "auto:" in auto.summary["baseline"]["choice"]
+        assert (auto.summary.baseline.kind == "modified") == (limit >= 0.0909)
+    assert auto.summary.baseline.requested == "auto" and "auto:" in auto.summary.baseline.choice
     residual = auto.metrics.residual_amplitude if "displacement" in move else auto.metrics.residual_velocity_amplitude
     assert residual < 1e-12
 
@@ -562,7 +562,7 @@ def test_explicit_baselines_keep_their_behaviour():
         _design(problem, baseline="modified")
     assert "no-overlap" in info.value.reason
     step = _design(problem, baseline="step")
-    assert step.summary["baseline"]["kind"] == "step" and step.summary["passes_limiter_unchanged"] is False
+    assert step.summary.baseline.kind == "step" and step.summary.passes_limiter_unchanged is False
 
 
 def test_compare_candidates_are_one_group_per_shaper_with_the_automatic_baseline():
@@ -590,9 +590,9 @@ def test_motor_torque_stays_within_its_limit(shaper):
     problem = Problem(plant, target_velocity=150.0, limits=Limits(max_torque_nm=10.0))
     result = _design(problem, shaper=shaper)
     assert result.metrics.peak_motor_torque_nm <= 10.0 * (1 + 1e-9) and not result.limit_violations
-    assert result.summary["acceleration_limit"] < 10.0 / 0.01
+    assert result.summary.acceleration_limit < 10.0 / 0.01
     assert any("lowered" in w for w in result.warnings)
-    assert result.summary["passes_limiter_unchanged"] is True
+    assert result.summary.passes_limiter_unchanged is True
 
 
 def test_bounded_fuzz_every_design_meets_the_limits_and_arrives():

@@ -11,10 +11,11 @@ from typing import Any
 import numpy as np
 import pytest
 
+from app.services.sweeps import line_json
 from models.errors import InvalidParameter, PoolUnavailable
 from models.plants import make_plant
 from optim import sweeps
-from optim.families.input_shaped.family import InputShapedOptions
+from optim.families.input_shaped.options import InputShapedOptions
 from optim.problem import Problem
 from runtime.dask import DaskExecutor
 from runtime.executor import InlineExecutor, PoolBusy
@@ -45,6 +46,11 @@ def describe(exc: Exception, context: Any) -> dict[str, Any]:
     return {"type": type(exc).__name__, "detail": str(exc)}
 
 
+def _json(line: sweeps.Line) -> dict[str, Any]:
+    """The line as the service writes it (app.services.sweeps.line_json), a failure named by its exception."""
+    return line_json(line, describe)
+
+
 def frequency_axis(ratio: float, count: int) -> sweeps.Axis:
     return sweeps.Axis("plant.natural_frequency_hz", tuple(BASE_HZ * ratio**k for k in range(count)), log_scale=True)
 
@@ -55,14 +61,13 @@ def run(axes, prepare=zv_prepare, executor=None, **kwargs) -> list[dict[str, Any
             "input_shaped",
             axes,
             prepare,
-            describe,
             executor or InlineExecutor(),
             capacity=kwargs.pop("capacity", 1),
             deadline_s=30.0,
             threshold_percent=5.0,
             **kwargs,
         )
-        return [line async for line in lines]
+        return [_json(line) async for line in lines]
 
     return aio.run(collect())
 
@@ -215,14 +220,13 @@ def test_leaving_the_stream_cancels_the_points_in_flight_and_starts_no_more():
             "input_shaped",
             [frequency_axis(1.02, 20)],
             zv_prepare,
-            describe,
             executor,
             capacity=4,
             deadline_s=30.0,
             threshold_percent=5.0,
         )
         try:
-            return await anext(lines)
+            return _json(await anext(lines))
         finally:
             await lines.aclose()  # what Starlette does when the client goes away
 
@@ -243,7 +247,6 @@ def test_the_same_sweep_on_a_local_dask_cluster_gives_identical_rows():
                 "input_shaped",
                 axes,
                 zv_prepare,
-                describe,
                 dask,
                 capacity=capacity,
                 deadline_s=60.0,
@@ -251,7 +254,7 @@ def test_the_same_sweep_on_a_local_dask_cluster_gives_identical_rows():
                 refine=True,
                 max_refined_points=4,
             )
-            return [line async for line in lines]
+            return [_json(line) async for line in lines]
 
     with distributed.LocalCluster(
         n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=40

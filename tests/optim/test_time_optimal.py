@@ -41,8 +41,8 @@ def _ode_residual(result: Result, omega: float, zeta: float) -> float:
     """Free-vibration amplitude of the load's deflection after the command, by integrating
     x'' + 2 zeta w x' + w^2 x = -a(t) (x = load - motor) arc by arc (a is constant on each arc)."""
     state = np.zeros(2)
-    for arc in result.summary["arcs"]:
-        level, h = arc["level"], arc["duration_s"]
+    for arc in result.summary.arcs:
+        level, h = arc.level, arc.duration_s
 
         def rhs(_t: float, y: np.ndarray, level: float = level) -> list[float]:
             return [y[1], -2 * zeta * omega * y[1] - omega**2 * y[0] - level]
@@ -67,15 +67,15 @@ def test_known_answer_is_the_closed_form_three_switch_solution() -> None:
     result = _design(KNOWN)
     design = result.summary
     # 219.7077 ms from the issue (the closed form); 0.01 % is its acceptance tolerance.
-    assert design["duration_s"] == pytest.approx(0.2197077, rel=1e-4)
-    durations_ms = [1e3 * a["duration_s"] for a in design["arcs"]]
-    levels = [a["level"] for a in design["arcs"]]
+    assert design.duration_s == pytest.approx(0.2197077, rel=1e-4)
+    durations_ms = [1e3 * a.duration_s for a in design.arcs]
+    levels = [a.level for a in design.arcs]
     assert levels == [10.0, -10.0, 10.0, -10.0]
     assert durations_ms == pytest.approx([104.03, 5.83, 5.83, 104.03], abs=0.01)  # the issue's two decimals
     # Residual below 1e-9 of the move, by an independent ODE integration (its own error ~1e-13 of the move).
     assert _ode_residual(result, 2 * math.pi * 40.0, 0.0) < 1e-9 * 0.12
     # Certificate: the bound never exceeds the duration and is at least the rigid bang-bang time.
-    assert 2 * math.sqrt(0.12 / 10.0) - 1e-12 <= design["lower_bound_s"] <= design["duration_s"]
+    assert 2 * math.sqrt(0.12 / 10.0) - 1e-12 <= design.lower_bound_s <= design.duration_s
     assert result.limit_violations == ()
     end = result.command.end_index()
     assert result.command.derivatives[0, end] == pytest.approx(0.12, rel=1e-12)
@@ -92,7 +92,7 @@ def test_nominal_matches_the_independent_oracle(frequency_hz: float, displacemen
     w = 2 * math.pi * frequency_hz
     exact = oracle.minimum_time(w, 10.0, 5.0, displacement)
     problem = Problem(ModePlant(frequency_hz, 0.0), displacement=displacement, limits=Limits(5.0, 10.0))
-    assert _design(problem).summary["duration_s"] == pytest.approx(exact, rel=1e-4)
+    assert _design(problem).summary.duration_s == pytest.approx(exact, rel=1e-4)
 
 
 @pytest.mark.parametrize(
@@ -116,13 +116,13 @@ def test_nominal_designs_leave_no_residual_and_meet_the_limits(
     assert float(amplitude[0, 0]) < 1e-9 * displacement
     assert result.limit_violations == ()
     design = result.summary
-    assert problem.kinematic_floor_s() - 1e-12 <= design["lower_bound_s"] <= design["duration_s"]
+    assert problem.kinematic_floor_s() - 1e-12 <= design.lower_bound_s <= design.duration_s
     # Faster than ZV shaping of the rigid move (which adds half a damped period to its duration, here
     # D/v + v/a (+ a/j): every case reaches both limits).
     assert limits.max_velocity is not None and limits.max_acceleration is not None
     rigid = displacement / limits.max_velocity + limits.max_velocity / limits.max_acceleration
     rigid += 0.0 if limits.max_jerk is None else limits.max_acceleration / limits.max_jerk
-    assert design["duration_s"] < rigid + 0.5 * mode.damped_period_s
+    assert design.duration_s < rigid + 0.5 * mode.damped_period_s
 
 
 def test_rest_to_velocity() -> None:
@@ -140,15 +140,15 @@ def test_robust_band_is_covered_on_an_independent_dense_grid(band: tuple[float, 
     result = _design(problem, TimeOptimalOptions(Robustness(frequency_ratio_range=band)))
     ratios = np.linspace(band[0], band[1], 3001)  # not the family's 2001 nor the search's 1500 points
     assert float(np.max(_v(problem, result, ratios, 0.05))) <= 5.0 * (1 + 1e-9)
-    robustness = result.summary["robustness"]
-    assert robustness["covers_request"]
-    assert robustness["achieved"]["frequency_ratio_range"][0] <= band[0]
-    assert robustness["achieved"]["frequency_ratio_range"][1] >= band[1]
+    robustness = result.summary.robustness
+    assert robustness.covers_request
+    assert robustness.achieved.frequency_ratio_range[0] <= band[0]
+    assert robustness.achieved.frequency_ratio_range[1] >= band[1]
     nominal = _design(problem)
     # Robustness costs time, but less than the ZVD-shaped rigid move's extra period.
-    assert nominal.summary["duration_s"] < result.summary["duration_s"]
-    assert result.summary["duration_s"] < problem.kinematic_floor_s() + problem.plant.modes()[0].damped_period_s
-    assert result.summary["lower_bound_s"] <= result.summary["duration_s"]
+    assert nominal.summary.duration_s < result.summary.duration_s
+    assert result.summary.duration_s < problem.kinematic_floor_s() + problem.plant.modes()[0].damped_period_s
+    assert result.summary.lower_bound_s <= result.summary.duration_s
 
 
 def test_derivative_order_flattens_the_residual_at_the_mode() -> None:
@@ -163,13 +163,13 @@ def test_torque_limit_holds_on_a_fine_resampling() -> None:
     plant = TwoInertiaPlant(0.005, 0.005, 12.633093633, 0.0)  # 8 Hz, Cusimano's Table 2 motor with J_L = J_M
     problem = Problem(plant, displacement=3.0, limits=Limits(max_velocity=150.0, max_torque_nm=10.0))
     result = _design(problem)
-    fine = result.design.command.resampled(result.summary["duration_s"] / 20000)
+    fine = result.design.command.resampled(result.summary.duration_s / 20000)
     torque = simulate(plant, fine).motor_torque_nm
     assert torque is not None
     assert float(np.max(np.abs(torque))) <= 10.0 * (1 + 1e-9)
     assert result.metrics.residual_amplitude < 1e-9 * 3.0
     # No faster than the inertia centre allows: T >= 2 sqrt(D (J_M + J_L) / M).
-    assert result.summary["duration_s"] >= 2 * math.sqrt(3.0 * 0.01 / 10.0)
+    assert result.summary.duration_s >= 2 * math.sqrt(3.0 * 0.01 / 10.0)
 
 
 def test_every_mode_of_a_transfer_function_is_cancelled() -> None:
@@ -182,10 +182,10 @@ def test_every_mode_of_a_transfer_function_is_cancelled() -> None:
     residuals = [m.residual_amplitude for m in result.metrics.modes]
     assert len(residuals) == 2
     assert max(residuals) < 1e-9 * 0.2
-    assert [m["constraint"] for m in result.summary["modes"]] == ["zero_residual", "zero_residual"]
+    assert [m.constraint for m in result.summary.modes] == ["zero_residual", "zero_residual"]
     # Shorter than ZV shaping for the slow mode alone (rigid 0.5 s + half its period); the cascade of ZV
     # shapers for both modes (0.71 s) once replaced a shorter grid design.
-    assert result.summary["duration_s"] < 0.5 + 0.5 / 3.0
+    assert result.summary.duration_s < 0.5 + 0.5 / 3.0
 
 
 def test_a_band_no_command_can_meet_within_the_cap_is_proven_infeasible() -> None:
@@ -231,13 +231,13 @@ def test_a_solve_over_its_time_limit_is_a_time_out() -> None:
 def test_tradeoff_rows_grow_with_the_band() -> None:
     options = TimeOptimalOptions(tradeoff=(0.0, 0.05, 0.1))
     result = _design(KNOWN, options)
-    rows = result.extras["tradeoff"]
-    durations = [r["duration_s"] for r in rows]
-    assert durations[0] == pytest.approx(result.summary["duration_s"], rel=1e-12)
+    rows = result.extras.tradeoff
+    durations = [r.duration_s for r in rows]
+    assert durations[0] == pytest.approx(result.summary.duration_s, rel=1e-12)
     assert durations[0] < durations[1] <= durations[2]
-    assert all(r["lower_bound_s"] <= r["duration_s"] for r in rows)
+    assert all(r.lower_bound_s <= r.duration_s for r in rows)
     # The solver report counts the rows' LPs too (each row is a search of its own).
-    assert result.solver is not None and result.solver.solves > result.summary["search"]["lp_solves"]
+    assert result.solver is not None and result.solver.solves > result.summary.search.lp_solves
     assert result.solver.status == "refined"
 
 
@@ -248,7 +248,7 @@ def test_jerk_limited_robust_band() -> None:
     result = _design(problem, TimeOptimalOptions(Robustness(frequency_ratio_range=(0.9, 1.1))))
     assert result.limit_violations == ()
     assert float(np.max(_v(problem, result, np.linspace(0.9, 1.1, 3001), 0.05))) <= 5.0 * (1 + 1e-9)
-    assert result.summary["lower_bound_s"] <= result.summary["duration_s"]
+    assert result.summary.lower_bound_s <= result.summary.duration_s
 
 
 def test_band_only_is_no_longer_and_still_covers_the_band() -> None:
@@ -257,7 +257,7 @@ def test_band_only_is_no_longer_and_still_covers_the_band() -> None:
     band_only = Robustness(frequency_ratio_range=(0.8, 1.2), zero_residual_at_modes=False)
     band = _design(problem, TimeOptimalOptions(band_only))
     # Fewer constraints: no longer, up to one step of the 4x finer grid both are optima of.
-    assert band.summary["duration_s"] <= both.summary["duration_s"] + band.summary["grid"]["step_s"]
+    assert band.summary.duration_s <= both.summary.duration_s + band.summary.grid.step_s
     assert float(np.max(_v(problem, band, np.linspace(0.8, 1.2, 3001), 0.05))) <= 5.0 * (1 + 1e-9)
     assert both.percentage_vibration is not None and both.percentage_vibration < 1e-6
 
@@ -274,11 +274,11 @@ def test_a_band_reaching_low_frequencies_keeps_a_fine_grid() -> None:
     )
     options = TimeOptimalOptions(Robustness(frequency_range_hz=(0.001, 6.0)), max_duration_s=1e4)
     result = _design(problem, options)
-    grid = result.summary["grid"]
-    assert grid["steps"] >= 48  # the grid fits the duration found (half of STEPS = 96), not the guess
+    grid = result.summary.grid
+    assert grid.steps >= 48  # the grid fits the duration found (half of STEPS = 96), not the guess
     # Under the default cap the same band gives 1.196 s (the review's run); with the huge guess it gave 33.87 s.
     # 3 s separates the two with room for grid differences.
-    assert result.summary["duration_s"] < 3.0
+    assert result.summary.duration_s < 3.0
 
 
 def test_snapped_grid_commands_keep_the_acceleration_limit(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -301,10 +301,10 @@ def test_a_stalling_lp_does_not_spend_the_request() -> None:
     problem = Problem(ModePlant(3.0, 0.03), displacement=0.2, limits=Limits(None, 2.0, 100.0))
     result = _design(problem)
     assert result.limit_violations == ()
-    assert result.summary["lower_bound_s"] <= result.summary["duration_s"]
-    search = result.summary["search"]
-    assert search["lp_runs_at_iteration_cap"] == 1 and search["lps_not_found_at_iteration_cap"] == 0
-    assert result.solver is not None and result.solver.iterations >= search["max_lp_iterations"]  # it ran to the cap
+    assert result.summary.lower_bound_s <= result.summary.duration_s
+    search = result.summary.search
+    assert search.lp_runs_at_iteration_cap == 1 and search.lps_not_found_at_iteration_cap == 0
+    assert result.solver is not None and result.solver.iterations >= search.max_lp_iterations  # it ran to the cap
 
 
 def test_an_lp_at_its_iteration_cap_counts_as_not_found_and_says_so(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -312,10 +312,10 @@ def test_an_lp_at_its_iteration_cap_counts_as_not_found_and_says_so(monkeypatch:
     # (measured: 6 runs, 1 LP): they count as "no command found", and the design says so.
     monkeypatch.setattr(lp, "MAX_LP_ITERATIONS", 12)
     result = _design(KNOWN)
-    search = result.summary["search"]
-    assert search["max_lp_iterations"] == 12
-    assert search["lps_not_found_at_iteration_cap"] >= 1
-    assert search["lp_runs_at_iteration_cap"] >= 2 * search["lps_not_found_at_iteration_cap"]  # both methods
+    search = result.summary.search
+    assert search.max_lp_iterations == 12
+    assert search.lps_not_found_at_iteration_cap >= 1
+    assert search.lp_runs_at_iteration_cap >= 2 * search.lps_not_found_at_iteration_cap  # both methods
     assert any("counted as 'no command found'" in w for w in result.warnings)
 
 
@@ -333,7 +333,7 @@ def test_never_slower_than_zv_shaping_of_the_rigid_move(
     limits = Limits(max_velocity=velocity, max_acceleration=acceleration)
     result = _design(Problem(plant, displacement=displacement, limits=limits))
     zv_end = displacement / velocity + velocity / acceleration + 0.5 * plant.modes()[0].damped_period_s
-    assert result.summary["duration_s"] <= zv_end * (1 + 1e-9)
+    assert result.summary.duration_s <= zv_end * (1 + 1e-9)
     assert result.limit_violations == ()
     assert result.metrics.residual_amplitude < 1e-9 * displacement
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Any, ClassVar, Literal
+from typing import ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -30,43 +30,32 @@ from models.shapers import (
     ImpulseSequence,
     RampTrain,
     follow_position,
-    percentage_vibration,
     rate_limit,
     shape_command,
 )
 from models.torque import peak_motor_torque_nm as exact_peak_motor_torque_nm
+from optim.families.input_shaped.baseline_choice import ShaperPlan, plan
+from optim.families.input_shaped.options import MAX_SHAPED_MODES, MAX_SHAPED_RAMPS, InputShapedOptions
+from optim.families.input_shaped.report import (
+    BaselineReport,
+    ImpulsesReport,
+    InputShapedExtras,
+    InputShapedReport,
+    shaper_report,
+)
 from optim.families.input_shaped.shapers import (
-    DEFAULT_VIBRATION_TOLERANCE,
     MAX_COMMAND_S,
-    Baseline,
-    BaselineChoice,
     ShaperDesign,
-    design_baseline,
     design_for_modes,
-    fastest_cruise_velocity,
-    fastest_single_ramp_cruise,
-    multi_step_baseline,
-    single_ramp_baseline,
     step_baseline,
 )
 from optim.family import BaseFamily, Candidate, Design, Grid, Profile, Run, profile_at_instants
 from optim.problem import Problem
+from optim.results import Finish
 
-MAX_SHAPED_MODES = 3
-MAX_SHAPED_RAMPS = 1000  # impulses x baseline steps: bounds the limiter's corners and the step programme
 TORQUE_ITERATIONS = 8  # lowering the acceleration limit until the motor torque fits: 2-3 passes seen
 TORQUE_SLACK = 1e-9  # a design is kept when its exact torque peak is this far below the limit (round-off)
 COMPARED_SHAPERS = ("zv", "mzv", "zvd", "ei")  # compare's rows: the shapers users set in their firmware
-AUTO_MULTI_STEP_MAX_IMPULSES = 5  # auto also tries multi-step baselines (linear programmes) on shapers this small
-
-
-@dataclass(frozen=True)
-class InputShapedOptions:
-    shaper: str = "zvd"
-    vibration_tolerance: float = DEFAULT_VIBRATION_TOLERANCE
-    shaped_modes: Literal["first", "all"] = "first"
-    baseline: BaselineChoice = "auto"
-    baseline_steps: int = 2
 
 
 @dataclass(frozen=True)
@@ -84,130 +73,6 @@ class Commands:
     @property
     def end_s(self) -> float:
         return max(float(c.time_s[-1]) for c in (self.baseline, self.shaped, self.limited))
-
-
-@dataclass(frozen=True)
-class ShaperPlan:
-    """The baseline of one design and why it was chosen: velocity V, cruise time D/V (rest-to-rest)."""
-
-    baseline: Baseline
-    velocity: float
-    cruise_s: float | None
-    reason: str
-    alternatives: tuple[dict[str, Any], ...] = ()
-
-
-def shaped_end_s(baseline: Baseline, shaper: ImpulseSequence, cruise_s: float | None) -> float:
-    """When the shaped command stops changing: the baseline (a pulse of ``cruise_s`` for a rest-to-rest
-    move) convolved with the impulses."""
-    train = baseline.train() if cruise_s is None else baseline.train().pulse(cruise_s)
-    return train.shaped(shaper).end_s
-
-
-def _cruise_velocity(problem: Problem, shaper: ImpulseSequence, kind: str, limit: float | None) -> float:
-    """The signed cruise V of a rest-to-rest move: the fastest within limits.max_velocity for the kind of
-    baseline (the shaped command's peak velocity is the baseline's, at most V)."""
-    displacement, top = problem.move, problem.limits.max_velocity
-    if limit is None:
-        if top is None:
-            raise InvalidParameter(
-                "limits.max_velocity", None, "is required for a rest-to-rest move without an acceleration limit"
-            )
-        return math.copysign(top, displacement)
-    if kind == "modified":
-        return math.copysign(fastest_cruise_velocity(displacement, shaper, limit, top), displacement)
-    if kind == "step" and top is not None:
-        return math.copysign(top, displacement)
-    return math.copysign(fastest_single_ramp_cruise(displacement, shaper, limit, top), displacement)
-
-
-def _velocity_and_cruise(
-    problem: Problem, shaper: ImpulseSequence, kind: str, limit: float | None
-) -> tuple[float, float | None]:
-    """(V, D/V): the target velocity of a rest-to-velocity move (no cruise), else the cruise and its time."""
-    if problem.target_velocity is not None:
-        return problem.target_velocity, None
-    velocity = _cruise_velocity(problem, shaper, kind, limit)
-    return velocity, abs(problem.move / velocity)
-
-
-def _nominal_residual(problem: Problem, baseline: Baseline, shaper: ImpulseSequence, cruise_s: float | None) -> float:
-    """The residual the shaped baseline leaves on the plant's first mode (position; velocity when the move
-    ends moving), in the load's units: one sum over its breakpoints (models.sensitivity)."""
-    from models.sensitivity import mode_residuals
-
-    modes = problem.plant.modes()
-    if not modes:
-        return 0.0
-    train = baseline.train() if cruise_s is None else baseline.train().pulse(cruise_s)
-    try:
-        command = train.shaped(shaper).to_command()
-    except InvalidParameter:  # a move beyond the time range: refused later, with its reason
-        return math.inf
-    mode = modes[0]
-    derivative = 0 if problem.rest_to_rest else 1
-    amplitude, _ = mode_residuals(command, mode.natural_frequency_rad_s, mode.damping_ratio, derivative)
-    return float(amplitude[0]) * problem.plant.load_move(1.0)
-
-
-def _why(chosen: Baseline, single_ramp: bool) -> str:
-    if chosen.kind == "modified":
-        return "its shaped ramps do not overlap (t_(i+1) - t_i >= Delta, Sec. 4)"
-    if single_ramp:
-        return "the modified baseline's shaped ramps would overlap and break the limit"
-    return "it ends before the single ramp"
-
-
-def _auto(problem: Problem, shaper: ImpulseSequence, limit: float | None) -> ShaperPlan:
-    """The fastest baseline whose shaped command meets the limits, by the shaped command's end: the
-    plain step without an acceleration limit; else the shortest single ramp (the modified baseline where
-    its ramps do not overlap, lengthened where they do) at its fastest cruise, against the multi-step
-    baselines of Fig. 10 (2 to n steps) at the same speed, for shapers of at most
-    AUTO_MULTI_STEP_MAX_IMPULSES impulses (each is a linear programme). Where the ramps must overlap the
-    steps can end sooner (ZVD, a = 0.05 on the paper's plant: 26.84 s with 3 steps, 30.91 s with one ramp);
-    where the modified ramp fits none can, as its second step starts at t_2 >= min gap >= Delta."""
-    if limit is None:
-        velocity, cruise = _velocity_and_cruise(problem, shaper, "step", limit)
-        return ShaperPlan(step_baseline(velocity), velocity, cruise, "auto: no acceleration limit, so the plain step")
-    velocity, cruise = _velocity_and_cruise(problem, shaper, "ramp", limit)
-    options = [single_ramp_baseline(velocity, shaper, limit)]
-    if options[0].kind != "modified" and shaper.count <= AUTO_MULTI_STEP_MAX_IMPULSES:
-        options += [multi_step_baseline(velocity, shaper, limit, steps) for steps in range(2, shaper.count + 1)]
-    ends = [shaped_end_s(b, shaper, cruise) for b in options]
-    residuals = [_nominal_residual(problem, b, shaper, cruise) for b in options]
-    # The earliest-ending of those that leave the least residual (an EI, which leaves some by design,
-    # can leave three times more on a multi-step baseline); for a zero-residual shaper: the earliest.
-    floor = min(residuals)
-    least = [i for i, r in enumerate(residuals) if r <= floor * (1 + 1e-6) + 1e-12 * problem.load_move]
-    best = min(least, key=lambda i: ends[i])
-    alternatives = tuple(
-        {
-            "kind": b.kind,
-            "steps": int(b.step_times_s.size),
-            "ramp_time_s": b.ramp_time_s,
-            "end_s": e,
-            "nominal_residual": r,
-        }
-        for b, e, r in zip(options, ends, residuals, strict=True)
-    )
-    reason = (
-        f"auto: the {options[best].kind} baseline with {options[best].step_times_s.size} step(s), the earliest-ending "
-        f"of those tried whose shaped command meets the limits and leaves the least residual at the first mode "
-        f"(shaped end {ends[best]:.6g} s): "
-        f"{_why(options[best], best == 0)}"
-    )
-    return ShaperPlan(options[best], velocity, cruise, reason, alternatives)
-
-
-def plan(problem: Problem, options: InputShapedOptions, shaper: ImpulseSequence, limit: float | None) -> ShaperPlan:
-    """The baseline and cruise of a design: ``auto``'s choice, or the requested kind at its fastest cruise
-    within max_velocity (modified refuses where its ramps would overlap at the speed asked)."""
-    if options.baseline == "auto":
-        return _auto(problem, shaper, limit)
-    kind = options.baseline
-    velocity, cruise = _velocity_and_cruise(problem, shaper, kind, limit)
-    baseline = design_baseline(kind, velocity, shaper, limit, options.baseline_steps)
-    return ShaperPlan(baseline, velocity, cruise, f"requested: {kind}")
 
 
 def _largest_gap(first: PiecewiseCommand, second: PiecewiseCommand) -> float:
@@ -335,50 +200,25 @@ def _check_length(longest: float, shaper: ImpulseSequence, chosen: ShaperPlan, l
         )
 
 
-def _shaper_block(design: ShaperDesign) -> dict[str, Any]:
-    impulses = design.impulses
-    return {
-        "name": design.name,
-        "impulse_count": impulses.count,
-        "duration_s": impulses.duration_s,
-        "duration_periods": design.duration_periods,
-        "vibration_tolerance": design.vibration_tolerance,
-        "modes": [
-            {
-                "natural_frequency_hz": m.natural_frequency_hz,
-                "natural_frequency_rad_s": m.natural_frequency_rad_s,
-                "damping_ratio": m.damping_ratio,
-            }
-            for m in design.modes
-        ],
-        "residual_at_modes": [
-            float(percentage_vibration(impulses, m.natural_frequency_rad_s, m.damping_ratio)) for m in design.modes
-        ],
-        "method": design.method,
-        "reference": design.reference,
-        "conditions_residual": design.conditions_residual,
-    }
-
-
-def _baseline_block(chosen: ShaperPlan, requested: str) -> dict[str, Any]:
+def baseline_report(chosen: ShaperPlan, requested: str) -> BaselineReport:
     baseline, velocity, cruise_s = chosen.baseline, chosen.velocity, chosen.cruise_s
-    return {
-        "kind": baseline.kind,
-        "requested": requested,
-        "choice": chosen.reason,
-        "alternatives": list(chosen.alternatives),
-        "cruise_choice": None
+    return BaselineReport(
+        kind=baseline.kind,
+        requested=requested,
+        choice=chosen.reason,
+        alternatives=chosen.alternatives,
+        cruise_choice=None
         if cruise_s is None
         else f"cruise {abs(velocity):.6g}: the earliest-ending {baseline.kind} move within limits.max_velocity "
         "(the shaped command never moves faster than its baseline's cruise)",
-        "move": "rest_to_velocity" if cruise_s is None else "rest_to_rest",
-        "velocity": velocity,
-        "cruise_time_s": cruise_s,
-        "step_times_s": baseline.step_times_s,
-        "step_heights": baseline.step_heights,
-        "ramp_time_s": baseline.ramp_time_s,
-        "method": baseline.method,
-    }
+        move="rest_to_velocity" if cruise_s is None else "rest_to_rest",
+        velocity=velocity,
+        cruise_time_s=cruise_s,
+        step_times_s=baseline.step_times_s,
+        step_heights=baseline.step_heights,
+        ramp_time_s=baseline.ramp_time_s,
+        method=baseline.method,
+    )
 
 
 def firmware_residual(problem: Problem, commands: Commands) -> Callable[[ImpulseSequence], float]:
@@ -386,7 +226,7 @@ def firmware_residual(problem: Problem, commands: Commands) -> Callable[[Impulse
     baseline (the baseline shaped by them, exactly: models.shapers.shape_command), in the definition of
     metrics.percentage_vibration; 100 V of the impulses alone (its value on a step) where that is not
     representable."""
-    from optim.families.input_shaped.firmware import shaper_residual_percent
+    from optim.families.input_shaped.firmware_blocks import shaper_residual_percent
     from optim.synthesis import nominal_percentage_vibration
 
     mode = problem.plant.modes()[0]
@@ -443,7 +283,7 @@ class InputShapedFamily(BaseFamily):
         )
 
     def design(self, problem: Problem, options: InputShapedOptions) -> Design:
-        from optim.families.input_shaped.firmware import firmware_block
+        from optim.families.input_shaped.firmware_blocks import firmware_block
 
         design = shaper_design(problem, options)
         shaper, limit = design.impulses, problem.acceleration_limit
@@ -477,16 +317,16 @@ class InputShapedFamily(BaseFamily):
                 "longer cancels the residual as designed; baseline 'auto' keeps the shaped command within the limit"
             )
         steps_in_command = bool(np.any(commands.shaped_train.rise_s == 0.0))
-        summary = {
-            "shaper": _shaper_block(design),
-            "baseline": _baseline_block(chosen, options.baseline),
-            "acceleration_limit": limit,
-            "drive": _drive_name(unchanged, chosen.cruise_s is not None),
-            "shaped_peak_acceleration": None if steps_in_command else commands.shaped_train.max_slope(),
-            "passes_limiter_unchanged": unchanged,
-            "duration_s": commands.end_s,
-            "firmware": firmware_block(design, firmware_residual(problem, commands)),
-        }
+        summary = InputShapedReport(
+            shaper=shaper_report(design),
+            baseline=baseline_report(chosen, options.baseline),
+            acceleration_limit=limit,
+            drive=_drive_name(unchanged, chosen.cruise_s is not None),
+            shaped_peak_acceleration=None if steps_in_command else commands.shaped_train.max_slope(),
+            passes_limiter_unchanged=unchanged,
+            duration_s=commands.end_s,
+            firmware=firmware_block(design, firmware_residual(problem, commands)),
+        )
         end_s = max(commands.end_s, float(commands.plain_limited.time_s[-1]))
         return Design(commands.limited, summary, tuple(warnings), end_s=end_s, detail=commands)
 
@@ -500,8 +340,8 @@ class InputShapedFamily(BaseFamily):
         """The shaped command sent to the drive (as ``profile``), at the instants."""
         return profile_at_instants(design.detail.shaped, time_s)
 
-    def finish(self, problem: Problem, design: Design, run: Run) -> dict[str, Any]:
-        from optim.synthesis import metrics_block, profile_arrays
+    def finish(self, problem: Problem, design: Design, run: Run) -> Finish:
+        from optim.synthesis import metrics_report, profile_arrays
 
         commands: Commands = design.detail
         grid = run.grid
@@ -509,10 +349,11 @@ class InputShapedFamily(BaseFamily):
         room = max(problem.max_samples - plain.time_s.size - 2, 1)
         end = max(grid.horizon_s, float(plain.time_s[-1]))
         period = max(grid.period_s, (end - float(plain.time_s[0])) / room)  # the residual is exact at any period
-        return {
-            "rate_limited": profile_arrays(run.command),
-            "baseline": profile_arrays(commands.baseline.resampled(grid.period_s, grid.horizon_s)),
-            "impulses": {"amplitudes": commands.impulses.amplitudes, "times_s": commands.impulses.times_s},
-            "ramp_time_s": commands.ramp_time_s,
-            "unmodified": metrics_block(problem, plain.resampled(period, end)),
-        }
+        extras = InputShapedExtras(
+            rate_limited=profile_arrays(run.command),
+            baseline=profile_arrays(commands.baseline.resampled(grid.period_s, grid.horizon_s)),
+            impulses=ImpulsesReport(commands.impulses.amplitudes, commands.impulses.times_s),
+            ramp_time_s=commands.ramp_time_s,
+            unmodified=metrics_report(problem, plain.resampled(period, end)),
+        )
+        return Finish(extras=extras)

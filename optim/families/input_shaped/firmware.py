@@ -36,14 +36,12 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
 from models.errors import InvalidParameter
 from models.plants import Mode
 from models.shapers import ImpulseSequence, percentage_vibration
-from optim.families.input_shaped.shapers import ShaperDesign
 
 ResidualPercent = Callable[[ImpulseSequence], float]
 
@@ -104,7 +102,7 @@ def fixed(value: float, significant: int = SIGNIFICANT_DIGITS) -> str:
     return "0" if text in ("-0", "0.") else text
 
 
-def _rounded(value: float) -> float:
+def rounded(value: float) -> float:
     """The number the firmware reads from ``fixed(value)``."""
     return float(fixed(value))
 
@@ -279,222 +277,3 @@ def valid_options(build: Callable[[str], ImpulseSequence], kinds: tuple[str, ...
         if np.all(impulses.amplitudes > 0.0):
             options[kind] = impulses
     return options
-
-
-def shaper_residual_percent(impulses: ImpulseSequence, mode: Mode) -> float:
-    """100 V(omega_n, zeta) of the impulses alone (Sec. 3.1): the percentage vibration on a plain step."""
-    return 100.0 * float(percentage_vibration(impulses, mode.natural_frequency_rad_s, mode.damping_ratio))
-
-
-def _residuals(settings: FirmwareSettings, design: ShaperDesign, residual: ResidualPercent) -> dict[str, Any]:
-    mode = design.modes[0]
-    others = [shaper_residual_percent(settings.impulses, m) for m in design.modes[1:]]
-    return {
-        "exact": same(settings.impulses, design.impulses),
-        "residual_percent": residual(settings.impulses),
-        "shaper_residual_percent": shaper_residual_percent(settings.impulses, mode),
-        "other_modes_shaper_residual_percent": others,
-    }
-
-
-def _multi_mode_note(design: ShaperDesign) -> str:
-    if len(design.modes) < 2:
-        return ""
-    return (
-        f"The design convolves shapers for {len(design.modes)} modes; this firmware shaper is set for the first "
-        "mode only; other_modes_shaper_residual_percent is what it leaves at the others."
-    )
-
-
-# ------------------------------------------------------------------------------------------
-# The three blocks
-
-
-def klipper_block(design: ShaperDesign, residual: ResidualPercent) -> dict[str, Any]:
-    """The ``[input_shaper]`` section for the X axis (Klipper applies it per axis: copy the three lines
-    with _y for a Y axis of the same mode) with the closest built-in type: the design's own name where
-    Klipper has it, else the type whose V curve is nearest."""
-    mode = design.modes[0]
-    frequency = _rounded(mode.natural_frequency_hz)
-    zeta = mode.damping_ratio
-    options = valid_options(
-        lambda kind: klipper_impulses(kind, frequency, min(_rounded(zeta), KLIPPER_MAX_DAMPING[kind])),
-        tuple(KLIPPER_MAX_DAMPING),
-    )
-    kind = design.name if design.name in options else closest(options, design.impulses, mode)
-    damping = min(_rounded(zeta), KLIPPER_MAX_DAMPING[kind])
-    settings = FirmwareSettings(kind, frequency, damping, options[kind])
-    section = (
-        f"[input_shaper]\nshaper_type_{AXIS}: {kind}\nshaper_freq_{AXIS}: {fixed(frequency)}\n"
-        f"damping_ratio_{AXIS}: {fixed(damping)}\n"
-    )
-    block = {
-        "firmware": "Klipper",
-        "version": KLIPPER_VERSION,
-        "documentation": list(KLIPPER_DOCUMENTATION),
-        "axis": AXIS,
-        "shaper_type": kind,
-        "shaper_freq_hz": frequency,
-        "damping_ratio": damping,
-        "section": section,
-        **_residuals(settings, design, residual),
-    }
-    notes = []
-    if kind != design.name and design.name in KLIPPER_MAX_DAMPING:
-        notes.append(
-            f"Klipper's {design.name} is no shaper at this damping (its fit's times or amplitudes break down): "
-            f"{kind} is the built-in type whose V curve is nearest."
-        )
-    elif kind != design.name:
-        notes.append(f"Klipper has no {design.name} shaper: {kind} is the built-in type whose V curve is nearest.")
-    elif not block["exact"] and len(design.modes) == 1:
-        notes.append(f"Klipper's {kind} is a polynomial fit in the damping ratio, not the designed {kind}.")
-    if damping < _rounded(zeta):
-        notes.append(f"Klipper's {kind} accepts damping_ratio up to {damping:g}; the design's is {zeta:.6g}.")
-    if kind == "ei" and design.vibration_tolerance is not None and design.vibration_tolerance != KLIPPER_DEFAULT_V_TOL:
-        notes.append(
-            f"plain ei uses a 5 % tolerance; Klipper master also takes ei(v_tol={design.vibration_tolerance:g}) "
-            "(not v0.13.0)."
-        )
-    if kind == "3hump_ei":
-        notes.append("3hump_ei as here needs Klipper from 0d1445a (2026-03-31): its damped fit had a typo before.")
-    notes.append(_multi_mode_note(design))
-    block["note"] = " ".join(n for n in notes if n) or None
-    return block
-
-
-def _rrf_custom(impulses: ImpulseSequence) -> tuple[str, str, ImpulseSequence]:
-    """M593 P"custom" for 3.6 (individual amplitudes H of all but the last, cumulative delays T of all but
-    the first) and for 3.4/3.5 (cumulative amplitudes, durations between impulses), and what 3.6 applies."""
-    a = [_rounded(x) for x in impulses.amplitudes[:-1]]
-    t = [_rounded(x) for x in impulses.times_s[1:]]
-    h36 = ":".join(fixed(x) for x in a)
-    t36 = ":".join(fixed(x) for x in t)
-    cumulative = np.cumsum(impulses.amplitudes[:-1])
-    h35 = ":".join(fixed(x) for x in cumulative)
-    t35 = ":".join(fixed(x) for x in np.diff(impulses.times_s))
-    applied = ImpulseSequence(np.array([*a, 1.0 - sum(a)]), np.array([0.0, *t]))
-    return f'M593 P"custom" H{h36} T{t36}', f'M593 P"custom" H{h35} T{t35}', applied
-
-
-def reprapfirmware_block(design: ShaperDesign, residual: ResidualPercent) -> tuple[dict[str, Any] | None, str | None]:
-    """``M593``: a named type where RRF's impulses are the design's, else the design's own impulses as
-    P"custom" (up to 5), else the nearest named type; one shaper for every axis. (None, reason) where
-    the design frequency is outside what M593 F takes."""
-    mode = design.modes[0]
-    low, high = RRF_FREQUENCY_HZ
-    if not low <= mode.natural_frequency_hz <= high:
-        return None, (
-            f"M593 F takes {low:g} to {high:g} Hz (RRF 3.6); the design frequency is {mode.natural_frequency_hz:.6g} Hz"
-        )
-    frequency, zeta = _rounded(mode.natural_frequency_hz), min(_rounded(mode.damping_ratio), RRF_MAX_DAMPING)
-    options = valid_options(
-        lambda kind: rrf_impulses(kind, frequency, zeta), ("zvd", "zvdd", "zvddd", "mzv", "ei2", "ei3")
-    )
-    named = [kind for kind, impulses in options.items() if same(impulses, design.impulses)]
-    note = None
-    if named and zeta == _rounded(mode.damping_ratio):
-        kind = named[0]
-        command = command_35 = f'M593 P"{kind}" F{fixed(frequency)} S{fixed(zeta)}'
-        settings = FirmwareSettings(kind, frequency, zeta, options[kind])
-    elif design.impulses.count <= RRF_MAX_IMPULSES:
-        kind = "custom"
-        command, command_35, applied = _rrf_custom(design.impulses)
-        settings = FirmwareSettings(kind, frequency, zeta, applied)
-        note = f"RRF's own {RRF_NAMES[design.name]} differs from the design here." if design.name in RRF_NAMES else None
-    else:
-        mapped = RRF_NAMES.get(design.name)
-        kind = mapped if mapped in options else closest(options, design.impulses, mode)
-        command = command_35 = f'M593 P"{kind}" F{fixed(frequency)} S{fixed(zeta)}'
-        settings = FirmwareSettings(kind, frequency, zeta, options[kind])
-        note = (
-            f'the design has {design.impulses.count} impulses, more than the {RRF_MAX_IMPULSES} P"custom" takes: '
-            f"{kind} is the nearest named type."
-        )
-    block = {
-        "firmware": "RepRapFirmware",
-        "version": RRF_VERSION,
-        "documentation": list(RRF_DOCUMENTATION),
-        "shaper_type": kind,
-        "frequency_hz": frequency,
-        "damping_ratio": zeta,
-        "command": command,
-        "command_3_5": command_35,
-        **_residuals(settings, design, residual),
-    }
-    notes = [note or "", "" if kind == "custom" else _multi_mode_note(design)]
-    block["note"] = " ".join(n for n in notes if n) or None
-    return block, None
-
-
-def marlin_block(design: ShaperDesign, residual: ResidualPercent) -> tuple[dict[str, Any] | None, str | None]:
-    """``M493 S1 X C<mode> A<Hz> I<zeta> [Q<vtol>]`` for the X axis, or (None, reason) where FTM has no
-    such shaper (one shaper per axis: no convolved multi-mode design; ZV to ZVDDD, EI types, MZV) or the
-    frequency is outside [FTM_MIN_SHAPE_FREQ, FTM_FS / 2] of a default build."""
-    mode = design.modes[0]
-    if len(design.modes) > 1:
-        return None, "Marlin's Fixed-Time Motion sets one shaper per axis: it cannot apply shapers convolved for modes"
-    if design.name not in MARLIN_MODES:
-        return None, f"Marlin's Fixed-Time Motion has {', '.join(MARLIN_MODES)}, not {design.name}"
-    top = MARLIN_FTM_FS_HZ / 2.0
-    if not MARLIN_MIN_SHAPE_FREQ_HZ <= mode.natural_frequency_hz <= top:
-        return None, (
-            f"M493 A takes FTM_MIN_SHAPE_FREQ ({MARLIN_MIN_SHAPE_FREQ_HZ:g} Hz by default) to FTM_FS / 2 ({top:g} Hz); "
-            f"the design frequency is {mode.natural_frequency_hz:.6g} Hz"
-        )
-    frequency = _rounded(mode.natural_frequency_hz)
-    low, high = MARLIN_ZETA
-    zeta = min(max(_rounded(mode.damping_ratio), low), high)
-    vtol = design.vibration_tolerance if design.name in ("ei", "2hump_ei", "3hump_ei") else None
-    command = f"M493 S1 {AXIS.upper()} C{MARLIN_MODES[design.name]} A{fixed(frequency)} I{fixed(zeta)}"
-    if vtol is not None:
-        vtol = _rounded(vtol)
-        command += f" Q{fixed(vtol)}"
-    impulses = marlin_impulses(design.name, frequency, zeta, KLIPPER_DEFAULT_V_TOL if vtol is None else vtol)
-    settings = FirmwareSettings(design.name, frequency, zeta, impulses)
-    notes = [
-        f"Marlin delays the impulses by whole {1e3 / MARLIN_FTM_FS_HZ:g} ms samples "
-        f"(FTM_FS = {MARLIN_FTM_FS_HZ:g} Hz): "
-        f"{', '.join(fixed(1e3 * t) for t in impulses.times_s)} ms."
-    ]
-    if zeta != _rounded(mode.damping_ratio):
-        notes.append(
-            f"I is written within {low:g} to {high:g} (M493 takes 0.01 to 1; at 1 Marlin's shaper divides by zero); "
-            f"the design's damping ratio is {mode.damping_ratio:.6g}."
-        )
-    if design.name in ("mzv", "ei", "2hump_ei", "3hump_ei") and mode.damping_ratio > 0.0:
-        notes.append(f"Marlin's damped {design.name} scales the undamped amplitudes by powers of K.")
-    block = {
-        "firmware": "Marlin",
-        "version": MARLIN_VERSION,
-        "documentation": list(MARLIN_DOCUMENTATION),
-        "axis": AXIS,
-        "shaper_mode": MARLIN_MODES[design.name],
-        "frequency_hz": frequency,
-        "damping_ratio": zeta,
-        "vibration_tolerance": vtol,
-        "command": command,
-        **_residuals(settings, design, residual),
-        "note": " ".join(notes),
-    }
-    return block, None
-
-
-def firmware_block(design: ShaperDesign, residual: ResidualPercent | None = None) -> dict[str, Any]:
-    """``design.firmware``: the Klipper section, the RepRapFirmware M593 and the Marlin M493 of a shaper
-    design, each with the residual its shaper leaves at the design frequency (``residual``: the design's
-    percentage vibration of a sequence of impulses; default 100 V of the impulses, the value on a step)."""
-    mode = design.modes[0]
-    measure: ResidualPercent = residual if residual is not None else (lambda i: shaper_residual_percent(i, mode))
-    reprap, reprap_reason = reprapfirmware_block(design, measure)
-    marlin, marlin_reason = marlin_block(design, measure)
-    return {
-        "axis": AXIS,
-        "design_frequency_hz": mode.natural_frequency_hz,
-        "design_damping_ratio": mode.damping_ratio,
-        "klipper": klipper_block(design, measure),
-        "reprapfirmware": reprap,
-        "reprapfirmware_reason": reprap_reason,
-        "marlin": marlin,
-        "marlin_reason": marlin_reason,
-    }
