@@ -2,16 +2,15 @@
 iterations, starts, solves of a search) decide what a design is; wall-clock time is only a last resort, and
 reached, the design fails with SolverTimedOut.
 
-The load is simulated by a clock that runs FACTOR times faster than real time and jumps JUMP_S more at every
-reading (``fast_clock``): Python's ``time.perf_counter`` and ``time.monotonic``, which every module reads, and
-HiGHS's own clock (its ``time_limit`` option divided by FACTOR, the same as its clock running FACTOR times
-faster). The expected answer is the same request's answer on the real clock in the same process: the answers
-(``app.presenters.answer_body``, the endpoint's JSON) must be byte-identical apart from the ``solve_time_s``
-fields, the only wall times an answer reports. IPOPT's clock is not sped up (its max_wall_time is compiled into
-the cached solvers): it is a last resort, tested below to raise SolverTimedOut. Each of the four determinism tests fails on
-the code before issue 23 (checked: the time-optimal search timed out or counted LPs past 1 s as not found, the
-STAP multistart stopped after 2 x the wall-time cap, the duration search after 3 x).
-"""
+The load is simulated by a clock that runs FACTOR times faster than real time and jumps JUMP_S more at every reading
+(``fast_clock``): Python's ``time.perf_counter`` and ``time.monotonic``, which every module reads, and HiGHS's own
+clock (its ``time_limit`` option divided by FACTOR, the same as its clock running FACTOR times faster). The expected
+answer is the same request's answer on the real clock in the same process: the answers
+(``app.presenters.answer_body``, the endpoint's JSON) must be byte-identical apart from the ``solve_time_s`` fields,
+the only wall times an answer reports. IPOPT's clock is not sped up (its max_wall_time is compiled into the cached
+solvers): it is a last resort, tested below to raise SolverTimedOut. Each of the four determinism tests fails on the
+code before issue 23 (checked: the time-optimal search timed out or counted LPs past 1 s as not found, the STAP
+multistart stopped after 2 x the wall-time cap, the duration search after 3 x)."""
 
 from __future__ import annotations
 
