@@ -20,7 +20,7 @@ import time
 from typing import Any
 
 BOUND_MIB = 400.0
-FAMILIES = {
+BODIES = {
     "pseudo_polynomial": lambda f: {
         "plant": {"kind": "mode", "natural_frequency_hz": f, "damping_ratio": 0.02},
         "displacement": 0.1,
@@ -54,8 +54,7 @@ def _worker(root: str, family_key: str, frequencies: list[float], conn: Any) -> 
     from app.schemas.registry import REQUEST_SCHEMAS
     from app.settings import Settings
     from models.errors import DomainError
-    from optim.registry import FAMILIES as REGISTRY
-    from optim.registry import warm_up_all
+    from optim.registry import FAMILIES, warm_up_all
     from optim.synthesis import synthesize
 
     settings = Settings(workers=1)
@@ -70,10 +69,10 @@ def _worker(root: str, family_key: str, frequencies: list[float], conn: Any) -> 
     failures = 0
     started = time.perf_counter()
     for n, f in enumerate(frequencies, 1):
-        body = REQUEST_SCHEMAS[family].model_validate(FAMILIES[family_key](f))
+        body = REQUEST_SCHEMAS[family].model_validate(BODIES[family_key](f))
         problem = body.to_problem(settings)
         try:
-            synthesize(REGISTRY[family], problem, body.options(problem))
+            synthesize(FAMILIES[family], problem, body.options(problem))
         except DomainError:
             failures += 1
         if n % 50 == 0 or n == len(frequencies):
@@ -108,7 +107,7 @@ def main() -> None:
     parser.add_argument("--plants", type=int, default=200)
     parser.add_argument("--low-hz", type=float, default=3.0)
     parser.add_argument("--high-hz", type=float, default=60.0)
-    parser.add_argument("--families", default=",".join(FAMILIES))
+    parser.add_argument("--families", default=",".join(BODIES))
     args = parser.parse_args()
     print(
         f"root {args.root}; {args.plants} plants, one mode at {args.low_hz:g}-{args.high_hz:g} Hz; "

@@ -14,16 +14,20 @@ problem+json the service would answer with.
 
 from __future__ import annotations
 
+import warnings
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from vibfree.api import FAMILIES, Sweep, Synthesis, VibfreeError, compare, identify, sweep, synthesize
+    from vibfree.api import REQUEST_SCHEMAS, Sweep, Synthesis, VibfreeError, compare, identify, sweep, synthesize
 
-__all__ = ["FAMILIES", "Sweep", "Synthesis", "VibfreeError", "compare", "identify", "sweep", "synthesize"]
+__all__ = ["REQUEST_SCHEMAS", "Sweep", "Synthesis", "VibfreeError", "compare", "identify", "sweep", "synthesize"]
 
 
 def __getattr__(name: str) -> Any:
     """The API on first use: ``vibfree.cli`` (``--help``, ``--url``) starts without the solvers' imports."""
+    if name == "FAMILIES":  # the old name of REQUEST_SCHEMAS (family name -> request schema)
+        warnings.warn("vibfree.FAMILIES is deprecated: use vibfree.REQUEST_SCHEMAS", DeprecationWarning, stacklevel=2)
+        name = "REQUEST_SCHEMAS"
     if name in __all__:
         from vibfree import api
 

@@ -24,13 +24,14 @@ from app.family_names import name_of, slug_of
 from app.responses import comment_lines, csv_body, drop_duplicates
 from app.schemas.compare import CompareIn
 from app.schemas.family import ProfileRequest
-from app.schemas.registry import REQUEST_SCHEMAS
+from app.schemas.registry import (
+    REQUEST_SCHEMAS as REQUEST_SCHEMAS,  # vibfree.REQUEST_SCHEMAS: family name -> request schema
+)
 from app.services import compare as compare_service
 from app.services import profile as profiles
 from app.settings import Settings, get_settings
 from models.errors import DomainError
-from optim import tables
-from optim.registry import FAMILIES as REGISTRY
+from optim import registry, tables
 from optim.synthesis import Result
 from runtime.executor import InlineExecutor
 
@@ -40,8 +41,6 @@ if not structlog.is_configured():  # the service's log lines go to stdlib loggin
         logger_factory=structlog.stdlib.LoggerFactory(),
         wrapper_class=structlog.stdlib.BoundLogger,
     )
-
-FAMILIES = REQUEST_SCHEMAS  # family name -> its request schema; the names of /v1/compare's rows ("-" for "_")
 
 
 class VibfreeError(Exception):
@@ -80,7 +79,7 @@ def synthesize(family: str, request: Mapping[str, Any] | str | bytes, *, setting
     """Design ``family``'s command for ``request`` (a dict, or its JSON text), as ``POST /v1/profiles/<family>``."""
     name, model = _family(family)
     body = _validate(model, request)
-    answer, result = _run(profiles.design(REGISTRY[name], body, settings or get_settings(), InlineExecutor()))
+    answer, result = _run(profiles.design(registry.FAMILIES[name], body, settings or get_settings(), InlineExecutor()))
     return Synthesis(name, body, drop_duplicates(answer), result)  # as the endpoint answers (no load.time_s)
 
 
@@ -170,9 +169,11 @@ def sweep(
 
 def _family(family: str) -> tuple[str, type[ProfileRequest]]:
     name = name_of(family)
-    if name not in FAMILIES:
-        raise VibfreeError(_problem("not-found", f"no family {family!r}; one of {', '.join(FAMILIES)}", "family"))
-    return name, FAMILIES[name]
+    if name not in REQUEST_SCHEMAS:
+        raise VibfreeError(
+            _problem("not-found", f"no family {family!r}; one of {', '.join(REQUEST_SCHEMAS)}", "family")
+        )
+    return name, REQUEST_SCHEMAS[name]
 
 
 def _title(family: str) -> str:

@@ -42,7 +42,6 @@ SERVE_FLAGS = (
 # OpenBLAS's threads on the loaded machine, 0.47 ms without), and a solve's last bits depend on the thread count, so
 # the pool's rows equal a Dask worker's (whose nanny sets the same) bit for bit.
 SINGLE_THREADED_BLAS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
-FAMILY_NAMES = SLUGS
 HTTP_TIMEOUT_S = 300.0
 
 
@@ -91,7 +90,7 @@ def _parser() -> argparse.ArgumentParser:
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     design = commands.add_parser("design", help="design one family's command (POST /v1/profiles/FAMILY)")
-    design.add_argument("family", choices=FAMILY_NAMES, help="the family")
+    design.add_argument("family", choices=SLUGS, help="the family")
     design.add_argument("request", help="the request body, a JSON file (- for stdin)")
     design.add_argument("--csv", metavar="FILE", help="write the profile as CSV (- for stdout)")
     design.add_argument("--columns", help="CSV columns, comma-separated (e.g. time_s,position,load_position; all)")

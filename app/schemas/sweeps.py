@@ -7,18 +7,16 @@ from typing import Annotated, Any, ClassVar, Literal
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
-from app.family_names import SLUGS, FamilySlug, name_of
+from app.family_names import FamilySlug, name_of
 from app.schemas.common import INTEGRAL, Int, OutModel, StrictModel, is_value, leaf, never
 from app.schemas.plants import PLANT_KINDS
 
-FAMILY_NAMES = SLUGS  # the endpoints' names
 MAX_AXES = 4
 MAX_AXIS_VALUES = 1000  # per axis (the default point cap); bounds the body too
 PATH_PATTERN = r"^[A-Za-z_][A-Za-z0-9_]*(\[[0-9]+\])?(\.[A-Za-z_][A-Za-z0-9_]*(\[[0-9]+\])?)*$"
 DEFAULT_THRESHOLD_PERCENT = 5.0
 MAX_REFINED_POINTS = 1000
 RANGE = ("start", "stop", "num")
-SweepFamily = FamilySlug
 
 
 class AxisIn(StrictModel):
@@ -110,7 +108,7 @@ class AxisIn(StrictModel):
 class SweepIn(StrictModel):
     """A family, its base request and the axes: one design per point of the axes' Cartesian product."""
 
-    family: SweepFamily = Field(description="The family, by its endpoint's name (/v1/profiles/{family}).")
+    family: FamilySlug = Field(description="The family, by its endpoint's name (/v1/profiles/{family}).")
     request: dict[str, Any] = Field(
         description="The base request, the family endpoint's body; each point is it with the axes' fields set. "
         "Without sensitivity, each point gets compare's grid (0.5..1.5, 201 ratios) so that band_5_percent is known."

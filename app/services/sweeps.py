@@ -211,7 +211,12 @@ def line_json(line: engine.Line, described: Callable[[Exception, Any], dict[str,
     """One NDJSON line: ``row`` (the point's numbers, or its failure as problem+json: ``describe``), ``check`` or
     ``summary``."""
     if isinstance(line, engine.RowLine):
-        out: dict[str, Any] = {"line": "row", "index": line.index, "values": line.values, "between": line.between}
+        out: dict[str, Any] = {
+            "line": "row",
+            "index": line.index,
+            "values": line.values,
+            "between": present(line.between),
+        }
         if line.row is not None:
             return out | {"ok": True, **present(line.row), "problem": None}
         assert line.error is not None

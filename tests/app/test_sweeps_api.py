@@ -17,8 +17,9 @@ import pytest
 from pydantic import TypeAdapter
 from scipy import signal
 
+from app.family_names import SLUGS
 from app.schemas.registry import REQUEST_SCHEMAS
-from app.schemas.sweeps import FAMILY_NAMES, SweepLine
+from app.schemas.sweeps import SweepLine
 from tests.app.server import serving
 from vibfree import cli
 
@@ -53,7 +54,7 @@ def of(lines, kind):
 
 
 def test_the_families_are_the_registrys_by_their_endpoint_names():
-    assert set(FAMILY_NAMES) == {name.replace("_", "-") for name in REQUEST_SCHEMAS}
+    assert set(SLUGS) == {name.replace("_", "-") for name in REQUEST_SCHEMAS}
 
 
 @pytest.mark.parametrize(

@@ -33,7 +33,7 @@ from models.plants import ModePlant
 from optim.families import stap as S
 from optim.families.time_optimal.options import Robustness, TimeOptimalOptions
 from optim.problem import Limits, Problem
-from optim.registry import FAMILIES as REGISTRY
+from optim.registry import FAMILIES
 from optim.solver import SolveCaps
 from optim.synthesis import synthesize
 
@@ -89,7 +89,7 @@ def answer_bytes(family: str, problem: Problem, options: Any) -> bytes:
             return np.ascontiguousarray(value)
         return value
 
-    body = strip(answer_body(synthesize(REGISTRY[family], problem, options)))
+    body = strip(answer_body(synthesize(FAMILIES[family], problem, options)))
     return orjson.dumps(body, option=orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_SORT_KEYS)
 
 
@@ -153,7 +153,7 @@ def test_a_trade_off_row_at_the_wall_clock_last_resort_fails_the_design(monkeypa
     monkeypatch.setattr(time_optimal_family, "solve_within_limits", solve_within_limits)
     monkeypatch.setattr(lp, "linprog", linprog)
     with pytest.raises(SolverTimedOut):
-        synthesize(REGISTRY["time_optimal"], KNOWN, TimeOptimalOptions(tradeoff=(0.0, 0.1)))
+        synthesize(FAMILIES["time_optimal"], KNOWN, TimeOptimalOptions(tradeoff=(0.0, 0.1)))
     assert calls[0] == 2  # the design, then the first row, which failed it
 
 
