@@ -14,14 +14,14 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-import numpy as np
 from fastapi import APIRouter, Body, Query, Request
 from fastapi.exceptions import RequestValidationError
 from pydantic import ValidationError
 
 from app import problems
 from app.deps import PoolDep, SettingsDep, ThreadsDep
-from app.examples import OMEGA_RAD_S, SIGMA_1_S
+from app.examples.identify import CSV_EXAMPLE
+from app.examples.identify import EXAMPLES as IDENTIFY_EXAMPLES
 from app.responses import NumpyJSONResponse
 from app.schemas.identify import IdentifyMeasurementResponse, MeasurementParams
 from app.schemas.smoothers import IdentifyRequest, IdentifyResponse
@@ -33,36 +33,6 @@ router = APIRouter(prefix="/v1", tags=["smoothers"], route_class=problems.JSONRo
 CSV_MEDIA_TYPE = "text/csv"
 
 
-def _synthetic_record() -> dict[str, list[float]]:
-    """0.3 s of the identified mode's free vibration at 1 kHz: 4 N e^(sigma t) cos(Omega t) + 0.5 N."""
-    t = np.arange(301) * 1e-3
-    y = 4.0 * np.exp(SIGMA_1_S * t) * np.cos(OMEGA_RAD_S * t) + 0.5
-    return {"time_s": [round(float(v), 6) for v in t], "signal": [round(float(v), 6) for v in y]}
-
-
-IDENTIFY_EXAMPLES: dict[str, dict[str, Any]] = {
-    "biagiotti_free_vibration": {
-        "summary": "Sec. V-A / VI: a free vibration of the identified plant",
-        "description": "A synthesised spring-force record of the Sec. VI plant (sigma = -15.6539 1/s, "
-        "Omega = 122.7185 rad/s) over 0.3 s at 1 kHz; the fit returns them and the tuned smoother T = 0.0768 s.",
-        "value": _synthetic_record(),
-    }
-}
-
-
-def _csv_example() -> str:
-    """0.4 s at 1 kHz of an accelerometer on a 40 Hz mode (zeta 0.02) seen by x and y, with gravity on z and
-    noise of std 0.01 (seeded): a complete record that POST /v1/identify fits."""
-    t = np.arange(400) * 1e-3
-    wn = 2 * np.pi * 40.0
-    mode = np.exp(-0.02 * wn * t) * np.cos(wn * np.sqrt(1 - 0.02**2) * t)
-    noise = 0.01 * np.random.default_rng(0).standard_normal((3, t.size))
-    columns = np.vstack([t, 0.8 * mode + noise[0], 0.3 * mode + noise[1], 9.81 + noise[2]]).T
-    rows = "\n".join(f"{a:.3f},{x:.4f},{y:.4f},{z:.4f}" for a, x, y, z in columns)
-    return "time_s,accel_x,accel_y,accel_z\n" + rows + "\n"
-
-
-_CSV_EXAMPLE = _csv_example()
 OPENAPI_BODY: dict[str, Any] = {
     "requestBody": {
         "required": True,
@@ -70,7 +40,7 @@ OPENAPI_BODY: dict[str, Any] = {
             "application/json": {"schema": IdentifyRequest.model_json_schema()},
             CSV_MEDIA_TYPE: {
                 "schema": {"type": "string"},
-                "example": _CSV_EXAMPLE,
+                "example": CSV_EXAMPLE,
                 "description": "A header row, a time column (time_s, or the first column; seconds) and one or more "
                 "signal columns; a column named command (or command_column) is the known command.",
             },

@@ -14,11 +14,9 @@ from app.family_names import slug_of
 from app.responses import CSV_RESPONSE_DOC, NumpyJSONResponse, Output, ProfileOutput, respond
 from app.schemas.shapers import FAMILY, InputShapedRequest, InputShapedResponse, ShaperCatalogue
 from app.services import profile as profiles
-from optim.families.input_shaped.shapers import catalogue
+from app.services import shapers
 
 router = APIRouter(prefix="/v1", tags=["shapers"], route_class=problems.JSONRoute)
-
-BAND_THRESHOLD = 0.05
 
 
 @router.post(
@@ -60,13 +58,6 @@ async def input_shaped_profile(
 # The catalogue
 
 
-def _width(band: tuple[float | None, float | None] | None) -> float | None:
-    """high - low of a band closed at both ends."""
-    if band is None or band[0] is None or band[1] is None:
-        return None
-    return band[1] - band[0]
-
-
 @router.get(
     "/shapers",
     summary="The shaper family: impulse counts, durations and computed 5 % bands",
@@ -81,27 +72,4 @@ def list_shapers(
     percentage vibration V (Sec. 3.1) of its impulses, with the damping fixed: the ratios of true
     to design natural frequency around 1 where V stays <= 5 %. EI shapers that do not exist at this
     damping and tolerance are listed under ``unavailable``."""
-    entries, missing = catalogue(float(damping_ratio), float(vibration_tolerance), BAND_THRESHOLD)
-    shapers = [
-        {
-            "name": e.name,
-            "impulse_count": e.impulse_count,
-            "duration_periods": e.duration_periods,
-            "band_5_percent": list(e.band) if e.band else None,
-            "band_width": _width(e.band),
-            "amplitudes": list(e.amplitudes),
-            "times_periods": list(e.times_periods),
-            "method": e.method,
-            "reference": e.reference,
-        }
-        for e in entries
-    ]
-    return NumpyJSONResponse(
-        {
-            "damping_ratio": damping_ratio,
-            "vibration_tolerance": vibration_tolerance,
-            "band_threshold": BAND_THRESHOLD,
-            "shapers": shapers,
-            "unavailable": [{"name": name, "reason": reason} for name, reason in missing],
-        }
-    )
+    return NumpyJSONResponse(shapers.catalogue_answer(float(damping_ratio), float(vibration_tolerance)))

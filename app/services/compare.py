@@ -7,10 +7,9 @@ The route (app.routers.compare) and the Python API (vibfree.api) both call ``ans
 
 from __future__ import annotations
 
+import asyncio
 import dataclasses
 from typing import Any
-
-from starlette.concurrency import run_in_threadpool
 
 from app.family_names import endpoint_of
 from app.presenters import load_json, present
@@ -33,7 +32,7 @@ async def answer(
     route's and the Python API's."""
     if body.sensitivity is None:
         body = body.model_copy(update={"sensitivity": DEFAULT_SENSITIVITY})
-    problem = await run_in_threadpool(body.to_problem, settings)
+    problem = await asyncio.to_thread(body.to_problem, settings)
     # every row is held until the last one ends: each gets its share of the sample cap (VIBFREE_COMPARE_MAX_SAMPLES)
     problem = dataclasses.replace(problem, max_samples=min(problem.max_samples, settings.compare_max_samples))
     if not problem.plant.modes():
