@@ -8,8 +8,9 @@ optimisers). The concrete kinds are in ``models.plants``.
 
 from __future__ import annotations
 
+import functools
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import Field, dataclass, fields
 from typing import Any, ClassVar, Literal
 
@@ -204,17 +205,19 @@ class Plant:
         num, den = self._command_tf(self.parameter_values())
         return np.asarray(num, dtype=float), np.asarray(den, dtype=float)
 
-    def _cached(self, key: str, build: Callable[[], Any]) -> Any:
-        """A value derived from the (frozen) parameters, computed once per plant object."""
-        cache: dict[str, Any] = self.__dict__.setdefault("_derived_cache", {})
-        if key not in cache:
-            cache[key] = build()
-        return cache[key]
+    @functools.cached_property
+    def _load_tf(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """G(s) computed once per plant object (its parameters are frozen)."""
+        return self._load_transfer_function()
+
+    @functools.cached_property
+    def _cached_modes(self) -> tuple[Mode, ...]:
+        return self._modes()
 
     def load_transfer_function(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """G(s) from the motor position to the load position (numerator, denominator); fresh copies of
         arrays computed once per plant."""
-        num, den = self._cached("load_tf", self._load_transfer_function)
+        num, den = self._load_tf
         return num.copy(), den.copy()
 
     def _load_transfer_function(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -226,8 +229,7 @@ class Plant:
 
     def modes(self) -> tuple[Mode, ...]:
         """The vibration modes: the complex pole pairs, lowest frequency first (computed once per plant)."""
-        modes: tuple[Mode, ...] = self._cached("modes", self._modes)
-        return modes
+        return self._cached_modes
 
     def _modes(self) -> tuple[Mode, ...]:
         _, den = self.command_transfer_function()
@@ -238,7 +240,7 @@ class Plant:
     @property
     def dc_gain(self) -> float:
         """G(0): load displacement per unit motor displacement (0 for velocity-input kinds)."""
-        num, den = self._cached("load_tf", self._load_transfer_function)
+        num, den = self._load_tf
         return float(num[-1] / den[-1])
 
     def load_move(self, motor_move: float) -> float:

@@ -9,9 +9,11 @@ and their own options.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
+from models.commands import PiecewiseCommand
 from models.errors import Infeasible, InvalidParameter
 from models.plants import Plant
 from optim.solver import SolveCaps
@@ -169,6 +171,27 @@ class Problem:
         if self.limits.max_torque_nm is not None and inertias is not None:
             candidates.append(self.limits.max_torque_nm / sum(inertias))
         return min(candidates) if candidates else None
+
+    @functools.cached_property
+    def rigid_reference(self) -> PiecewiseCommand:
+        """The unshaped rigid command under the same limits: the time-optimal move at the acceleration limit
+        (bang-bang, or a trapezoidal velocity at ``max_velocity``; jerk limits ignored), or without an
+        acceleration limit the step itself (of position, or of velocity for rest-to-velocity). The reference of
+        every percentage vibration (optim.synthesis.percentage_vibration)."""
+        move, accel, top = abs(self.move), self.acceleration_limit, self.limits.max_velocity
+        if accel is None:
+            derivatives = [[0.0, move]] if self.rest_to_rest else [[0.0, 0.0], [0.0, move]]
+            return PiecewiseCommand.from_derivatives([0.0, 1.0], derivatives)
+        if not self.rest_to_rest:
+            return PiecewiseCommand.from_held_steps([0.0, move / accel], [accel, 0.0], 2)
+        ramp_s = math.sqrt(move / accel)
+        if top is not None and accel * ramp_s > top:
+            ramp_s = top / accel
+            cruise_s = move / top - ramp_s
+            return PiecewiseCommand.from_held_steps(
+                [0.0, ramp_s, ramp_s + cruise_s, 2 * ramp_s + cruise_s], [accel, 0.0, -accel, 0.0], 2
+            )
+        return PiecewiseCommand.from_held_steps([0.0, ramp_s, 2 * ramp_s], [accel, -accel, 0.0], 2)
 
     def kinematic_floor_s(self) -> float:
         """The least duration any rest-to-rest move (or acceleration phase) can have within the limits."""

@@ -13,7 +13,6 @@ the simulated load, the metrics, the sensitivity, the limit check and the warnin
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -219,31 +218,9 @@ def _check_sensitivity_work(
 
 
 def rigid_reference(problem: Problem) -> PiecewiseCommand:
-    """The unshaped rigid command under the same limits: the time-optimal move at the acceleration
-    limit (bang-bang, or a trapezoidal velocity at ``max_velocity``; jerk limits ignored), or without
-    an acceleration limit the step itself (of position, or of velocity for rest-to-velocity). Built once per
-    problem (its jumps and end serve every percentage of the answer)."""
-    cache: dict[str, PiecewiseCommand] = problem.__dict__.setdefault("_rigid_reference", {})
-    if "command" not in cache:
-        cache["command"] = _rigid_reference(problem)
-    return cache["command"]
-
-
-def _rigid_reference(problem: Problem) -> PiecewiseCommand:
-    move, accel, top = abs(problem.move), problem.acceleration_limit, problem.limits.max_velocity
-    if accel is None:
-        derivatives = [[0.0, move]] if problem.rest_to_rest else [[0.0, 0.0], [0.0, move]]
-        return PiecewiseCommand.from_derivatives([0.0, 1.0], derivatives)
-    if not problem.rest_to_rest:
-        return PiecewiseCommand.from_held_steps([0.0, move / accel], [accel, 0.0], 2)
-    ramp_s = math.sqrt(move / accel)
-    if top is not None and accel * ramp_s > top:
-        ramp_s = top / accel
-        cruise_s = move / top - ramp_s
-        return PiecewiseCommand.from_held_steps(
-            [0.0, ramp_s, ramp_s + cruise_s, 2 * ramp_s + cruise_s], [accel, 0.0, -accel, 0.0], 2
-        )
-    return PiecewiseCommand.from_held_steps([0.0, ramp_s, 2 * ramp_s], [accel, -accel, 0.0], 2)
+    """The unshaped rigid command under the same limits (``Problem.rigid_reference``, built once per problem: its
+    jumps and end serve every percentage of the answer)."""
+    return problem.rigid_reference
 
 
 def reference_wording(problem: Problem) -> str:
