@@ -1,5 +1,6 @@
-"""The family table: what the service has for each design family, by its name (app.family_names): its slug,
-endpoint, request schema and worked examples, in one row. The warm-up reads it (no router is read for it)."""
+"""The family table: what the service has for each design family, by its name (app.family_names, where its slug
+and endpoint are derived): its request schema and worked examples, in one row. The warm-up reads it (no router is
+read for it)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from app.examples import input_shaped, pseudo_polynomial, smoother, stap, time_optimal
-from app.family_names import NAMES, endpoint_of, slug_of
+from app.family_names import NAMES
 from app.schemas.family import ProfileRequest
 from app.schemas.registry import REQUEST_SCHEMAS
 
@@ -22,14 +23,12 @@ _EXAMPLES: dict[str, dict[str, dict[str, Any]]] = {
 
 @dataclass(frozen=True)
 class FamilyEntry:
-    name: str
-    slug: str
-    endpoint: str
+    name: str  # app.family_names: its slug and endpoint follow from it (slug_of, endpoint_of)
     request: type[ProfileRequest]
     examples: dict[str, dict[str, Any]]  # OpenAPI examples: {key: {"summary", "value", ...}}
 
 
 FAMILY_TABLE: tuple[FamilyEntry, ...] = tuple(
-    FamilyEntry(name, slug_of(name), endpoint_of(name), REQUEST_SCHEMAS[name], _EXAMPLES[name]) for name in NAMES
+    FamilyEntry(name, REQUEST_SCHEMAS[name], _EXAMPLES[name]) for name in NAMES
 )
 BY_NAME: dict[str, FamilyEntry] = {entry.name: entry for entry in FAMILY_TABLE}
