@@ -3,7 +3,7 @@
 The request is the API's example ``section_3_k1`` (Cusimano Sec. 3: 150 rad/s on a 40 Hz mode, k_j = 1,
 a sensitivity curve of 201 ratios) with ``sample_period_s`` 3e-4 s: 1003 samples. The whole is what a
 request costs without HTTP: ``StapIn.model_validate``, ``body.to_problem``, ``optim.synthesis.synthesize``,
-``result.body()``. The stages are the same calls the pipeline makes, timed one by one on the same inputs
+``app.presenters.answer_body``. The stages are the same calls the pipeline makes, timed one by one on the same inputs
 (their sum differs from the whole by the cost of the pipeline's glue and by noise). The target: the whole
 <= 1.5 ms, so that HTTP may add 1.5 ms to the 3 ms of the acceptance.
 """
@@ -20,6 +20,7 @@ from typing import Any
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from app.examples.stap import EXAMPLES
+from app.presenters import answer_body
 from app.schemas.stap import FAMILY, StapIn
 from app.settings import Settings
 from models.simulation import simulate
@@ -46,7 +47,7 @@ def main() -> None:
     def whole() -> dict[str, Any]:
         body = StapIn.model_validate(value)
         problem = body.to_problem(settings)
-        return synthesize(FAMILY, problem, body.options(problem)).body()
+        return answer_body(synthesize(FAMILY, problem, body.options(problem)))
 
     body = StapIn.model_validate(value)
     problem = body.to_problem(settings)
@@ -66,7 +67,7 @@ def main() -> None:
         "sensitivity curve": lambda: FAMILY.sensitivity(problem, design, *_axes(problem)),
         "nominal percentage vibration": lambda: nominal_percentage_vibration(problem, sampled),
         "synthesize (all of optim)": lambda: synthesize(FAMILY, problem, options),
-        "result.body()": result.body,
+        "answer_body(result) (app)": lambda: answer_body(result),
     }
     print(f"STAP closed form, {sampled.time_s.size} samples, in-process, medians of {REPEATS}:")
     total = median_ms(whole)

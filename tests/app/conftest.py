@@ -56,11 +56,12 @@ def client() -> Iterator[TestClient]:
 
 def direct_body(family, schema, payload: dict, settings: Settings) -> dict:
     """A family endpoint's answer without HTTP: the same request through the pipeline in-process."""
+    from app.presenters import answer_body
     from app.responses import drop_duplicates
     from optim.synthesis import synthesize
 
     body = schema.model_validate(payload)
     problem = body.to_problem(settings)
-    answer = synthesize(family, problem, body.options(problem)).body()
+    answer = answer_body(synthesize(family, problem, body.options(problem)))
     answer["warnings"] = [*body.deprecations, *answer["warnings"]]
     return drop_duplicates(answer)  # as the endpoint answers by default: no load.time_s
