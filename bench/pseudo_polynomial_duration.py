@@ -20,6 +20,7 @@ sys.path.insert(0, str(ROOT))
 from app.examples.compare import EXAMPLES  # noqa: E402
 from models.plants import example_plants  # noqa: E402
 from optim.families import pseudo_polynomial as pp  # noqa: E402
+from optim.families.pseudo_polynomial.report import PseudoPolynomialReport  # noqa: E402
 from optim.problem import Limits, Problem  # noqa: E402
 from optim.registry import FAMILIES  # noqa: E402
 
@@ -47,16 +48,18 @@ def main() -> None:
     reference = median_s(lambda: pp.design(fixed))
     default = median_s(lambda: FAMILY.design(problem, options))
     summary = design.summary
-    below = summary["duration_bracket"]["longest_infeasible_below_s"]
+    assert isinstance(summary, PseudoPolynomialReport) and summary.duration_bracket is not None
+    assert summary.duration_search is not None
+    below = summary.duration_bracket.longest_infeasible_below_s
     print(f"one fixed-duration design (Table III, 1 s, no limits), median of {RUNS}: {1e3 * reference:.1f} ms")
     print(
         f"default design of the compare example (minimize_duration), median of {RUNS}: {1e3 * default:.0f} ms "
         f"= {default / reference:.1f} x the fixed-duration design"
     )
     print(
-        f"  duration {summary['duration_s']:.6f} s (longest infeasible below: {below:.6f} s), "
-        f"{summary['solver']['solves']} solves, {summary['solver']['iterations']} iterations, "
-        f"{len(summary['duration_search'])} durations tried"
+        f"  duration {summary.duration_s:.6f} s (longest infeasible below: {below:.6f} s), "
+        f"{summary.solver.solves} solves, {summary.solver.iterations} iterations, "
+        f"{len(summary.duration_search)} durations tried"
     )
 
 

@@ -135,8 +135,14 @@ def horizon_of(problem: Problem, end_s: float) -> float:
 
 def grid_of(problem: Problem, design: Design, start_s: float = 0.0) -> Grid:
     """The sampling of the returned series; refuses a count above the cap before building anything."""
-    horizon = horizon_of(problem, design.command_end_s)
     corners = 0 if design.command is None else int(design.command.time_s.size)
+    return grid_until(problem, design.command_end_s, corners, start_s)
+
+
+def grid_until(problem: Problem, end_s: float, corners: int = 0, start_s: float = 0.0) -> Grid:
+    """The sampling of a command ending at ``end_s`` with ``corners`` breakpoints of its own (``grid_of`` without
+    a design: a family checking a duration before it designs)."""
+    horizon = horizon_of(problem, end_s)
     span = max(horizon - start_s, 0.0)
     room = problem.max_samples - corners - 2
     if problem.sample_period_s is not None:

@@ -299,7 +299,7 @@ def test_a_duration_search_that_finds_nothing_falls_back_to_the_design_at_durati
     assert design.end_s == options.duration_s
     assert any(w.startswith("minimize_duration: the duration search found no") for w in design.warnings)
     fixed = family.design(problem, PseudoPolynomialOptions(duration_s=0.225))
-    assert fixed.summary["selection"] == "closest_zero_energy"
+    assert fixed.summary.selection == "closest_zero_energy"
 
 
 # --- issue 23: the built problems a worker keeps are bounded in estimated MiB, not only in count -------------

@@ -104,9 +104,9 @@ def test_the_report_counts_every_solver_call_and_sums_their_iterations(calls: Ca
 def test_a_duration_search_runs_many_solves_and_says_so(calls: Calls) -> None:
     family, problem, options = _example("pseudo_polynomial", "shortest_with_limits")
     design = family.design(problem, options)
-    assert design.summary["duration_search"]  # it searched
+    assert design.summary.duration_search  # it searched
     assert design.solver.solves == len(calls.iterations) > 5  # a search is never one solve
-    assert design.summary["solver"]["solves"] == design.solver.solves  # the response's block says the same
+    assert design.summary.solver.solves == design.solver.solves  # the response's block says the same
 
 
 def test_report_of_never_takes_an_iteration_count_ipopt_did_not_record() -> None:

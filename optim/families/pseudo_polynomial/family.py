@@ -17,21 +17,11 @@ from models.errors import InvalidParameter
 from models.pseudo_polynomial import PseudoPolynomial
 from models.simulation import simulate
 from optim.families import pseudo_polynomial as pp
+from optim.families.pseudo_polynomial.report import InitialDesign, PseudoPolynomialExtras, design_report
 from optim.family import BaseFamily, Design, Grid, Profile, Run, SolverSummary, counted
 from optim.problem import Problem
+from optim.results import Finish, MetricsReport
 from optim.solver import SolveCaps
-
-SELECTION_RULE = (
-    "Zero final energy is two equations per mode in order + 1 exponents, so for order >= 2 the zero-energy "
-    "designs form a curve (or a surface). The design returned is the zero-energy design closest to the "
-    "initial exponents that IPOPT reaches from them (selection 'closest_zero_energy'). If none meets the "
-    "limits, the energy is minimised from the initial exponents and six fixed spread starts and the "
-    "lowest-energy design within the limits is returned (selection 'minimum_energy', energy_ratio > 0). If no "
-    "minimum-energy solve converges, the lowest-energy design within the limits met on the way (the initial "
-    "exponents or a solve's last iterate) is returned (selection 'fallback', fallback_reason says which). "
-    "Every design is checked on the sampled command, as the response's limit check does, and re-solved with "
-    "tightened limits where the solver's constraint grid let a peak through."
-)
 
 
 @dataclass(frozen=True)
@@ -43,50 +33,14 @@ class PseudoPolynomialOptions:
     residual_tolerance: float | None = None
 
 
-def _design_block(design: pp.PseudoPolynomialDesign) -> dict[str, Any]:
-    law, initial = design.law, design.initial
-    return {
-        "order": law.order,
-        "duration_s": law.duration_s,
-        "displacement": law.displacement,
-        "exponents": list(law.exponents),
-        "coefficients": list(law.coefficients),
-        "initial_exponents": list(initial.exponents),
-        "initial_coefficients": list(initial.coefficients),
-        "final_energy_before": design.initial_energy,
-        "final_energy_after": design.final_energy,
-        "energy_ratio": design.energy_ratio,
-        "energy_units": "J" if design.energy_is_physical else "per unit load inertia",
-        "residual_amplitude": design.residual_amplitude,
-        "initial_residual_amplitude": design.initial_residual_amplitude,
-        "selection": design.selection,
-        "selection_rule": SELECTION_RULE,
-        "bounds": {
-            "min_exponent": pp.lower_bound(law.order),
-            "max_exponent": pp.MAX_EXPONENT,
-            "min_separation": pp.MIN_SEPARATION,
-        },
-        "fallback_reason": design.fallback_reason or None,
-        "solver": SolverSummary.of(design.solver, design.solves).as_dict(),
-        "duration_search": [{"duration_s": d, "feasible": ok} for d, ok in design.duration_search] or None,
-        "duration_search_method": pp.SEARCH_METHOD if design.duration_search else None,
-        "duration_bracket": {
-            "shortest_feasible_s": law.duration_s,
-            "longest_infeasible_below_s": design.longest_infeasible_below_s,
-        }
-        if design.duration_search
-        else None,
-    }
-
-
 def sampled_peaks(problem: Problem) -> pp.PeaksOf:
     """The peaks the pipeline checks (``optim.synthesis.limit_violations``): those of the law sampled as
     ``PseudoPolynomialFamily.sample`` does on the pipeline's grid for that duration, the motor torque
     from its exact simulation."""
-    from optim.synthesis import grid_of
+    from optim.synthesis import grid_until
 
     def peaks(law: PseudoPolynomial) -> pp.Peaks:
-        grid = grid_of(problem, Design(None, {}, end_s=law.duration_s))
+        grid = grid_until(problem, law.duration_s)
         command = law.command(grid.period_s, grid.horizon_s)
         torque = None
         if problem.limits.max_torque_nm is not None:
@@ -124,7 +78,7 @@ class PseudoPolynomialFamily(BaseFamily):
         pp.warm_up(solver)
 
     def design(self, problem: Problem, options: PseudoPolynomialOptions) -> Design:
-        from optim.synthesis import grid_of
+        from optim.synthesis import grid_until
 
         if problem.displacement is None:
             raise InvalidParameter("displacement", None, "pseudo-polynomial commands are rest-to-rest moves")
@@ -141,7 +95,7 @@ class PseudoPolynomialFamily(BaseFamily):
             caps=problem.solver,
         )
         # Refuse a sampling above the cap before any solve (the design is no longer than duration_s).
-        grid_of(problem, Design(None, {}, end_s=options.duration_s))
+        grid_until(problem, options.duration_s)
         with counted():  # a failure's report: every solve of the search, not the last one's
             result = pp.design(core, sampled_peaks(problem))
         warnings = []
@@ -160,7 +114,7 @@ class PseudoPolynomialFamily(BaseFamily):
             )
         return Design(
             command=None,
-            summary=_design_block(result),
+            summary=design_report(result),
             warnings=tuple(warnings),
             solver=SolverSummary.of(result.solver, result.solves),
             end_s=result.law.duration_s,
@@ -183,27 +137,12 @@ class PseudoPolynomialFamily(BaseFamily):
     def profile_at(self, design: Design, sampled: Any, time_s: NDArray[np.float64]) -> Profile:
         return design.detail.law.samples(time_s)  # type: ignore[no-any-return]
 
-    def finish(self, problem: Problem, design: Design, run: Run) -> dict[str, Any]:
+    def finish(self, problem: Problem, design: Design, run: Run) -> Finish:
         """The initial design's profile, load response and metrics on the same sampling."""
-        from optim.synthesis import horizon_of, load_arrays, metrics_dict, metrics_of, nominal_percentage_vibration
+        from optim.synthesis import horizon_of, metrics_of, nominal_percentage_vibration
 
         initial = design.detail.initial
         command = initial.command(run.grid.period_s, horizon_of(problem, initial.duration_s))
         response = simulate(problem.plant, command)
-        return {
-            "initial": {
-                "profile": initial.samples(command.time_s),
-                "load": load_arrays(response),
-                "metrics": metrics_dict(metrics_of(problem, response), nominal_percentage_vibration(problem, command)),
-            }
-        }
-
-    def request_fields(self, options: Any) -> dict[str, Any]:
-        out = super().request_fields(options)
-        if not options.minimize_duration:
-            out.pop("minimize_duration", None)
-        if options.order == 2:
-            out.pop("order", None)
-        if "initial_exponents" in out:
-            out["initial_exponents"] = list(out["initial_exponents"])
-        return out
+        metrics = MetricsReport(metrics_of(problem, response), nominal_percentage_vibration(problem, command))
+        return Finish(extras=PseudoPolynomialExtras(InitialDesign(initial.samples(command.time_s), response, metrics)))

@@ -7,9 +7,8 @@ front for the kinematic limits (eqs. 2-3, 6); the eq. (17) discrete filters on r
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
-from typing import Any, ClassVar, Literal
+from dataclasses import dataclass, replace
+from typing import ClassVar, Literal
 
 from models.commands import PiecewiseCommand
 from models.errors import InvalidParameter
@@ -17,21 +16,25 @@ from models.metrics import metrics
 from models.simulation import simulate
 from models.smoother_filters import FilterKind
 from models.smoothers import MAX_RATE_TIMES_PERIOD, Chain, refinement, step_response
+from optim.families.smoother.report import (
+    ModeReport,
+    PredictedPeaks,
+    SmootherReport,
+    discrete_report,
+    filter_reports,
+)
 from optim.families.smoother.smoothers import (
-    ChainDesign,
-    DiscreteDesign,
     FilterSpec,
     SmootherLimits,
-    cancels,
     chain_residual,
     commensurate_sample_period_s,
     design_chain,
     design_discrete,
-    same_time_ratio,
     vibration_free_durations_s,
 )
 from optim.family import BaseFamily, Candidate, Design, Run
 from optim.problem import Problem
+from optim.results import Finish
 
 # The kinds a duration tuned to the mode makes vibration-free on a damped mode (models.smoother_filters.DAMPED).
 TUNED_KINDS: tuple[FilterKind, ...] = ("damped_harmonic", "exponential")
@@ -41,52 +44,6 @@ TUNED_KINDS: tuple[FilterKind, ...] = ("damped_harmonic", "exponential")
 class SmootherOptions:
     filters: tuple[FilterSpec, ...] = (FilterSpec("damped_harmonic"),)
     discrete_sample_period_s: float | None = None
-
-
-def _filters_block(design: ChainDesign) -> list[dict[str, Any]]:
-    out = []
-    mode = design.mode
-    for f, role in zip(design.chain.filters, design.roles, strict=True):
-        prv = None
-        if mode is not None:
-            ratio = same_time_ratio(Chain((f,)), mode)
-            prv = 100.0 * ratio if math.isfinite(ratio) else None
-        out.append(
-            {
-                "type": f.kind,
-                "duration_s": f.duration_s,
-                "decay_rate_1_s": f.decay_rate_1_s,
-                "role": role,
-                "vibration_free": None if mode is None else cancels(f, mode),
-                "percent_residual_vibration": prv,
-                "vibration_free_durations_s": [] if mode is None else vibration_free_durations_s(f.kind, mode),
-            }
-        )
-    return out
-
-
-def _discrete_block(d: DiscreteDesign) -> dict[str, Any]:
-    return {
-        "sample_period_s": d.sample_period_s,
-        "filters": [
-            {
-                "type": f.kind,
-                "samples": f.samples,
-                "duration_s": f.duration_s,
-                "numerator": f.numerator,
-                "denominator": f.denominator,
-                "gain": f.gain,
-            }
-            for f in d.filters
-        ],
-        "lead_s": d.lead_s,
-        "max_deviation": d.max_deviation,
-        "percent_residual_vibration": d.percent_residual_vibration,
-        "residual_amplitude": d.residual_amplitude,
-        "residual_fraction_of_move": d.residual_fraction_of_move,
-        "exact_sample_period_s": d.exact_sample_period_s,
-        "samples": d.samples,
-    }
 
 
 def hold_residual(chain: Chain, command: PiecewiseCommand, problem: Problem) -> float:
@@ -156,19 +113,19 @@ class SmootherFamily(BaseFamily):
                     f"{prv:.3g} % of the unfiltered vibration; Ts = {discrete.exact_sample_period_s:.9g} s makes "
                     "N Ts = T exactly"
                 )
-        summary = {
-            "filters": _filters_block(design),
-            "total_duration_s": chain.total_duration_s,
-            "duration_s": chain.total_duration_s,
-            "continuous_derivatives": chain.continuous_derivatives,
-            "mode": None if mode is None else mode.as_dict(),
-            "vibration_free": residual.vibration_free,
-            "percent_residual_vibration": residual.percent_residual_vibration,
-            "residual_amplitude_closed_form": residual.amplitude,
-            "residual_fraction_of_move": residual.fraction_of_move,
-            "predicted_peaks": dict(zip(("velocity", "acceleration", "jerk"), design.predicted_peaks, strict=True)),
-            "discrete": None if discrete is None else _discrete_block(discrete),
-        }
+        summary = SmootherReport(
+            filters=filter_reports(design),
+            total_duration_s=chain.total_duration_s,
+            duration_s=chain.total_duration_s,
+            continuous_derivatives=chain.continuous_derivatives,
+            mode=None if mode is None else ModeReport.of(mode),
+            vibration_free=residual.vibration_free,
+            percent_residual_vibration=residual.percent_residual_vibration,
+            residual_amplitude_closed_form=residual.amplitude,
+            residual_fraction_of_move=residual.fraction_of_move,
+            predicted_peaks=PredictedPeaks(*design.predicted_peaks),
+            discrete=None if discrete is None else discrete_report(discrete),
+        )
         return Design(None, summary, tuple(warnings), end_s=chain.total_duration_s, detail=design)
 
     def _period(self, chain: Chain, period_s: float) -> tuple[int, float]:
@@ -201,10 +158,11 @@ class SmootherFamily(BaseFamily):
             command = command.resampled(period, end_s=horizon_s)  # the motor rests at h; the load rings, or not
         return command
 
-    def finish(self, problem: Problem, design: Design, run: Run) -> dict[str, Any]:
+    def finish(self, problem: Problem, design: Design, run: Run) -> Finish:
         chain: Chain = design.detail.chain
+        assert isinstance(design.summary, SmootherReport)
         k, period = self._period(chain, run.grid.period_s)
-        warnings = []
+        warnings: list[str] = []
         if k > 1:
             warnings.append(
                 f"sample_period_s {run.grid.period_s:.6g} s is divided by {k} (1 sample in {k} lies on the requested "
@@ -212,21 +170,11 @@ class SmootherFamily(BaseFamily):
                 f"(|lambda| = {chain.fastest_rate_1_s:.6g} 1/s here)"
             )
         mode = design.detail.mode
-        more = {
-            "sample_period_s": period,
-            "commensurate_sample_period_s": commensurate_sample_period_s(chain, mode, run.grid.period_s),
-            "hold_residual_fraction_of_move": hold_residual(chain, run.command, problem),
-            "residual_vibration": run.metrics.residual_amplitude / problem.load_move,
-        }
-        return {"design": more, "warnings": warnings}
-
-    def request_fields(self, options: Any) -> dict[str, Any]:
-        out: dict[str, Any] = {
-            "filters": [
-                {"type": f.kind, **({"duration_s": f.duration_s} if f.duration_s is not None else {})}
-                for f in options.filters
-            ]
-        }
-        if options.discrete_sample_period_s is not None:
-            out["discrete_sample_period_s"] = options.discrete_sample_period_s
-        return out
+        completed = replace(
+            design.summary,
+            sample_period_s=period,
+            commensurate_sample_period_s=commensurate_sample_period_s(chain, mode, run.grid.period_s),
+            hold_residual_fraction_of_move=hold_residual(chain, run.command, problem),
+            residual_vibration=run.metrics.residual_amplitude / problem.load_move,
+        )
+        return Finish(completed, warnings=tuple(warnings))

@@ -7,17 +7,19 @@ Closed-form rules and the Fig. 25 flowchart, or IPOPT over (t_a, t_j) (see optim
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, ClassVar, Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
 from models.errors import NotApplicable
-from models.stap import load_acceleration_oscillation, stap_sensitivity
+from models.stap import RestToRest, Stap, load_acceleration_oscillation, stap_sensitivity
 from optim.families import stap as S
+from optim.families.stap.report import StapReport, optimization_report, torque_report
 from optim.family import BaseFamily, Candidate, Design, Run, SolverSummary, counted
 from optim.problem import Problem
+from optim.results import Finish, SensitivityCurve
 from optim.solver import SolveCaps
 
 AUTO_RULE = (
@@ -62,11 +64,11 @@ class _StapDetail:
         return self.optimized is None or self.optimized.selection == "closed_form_kept"
 
     @property
-    def stap(self) -> Any:
+    def stap(self) -> Stap:
         return self.closed.stap if self.optimized is None else self.optimized.stap
 
     @property
-    def move(self) -> Any:
+    def move(self) -> RestToRest | None:
         return self.closed.move if self.optimized is None else self.optimized.move
 
 
@@ -97,46 +99,7 @@ def core_request(problem: Problem, options: StapOptions) -> S.StapRequest:
     )
 
 
-def _torque_block(closed: S.StapDesign, speed: float) -> dict[str, Any] | None:
-    torque = closed.torque
-    if torque is None:
-        return None
-    return {
-        "peak_torque_nm": closed.peak_torque_nm,
-        "lowered_acceleration_limit": closed.torque_lowered_acceleration,
-        "max_torque_nm": torque.max_torque_nm,
-        "nodal_acceleration_limit": torque.nodal_acceleration_limit,
-        "nodal_min_acceleration_time_s": speed / torque.nodal_acceleration_limit,
-        "inertia_ratio": torque.inertia_ratio,
-        "coefficient": torque.coefficient,
-        "load_acceleration_oscillation": torque.load_acceleration_oscillation,
-        "torque_overshoot": torque.torque_overshoot,
-        "worst_frequency_ratio": torque.worst_frequency_ratio,
-        "factor": torque.factor,
-        "acceleration_limit": torque.acceleration_limit,
-    }
-
-
-def _optimization_block(optimized: S.OptimizedDesign, torque_limited: bool) -> dict[str, Any]:
-    return {
-        "objective": optimized.objective,
-        "selection": optimized.selection,
-        "nominal_residual": optimized.nominal_residual,
-        "grid_worst_residual": optimized.grid_worst_residual,
-        "closed_form": {
-            "acceleration_time_s": optimized.start.acceleration_time_s,
-            "jerk_time_s": optimized.start.jerk_time_s,
-            "nominal_residual": optimized.start_nominal_residual,
-            "grid_worst_residual": optimized.start_grid_worst_residual,
-        },
-        "acceleration_time_bounds_s": list(optimized.acceleration_time_bounds_s),
-        "jerk_time_floor_s": optimized.jerk_time_floor_s,
-        "torque_constrained": torque_limited,
-        "solver": SolverSummary.of(optimized.solver, optimized.solves).as_dict(),
-    }
-
-
-def _design_block(problem: Problem, detail: _StapDetail) -> dict[str, Any]:
+def design_report(problem: Problem, detail: _StapDetail) -> StapReport:
     closed, optimized, options = detail.closed, detail.optimized, detail.options
     stap, move = detail.stap, detail.move
     f = closed.estimated_frequency_hz
@@ -144,7 +107,7 @@ def _design_block(problem: Problem, detail: _StapDetail) -> dict[str, Any]:
     kept = detail.kept
     fixed = closed.fixed_acceleration_time and kept
     if kept or optimized is None:
-        a_max, rule, torque = closed.acceleration_limit, closed.rule, _torque_block(closed, speed)
+        a_max, rule, torque = closed.acceleration_limit, closed.rule, torque_report(closed, speed)
         k_j, delta = closed.k_j, closed.delta
     else:
         a_max, torque = problem.limits.max_acceleration, None
@@ -152,50 +115,50 @@ def _design_block(problem: Problem, detail: _StapDetail) -> dict[str, Any]:
         rule = f"optimized ({optimized.objective}): IPOPT over (t_a, t_j) from the closed-form design ({closed.rule})"
     peak = abs(stap.peak_acceleration)
     total = stap.acceleration_time_s if move is None else move.total_time_s
-    return {
-        "method": options.method,
-        "move": "rest_to_velocity" if move is None else "rest_to_rest",
-        "rule": rule,
-        "auto_rule": AUTO_RULE,
-        "estimated_frequency_hz": f,
-        "target_velocity": stap.velocity,
-        "acceleration_time_s": stap.acceleration_time_s,
-        "jerk_time_s": stap.jerk_time_s,
-        "constant_acceleration_time_s": stap.constant_acceleration_time_s,
-        "min_acceleration_time_s": None if a_max is None else speed / a_max,
-        "peak_acceleration": peak,
-        "peak_jerk": None if stap.jerk is None else abs(stap.jerk),
-        "shape": stap.shape,
-        "k_j": k_j,
-        "delta": delta,
-        "jerk_periods": f * stap.jerk_time_s,
-        "acceleration_time_periods": f * stap.acceleration_time_s,
-        "dimensionless_jerk_time": stap.dimensionless_jerk_time,
-        "acceleration_limit": a_max,
-        "limit_reached": a_max is not None and abs(peak - a_max) <= S.LIMIT_RTOL * a_max,
-        "torque_limit": torque,
-        "load_acceleration_oscillation": float(load_acceleration_oscillation(1.0, f * stap.jerk_time_s)),
-        "frequency_uncertainty": options.frequency_uncertainty,
-        "residual_tolerance": options.residual_tolerance,
-        "band_worst_residual": S.band_worst(stap, f, options.frequency_uncertainty),
-        "candidates": [vars(c) for c in closed.candidates] if fixed else None,
-        "candidates_truncated": closed.candidates_truncated if fixed else None,
-        "k_j_max": closed.k_j_max if kept else None,
-        "delta_f": closed.delta_f if kept else None,
-        "paper_k_j_max": closed.paper_k_j_max if kept else None,
-        "paper_delta_f": closed.paper_delta_f if kept else None,
-        "auto_steps": [vars(s) for s in closed.auto_steps] or None,
-        "displacement": None if move is None else move.displacement,
-        "cruise_velocity": None if move is None else move.ramp.velocity,
-        "cruise_time_s": None if move is None else move.cruise_time_s,
-        "duration_s": total,
-        "total_time_s": total,
-        "requested_velocity": None if move is None else closed.requested_velocity,
-        "velocity_lowered": None if move is None else closed.velocity_lowered,
-        "optimization": None
+    return StapReport(
+        method=options.method,
+        move="rest_to_velocity" if move is None else "rest_to_rest",
+        rule=rule,
+        auto_rule=AUTO_RULE,
+        estimated_frequency_hz=f,
+        target_velocity=stap.velocity,
+        acceleration_time_s=stap.acceleration_time_s,
+        jerk_time_s=stap.jerk_time_s,
+        constant_acceleration_time_s=stap.constant_acceleration_time_s,
+        min_acceleration_time_s=None if a_max is None else speed / a_max,
+        peak_acceleration=peak,
+        peak_jerk=None if stap.jerk is None else abs(stap.jerk),
+        shape=stap.shape,
+        k_j=k_j,
+        delta=delta,
+        jerk_periods=f * stap.jerk_time_s,
+        acceleration_time_periods=f * stap.acceleration_time_s,
+        dimensionless_jerk_time=stap.dimensionless_jerk_time,
+        acceleration_limit=a_max,
+        limit_reached=a_max is not None and abs(peak - a_max) <= S.LIMIT_RTOL * a_max,
+        torque_limit=torque,
+        load_acceleration_oscillation=float(load_acceleration_oscillation(1.0, f * stap.jerk_time_s)),
+        frequency_uncertainty=options.frequency_uncertainty,
+        residual_tolerance=options.residual_tolerance,
+        band_worst_residual=S.band_worst(stap, f, options.frequency_uncertainty),
+        candidates=closed.candidates if fixed else None,
+        candidates_truncated=closed.candidates_truncated if fixed else None,
+        k_j_max=closed.k_j_max if kept else None,
+        delta_f=closed.delta_f if kept else None,
+        paper_k_j_max=closed.paper_k_j_max if kept else None,
+        paper_delta_f=closed.paper_delta_f if kept else None,
+        auto_steps=closed.auto_steps or None,
+        displacement=None if move is None else move.displacement,
+        cruise_velocity=None if move is None else move.ramp.velocity,
+        cruise_time_s=None if move is None else move.cruise_time_s,
+        duration_s=total,
+        total_time_s=total,
+        requested_velocity=None if move is None else closed.requested_velocity,
+        velocity_lowered=None if move is None else closed.velocity_lowered,
+        optimization=None
         if optimized is None
-        else _optimization_block(optimized, problem.limits.max_torque_nm is not None),
-    }
+        else optimization_report(optimized, problem.limits.max_torque_nm is not None),
+    )
 
 
 class StapFamily(BaseFamily):
@@ -239,14 +202,15 @@ class StapFamily(BaseFamily):
             *closed.move_notes,
         )
         solver = None if optimized is None else SolverSummary.of(optimized.solver, optimized.solves)
-        return Design(command, _design_block(problem, detail), notes, solver, detail=detail)
+        return Design(command, design_report(problem, detail), notes, solver, detail=detail)
 
-    def finish(self, problem: Problem, design: Design, run: Run) -> dict[str, Any]:
+    def finish(self, problem: Problem, design: Design, run: Run) -> Finish:
         detail: _StapDetail = design.detail
+        assert isinstance(design.summary, StapReport)
         m = run.metrics
         amplitude = m.residual_velocity_amplitude if detail.move is None else m.residual_amplitude
         residual = amplitude / problem.load_move
-        warnings = []
+        warnings: list[str] = []
         mode = problem.plant.modes()[0]
         if detail.optimized is None and mode.damping_ratio > 0.0 and residual > 1e-6:
             warnings.append(
@@ -259,11 +223,11 @@ class StapFamily(BaseFamily):
                 f"the STAP is designed for the first mode ({mode.natural_frequency_hz:.6g} Hz); the other modes' "
                 "residuals are in metrics.modes"
             )
-        return {"design": {"residual_vibration": residual}, "warnings": warnings}
+        return Finish(replace(design.summary, residual_vibration=residual), warnings=tuple(warnings))
 
     def sensitivity(
         self, problem: Problem, design: Design, ratios: NDArray[np.float64], zetas: NDArray[np.float64]
-    ) -> dict[str, Any] | None:
+    ) -> SensitivityCurve | None:
         """Appendix B's closed form where it applies (zeta = 0, rest-to-velocity), else the exact free state."""
         from models.sensitivity import sensitivity
         from optim.synthesis import sensitivity_curve
@@ -280,13 +244,4 @@ class StapFamily(BaseFamily):
         if np.any(closed):
             grid[closed] = stap_sensitivity(detail.stap, mode.natural_frequency_hz, ratios)
         curve = sensitivity_curve(problem, design.command, ratios, zetas, rows=grid)
-        curve["method"] = ["appendix_b" if c else "free_state" for c in closed]
-        return curve
-
-    def request_fields(self, options: Any) -> dict[str, Any]:
-        out = super().request_fields(options)
-        if out.get("optimization") and out["optimization"].get("damping_ratios") is not None:
-            out["optimization"]["damping_ratios"] = list(out["optimization"]["damping_ratios"])
-        elif out.get("optimization"):
-            out["optimization"].pop("damping_ratios", None)
-        return out
+        return replace(curve, method=tuple("appendix_b" if c else "free_state" for c in closed))
