@@ -57,7 +57,6 @@ def client() -> Iterator[TestClient]:
 
 def direct_body(family, schema, payload: dict, settings: Settings) -> dict:
     """A family endpoint's answer without HTTP: the same request through the pipeline in-process."""
-    from app.presenters import answer_body
     from app.responses import drop_duplicates
     from optim.synthesis import synthesize
 
