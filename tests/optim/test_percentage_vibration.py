@@ -56,7 +56,7 @@ def test_shapers_on_a_step_have_their_textbook_curve_and_band(name, zeta):
     amplitudes, times = classical_shaper(name, zeta)
     expected = np.array([classical_v(amplitudes, times, r, zeta) for r in RATIOS])
     # Both are the same sum evaluated two ways: agreement to round-off (1e-9 of 100 %).
-    np.testing.assert_allclose(curve["percentage_vibration"], expected, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(curve.percentage_vibration, expected, rtol=0, atol=1e-9)
 
     # The band from the textbook curve by root finding; the pipeline interpolates linearly on a 5e-4
     # grid, whose error is about (5e-4)^2 x V'' / 8 < 1e-6 in ratio.
@@ -66,7 +66,7 @@ def test_shapers_on_a_step_have_their_textbook_curve_and_band(name, zeta):
     nominal_is_inside = name == "ei"  # EI sits at 5 % at ratio 1: its band spans both lobes
     low = brentq(five, 0.6, 0.97 if not nominal_is_inside else 0.85)
     high = brentq(five, 1.01 if not nominal_is_inside else 1.15, 1.4)
-    band = curve["band_5_percent"]
+    band = curve.band_5_percent
     assert band[0] == pytest.approx(low, abs=1e-6) and band[1] == pytest.approx(high, abs=1e-6)
     textbook = {("zv", 0.0): (0.968, 1.032), ("zvd", 0.0): (0.856, 1.144), ("ei", 0.0): (0.80, 1.20)}
     if (name, zeta) in textbook:  # the values tables print, to their 3 digits
@@ -81,11 +81,11 @@ def test_the_reference_of_an_undamped_bang_bang_move_is_4a_over_w2():
         result = synthesize(FAMILIES["stap"], problem, FAMILIES["stap"].default_options(problem))
         curve = result.sensitivity
         # Bang-bang or trapezoid: steps +a, -a, -a, +a (or +a, -2a, +a): 4 a / w^2 undamped either way.
-        assert curve["reference_amplitude"][0] == pytest.approx(4 * 3.0 / w**2, rel=1e-12)
+        assert curve.reference_amplitude[0] == pytest.approx(4 * 3.0 / w**2, rel=1e-12)
         # V from the simulated residual (the exact free state of models.simulation, not the sensitivity sum);
         # both compute the same residual, to round-off of the move (1e-12 of 0.5 over 4a/w^2 = 0.019).
         simulated = 100 * result.metrics.residual_amplitude / (4 * 3.0 / w**2)
-        assert curve["percentage_vibration"][0] == pytest.approx(simulated, abs=1e-8)
+        assert curve.percentage_vibration[0] == pytest.approx(simulated, abs=1e-8)
 
 
 def test_the_damped_reference_sums_each_step_decayed_to_the_end():
