@@ -14,10 +14,11 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize_scalar
 
+from models.drives import rate_limit
 from models.errors import Infeasible, InvalidParameter
 from models.metrics import metrics
 from models.plants import Mode, example_plants, make_plant
-from models.shapers import RampTrain, rate_limit
+from models.shapers import RampTrain
 from models.simulation import simulate
 from optim.registry import FAMILIES  # before the families' modules: the registry imports them
 
