@@ -13,7 +13,7 @@ from fastapi import FastAPI
 from prometheus_client import multiprocess as prometheus_multiprocess
 from pydantic import BaseModel
 
-from app import observability, problems
+from app import body_middleware, observability, problem_handlers, problems
 from app.responses import FieldsOutput
 from app.routers import (
     compare,
@@ -109,8 +109,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     app.state.settings = settings  # the routes' SettingsDep (app.deps.get_app_settings)
     observability.install(app)
-    problems.install(app)
-    app.add_middleware(problems.BodySizeLimit, max_bytes=settings.max_body_bytes)
+    problem_handlers.install(app)
+    app.add_middleware(body_middleware.BodySizeLimit, max_bytes=settings.max_body_bytes)
     routers = (
         health,
         plants,

@@ -22,13 +22,14 @@ from pydantic import ValidationError
 from app import problems
 from app.deps import PoolDep, SettingsDep, ThreadsDep
 from app.examples import OMEGA_RAD_S, SIGMA_1_S
+from app.json_bodies import JSONRoute
 from app.responses import NumpyJSONResponse
 from app.schemas.identify import IdentifyMeasurementResponse, MeasurementParams
 from app.schemas.smoothers import IdentifyRequest, IdentifyResponse
 from app.services.identify import identify_csv, identify_respond, runner
 from models.errors import InvalidParameter
 
-router = APIRouter(prefix="/v1", tags=["smoothers"], route_class=problems.JSONRoute)
+router = APIRouter(prefix="/v1", tags=["smoothers"], route_class=JSONRoute)
 
 CSV_MEDIA_TYPE = "text/csv"
 

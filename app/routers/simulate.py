@@ -10,6 +10,7 @@ from starlette.responses import Response
 from app import problems
 from app.deps import SettingsDep, ThreadsDep
 from app.examples import SIMULATE_EXAMPLES
+from app.json_bodies import JSONRoute
 from app.responses import ARRAY_RESPONSE_DOC, ArrayOutput, Output, render
 from app.schemas.plants import to_plant
 from app.schemas.simulate import SimulateRequest, SimulateResponse, load_out, metrics_out, profile_out, to_command
@@ -18,7 +19,7 @@ from models.metrics import metrics
 from models.simulation import simulate
 from optim.problem import VIBRATION_FRACTION_OF_MOVE
 
-router = APIRouter(prefix="/v1", tags=["simulation"], route_class=problems.JSONRoute)
+router = APIRouter(prefix="/v1", tags=["simulation"], route_class=JSONRoute)
 
 
 @router.post(

@@ -134,7 +134,8 @@ def test_a_500_problem_carries_the_id_and_the_headers_and_its_log_line_is_json(c
     assert response.headers["x-request-id"] == "boom-1"
     assert response.headers["content-security-policy"] == CONTENT_SECURITY_POLICY
     lines = json_lines(capsys.readouterr().err)
-    # app.problems logs the error through the stdlib: JSON too, with the bound request id and the traceback.
+    # The handlers (app/problem_handlers.py) log the error on the app.problems logger through the stdlib: JSON too,
+    # with the bound request id and the traceback.
     (error,) = [line for line in lines if line.get("logger") == "app.problems"]
     assert error["level"] == "error" and error["request_id"] == "boom-1" and "RuntimeError: boom" in error["exception"]
     (access,) = [line for line in lines if line.get("event") == "request"]
