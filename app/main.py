@@ -13,7 +13,7 @@ from fastapi import FastAPI
 from prometheus_client import multiprocess as prometheus_multiprocess
 from pydantic import BaseModel
 
-from app import observability, problems
+from app import body_middleware, json_logs, observability, problem_handlers, problems
 from app.responses import FieldsOutput
 from app.routers import (
     compare,
@@ -59,7 +59,7 @@ that breaks one is a 422 `/problems/infeasible`, unless `allow_limit_violation` 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
     settings = settings or get_settings()
-    observability.configure_logging()
+    json_logs.configure_logging()
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
@@ -74,7 +74,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         pool = SolverPool(
             settings.workers,
             settings.worker_start_timeout_s,
-            warm_up=functools.partial(observability.start_worker, warm_up),
+            warm_up=functools.partial(json_logs.start_worker, warm_up),
             max_queued=settings.queue_limit,
             niceness=settings.worker_niceness,
             memory_mb=settings.worker_memory_mb,
@@ -109,8 +109,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     app.state.settings = settings  # the routes' SettingsDep (app.deps.get_app_settings)
     observability.install(app)
-    problems.install(app)
-    app.add_middleware(problems.BodySizeLimit, max_bytes=settings.max_body_bytes)
+    problem_handlers.install(app)
+    app.add_middleware(body_middleware.BodySizeLimit, max_bytes=settings.max_body_bytes)
     routers = (
         health,
         plants,

@@ -3,30 +3,24 @@
 Each problem has its own ``type`` (a path under ``/problems/`` that the service documents), a
 ``title``, the HTTP ``status``, a ``detail`` sentence and, where one field is at fault, ``field``.
 Invalid input lists every broken rule in ``errors`` with the field, the value and the rule.
+
+Here the problem types, their rendering and their OpenAPI declarations; ``app.problem_handlers`` turns every
+error into one, ``app.body_middleware`` answers a body too large or not JSON, ``app.json_bodies`` reads JSON.
 """
 
 from __future__ import annotations
 
-import json
-import logging
-from collections.abc import Callable, Coroutine
 from typing import Any
 
-import orjson
-from fastapi import APIRouter, FastAPI, Request
+from fastapi import APIRouter
 from fastapi.exceptions import RequestValidationError
-from fastapi.routing import APIRoute
 from pydantic import BaseModel, ConfigDict, Field
-from starlette.concurrency import run_in_threadpool
-from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.responses import Response
-from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from app.encoding import dumps
 from models.errors import DomainError, Infeasible, InvalidParameter, NotApplicable, PoolUnavailable, SolverFailed
 from models.plants import PLANT_KINDS
 
-log = logging.getLogger(__name__)
 PROBLEM_MEDIA_TYPE = "application/problem+json"
 
 # slug -> (status, title, what it means); served at /problems/{slug}
@@ -265,85 +259,6 @@ def domain_problem(exc: DomainError) -> Response:
     return response
 
 
-def install(app: FastAPI) -> None:
-    """Register the handlers that turn every error into a problem, and the JSON body guard."""
-    app.add_middleware(JSONBodyOnly)
-
-    @app.exception_handler(RequestValidationError)
-    async def _validation(_: Request, exc: RequestValidationError) -> Response:
-        errors = validation_errors(exc)
-        malformed = [e for e in errors if e["field"] == "body" and e["rule"].startswith("the body is not valid JSON")]
-        if malformed:
-            return problem_response("malformed-body", malformed[0]["rule"], field="body", errors=malformed[:1])
-        return invalid_input(errors, total=len(exc.errors()))
-
-    @app.exception_handler(DomainError)
-    async def _domain(_: Request, exc: DomainError) -> Response:
-        return domain_problem(exc)
-
-    @app.exception_handler(ProblemError)
-    async def _problem(_: Request, exc: ProblemError) -> Response:
-        return problem_response(exc.slug, exc.detail, field=exc.field, **exc.extra)
-
-    @app.exception_handler(StarletteHTTPException)
-    async def _http(request: Request, exc: StarletteHTTPException) -> Response:
-        response = _http_problem(exc)
-        for name, value in (exc.headers or {}).items():  # e.g. a 405's Allow (RFC 9110 15.5.6)
-            response.headers.setdefault(name, value)
-        if exc.status_code == 405:
-            allowed = allowed_methods(request.app, request.scope)
-            if allowed:
-                response.headers["Allow"] = ", ".join(allowed)
-        return response
-
-    def _http_problem(exc: StarletteHTTPException) -> Response:
-        slug = {
-            400: "malformed-body",
-            404: "not-found",
-            405: "method-not-allowed",
-            406: "not-acceptable",
-            413: "body-too-large",
-            415: "unsupported-media-type",
-        }.get(exc.status_code)
-        if slug is None:
-            text = safe_text(str(exc.detail))
-            body = {"type": "about:blank", "title": text, "status": exc.status_code, "detail": text}
-            return Response(dumps(body), status_code=exc.status_code, media_type=PROBLEM_MEDIA_TYPE)
-        detail = str(exc.detail)
-        if slug == "malformed-body" and detail == "There was an error parsing the body":  # FastAPI's words
-            detail = "the body cannot be parsed as JSON: it is not UTF-8, or a number is beyond the parser's limits"
-            return problem_response(
-                slug, detail, field="body", errors=[{"field": "body", "value": None, "rule": detail}]
-            )
-        return problem_response(slug, detail)
-
-    @app.exception_handler(Exception)
-    async def _unexpected(request: Request, exc: Exception) -> Response:
-        log.exception("unexpected error on %s %s", request.method, request.url.path)
-        return problem_response("internal-error", "an unexpected error occurred; it has been logged")
-
-
-METHOD_ORDER = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS")
-
-
-def allowed_methods(app: Any, scope: Scope) -> list[str]:
-    """The methods the request's path accepts, over every route of the app that matches it (Starlette's 405
-    names only the first route matching the path, and a StaticFiles mount its own). Empty if none says."""
-    from fastapi import routing
-    from starlette.routing import Match
-
-    methods: set[str] = set()
-    probe = {**scope, "type": "http", "method": ""}  # a method no route takes: the path matches PARTIAL at best
-    iterate = getattr(routing, "iter_route_contexts", None)  # FastAPI >= 0.16x wraps included routers
-    for context in iterate(app.routes) if iterate is not None else app.routes:
-        if isinstance(getattr(context, "original_route", context), routing.Mount):
-            continue  # a mount (the static files) answers its own 405, with its own Allow
-        route_methods = getattr(context, "methods", None)
-        if route_methods and context.matches(probe)[0] is not Match.NONE:
-            methods.update(route_methods)
-    return sorted(methods, key=lambda m: (METHOD_ORDER.index(m) if m in METHOD_ORDER else len(METHOD_ORDER), m))
-
-
 def responses(*statuses: int) -> dict[int | str, dict[str, Any]]:
     """OpenAPI declarations of the problems an operation can answer with."""
     out: dict[int | str, dict[str, Any]] = {}
@@ -396,58 +311,6 @@ def declared_statuses(route: Any) -> tuple[int, ...]:
     return tuple(sorted(statuses))
 
 
-class BodySizeLimit:
-    """ASGI middleware: 413 problem for a body above ``max_bytes`` (declared or streamed).
-
-    FastAPI's own ``max_body_size`` answers some of its 413s with a plain JSON body; this one
-    always answers with a problem.
-    """
-
-    def __init__(self, app: ASGIApp, max_bytes: int) -> None:
-        self.app = app
-        self.max_bytes = max_bytes
-
-    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] != "http":
-            await self.app(scope, receive, send)
-            return
-        declared = dict(scope.get("headers", [])).get(b"content-length")
-        if declared is not None and declared.isdigit() and int(declared) > self.max_bytes:
-            await self._reject(scope, receive, send)
-            return
-        received = 0
-        started = False
-
-        async def limited_receive() -> Message:
-            nonlocal received
-            message = await receive()
-            if message["type"] == "http.request":
-                received += len(message.get("body", b""))
-                if received > self.max_bytes:
-                    raise _TooLarge()
-            return message
-
-        async def tracking_send(message: Message) -> None:
-            nonlocal started
-            if message["type"] == "http.response.start":
-                started = True
-            await send(message)
-
-        try:
-            await self.app(scope, limited_receive, tracking_send)
-        except _TooLarge:  # raised outside a route (a route turns it into its 413 problem)
-            if not started:
-                await self._reject(scope, receive, send)
-
-    async def _reject(self, scope: Scope, receive: Receive, send: Send) -> None:
-        response = problem_response(
-            "body-too-large",
-            f"the request body exceeds the limit of {self.max_bytes} bytes",
-            limit_bytes=self.max_bytes,
-        )
-        await response(scope, receive, send)
-
-
 def api_routes(app: Any) -> list[tuple[str, Any]]:
     """(path, route) of every FastAPI route of the app, in included routers too."""
     from fastapi import routing
@@ -461,162 +324,6 @@ def api_routes(app: Any) -> list[tuple[str, Any]]:
         if isinstance(route, routing.APIRoute) and path is not None:
             out.append((path, route))
     return out
-
-
-def is_json_media_type(content_type: str) -> bool:
-    """``application/json`` or ``application/*+json``, with any parameters (charset, ...)."""
-    media = content_type.split(";", 1)[0].strip().lower()
-    kind, _, subtype = media.partition("/")
-    return kind == "application" and (subtype == "json" or (subtype.endswith("+json") and len(subtype) > 5))
-
-
-def extra_media_types(route: Any) -> frozenset[str]:
-    """The non-JSON media types a route's OpenAPI ``requestBody`` declares (``openapi_extra``): the one way a
-    route accepts another body (POST /v1/identify takes text/csv); none for every other route."""
-    extra = getattr(route, "openapi_extra", None) or {}
-    content = (extra.get("requestBody") or {}).get("content") or {}
-    return frozenset(m.lower() for m in content if not is_json_media_type(m))
-
-
-class JSONBodyOnly:
-    """ASGI middleware: a 415 problem for a body that is not declared JSON, on a route that takes one.
-
-    The routes that read a JSON body are found from the app's own routes (so a new route is covered
-    without listing it). A body without a content-type is refused too (FastAPI would not parse it);
-    a request without a body goes on (and meets the route's own "field required" 422). A route that
-    declares another media type in its requestBody (``extra_media_types``) also takes that one.
-    """
-
-    def __init__(self, app: ASGIApp) -> None:
-        self.app = app
-        self._routes: list[tuple[Any, set[str], Any]] | None = None
-
-    def _body_routes(self, scope: Scope) -> list[tuple[Any, set[str], Any]]:
-        if self._routes is None:
-            from starlette.routing import compile_path
-
-            self._routes = [
-                (compile_path(path)[0], set(route.methods or ()), route)
-                for path, route in api_routes(scope["app"])
-                if route.body_field is not None
-            ]
-        return self._routes
-
-    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] != "http" or scope.get("method") in ("GET", "HEAD", "OPTIONS", "DELETE"):
-            await self.app(scope, receive, send)
-            return
-        headers = dict(scope.get("headers", []))
-        length = headers.get(b"content-length")
-        has_body = b"transfer-encoding" in headers or (length is not None and length.strip() not in (b"", b"0"))
-        content_type = headers.get(b"content-type", b"").decode("latin-1")
-        if has_body and not is_json_media_type(content_type):
-            path, method = scope.get("path", ""), scope.get("method", "")
-            route = next(
-                (r for regex, methods, r in self._body_routes(scope) if regex.match(path) and method in methods), None
-            )
-            extra = extra_media_types(route) if route is not None else frozenset()
-            if route is not None and content_type.split(";", 1)[0].strip().lower() not in extra:
-                scope["route"] = route  # the access line and the metrics name the route, as for any answer
-                sent = f"content-type {content_type!r}" if content_type else "no content-type"
-                accepted = "application/json or application/*+json" + "".join(f" or {m}" for m in sorted(extra))
-                rule = f"must be {accepted} (the body is JSON)" if not extra else f"must be {accepted}"
-                response = problem_response(
-                    "unsupported-media-type",
-                    f"the body must be {accepted}; it was sent with {sent}"
-                    if extra
-                    else f"the body must be JSON (application/json or application/*+json); it was sent with {sent}",
-                    field="content-type",
-                    errors=[{"field": "content-type", "value": content_type or None, "rule": rule}],
-                )
-                await response(scope, receive, send)
-                return
-        await self.app(scope, receive, send)
-
-
-class _TooLarge(StarletteHTTPException):
-    """Raised from ``receive``: FastAPI re-raises HTTP exceptions met while reading a body."""
-
-    def __init__(self) -> None:
-        super().__init__(413, "the request body exceeds the configured size limit")
-
-
-# Integers beyond 64 bits: orjson reads them as the nearest double, the standard parser as Python ints. A body
-# with an integer token of 19 digits or more (``has_long_integer``) is read again by the standard parser when its
-# validation fails, so that the 422 is the one ``json.loads`` gives (the field, the integer echoed as such).
-_DIGIT_CLASSES = bytes(
-    ord("d") if chr(c).isdigit() and c < 128 else ord(".") if c in b".+eE" else ord(" ") for c in range(256)
-)
-_LONG_INTEGER = b" " + b"d" * 19
-
-
-def has_long_integer(body: bytes) -> bool:
-    """Whether a JSON text may hold an integer of 19 digits or more (a run of 19 digits not after ``.``)."""
-    classes = body.translate(_DIGIT_CLASSES)
-    return classes.startswith(_LONG_INTEGER[1:]) or _LONG_INTEGER in classes
-
-
-def parse_json(body: bytes, *, exact_integers: bool = False) -> Any:
-    """A JSON body parsed by orjson (4x the standard parser on arrays of numbers, bench/http_io.py).
-
-    What orjson refuses goes to the standard parser, so that the contract stays the one of ``json.loads``: the
-    literals ``NaN``/``Infinity`` and numbers beyond double range (``1e999``) are read, then refused by the
-    models as a 422 naming the field; lone surrogates (``"\\ud800"``) are read as before; invalid JSON raises
-    the standard parser's ``JSONDecodeError`` (its message and position), and an integer beyond its 4300 digits
-    its ``ValueError`` (FastAPI's 400). ``exact_integers``: the standard parser only (see ``JSONRoute``).
-    orjson's error is itself a ``json.JSONDecodeError`` (https://github.com/ijl/orjson#deserialize)."""
-    if exact_integers:
-        return json.loads(body)
-    try:
-        return orjson.loads(body)
-    except orjson.JSONDecodeError:
-        return json.loads(body)
-
-
-PARSE_IN_THREAD_BYTES = 256 * 1024  # above it a thread hop (~0.1 ms) is worth not blocking the event loop
-
-
-class JSONRequest(Request):
-    """Starlette's request whose ``json()`` is ``parse_json``: FastAPI reads every JSON body through it
-    (``fastapi.routing.get_request_handler``)."""
-
-    exact_integers = False
-
-    async def json(self) -> Any:
-        if not hasattr(self, "_json"):
-            body = await self.body()
-            if len(body) > PARSE_IN_THREAD_BYTES:  # megabytes of samples: parsed off the event loop
-                self._json = await run_in_threadpool(parse_json, body, exact_integers=self.exact_integers)
-            else:
-                self._json = parse_json(body, exact_integers=self.exact_integers)
-        return self._json
-
-
-class JSONRoute(APIRoute):
-    """An ``APIRoute`` whose handler gets a ``JSONRequest`` (FastAPI's documented way to change how a body is
-    read: https://fastapi.tiangolo.com/how-to/custom-request-and-route/). Every router with a body uses it.
-
-    A body refused by validation that holds a long integer token is validated again as the standard parser reads
-    it (an exact Python int, not orjson's double): the 422 is then the one the service gave before orjson; the
-    route's function has not run (FastAPI validates before calling it), so nothing runs twice."""
-
-    def get_route_handler(self) -> Callable[[Request], Coroutine[Any, Any, Response]]:
-        handler = super().get_route_handler()
-
-        async def handle(request: Request) -> Response:
-            fast = JSONRequest(request.scope, request.receive)
-            try:
-                return await handler(fast)
-            except RequestValidationError:
-                body = getattr(fast, "_body", None)
-                if not hasattr(fast, "_json") or body is None or not has_long_integer(body):
-                    raise
-            exact = JSONRequest(request.scope, request.receive)
-            exact._body = body
-            exact.exact_integers = True
-            return await handler(exact)
-
-        return handle
 
 
 router = APIRouter(tags=["problems"])

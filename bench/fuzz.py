@@ -45,7 +45,7 @@ from schemathesis import GenerationMode  # noqa: E402
 from schemathesis.generation.meta import CaseMetadata  # noqa: E402
 from schemathesis.python import asgi  # noqa: E402
 
-from app.observability import APP_LOGGERS  # noqa: E402
+from app.json_logs import APP_LOGGERS  # noqa: E402
 from tests.app.openapi_examples import first_post_examples  # noqa: E402
 from tests.app.server import readyz, serving  # noqa: E402
 from tests.app.test_fuzz import (  # noqa: E402

@@ -262,8 +262,8 @@ def in_process_stap(repeats: int) -> tuple[float, float]:
 
 def in_process_simulate(body: bytes, repeats: int) -> dict[str, float]:
     """The 100k simulate in this process, step by step (p50, ms): what the HTTP path adds to the computation."""
+    from app.json_bodies import parse_json
     from app.presenters import load_json, metrics_json
-    from app.problems import parse_json
     from app.responses import Output, render
     from app.schemas.plants import to_plant
     from app.schemas.simulate import SimulateRequest, to_command

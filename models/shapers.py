@@ -1,4 +1,4 @@
-"""Input shaping: impulse sequences, their residual vibration, shaped and rate-limited commands.
+"""Input shaping: impulse sequences, their residual vibration (Sec. 3.1), shaped commands (eqs. 6-7, Fig. 7).
 
 Chatlatanagulchai & Pongpanich (papers/chatlatanagulchai-zvd-acceleration-limit.txt), Sec. 3 and
 Fig. 5: an input shaper is a sequence of impulses A_i at times t_i; the shaped command is the
@@ -6,10 +6,10 @@ baseline command convolved with it, v_s(t) = sum_i A_i v_b(t - t_i); the drive t
 slope of the velocity command to the acceleration limit a, v_a = rate_limit(v_s).
 
 Everything here is pure: the design of a shaper (which A_i, t_i) and of a baseline lives in
-``optim.families.input_shaped.shapers``. Velocity commands made of steps and ramps (the baseline v_b, the shaped v_s
-and the rate-limited v_a) are described exactly by a ``RampTrain`` and become exact
-``PiecewiseCommand`` objects (velocity piecewise linear, a breakpoint at every kink), so that the
-simulation of the load is exact.
+``optim.families.input_shaped.shapers``, the drive's rate limiter and position follower in ``models.drives``.
+Velocity commands made of steps and ramps (the baseline v_b, the shaped v_s and the rate-limited v_a) are
+described exactly by a ``RampTrain`` and become exact ``PiecewiseCommand`` objects (velocity piecewise linear, a
+breakpoint at every kink), so that the simulation of the load is exact.
 """
 
 from __future__ import annotations
@@ -22,39 +22,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import brentq
 
-from models.commands import MIN_STEP_S, PiecewiseCommand, check_time_grid
+from models.breakpoints import integrated, merge_times, merge_tolerance, snap
+from models.commands import PiecewiseCommand, check_time_grid
+
+# The drive (models.drives) as optim.families.input_shaped.family imports it: from here.
+from models.drives import follow_position as follow_position
+from models.drives import rate_limit as rate_limit
 from models.errors import InvalidParameter
-
-# Times closer than this (absolute, or relative to the largest time) are one breakpoint: sums
-# such as t_i + t_j and t_j + t_i differ by round-off only, and PiecewiseCommand needs steps of
-# at least MIN_STEP_S. Merging moves a kink by at most 2e-9 s.
-_MERGE_ABS_S = 2.0 * MIN_STEP_S
-_MERGE_REL = 1e-12
-
-
-def _merge_tolerance(times: NDArray[np.float64]) -> float:
-    scale = float(np.max(np.abs(times))) if times.size else 0.0
-    return max(_MERGE_ABS_S, _MERGE_REL * scale)
-
-
-def _merge_times(times: ArrayLike) -> NDArray[np.float64]:
-    """Sorted unique times, those within the merge tolerance of the previous kept one dropped."""
-    t = np.sort(np.asarray(times, dtype=float))
-    if t.size == 0:
-        return t
-    keep = np.concatenate(([True], np.diff(t) > _merge_tolerance(t)))
-    return t[keep]
-
-
-def _snap(times: NDArray[np.floating[Any]], grid: NDArray[np.float64]) -> NDArray[np.intp]:
-    """Index of the grid point nearest to each time (every time is within tolerance of one)."""
-    idx = np.clip(np.searchsorted(grid, times), 1, max(grid.size - 1, 1))
-    if grid.size == 1:
-        return np.zeros(times.shape, dtype=int)
-    left = grid[idx - 1]
-    right = grid[idx]
-    return np.where(np.abs(times - left) <= np.abs(right - times), idx - 1, idx)
-
 
 # ------------------------------------------------------------------------------------------
 # Impulse sequences
@@ -96,7 +70,7 @@ class ImpulseSequence:
         a = np.asarray(amplitudes, dtype=float).ravel()
         order = np.argsort(t, kind="stable")
         t, a = t[order], a[order]
-        starts = np.flatnonzero(np.concatenate(([True], np.diff(t) > _merge_tolerance(t))))
+        starts = np.flatnonzero(np.concatenate(([True], np.diff(t) > merge_tolerance(t))))
         return cls(np.add.reduceat(a, starts), t[starts] - t[0])
 
     @property
@@ -256,7 +230,7 @@ class RampTrain:
         ramps = self.rise_s > 0.0
         if not np.any(ramps):
             return 0.0
-        times = _merge_times(np.concatenate([self.start_s, self.start_s + self.rise_s]))
+        times = merge_times(np.concatenate([self.start_s, self.start_s + self.rise_s]))
         starts = self.start_s[ramps][None, :]
         ends = (self.start_s + self.rise_s)[ramps][None, :]
         slack = 1e-12 * max(1.0, float(times[-1]))
@@ -271,11 +245,11 @@ class RampTrain:
     def to_command(self, initial_position: float = 0.0) -> PiecewiseCommand:
         """The exact PiecewiseCommand (position, velocity, acceleration) with a breakpoint at
         every start and end of a ramp; rest before t = 0."""
-        grid = _merge_times(np.concatenate([[0.0], self.start_s, self.start_s + self.rise_s]))
+        grid = merge_times(np.concatenate([[0.0], self.start_s, self.start_s + self.rise_s]))
         if grid.size < 2:
             grid = np.array([grid[0], grid[0] + 1.0])
-        a = _snap(self.start_s, grid)
-        b = _snap(self.start_s + self.rise_s, grid)
+        a = snap(self.start_s, grid)
+        b = snap(self.start_s + self.rise_s, grid)
         s, e = grid[a], grid[b]
         velocity, slope = np.empty(grid.size), np.empty(grid.size)
         for rows in _row_chunks(grid.size, self.height.size):  # (breakpoints x ramps) in bounded pieces
@@ -286,7 +260,7 @@ class RampTrain:
                 slope_each = np.where(inside, self.height / (e - s), 0.0)
             velocity[rows] = frac @ self.height
             slope[rows] = slope_each.sum(axis=1)
-        return _integrated(grid, velocity, slope, initial_position, continuous_orders=1)
+        return integrated(grid, velocity, slope, initial_position, continuous_orders=1)
 
 
 _CHUNK_ELEMENTS = 262_144  # a (breakpoints x ramps) table is built this many entries at a time: 2 MiB per array
@@ -297,20 +271,6 @@ def _row_chunks(rows: int, columns: int) -> list[slice]:
     a shaped train of 2000 ramps built its 4001 x 2000 tables whole, 138 MiB."""
     step = max(1, _CHUNK_ELEMENTS // max(1, columns))
     return [slice(start, min(start + step, rows)) for start in range(0, rows, step)]
-
-
-def _integrated(
-    time_s: NDArray[np.float64],
-    velocity: NDArray[np.float64],
-    slope: NDArray[np.float64],
-    initial_position: float,
-    continuous_orders: int,
-) -> PiecewiseCommand:
-    """The degree-2 command with these right-hand velocities and slopes; position integrated exactly."""
-    h = np.diff(time_s)
-    increments = velocity[:-1] * h + 0.5 * slope[:-1] * h * h
-    position = initial_position + np.concatenate(([0.0], np.cumsum(increments)))
-    return PiecewiseCommand(check_time_grid(time_s), np.array([position, velocity, slope]), continuous_orders)
 
 
 # ------------------------------------------------------------------------------------------
@@ -337,8 +297,8 @@ def _evaluate_shifted(
 def shape_command(command: PiecewiseCommand, shaper: ImpulseSequence) -> PiecewiseCommand:
     """sum_i A_i p(t - t_i) for any piecewise-polynomial command (position or velocity alike: the
     convolution commutes with differentiation), exactly: its breakpoints are every t_k + t_i."""
-    grid = _merge_times((command.time_s[None, :] + shaper.times_s[:, None]).ravel())
-    tol = _merge_tolerance(grid)
+    grid = merge_times((command.time_s[None, :] + shaper.times_s[:, None]).ravel())
+    tol = merge_tolerance(grid)
     derivatives = np.zeros((command.degree + 1, grid.size))
     for a_i, t_i in zip(shaper.amplitudes, shaper.times_s, strict=True):  # a loop over impulses
         for m in range(command.degree + 1):
@@ -358,156 +318,3 @@ def shape_samples(time_s: ArrayLike, values: ArrayLike, shaper: ImpulseSequence)
     for a_i, t_i in zip(shaper.amplitudes, shaper.times_s, strict=True):  # a loop over impulses
         out += a_i * np.interp(t - t_i, t, u)
     return out
-
-
-# ------------------------------------------------------------------------------------------
-# The drive's acceleration limit (Fig. 5)
-
-
-def rate_limit(command: PiecewiseCommand, acceleration_limit: float) -> PiecewiseCommand:
-    """v_a: the velocity command after the drive's rate limiter |dv_a/dt| <= a (Fig. 5).
-
-    The limiter follows v_s while |dv_s/dt| <= a and v_a = v_s; otherwise v_a moves towards v_s
-    at the full rate +-a until it meets it. For a velocity that is piecewise linear (steps and
-    ramps; ``command`` of degree <= 2) the output is piecewise linear too and is found exactly:
-    each piece of v_s gives at most two pieces of v_a (chase, then follow), the meeting time
-    solving a linear equation. The loop runs over the command's pieces (a few dozen for shaped
-    steps and ramps), not over samples. The drive starts at rest; the position is integrated.
-    """
-    a = float(acceleration_limit)
-    if not (math.isfinite(a) and a > 0.0):
-        raise InvalidParameter("acceleration_limit", a, "must be a finite number > 0")
-    if command.degree > 2:
-        raise InvalidParameter(
-            "profile", f"degree {command.degree}", "the rate limiter needs a piecewise-linear velocity"
-        )
-    t = command.time_s
-    v = command.derivative(1)
-    s = command.derivative(2)
-    scale = max(float(np.max(np.abs(v))), float(np.max(np.abs(command.left_limit(1)))), 1e-300)
-    tol = 1e-12 * scale
-    ends = np.append(t[1:], np.inf)
-    out_t: list[float] = []
-    out_slope: list[float] = []
-    y = 0.0  # the drive's velocity, at rest before t_0
-    for k in range(t.size):  # loop over the command's pieces
-        start, length, u0, su = float(t[k]), float(ends[k] - t[k]), float(v[k]), float(s[k])
-        tau = 0.0
-        while True:
-            error = u0 + su * tau - y
-            if abs(error) <= tol:  # on the command: follow it if the drive can
-                slope = min(max(su, -a), a)
-                out_t.append(start + tau)
-                out_slope.append(slope)
-                if math.isfinite(length):
-                    y = u0 + su * length if abs(su) <= a else y + slope * (length - tau)
-                break
-            slope = a if error > 0.0 else -a
-            out_t.append(start + tau)
-            out_slope.append(slope)
-            closing = slope - su  # rate at which the gap closes
-            meet = error / closing if closing * error > 0.0 else math.inf
-            if tau + meet < length:
-                y += slope * meet
-                tau += meet
-                continue
-            if math.isfinite(length):
-                y += slope * (length - tau)
-            break
-    times = np.array(out_t)
-    slopes = np.array(out_slope)
-    # Keep the last of breakpoints closer than the merge tolerance (it carries the right-hand slope).
-    keep = np.concatenate((np.diff(times) > _merge_tolerance(times), [True]))
-    times, slopes = times[keep], slopes[keep]
-    if times.size < 2:
-        times = np.array([times[0], times[0] + 1.0])
-        slopes = np.array([slopes[0], slopes[0]])
-    # The output velocity is continuous: integrate the slopes (it is exactly what the drive does).
-    velocity = np.concatenate(([0.0], np.cumsum(slopes[:-1] * np.diff(times))))
-    return _integrated(times, velocity, slopes, float(command.derivative(0)[0]), continuous_orders=2)
-
-
-# ------------------------------------------------------------------------------------------
-# A position-mode drive: the time-optimal follower of a position reference
-
-
-def catch_up_plan(
-    gap: float, velocity: float, target_velocity: float, acceleration_limit: float, velocity_limit: float
-) -> tuple[tuple[float, float], ...]:
-    """(duration_s, acceleration) phases that bring a double integrator onto a target moving at constant
-    ``target_velocity`` in least time under |u| <= a and |velocity| <= velocity_limit (math.inf: none);
-    ``gap`` = target - position.
-
-    Bang-coast-bang, the classical time-optimal double integrator in the target's frame: the direction
-    s is that of the gap left after braking, gap - w|w|/(2a) with w = velocity - target_velocity; the
-    peak approach speed is sqrt(a s gap + w^2/2), or a coast at the top approach speed
-    velocity_limit - s target_velocity when that is lower (a zero top speed coasts for ever).
-    """
-    a = acceleration_limit
-    w = velocity - target_velocity
-    s = 1.0 if gap >= w * abs(w) / (2.0 * a) else -1.0
-    e, w = s * gap, s * w
-    top = velocity_limit - s * target_velocity
-    peak = math.sqrt(max(a * e + 0.5 * w * w, 0.0))
-    if peak <= top:
-        return ((max(peak - w, 0.0) / a, s * a), (peak / a, -s * a))
-    if top <= 0.0:
-        return ((max(-w, 0.0) / a, s * a), (math.inf, 0.0))
-    coast = (e - (top * top - w * w) / (2.0 * a) - top * top / (2.0 * a)) / top
-    return ((max(top - w, 0.0) / a, s * a), (max(coast, 0.0), 0.0), (top / a, -s * a))
-
-
-def follow_position(
-    reference: PiecewiseCommand, acceleration_limit: float, velocity_limit: float | None = None
-) -> PiecewiseCommand:
-    """What a position-mode drive makes of a position reference that moves at constant velocity between
-    its breakpoints (a shaped velocity staircase): at every breakpoint its profile generator replans the
-    time-optimal catch-up onto the reference under |a| <= acceleration_limit and |v| <= velocity_limit
-    (``catch_up_plan``), then follows it. It starts at rest on the reference and reaches the final
-    position at rest; piecewise constant in acceleration, so exact. The reference must not move faster
-    than the velocity limit (then the follower's top approach speed is never negative).
-    """
-    a = float(acceleration_limit)
-    if not (math.isfinite(a) and a > 0.0):
-        raise InvalidParameter("acceleration_limit", a, "must be a finite number > 0")
-    top = math.inf if velocity_limit is None else float(velocity_limit)
-    if command_has_slopes(reference):
-        raise InvalidParameter("profile", "ramps", "the position follower needs a reference of velocity steps")
-    t, p_ref, v_ref = reference.time_s, reference.derivative(0), reference.derivative(1)
-    if float(np.max(np.abs(v_ref))) > top * (1.0 + 1e-12):  # round-off of the impulses' sum allowed
-        raise InvalidParameter("velocity_limit", top, "the reference itself moves faster than the velocity limit")
-    on_reference = tuple(1e-13 * max(float(np.max(np.abs(x))), 1e-300) for x in (p_ref, v_ref))
-    rows: list[tuple[float, float, float, float]] = []  # (time, position, velocity, acceleration) of each piece
-    p, v = float(p_ref[0]), 0.0
-    for k in range(t.size):  # loop over the reference's pieces (impulses x steps: a few dozen)
-        start = float(t[k])
-        length = float(t[k + 1] - t[k]) if k + 1 < t.size else math.inf
-        gap, target_v = float(p_ref[k]) - p, float(v_ref[k])
-        phases: tuple[tuple[float, float], ...] = ()
-        if abs(gap) > on_reference[0] or abs(v - target_v) > on_reference[1]:
-            phases = catch_up_plan(gap, v, target_v, a, top)
-        elapsed = 0.0
-        for duration, accel in (*phases, (math.inf, None)):  # the plan, then on the reference
-            step = min(duration, length - elapsed)
-            if step <= 0.0:
-                continue
-            if accel is None:  # on the reference (round-off of the plan removed)
-                p, v, accel = float(p_ref[k]) + target_v * elapsed, target_v, 0.0
-            rows.append((start + elapsed, p, v, accel))
-            if not math.isfinite(step):
-                break
-            p, v, elapsed = p + v * step + 0.5 * accel * step * step, v + accel * step, elapsed + step
-            if elapsed >= length:
-                break
-    table = np.array(rows)
-    # Of breakpoints closer than the merge tolerance keep the last (its state is exact): a plan's phase
-    # that short changes the velocity by at most a x 2e-9 s.
-    table = table[np.concatenate((np.diff(table[:, 0]) > _merge_tolerance(table[:, 0]), [True]))]
-    if table.shape[0] < 2:
-        table = np.vstack([table, table + np.array([1.0, 0.0, 0.0, 0.0])])
-    return PiecewiseCommand(check_time_grid(table[:, 0]), table[:, 1:].T.copy(), continuous_orders=2)
-
-
-def command_has_slopes(command: PiecewiseCommand) -> bool:
-    """Whether any piece of a degree-2 command accelerates (else its velocity is a staircase)."""
-    return command.degree > 2 or bool(np.any(command.derivative(2) != 0.0))

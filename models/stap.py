@@ -25,9 +25,10 @@ The sensitivity curve (SC) of Appendix B (A5-A12) is |lambda h| / v for lambda =
 equals 4 D |sin(pi rho k_j) sin(pi rho (r - k_j))| with rho = f_n/f_n,e, r = f_n,e t_a,
 k_j = f_n,e t_j and D of (A9), for any real k_j (checked in tests/models/test_stap.py).
 
-The design formulas are small pure functions here too: the limits (eqs. 19, 21, 27-28), the
-zero-vibration jerk times (eqs. 44, 48-50), eqs. (45)-(46) as printed and the worst torque
-overshoot over a frequency band (eqs. 57-59); ``optim.families.stap`` composes them into designs.
+The sensitivity (eq. 41, Appendix B) and the worst torque overshoot over a frequency band (eqs. 57-59)
+are small pure functions here too; the limits (eqs. 19, 21, 27-28), the zero-vibration jerk times
+(eqs. 44, 48-50) and eqs. (45)-(46) as printed are in ``models.stap_design``, the exact peak motor
+torque in ``models.stap_torque``; ``optim.families.stap`` composes them into designs.
 
 A rest-to-rest move (``RestToRest``, beyond the paper) is an accelerating STAP to the cruise
 velocity, a cruise phase and the mirrored decelerating STAP. The decelerating ramp leaves minus
@@ -39,17 +40,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, cast
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
 
 from models.commands import MIN_STEP_S, PiecewiseCommand, check_time_grid
 from models.errors import InvalidParameter
-
-if TYPE_CHECKING:
-    from models.plants import Plant
-    from models.simulation import Response
 
 MAX_TIME_S = 1e6  # longest acceleration or cruise time accepted (keeps positions and grids finite)
 
@@ -237,63 +234,7 @@ class RestToRest:
 
 
 # ------------------------------------------------------------------------------------------
-# Limits and zero-vibration jerk times (Secs. 2.1-2.3, eqs. 19-28, 44-50)
-
-
-def nodal_acceleration_limit(max_torque_nm: float, motor_inertia: float, load_inertia: float) -> float:
-    """a_Max = M_m,Max / (J_M + J_L) (eq. 19): the acceleration of the nodal section."""
-    return max_torque_nm / (motor_inertia + load_inertia)
-
-
-def min_acceleration_time(velocity: float, acceleration_limit: float) -> float:
-    """t_a,min = v / a_Max (eq. 21)."""
-    return abs(velocity) / acceleration_limit
-
-
-def max_jerk_time(acceleration_time_s: float, velocity: float, acceleration_limit: float | None) -> float:
-    """t_j,max = min(t_a/2, t_a - t_a,min) (eqs. 9, 27, 28); t_a/2 without an acceleration limit."""
-    if acceleration_limit is None:
-        return 0.5 * acceleration_time_s
-    return min(0.5 * acceleration_time_s, acceleration_time_s - min_acceleration_time(velocity, acceleration_limit))
-
-
-def zero_vibration_jerk_time(
-    frequency_hz: float, k_j: int, delta: int = 0, acceleration_time_s: float | None = None
-) -> float:
-    """t_j,0 = (k_j + delta dec(f_n,e t_a)) / f_n,e (eqs. 44, 49): a zero of the residual at f_n,e.
-
-    With delta = 0 it is k_j / f_n,e (eq. 48; eq. 50 for k_j = 1) and needs no t_a; a side band
-    (delta = 1) depends on t_a through dec (eq. 43)."""
-    if delta == 0:
-        return k_j / frequency_hz
-    if acceleration_time_s is None:
-        raise InvalidParameter("acceleration_time_s", None, "a side-band jerk time (delta = 1) depends on t_a (eq. 49)")
-    return (k_j + delta * float(decimal_part(frequency_hz * acceleration_time_s))) / frequency_hz
-
-
-# ------------------------------------------------------------------------------------------
 # Zeros and sensitivity (Secs. 2.3-2.4, Appendices A-B)
-
-
-def decimal_part(x: FloatArray | float) -> FloatArray | float:
-    """dec(x) = x - int(x) (eq. 43), with values within 1e-9 of an integer taken as that integer,
-    so that f_n t_a computed in floating point (40 * 0.15 = 6.000000000000001) reads as a whole
-    number of periods."""
-    x = np.asarray(x, dtype=float)
-    nearest = np.round(x)
-    snapped = np.where(np.abs(x - nearest) <= 1e-9 * np.maximum(1.0, np.abs(x)), nearest, x)
-    out = snapped - np.floor(snapped)
-    return float(out) if out.ndim == 0 else out
-
-
-def paper_k_j_max(t_hat_j_max: float, r_na: float) -> int:
-    """k_j,max = int[t^_j,max int(r_n,a)] (eq. 45), as printed."""
-    return math.floor(t_hat_j_max * math.floor(r_na))
-
-
-def paper_delta_f(t_hat_j_max: float, r_na: float) -> int:
-    """delta_f = round(t^_j,max r_n,a - k_j,max) (eq. 46), as printed (halves round up)."""
-    return math.floor(t_hat_j_max * r_na - paper_k_j_max(t_hat_j_max, r_na) + 0.5)
 
 
 def exciting_term_u(r_na: FloatArray | float, t_hat_j: FloatArray | float) -> ComplexArray:
@@ -395,99 +336,3 @@ def worst_torque_overshoot(k_j: float, inertia_ratio: float, uncertainty: float)
     values = [float(load_acceleration_oscillation(r, k_j)) for r in rhos]
     i = int(np.argmax(values))
     return values[i], torque_coefficient(inertia_ratio) * values[i], rhos[i]
-
-
-# ------------------------------------------------------------------------------------------
-# The true motor torque J_M a_M + J_L a_L of a command (beyond eq. 19, which bounds the rigid part)
-
-TORQUE_POINTS_PER_PERIOD = 32  # dense samples per period of the fastest mode before the refinement
-DENSE_PERIODS = 64  # a piece up to this many slowest periods is sampled whole; past it, bounded
-WINDOW_PERIODS = 2.0  # the first slowest periods of a longer piece are sampled, the rest bounded
-REFINED_PEAKS = 4  # per piece, the largest local maxima of the samples maximised exactly
-
-
-def _torque_in_pieces(response: Response, pieces: NDArray[np.intp], tau: FloatArray) -> FloatArray:
-    """|J_M a_M + J_L a_L| at t_k + tau (k in ``pieces``, tau of shape (len(pieces), n)).
-
-    Inside a piece the command's acceleration is a + j tau and each pole's free state h_k exp(lambda tau)
-    (models.simulation), so a_L = g_0 (a + j tau) + g_1 j + Re sum w r lambda^2 h_k exp(lambda tau)."""
-    j_m, j_l = _inertias(response.plant)
-    cmd, modal = response.command, response.modal
-    g = np.zeros(2)
-    g[: min(2, modal.taylor.size)] = modal.taylor[:2]
-    a = cmd.derivative(2)[pieces][:, None] + cmd.derivative(3)[pieces][:, None] * tau
-    jerk = cmd.derivative(3)[pieces][:, None]
-    coef = modal.weights * modal.residues * modal.poles**2  # (poles,)
-    free = response.free_state[:, pieces]  # (poles, pieces)
-    osc = np.einsum("p,pk,pkn->kn", coef, free, np.exp(modal.poles[:, None, None] * tau[None])).real
-    return np.asarray(np.abs(j_m * a + j_l * (g[0] * a + g[1] * jerk + osc)), dtype=float)
-
-
-def _inertias(plant: Plant) -> tuple[float, float]:
-    inertias = plant.torque_inertias()
-    if inertias is None:
-        raise InvalidParameter("plant", plant.kind, "the plant defines no motor torque")
-    return inertias
-
-
-def _tail_bound(response: Response, k: int, start_s: float, stop_s: float) -> float:
-    """An upper bound of the torque on piece k for tau in [start_s, stop_s]: the rigid part at its ends
-    (it is linear in tau) plus J_L times the free vibration's envelope at start_s (it only decays)."""
-    j_m, j_l = _inertias(response.plant)
-    cmd, modal = response.command, response.modal
-    g = np.zeros(2)
-    g[: min(2, modal.taylor.size)] = modal.taylor[:2]
-    a, jerk = float(cmd.derivative(2)[k]), float(cmd.derivative(3)[k])
-    ramp = [a + jerk * start_s, a + jerk * stop_s] if math.isfinite(stop_s) else [math.inf]
-    ends = [a] if jerk == 0.0 else ramp
-    rigid = max(abs((j_m + j_l * g[0]) * e + j_l * g[1] * jerk) for e in ends)
-    coef = modal.weights * modal.residues * modal.poles**2
-    envelope = float(np.sum(np.abs(coef * response.free_state[:, k] * np.exp(modal.poles * start_s))))
-    return float(rigid + j_l * envelope)
-
-
-def _piece_peak(response: Response, k: int, length_s: float, fastest_s: float, slowest_s: float) -> float:
-    """The largest torque on piece k (length ``length_s``, inf for the last): dense samples, their largest
-    local maxima refined by bounded Brent on the closed form, and past the sampled window a bound."""
-    from scipy.optimize import minimize_scalar
-
-    whole = length_s <= DENSE_PERIODS * slowest_s
-    window = length_s if whole else WINDOW_PERIODS * slowest_s
-    n = int(min(math.ceil(window / fastest_s * TORQUE_POINTS_PER_PERIOD), 1_000_000)) + 2
-    tau = np.linspace(0.0, window, n)
-    index = np.array([k])
-    values = _torque_in_pieces(response, index, tau[None])[0]
-    best = float(np.max(values))
-    inner = np.flatnonzero((values[1:-1] >= values[:-2]) & (values[1:-1] >= values[2:])) + 1
-    for i in inner[np.argsort(values[inner])[-REFINED_PEAKS:]]:  # a handful of local maxima
-        found = minimize_scalar(
-            lambda t: -float(_torque_in_pieces(response, index, np.array([[t]]))[0, 0]),
-            bounds=(float(tau[i - 1]), float(tau[i + 1])),
-            method="bounded",
-            options={"xatol": 1e-13 * max(window, 1e-300)},
-        )
-        best = max(best, -float(found.fun))
-    if not whole:
-        best = max(best, _tail_bound(response, k, window, length_s))
-    return best
-
-
-def peak_motor_torque_nm(plant: Plant, command: PiecewiseCommand) -> float:
-    """sup_t |J_M a_M(t) + J_L a_L(t)| over all time, for a command of degree <= 3 starting from rest.
-
-    On each piece of the command (and after its end) the torque is in closed form from the free state at
-    the piece's start (``_torque_in_pieces``): it is sampled at 32 points per period of the fastest mode,
-    its largest local maxima refined exactly (bounded Brent), and on a piece longer than 64 periods of
-    the slowest mode (a cruise, the rest after the move) only the first 2 periods are sampled and the
-    rest bounded by the rigid part plus the decaying envelope (exact for an undamped mode)."""
-    from models.simulation import simulate
-
-    modes = plant.modes()
-    response = simulate(plant, command)
-    if not modes:  # rigid: the torque is (J_M + J_L g_0) a_M, largest at a breakpoint
-        torque = response.motor_torque_nm
-        return 0.0 if torque is None else float(np.max(np.abs(torque)))
-    fastest = min(m.natural_period_s for m in modes)
-    slowest = max(m.natural_period_s for m in modes)
-    lengths = np.append(command.steps_s, math.inf)
-    return max(_piece_peak(response, k, float(lengths[k]), fastest, slowest) for k in range(lengths.size))

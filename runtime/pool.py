@@ -4,8 +4,8 @@ IPOPT with MUMPS is not thread-safe, so every CasADi solve runs in a worker proc
 event loop or in a thread. Each worker builds its solvers once, when it starts (the families'
 warm-ups, ``optim.registry.warm_up_all``), and keeps them in its module-level caches.
 
-The pool supervises its own processes, one pipe each, watched from the event loop
-(``loop.add_reader`` on the pipe and on the process sentinel), so that
+The pool supervises its own processes (``runtime.pool_workers``), one pipe each, watched from the event
+loop (``loop.add_reader`` on the pipe and on the process sentinel), so that
 
 - any worker death (idle, busy or during its warm-up) is seen at once and that worker alone is
   replaced; a warm-up that fails or overruns ``start_timeout_s`` is retried with exponential
@@ -32,16 +32,11 @@ import asyncio
 import contextlib
 import logging
 import math
-import multiprocessing
-import os
 import time
 from collections import deque
 from collections.abc import AsyncIterator, Callable
 from contextlib import asynccontextmanager
-from dataclasses import dataclass, field
-from multiprocessing.connection import Connection
-from multiprocessing.process import BaseProcess
-from typing import Any, Literal, TypeVar
+from typing import Any, TypeVar
 
 from models.errors import PoolUnavailable
 from runtime.executor import (
@@ -54,13 +49,11 @@ from runtime.executor import (
     report_change,
     reservation_places,
 )
-from runtime.worker_process import worker_main
+from runtime.pool_workers import PoolJob, PoolWorker, WorkerSupervisor
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
 
-BACKOFF_FIRST_S = 0.5
-BACKOFF_MAX_S = 30.0
 SETTLE_POLL_S = 0.02  # how often a reservation's exit looks whether its cancelled solves have left the workers
 
 
@@ -70,7 +63,7 @@ class _Reservation(HeldPlaces):
     def __init__(self, pool: SolverPool, places: int) -> None:
         super().__init__(places)
         self.pool = pool
-        self.jobs: set[_PoolJob] = set()  # every job it submitted: those still in a worker are waited for on exit
+        self.jobs: set[PoolJob] = set()  # every job it submitted: those still in a worker are waited for on exit
 
     def _take(self) -> None:
         self.free -= 1
@@ -88,31 +81,7 @@ class _Reservation(HeldPlaces):
         return await self.pool._submit(fn, args, deadline_s, wait_s=wait_s, track=self.jobs)
 
 
-# --- the supervisor --------------------------------------------------------------------------
-
-
-@dataclass(eq=False)
-class _PoolJob:
-    fn: Callable[..., Any]
-    args: tuple[Any, ...]
-    deadline_s: float
-    future: asyncio.Future[Any]
-    queued_at: float
-    timer: asyncio.TimerHandle | None = None
-
-
-@dataclass(eq=False)
-class _Worker:
-    process: BaseProcess
-    conn: Connection
-    state: Literal["starting", "idle", "busy", "gone"] = "starting"
-    job: _PoolJob | None = None
-    started_at: float = 0.0
-    timer: asyncio.TimerHandle | None = None
-    killed_for: str = field(default="")
-
-
-class SolverPool:
+class SolverPool(WorkerSupervisor):
     """A supervised process pool with readiness, admission control and per-solve deadlines."""
 
     def __init__(
@@ -126,45 +95,15 @@ class SolverPool:
         on_change: Callable[[dict[str, int]], None] | None = None,
         memory_mb: int = 0,
     ) -> None:
-        self.workers = workers
-        self.memory_mb = memory_mb  # each worker's address-space cap (limit_memory; 0: none)
+        super().__init__(workers, start_timeout_s, warm_up, niceness, memory_mb)
         self.on_change = on_change  # called with stats() after every change of state (the metrics' files)
-        self.warm_up = warm_up  # run once in every new worker (a picklable callable: the families' warm-ups)
-        self.start_timeout_s = start_timeout_s
         self.max_queued = 4 * workers if max_queued is None else max_queued
-        self.niceness = niceness
-        self._context = multiprocessing.get_context("spawn")
-        self._loop: asyncio.AbstractEventLoop | None = None
-        self._workers: list[_Worker] = []
-        self._queue: deque[_PoolJob] = deque()
-        self._ready_event = asyncio.Event()
-        self._closing = False
-        self._start_failures = 0
-        self._warmed = False  # a worker has been ready once: a later start replaces a worker (see _recovering)
-        self._respawns: set[asyncio.TimerHandle] = set()
-        self._solve_s_estimate = 1.0  # running mean of solve times, for Retry-After
+        self._queue: deque[PoolJob] = deque()
         self._held = 0  # places reservations hold that none of their jobs fills now (see reserve)
-        self.restarts = 0
         self.timeouts = 0
         self.rejected = 0
 
     # --- state ---------------------------------------------------------------------------
-
-    @property
-    def ready(self) -> bool:
-        """At least one worker is warm (idle or busy)."""
-        return any(w.state in ("idle", "busy") for w in self._workers)
-
-    @property
-    def _recovering(self) -> bool:
-        """A worker is starting in place of one that was killed or died, and starts have not been failing: the
-        pool takes jobs for it (they queue within their deadlines) instead of refusing them as "starting"."""
-        return self._warmed and self._start_failures == 0 and any(w.state == "starting" for w in self._workers)
-
-    def _capacity(self) -> int:
-        """Workers a queued job can count on: the warm ones, and the starting ones while ``_recovering``."""
-        recovering = self._recovering
-        return sum(w.state in ("idle", "busy") or (recovering and w.state == "starting") for w in self._workers)
 
     def stats(self) -> dict[str, int]:
         """Counts for /readyz and /metrics."""
@@ -184,27 +123,7 @@ class SolverPool:
     def _changed(self) -> None:
         report_change(self.on_change, self.stats, log)
 
-    def pids(self, state: Literal["starting", "idle", "busy"] | None = None) -> list[int]:
-        """Process ids of the live workers, or of those in one state (for tests and operators)."""
-        return [
-            w.process.pid
-            for w in self._workers
-            if w.state != "gone" and w.process.pid is not None and (state is None or w.state == state)
-        ]
-
-    # --- start and stop ------------------------------------------------------------------
-
-    def start_in_background(self) -> None:
-        """Start every worker without blocking: ``ready`` tells when one is warm."""
-        self._loop = asyncio.get_running_loop()
-        self._closing = False
-        for _ in range(self.workers - len(self._workers)):
-            self._spawn()
-
-    async def start(self) -> None:
-        """Start the workers and wait until one has built its solvers."""
-        self.start_in_background()
-        await asyncio.wait_for(self._ready_event.wait(), self.start_timeout_s)
+    # --- stop ---------------------------------------------------------------------------
 
     async def close(self) -> None:
         """Stop the workers: let them exit (a second at most), then kill what is left."""
@@ -231,40 +150,6 @@ class SolverPool:
             with contextlib.suppress(OSError):
                 worker.conn.close()
         self._ready_event.clear()
-        self._changed()
-
-    def _spawn(self) -> None:
-        assert self._loop is not None
-        parent, child = self._context.Pipe(duplex=True)
-        process = self._context.Process(
-            target=worker_main,
-            args=(child, self.warm_up, self.niceness, self.memory_mb),
-            name="vibfree-solver",
-            daemon=True,
-        )
-        process.start()
-        child.close()
-        worker = _Worker(process, parent, started_at=time.monotonic())
-        self._workers.append(worker)
-        self._loop.add_reader(parent.fileno(), self._on_message, worker)
-        self._loop.add_reader(process.sentinel, self._on_exit, worker)
-        # uvloop's add_reader makes the fd non-blocking (asyncio's does not): Connection.send/recv of a message
-        # larger than the pipe's buffer then fails with BlockingIOError half-way, and the worker was taken for
-        # dead (every pseudo-polynomial answer under uvicorn[standard]). The loop only polls it for readiness.
-        os.set_blocking(parent.fileno(), True)
-        worker.timer = self._loop.call_later(self.start_timeout_s, self._kill, worker, "warm-up timed out")
-        self._changed()
-
-    def _respawn_later(self, delay_s: float) -> None:
-        assert self._loop is not None
-
-        def respawn() -> None:
-            self._respawns.discard(handle)
-            if not self._closing:
-                self._spawn()
-
-        handle = self._loop.call_later(delay_s, respawn)
-        self._respawns.add(handle)
         self._changed()
 
     # --- jobs ----------------------------------------------------------------------------
@@ -328,7 +213,7 @@ class SolverPool:
                 reservation.closed = True
                 self._changed()
 
-    async def _settled(self, jobs: set[_PoolJob]) -> None:
+    async def _settled(self, jobs: set[PoolJob]) -> None:
         """Until no worker runs one of ``jobs`` (each ends within its deadline, or its worker is killed)."""
         while jobs and any(worker.job in jobs for worker in self._workers):
             await asyncio.sleep(SETTLE_POLL_S)
@@ -345,13 +230,13 @@ class SolverPool:
         args: tuple[Any, ...],
         deadline_s: float,
         wait_s: float | None = None,
-        track: set[_PoolJob] | None = None,
+        track: set[PoolJob] | None = None,
     ) -> T:
         """Queue an admitted job and wait for its outcome; it waits for a worker at most ``wait_s`` (default: its
         deadline). ``track`` collects the job (a reservation's)."""
         if self._closing or self._loop is None:
             raise PoolUnavailable("the solver pool is not running")
-        job = _PoolJob(fn, args, deadline_s, self._loop.create_future(), time.monotonic())
+        job = PoolJob(fn, args, deadline_s, self._loop.create_future(), time.monotonic())
         if track is not None:
             track.add(job)
         job.timer = self._loop.call_later(deadline_s if wait_s is None else wait_s, self._expire_queued, job)
@@ -399,7 +284,7 @@ class SolverPool:
             worker.state, worker.job, worker.started_at = "busy", job, time.monotonic()
             worker.timer = self._loop.call_later(job.deadline_s, self._on_deadline, worker, job)
 
-    def _expire_queued(self, job: _PoolJob) -> None:
+    def _expire_queued(self, job: PoolJob) -> None:
         if job in self._queue:
             self._queue.remove(job)
             self.rejected += 1
@@ -413,101 +298,9 @@ class SolverPool:
                 ),
             )
 
-    def _on_deadline(self, worker: _Worker, job: _PoolJob) -> None:
+    def _on_deadline(self, worker: PoolWorker, job: PoolJob) -> None:
         if worker.job is job and worker.state == "busy":
             self.timeouts += 1
             self._fail(job, SolveTimeout(job.deadline_s))
             worker.job = None
             self._kill(worker, f"solve overran its deadline of {job.deadline_s:g} s")
-
-    # --- worker events -------------------------------------------------------------------
-
-    def _on_message(self, worker: _Worker) -> None:
-        try:
-            os.set_blocking(worker.conn.fileno(), True)  # see _spawn: whatever the loop did to it
-            message = worker.conn.recv()
-        except (EOFError, OSError):
-            self._on_exit(worker)
-            return
-        except Exception as exc:  # a result that cannot be unpickled here
-            message = ("error", RuntimeError(f"the solve's answer could not be read: {exc!r}"))
-        kind, payload = message
-        if kind == "ready":
-            self._cancel_timer(worker)
-            worker.state = "idle"
-            self._start_failures = 0
-            self._warmed = True
-            self._ready_event.set()
-            log.info("solver worker ready", extra={"pid": payload, "warm_up_s": time.monotonic() - worker.started_at})
-        elif worker.job is not None:
-            job, worker.job = worker.job, None
-            self._cancel_timer(worker)
-            worker.state = "idle"
-            elapsed = time.monotonic() - worker.started_at
-            self._solve_s_estimate += 0.2 * (elapsed - self._solve_s_estimate)
-            if kind == "ok":
-                if not job.future.done():
-                    job.future.set_result(payload)
-            else:
-                self._fail(job, payload)
-        self._dispatch()
-
-    def _on_exit(self, worker: _Worker) -> None:
-        if worker.state == "gone":
-            return
-        was = worker.state
-        worker.state = "gone"
-        self._detach(worker)
-        worker.process.join(0.5)  # its sentinel fired: it has exited, this only reaps it
-        code = worker.process.exitcode
-        with contextlib.suppress(OSError):
-            worker.conn.close()
-        if worker in self._workers:
-            self._workers.remove(worker)
-        if worker.job is not None:
-            self._fail(
-                worker.job,
-                PoolUnavailable(f"a solver worker stopped unexpectedly (exit code {code}); it is being replaced"),
-            )
-            worker.job = None
-        if not self.ready:
-            self._ready_event.clear()
-        if self._closing:
-            self._changed()
-            return
-        self.restarts += 1
-        reason = worker.killed_for or f"exit code {code}"
-        if was == "starting":
-            self._start_failures += 1
-            delay = min(BACKOFF_MAX_S, BACKOFF_FIRST_S * 2 ** (self._start_failures - 1))
-            log.error("solver worker failed to start; retrying", extra={"reason": reason, "retry_in_s": delay})
-            self._respawn_later(delay)
-        else:
-            log.warning("solver worker replaced", extra={"reason": reason, "state": was})
-            self._spawn()
-        self._dispatch()
-
-    def _kill(self, worker: _Worker, reason: str) -> None:
-        if worker.state != "gone" and worker.process.is_alive():
-            worker.killed_for = reason
-            worker.process.kill()  # its sentinel fires and _on_exit replaces it
-
-    def _detach(self, worker: _Worker) -> None:
-        self._cancel_timer(worker)
-        if self._loop is None:
-            return
-        with contextlib.suppress(ValueError, OSError):
-            self._loop.remove_reader(worker.conn.fileno())
-        with contextlib.suppress(ValueError, OSError):
-            self._loop.remove_reader(worker.process.sentinel)
-
-    @staticmethod
-    def _cancel_timer(item: _Worker | _PoolJob) -> None:
-        if item.timer is not None:
-            item.timer.cancel()
-            item.timer = None
-
-    @staticmethod
-    def _fail(job: _PoolJob, exc: BaseException) -> None:
-        if not job.future.done():
-            job.future.set_exception(exc)

@@ -10,11 +10,12 @@ from fastapi import APIRouter, Body
 from app import problems
 from app.deps import PoolDep, SettingsDep, ThreadsDep
 from app.examples.compare import EXAMPLES
+from app.json_bodies import JSONRoute
 from app.responses import NumpyJSONResponse
 from app.schemas.compare import CompareIn, CompareOut
 from app.services.compare import answer
 
-router = APIRouter(prefix="/v1", tags=["compare"], route_class=problems.JSONRoute)
+router = APIRouter(prefix="/v1", tags=["compare"], route_class=JSONRoute)
 
 
 @router.post(

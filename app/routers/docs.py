@@ -5,7 +5,7 @@ FastAPI's own page builders (``fastapi.openapi.docs``), pointed at the bundles v
 "Custom Docs UI Static Assets (Self-Hosting)" how-to does
 (https://fastapi.tiangolo.com/how-to/custom-docs-ui-assets/). ReDoc gets no Google fonts; each page
 carries the Content-Security-Policy that allows exactly its own inline code
-(``observability.docs_content_security_policy``).
+(``security_headers.docs_content_security_policy``).
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from fastapi import APIRouter, Request
 from fastapi.openapi.docs import get_redoc_html, get_swagger_ui_html, get_swagger_ui_oauth2_redirect_html
 from fastapi.responses import HTMLResponse
 
-from app import observability
+from app import security_headers
 
 router = APIRouter(include_in_schema=False)
 
@@ -32,14 +32,14 @@ SWAGGER_UI_PARAMETERS = {"validatorUrl": None}
 #: injected by webpack's style-loader. A new ReDoc bundle needs them checked again
 #: (tests/browser/test_docs_offline.py fails on any CSP violation).
 REDOC_RUNTIME_STYLES = (
-    observability.hash_source(""),
+    security_headers.hash_source(""),
     "'sha256-QMIg+bpjm3JdElJ388KYke01izlUW0UoNOeKjpMxdgc='",
 )
 
 
 def _with_policy(response: HTMLResponse, runtime_styles: tuple[str, ...] = ()) -> HTMLResponse:
     html = bytes(response.body).decode()
-    response.headers["content-security-policy"] = observability.docs_content_security_policy(html, runtime_styles)
+    response.headers["content-security-policy"] = security_headers.docs_content_security_policy(html, runtime_styles)
     return response
 
 

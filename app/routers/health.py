@@ -5,7 +5,7 @@ request; a process whose solver workers are all cold answers a solve with a 503.
 only when every HTTP process of the server has at least one warm worker (and as many processes as
 configured are up): a 200 means a request is served wherever it lands. The process that answered says
 its pid and its own pool; ``processes`` lists each process's pool as the shared metrics directory has
-it (``app.observability.processes_state``). With one process it is that process's pool alone.
+it (``app.service_metrics.processes_state``). With one process it is that process's pool alone.
 """
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ from pydantic import Field
 
 from app import problems
 from app.deps import PoolDep, SettingsDep
-from app.observability import processes_state
 from app.schemas.common import OutModel
+from app.service_metrics import processes_state
 
 router = APIRouter(tags=["health"])
 

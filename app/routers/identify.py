@@ -22,13 +22,14 @@ from app import problems
 from app.deps import PoolDep, SettingsDep, ThreadsDep
 from app.examples.identify import CSV_EXAMPLE
 from app.examples.identify import EXAMPLES as IDENTIFY_EXAMPLES
+from app.json_bodies import JSONRoute
 from app.responses import NumpyJSONResponse
 from app.schemas.identify import IdentifyMeasurementResponse, MeasurementParams
 from app.schemas.smoothers import IdentifyRequest, IdentifyResponse
 from app.services.identify import identify_csv, identify_respond, runner
 from models.errors import InvalidParameter
 
-router = APIRouter(prefix="/v1", tags=["smoothers"], route_class=problems.JSONRoute)
+router = APIRouter(prefix="/v1", tags=["smoothers"], route_class=JSONRoute)
 
 CSV_MEDIA_TYPE = "text/csv"
 

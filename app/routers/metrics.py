@@ -1,5 +1,5 @@
 """Prometheus metrics: requests, solves and the solver pools; with several HTTP processes, summed over them
-(``app.observability``: prometheus_client's multiprocess mode)."""
+(``app.service_metrics``: prometheus_client's multiprocess mode)."""
 
 from __future__ import annotations
 

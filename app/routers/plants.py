@@ -8,10 +8,11 @@ from fastapi import APIRouter, Body
 
 from app import problems
 from app.examples import PLANT_EXAMPLES
+from app.json_bodies import JSONRoute
 from app.schemas.common import StrictModel
 from app.schemas.plants import PlantAnalysis, PlantIn, analyse, to_plant
 
-router = APIRouter(prefix="/v1/plants", tags=["plants"], route_class=problems.JSONRoute)
+router = APIRouter(prefix="/v1/plants", tags=["plants"], route_class=JSONRoute)
 
 
 class AnalyzeRequest(StrictModel):

@@ -10,11 +10,12 @@ from app import problems
 from app.deps import PoolDep, SettingsDep, ThreadsDep
 from app.examples.pseudo_polynomial import EXAMPLES as EXAMPLES
 from app.family_names import slug_of
+from app.json_bodies import JSONRoute
 from app.responses import CSV_RESPONSE_DOC, Output, ProfileOutput, respond
 from app.schemas.pseudo_polynomial import FAMILY, PseudoPolynomialIn, PseudoPolynomialOut
 from app.services import profile as profiles
 
-router = APIRouter(prefix="/v1", tags=["pseudo-polynomial"], route_class=problems.JSONRoute)
+router = APIRouter(prefix="/v1", tags=["pseudo-polynomial"], route_class=JSONRoute)
 
 
 @router.post(

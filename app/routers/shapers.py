@@ -11,12 +11,13 @@ from app import problems
 from app.deps import PoolDep, SettingsDep, ThreadsDep
 from app.examples.input_shaped import EXAMPLES as INPUT_SHAPED_EXAMPLES
 from app.family_names import slug_of
+from app.json_bodies import JSONRoute
 from app.responses import CSV_RESPONSE_DOC, NumpyJSONResponse, Output, ProfileOutput, respond
 from app.schemas.shapers import FAMILY, InputShapedRequest, InputShapedResponse, ShaperCatalogue
 from app.services import profile as profiles
 from app.services import shapers
 
-router = APIRouter(prefix="/v1", tags=["shapers"], route_class=problems.JSONRoute)
+router = APIRouter(prefix="/v1", tags=["shapers"], route_class=JSONRoute)
 
 
 @router.post(

@@ -10,12 +10,13 @@ from starlette.responses import Response
 from app import problems
 from app.deps import SettingsDep, ThreadsDep
 from app.examples import SIMULATE_EXAMPLES
+from app.json_bodies import JSONRoute
 from app.responses import ARRAY_RESPONSE_DOC, ArrayOutput, Output, render
 from app.schemas.simulate import SimulateRequest, SimulateResponse
 from app.services import simulate as simulation
 from app.settings import Settings
 
-router = APIRouter(prefix="/v1", tags=["simulation"], route_class=problems.JSONRoute)
+router = APIRouter(prefix="/v1", tags=["simulation"], route_class=JSONRoute)
 
 
 @router.post(

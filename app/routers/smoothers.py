@@ -17,11 +17,12 @@ from app import problems
 from app.deps import PoolDep, SettingsDep, ThreadsDep
 from app.examples.smoother import EXAMPLES as SMOOTHER_EXAMPLES
 from app.family_names import slug_of
+from app.json_bodies import JSONRoute
 from app.responses import CSV_RESPONSE_DOC, Output, ProfileOutput, respond
 from app.schemas.smoothers import FAMILY, SmootherRequest, SmootherResponse
 from app.services import profile as profiles
 
-router = APIRouter(prefix="/v1", tags=["smoothers"], route_class=problems.JSONRoute)
+router = APIRouter(prefix="/v1", tags=["smoothers"], route_class=JSONRoute)
 
 
 @router.post(

@@ -18,11 +18,12 @@ from starlette.responses import JSONResponse, StreamingResponse
 from app import problems
 from app.deps import PoolDep, SettingsDep
 from app.examples.sweeps import EXAMPLES
+from app.json_bodies import JSONRoute
 from app.schemas.sweeps import SweepIn, SweepLine
 from app.services.sweeps import SweepPlan, executor_for, lines
 from runtime.executor import Executor
 
-router = APIRouter(prefix="/v1", tags=["sweeps"], route_class=problems.JSONRoute)
+router = APIRouter(prefix="/v1", tags=["sweeps"], route_class=JSONRoute)
 NDJSON = "application/x-ndjson"
 
 

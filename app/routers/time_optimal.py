@@ -10,11 +10,12 @@ from app import problems
 from app.deps import PoolDep, SettingsDep, ThreadsDep
 from app.examples.time_optimal import EXAMPLES as EXAMPLES
 from app.family_names import slug_of
+from app.json_bodies import JSONRoute
 from app.responses import CSV_RESPONSE_DOC, Output, ProfileOutput, respond
 from app.schemas.time_optimal import FAMILY, TimeOptimalIn, TimeOptimalOut
 from app.services import profile as profiles
 
-router = APIRouter(prefix="/v1", tags=["time-optimal"], route_class=problems.JSONRoute)
+router = APIRouter(prefix="/v1", tags=["time-optimal"], route_class=JSONRoute)
 
 
 @router.post(

@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from models.errors import InvalidParameter
-from optim.identification.modal import Record
+from optim.identification.record import Record
 
 __all__ = ["MAX_EXTRA_LINES", "MAX_SIGNAL_COLUMNS", "MAX_TIME_S", "MAX_VALUE", "parse_record_csv"]
 

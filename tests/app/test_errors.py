@@ -137,7 +137,8 @@ def test_oversized_streamed_body_is_413(client):
 
 
 def test_malformed_json(client):
-    # A body that is not JSON cannot be checked field by field: a 400 malformed-body (app/problems.py), not a 422
+    # A body that is not JSON cannot be checked field by field: a 400 malformed-body (app/problem_handlers.py),
+    # not a 422
     response = client.post("/v1/simulate", content=b'{"plant": ', headers={"content-type": "application/json"})
     assert_problem(response, 400, "body", slug="malformed-body")
 

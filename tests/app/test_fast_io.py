@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from app import problems
-from app.problems import JSONRoute, has_long_integer, parse_json
+from app.json_bodies import JSONRoute, has_long_integer, parse_json
 from app.responses import NPZ_JSON_ENTRY, NPZ_MEDIA_TYPE, field_paths
 from app.schemas.simulate import SimulateResponse
 from app.schemas.stap import StapOut

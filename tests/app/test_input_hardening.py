@@ -1,9 +1,9 @@
 """Bad input never makes the service fall over: it is a 400, 413, 415 or 422 problem naming the field.
 
-Expected values come from the brief of the input-hardening issue and from app/problems.py: a body that is
-not declared JSON is a 415 ``unsupported-media-type``; a body that is not JSON a 400 ``malformed-body``; a
-value outside its schema range a 422 ``invalid-input`` naming the field; a problem body never exceeds
-``PROBLEM_MAX_BYTES`` (16 KiB).
+Expected values come from the brief of the input-hardening issue and from app/problems.py (with its handlers
+and body middleware): a body that is not declared JSON is a 415 ``unsupported-media-type``; a body that is not
+JSON a 400 ``malformed-body``; a value outside its schema range a 422 ``invalid-input`` naming the field; a
+problem body never exceeds ``PROBLEM_MAX_BYTES`` (16 KiB).
 """
 
 from __future__ import annotations

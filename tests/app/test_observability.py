@@ -1,4 +1,5 @@
-"""Request ids, JSON logs, Prometheus metrics and security headers (app/observability.py)."""
+"""Request ids, JSON logs, Prometheus metrics and security headers (app/observability.py, json_logs.py,
+service_metrics.py, security_headers.py)."""
 
 from __future__ import annotations
 
@@ -18,11 +19,12 @@ from fastapi.testclient import TestClient
 from prometheus_client import CollectorRegistry, generate_latest
 from prometheus_client.parser import text_string_to_metric_families
 
-from app import observability
+from app import json_logs, service_metrics
 from app.examples import CHATLATANAGULCHAI_EQ3, INCERTI_TABLE_III
 from app.main import create_app
-from app.observability import CONTENT_SECURITY_POLICY, ObservabilityMiddleware
+from app.observability import ObservabilityMiddleware
 from app.routers import docs
+from app.security_headers import CONTENT_SECURITY_POLICY
 from app.settings import Settings
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -134,7 +136,8 @@ def test_a_500_problem_carries_the_id_and_the_headers_and_its_log_line_is_json(c
     assert response.headers["x-request-id"] == "boom-1"
     assert response.headers["content-security-policy"] == CONTENT_SECURITY_POLICY
     lines = json_lines(capsys.readouterr().err)
-    # app.problems logs the error through the stdlib: JSON too, with the bound request id and the traceback.
+    # The handlers (app/problem_handlers.py) log the error on the app.problems logger through the stdlib: JSON too,
+    # with the bound request id and the traceback.
     (error,) = [line for line in lines if line.get("logger") == "app.problems"]
     assert error["level"] == "error" and error["request_id"] == "boom-1" and "RuntimeError: boom" in error["exception"]
     (access,) = [line for line in lines if line.get("event") == "request"]
@@ -142,9 +145,9 @@ def test_a_500_problem_carries_the_id_and_the_headers_and_its_log_line_is_json(c
 
 
 def test_configure_logging_is_idempotent():
-    observability.configure_logging()
-    observability.configure_logging()
-    handlers = [h for h in logging.getLogger().handlers if isinstance(h, observability._StderrHandler)]
+    json_logs.configure_logging()
+    json_logs.configure_logging()
+    handlers = [h for h in logging.getLogger().handlers if isinstance(h, json_logs._StderrHandler)]
     assert len(handlers) == 1
     assert logging.getLogger("runtime.pool").getEffectiveLevel() == logging.INFO  # the app's loggers show
 
@@ -216,10 +219,10 @@ def test_metrics_read_the_pool_stats_at_scrape_time(client):
 
 def test_the_pool_collector_skips_a_pool_without_stats():
     registry = CollectorRegistry()
-    registry.register(observability.PoolCollector(lambda: object()))
+    registry.register(service_metrics.PoolCollector(lambda: object()))
     assert "vibfree_pool" not in generate_latest(registry).decode()
     registry = CollectorRegistry()
-    registry.register(observability.PoolCollector(FakePool))
+    registry.register(service_metrics.PoolCollector(FakePool))
     names = {f.name for f in text_string_to_metric_families(generate_latest(registry).decode())}
     assert names == {
         "vibfree_pool_workers",
@@ -344,7 +347,7 @@ def test_the_middleware_drops_a_server_header_the_app_sets():
         await send({"type": "http.response.start", "status": 200, "headers": [(b"server", b"leaky/1.0")]})
         await send({"type": "http.response.body", "body": b"ok"})
 
-    metrics = observability.ServiceMetrics(lambda: None)
+    metrics = service_metrics.ServiceMetrics(lambda: None)
     response = TestClient(ObservabilityMiddleware(app, metrics)).get("/")
     assert response.text == "ok" and "server" not in response.headers
     assert GENERATED_ID.fullmatch(response.headers["x-request-id"])

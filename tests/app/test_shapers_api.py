@@ -1,5 +1,5 @@
 """GET /v1/shapers and POST /v1/profiles/input-shaped: the paper's numbers, the catalogue's computed
-bands, agreement with the core, and every error as a problem."""
+bands, agreement with the core, and issue 11's step baseline, auto and compare rows."""
 
 from __future__ import annotations
 
@@ -15,7 +15,6 @@ from models.metrics import metrics
 from models.plants import make_plant
 from models.simulation import simulate
 from tests.app.conftest import TEST_SETTINGS, direct_body
-from tests.app.test_errors import assert_problem
 from tests.shaper_oracle import v_by_simulation
 
 PATH = "/v1/profiles/input-shaped"
@@ -29,7 +28,7 @@ PAPER = {
 }
 
 
-# Four modes at 1, 2, 3, 4 rad/s (zeta 0.05): more than the three that can be shaped together.
+# Four modes at 1, 2, 3, 4 rad/s (zeta 0.05): more than the three that can be shaped together (errors, firmware).
 FOUR_MODES = np.polymul(np.polymul([1, 0.1, 1], [1, 0.2, 4]), np.polymul([1, 0.3, 9], [1, 0.4, 16])).tolist()
 FOUR_MODE_PLANT = {"kind": "transfer_function", "numerator": [1.0], "denominator": FOUR_MODES}
 
@@ -194,80 +193,6 @@ def test_openapi_documents_the_paper_example(client):
 
 
 # ------------------------------------------------------------------------------------------
-# Errors
-
-
-@pytest.mark.parametrize(
-    ("change", "field"),
-    [
-        ({"shaper": "zvx"}, "shaper"),
-        ({"acceleration_limit": -0.1}, "acceleration_limit"),
-        ({"acceleration_limit": 0}, "acceleration_limit"),
-        ({"baseline": "smooth"}, "baseline"),
-        ({"target_velocity": 0.0}, "target_velocity"),
-        ({"displacement": 3.0}, "target_velocity"),  # both given
-        ({"cruise_velocity": 1.0}, "cruise_velocity"),  # only for rest-to-rest
-        ({"vibration_tolerance": 0.9, "shaper": "ei"}, "vibration_tolerance"),
-        ({"horizon_s": 10.0}, "horizon_s"),  # the command ends at 15.87 s
-        ({"sample_period_s": 1e-5}, "sample_period_s"),  # 6e6 samples > the cap of 5000
-        ({"baseline_steps": 4, "baseline": "multi_step"}, "baseline_steps"),
-        ({"colour": "red"}, "colour"),
-        ({"plant": {**CHATLATANAGULCHAI_EQ3, "drive_mass_kg": -2.0}}, "plant.drive_mass_kg"),
-        ({"shaped_modes": "all", "plant": FOUR_MODE_PLANT}, "shaped_modes"),
-    ],
-)
-def test_invalid_requests_are_problems_naming_the_field(client, change, field):
-    assert_problem(client.post(PATH, json={**PAPER, **change}), 422, field)
-
-
-def test_missing_move_and_missing_limit(client):
-    request = {k: v for k, v in PAPER.items() if k != "target_velocity"}
-    assert_problem(client.post(PATH, json=request), 422, "displacement")
-    request = {k: v for k, v in PAPER.items() if k != "acceleration_limit"}
-    # Neither name was sent: the error names the uniform field.
-    body = assert_problem(client.post(PATH, json={**request, "baseline": "modified"}), 422, "limits.max_acceleration")
-    assert "required" in body["errors"][0]["rule"]
-
-
-def test_impossible_limits_are_infeasible_with_the_reason(client):
-    # a = 0.05 < 0.0909: Delta = 9.918 s > t2 - t1 = 5.4535 s, the no-overlap condition fails.
-    # The modified baseline, asked for explicitly, refuses with the reason.
-    modified = {**PAPER, "acceleration_limit": 0.05, "baseline": "modified"}
-    body = assert_problem(client.post(PATH, json=modified), 422, slug="infeasible")
-    assert body["field"] == "acceleration_limit"
-    assert "no-overlap" in body["detail"] and "0.0909" in body["detail"]
-    # ... which multi_step with one step handles by lengthening the ramp (Delta = V/a = 20 s). The default
-    # (auto) takes the earliest-ending valid baseline: three steps (26.84 s) beat that ramp (30.91 s), and
-    # it says so.
-    fixed = client.post(PATH, json={**PAPER, "acceleration_limit": 0.05, "baseline": "multi_step", "baseline_steps": 1})
-    assert fixed.status_code == 200 and fixed.json()["ramp_time_s"] == pytest.approx(20.0, rel=1e-7)
-    auto = client.post(PATH, json={**PAPER, "acceleration_limit": 0.05})
-    assert auto.status_code == 200
-    chosen = auto.json()["design"]["baseline"]
-    assert chosen["kind"] == "multi_step" and len(chosen["step_times_s"]) == 3
-    assert "ends before the single ramp" in chosen["choice"]
-    ends = {a["steps"]: a["end_s"] for a in chosen["alternatives"]}
-    assert auto.json()["design"]["duration_s"] == ends[3] == min(ends.values())
-    assert ends[1] == pytest.approx(20.0 + 10.907045, abs=1e-6)  # Delta = V/a, then t_3 (5 decimals above)
-    # An EI shaper beyond the damping where it exists, and a command too long to simulate.
-    mode = {"kind": "mode", "natural_frequency_hz": 2.0, "damping_ratio": 0.5}
-    request = {**PAPER, "plant": mode, "shaper": "3hump_ei", "horizon_s": None}
-    body = assert_problem(client.post(PATH, json=request), 422, slug="infeasible")
-    assert body["field"] == "vibration_tolerance"
-    request = {**PAPER, "acceleration_limit": 1e-9, "horizon_s": None}
-    body = assert_problem(client.post(PATH, json=request), 422, slug="infeasible")
-    assert "beyond" in body["detail"]
-
-
-@pytest.mark.parametrize(
-    ("params", "field"),
-    [({"damping_ratio": 1.5}, "damping_ratio"), ({"vibration_tolerance": 0}, "vibration_tolerance")],
-)
-def test_catalogue_query_errors(client, params, field):
-    assert_problem(client.get("/v1/shapers", params=params), 422, field)
-
-
-# ------------------------------------------------------------------------------------------
 # Issue 11: the step baseline arrives, auto is the default, compare shows the shapers
 
 REPRODUCER = {
@@ -336,140 +261,3 @@ def test_auto_prefers_the_baseline_that_leaves_the_least_residual(client):
     assert auto["metrics"]["percentage_vibration"] < 5.0
     alternatives = auto["design"]["baseline"]["alternatives"]
     assert min(a["nominal_residual"] for a in alternatives) <= residual * (1 + 1e-6) + 1e-12
-
-
-# ------------------------------------------------------------------------------------------
-# Firmware export (design.firmware)
-
-FORTY_HZ = {"plant": {"kind": "mode", "natural_frequency_hz": 40.0}, "shaper": "zvd"}
-
-
-def test_firmware_export_of_a_40_hz_zvd_design(client):
-    # The issue's acceptance. Klipper: docs/Config_Reference.md [input_shaper] (shaper_type_x, shaper_freq_x,
-    # damping_ratio_x; https://www.klipper3d.org/Config_Reference.html#input_shaper). RepRapFirmware: the
-    # G-code dictionary's M593 (P"zvd" F<Hz> S<damping>, F 4..1000 Hz in 3.6, S 0..0.99;
-    # https://docs.duet3d.com/User_manual/Reference/Gcodes#m593-configure-input-shaping). Marlin: M493 of
-    # Fixed-Time Motion (S1, X flag, C2 = ZVD, A<Hz>, I<zeta> in [0.01, 1];
-    # https://marlinfw.org/docs/gcode/M493.html).
-    response = client.post(PATH, json={**FORTY_HZ, "target_velocity": 0.1})
-    assert response.status_code == 200, response.text
-    body = response.json()
-    InputShapedResponse.model_validate(body)
-    firmware = body["design"]["firmware"]
-    klipper = firmware["klipper"]
-    assert klipper["section"].splitlines()[:3] == ["[input_shaper]", "shaper_type_x: zvd", "shaper_freq_x: 40"]
-    assert klipper["exact"] and klipper["version"].startswith("Klipper")
-    assert firmware["reprapfirmware"]["command"] == 'M593 P"zvd" F40 S0'
-    assert firmware["marlin"]["command"] == "M493 S1 X C2 A40 I0.01"
-    # Without an acceleration limit the baseline is the step, where the design's percentage vibration and
-    # 100 V of the impulses are one number (docs/api.md, Percentage vibration): the Klipper type is the design's,
-    # so it leaves what the design leaves (~0), and Marlin's (1 ms delay grid, zeta 0.01) leaves V of its
-    # impulses, measured here by exact simulation: A of ZVD at zeta 0.01 at 0, 13, 26 ms on the undamped mode.
-    assert klipper["residual_percent"] == pytest.approx(body["metrics"]["percentage_vibration"], abs=1e-9)
-    marlin = firmware["marlin"]
-    assert marlin["residual_percent"] == pytest.approx(marlin["shaper_residual_percent"], rel=1e-9)
-    big_k = math.exp(-0.01 * math.pi / math.sqrt(1 - 0.01**2))
-    amplitudes = np.array([1.0, 2.0 * big_k, big_k**2]) / (1.0 + big_k) ** 2
-    expected = 100.0 * v_by_simulation(amplitudes, [0.0, 0.013, 0.026], 2 * math.pi * 40.0, 0.0)
-    assert marlin["residual_percent"] == pytest.approx(expected, rel=1e-8)
-
-
-def test_firmware_residual_is_the_designs_percentage_vibration(client):
-    # A rest-to-rest EI move under an acceleration limit (auto baseline: the drive passes the shaped command
-    # unchanged). RRF's custom shaper carries the designed impulses, so the residual it leaves, in the
-    # definition of metrics.percentage_vibration, is the design's own (rel 1e-6: the 10 digits written and
-    # the sampled command's corners); on the ramp baseline it is far below 100 V of the impulses (5 % at
-    # the EI's middle hump).
-    request = {
-        "plant": {"kind": "mode", "natural_frequency_hz": 40.0, "damping_ratio": 0.05},
-        "shaper": "ei",
-        "displacement": 0.1,
-        "limits": {"max_velocity": 1.0, "max_acceleration": 20.0},
-    }
-    body = client.post(PATH, json=request).json()
-    assert body["design"]["passes_limiter_unchanged"]
-    rrf = body["design"]["firmware"]["reprapfirmware"]
-    assert rrf["shaper_type"] == "custom" and rrf["exact"]
-    assert rrf["residual_percent"] == pytest.approx(body["metrics"]["percentage_vibration"], rel=1e-6)
-    assert rrf["shaper_residual_percent"] == pytest.approx(5.0, abs=1e-6)
-    assert rrf["residual_percent"] < rrf["shaper_residual_percent"]
-    klipper = body["design"]["firmware"]["klipper"]
-    assert klipper["shaper_type"] == "ei" and not klipper["exact"] and "fit" in klipper["note"]
-
-
-def test_firmware_for_a_multi_mode_design_says_what_each_firmware_can_do(client):
-    body = client.post(
-        PATH, json={"plant": FOUR_MODE_PLANT, "shaper": "zv", "target_velocity": 1.0, "shaped_modes": "first"}
-    ).json()
-    assert body["design"]["firmware"]["klipper"]["other_modes_shaper_residual_percent"] == []
-    two = {
-        "kind": "transfer_function",
-        "numerator": [1.0],
-        "denominator": np.polymul([1, 0.0, 40.0**2], [1, 0.0, 95.0**2]).tolist(),
-    }
-    body = client.post(PATH, json={"plant": two, "shaper": "zv", "target_velocity": 1.0, "shaped_modes": "all"}).json()
-    firmware = body["design"]["firmware"]
-    assert firmware["marlin"] is None and "one shaper per axis" in firmware["marlin_reason"]
-    assert firmware["reprapfirmware"]["shaper_type"] == "custom"  # ZV x ZV: 4 impulses, within RRF's 5
-    (left,) = firmware["klipper"]["other_modes_shaper_residual_percent"]
-    assert left > 5.0  # a ZV for 40 rad/s leaves most of the 95 rad/s mode
-
-
-def test_firmware_block_is_documented_with_an_example(client):
-    spec = client.get("/openapi.json").json()
-    schemas = spec["components"]["schemas"]
-    firmware = schemas["FirmwareOut"]
-    assert firmware["examples"][0]["klipper"]["section"].startswith("[input_shaper]\nshaper_type_x: zvd")
-    for name in ("KlipperOut", "RepRapFirmwareOut", "MarlinOut"):
-        assert "version" in schemas[name]["properties"], name
-        assert schemas[name]["properties"]["version"]["description"]
-
-
-def test_compare_rows_for_input_shaped_still_validate(client):
-    from app.schemas.compare import CompareOut
-
-    body = client.post(
-        "/v1/compare",
-        json={
-            "plant": {"kind": "mode", "natural_frequency_hz": 40.0, "damping_ratio": 0.02},
-            "displacement": 0.1,
-            "limits": {"max_velocity": 1.0, "max_acceleration": 20.0},
-            "families": ["input_shaped"],
-        },
-    )
-    assert body.status_code == 200, body.text
-    CompareOut.model_validate(body.json())
-    assert len(body.json()["rows"]) == 4
-
-
-def test_other_families_have_no_firmware_block(client):
-    # Only shaper designs map onto firmware shapers; the smoother (an FIR filter chain) has no such block.
-    body = client.post(
-        "/v1/profiles/smoother",
-        json={
-            "plant": {"kind": "mode", "natural_frequency_hz": 40.0},
-            "displacement": 0.1,
-            "limits": {"max_velocity": 1.0, "max_acceleration": 20.0},
-        },
-    )
-    assert body.status_code == 200, body.text
-    assert "firmware" not in body.json()["design"]
-
-
-def test_firmware_export_of_a_heavily_damped_mode(client):
-    # Found by the sweep in tests/optim/test_firmware.py: at zeta 0.95 Klipper's and RRF's hump-EI fits are no
-    # shapers (times out of order); they are left out of the choice, never a 500. Klipper's zvd takes damping
-    # up to 0.99, RRF's S up to 0.99, Marlin's I is written within 0.01..0.99.
-    body = client.post(
-        PATH,
-        json={
-            "plant": {"kind": "mode", "natural_frequency_hz": 40.0, "damping_ratio": 0.95},
-            "shaper": "zvd",
-            "target_velocity": 0.1,
-        },
-    )
-    assert body.status_code == 200, body.text
-    firmware = body.json()["design"]["firmware"]
-    assert firmware["klipper"]["shaper_type"] == "zvd" and firmware["klipper"]["exact"]
-    assert firmware["reprapfirmware"]["command"] == 'M593 P"zvd" F40 S0.95'
-    assert firmware["marlin"]["command"] == "M493 S1 X C2 A40 I0.95"

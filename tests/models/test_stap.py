@@ -15,7 +15,6 @@ from models.simulation import simulate
 from models.stap import (
     RestToRest,
     Stap,
-    decimal_part,
     exciting_term_u,
     load_acceleration_oscillation,
     motor_torque_oscillation,
@@ -24,6 +23,7 @@ from models.stap import (
     sensitivity_appendix_b,
     stap_sensitivity,
 )
+from models.stap_design import decimal_part
 from tests.oracle import ivp_response
 
 SEC3 = Stap(150.0, 0.175, 0.025)  # Sec. 3, Fig. 14: v = 150 rad/s, k_j = 1 at 40 Hz

@@ -13,7 +13,8 @@ import sys
 
 import numpy as np
 
-from optim.identification.modal import Record, identify_modes
+from optim.identification.modal import identify_modes
+from optim.identification.record import Record
 from tests.optim.test_identification_modal import NAMES, TRUTH, accelerometer_record
 
 SEEDS = 50

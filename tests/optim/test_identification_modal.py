@@ -16,7 +16,8 @@ import pytest
 from scipy.signal import welch
 
 from models.errors import InvalidParameter
-from optim.identification.modal import Record, identify_modes, uniform_record
+from optim.identification.modal import identify_modes
+from optim.identification.record import Record, uniform_record
 from optim.identification.record_csv import parse_record_csv
 
 TRUTH = ((23.0, 0.03), (61.0, 0.05))  # (f_n Hz, zeta)

@@ -184,7 +184,7 @@ def test_product_weights_match_a_composite_gauss_legendre_reference():
     x, w = np.polynomial.legendre.leggauss(40)
     for size in (31.0, 500.0, 3000.0):
         z = size * complex(-0.05, math.sqrt(1 - 0.05**2))
-        weights, v = pp.product_weights(z), pp.problem.chebyshev_nodes()
+        weights, v = pp.product_weights(z), pp.product_integration.chebyshev_nodes()
         edges = np.linspace(0.0, 1.0, int(size) + 65)
         a, b = edges[:-1, None], edges[1:, None]
         nodes, node_weights = a + 0.5 * (b - a) * (x + 1), 0.5 * (b - a) * w

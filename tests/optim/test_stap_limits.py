@@ -8,7 +8,7 @@ import pytest
 
 from models.plants import TwoInertiaPlant
 from models.simulation import simulate
-from models.stap import peak_motor_torque_nm
+from models.stap_torque import peak_motor_torque_nm
 from optim.families import stap as S
 from optim.families.stap.moves import closed_form
 

@@ -6,6 +6,8 @@ vanishes, within the limits. The package holds:
 
 - ``types``: the request and the design;
 - ``problem``: the CasADi problem, built once per shape with named parameters, cached, warmed up;
+- ``product_integration``: the weights of the modal integrals' product integration;
+- ``parameters``: a request's parameter vector for its problem, and ``evaluate``;
 - ``solve``: one design at a fixed duration from a start, and the rule that selects it;
 - ``duration_search``: the shortest duration (``minimize_duration``);
 - here: the checks of a request and ``design``, the entry point run in a worker process.
@@ -23,14 +25,13 @@ from models.errors import InvalidParameter, SolverFailed, SolverTimedOut
 from models.plants import TwoInertiaPlant
 from models.pseudo_polynomial import PseudoPolynomial, check_exponents
 from optim.families.pseudo_polynomial.duration_search import SEARCH_METHOD, Search, shortest
+from optim.families.pseudo_polynomial.parameters import _oscillatory, _parameters, _prepare, evaluate
 from optim.families.pseudo_polynomial.problem import (
     _CACHE,
     CONSTRAINT_INTERVALS,
-    INTERPOLATION_NODES,
     LIMIT_MARGIN,
     MAX_EXPONENT,
     MAX_MODES,
-    MAX_PHASE_RAD,
     MIN_SEPARATION,
     PROBE_ITERATIONS,
     QUICK_ITERATIONS,
@@ -38,15 +39,11 @@ from optim.families.pseudo_polynomial.problem import (
     SYMBOLIC_KINDS,
     _active,
     _build,
-    _oscillatory,
-    _parameters,
-    _prepare,
-    evaluate,
     limit_grid_u,
     lower_bound,
-    product_weights,
     warm_up,
 )
+from optim.families.pseudo_polynomial.product_integration import INTERPOLATION_NODES, MAX_PHASE_RAD, product_weights
 from optim.families.pseudo_polynomial.solve import (
     SPREAD_STARTS,
     ZERO_ENERGY,

@@ -24,7 +24,8 @@ import numpy as np
 
 from models.errors import Infeasible, SolverFailed
 from models.pseudo_polynomial import PseudoPolynomial
-from optim.families.pseudo_polynomial.problem import _active, _oscillatory
+from optim.families.pseudo_polynomial.parameters import _oscillatory
+from optim.families.pseudo_polynomial.problem import _active
 from optim.families.pseudo_polynomial.solve import (
     PeaksOf,
     _Attempt,

@@ -8,9 +8,9 @@ transfer function, the free state (see models.simulation)
 
 the modal form of Incerti's F and G (eqs. 27-30), with the coefficients C_i of eq. (22). After u = v^2
 the integral is 2 int_0^1 v^(2 gamma_i - 3) exp(z v^2) dv, z = lambda_j T, and it is computed by product
-integration (``product_weights``): v^(2 gamma_i - 3), the only factor that depends on the exponents, is
-interpolated at 96 fixed Chebyshev nodes, and the kernel exp(z v^2) times each Lagrange basis polynomial
-is integrated in numpy by composite Gauss-Legendre with panels scaled with |z|. The weights are parameters
+integration (``product_integration.product_weights``): v^(2 gamma_i - 3), the only factor that depends on the
+exponents, is interpolated at 96 fixed Chebyshev nodes, and the kernel exp(z v^2) times each Lagrange basis
+polynomial is integrated in numpy by composite Gauss-Legendre with panels scaled with |z|. The weights are parameters
 of the problem, so its size does not grow with the number of periods T / (2 pi / |lambda|) (a plain
 Gauss-Legendre rule needs about |z| nodes: the old rule capped moves at 76 periods). Measured against
 composite Gauss-Legendre with a panel per radian for |z| = 31, 500 and 3000 and gamma in 3..80:
@@ -28,7 +28,7 @@ what the pipeline checks and re-solved with tightened limits where needed (``sol
 
 Each problem is built once per (order, plant kind, number of modes, active limits, caps) with the
 plant's parameters, displacement, duration, initial exponents and limits as named CasADi parameters
-(``_parameters``), and kept in this process's cache: the service builds them in its worker processes
+(``parameters._parameters``), and kept in this process's cache: the service builds them in its worker processes
 (``warm_up``). The plant enters through its symbolic form (models.plants.Plant.symbolic) for the
 second-order kinds (mode, two_inertia, belt_platform), whose mode is a closed-form expression of the
 parameters; for higher-order plants (rigid_flexible, transfer functions), whose poles have no closed
@@ -37,29 +37,23 @@ form, the poles and residues computed from the same transfer function are the pa
 
 from __future__ import annotations
 
-import functools
-import math
 from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
-from models.errors import InvalidParameter
-from models.plants import Plant, TwoInertiaPlant
+from models.plants import Plant
 from models.pseudo_polynomial import boundary_matrix, derivative_terms
-from models.simulation import ModalForm, modal_form
-from optim.families.pseudo_polynomial.types import FloatArray, Limits, PseudoPolynomialRequest
+from optim.families.pseudo_polynomial.product_integration import INTERPOLATION_NODES, chebyshev_nodes
+from optim.families.pseudo_polynomial.types import FloatArray, Limits
 from optim.solver import SolveCaps, ipopt_options, parameter_layout
-from runtime.cache import ArrayCache, LruCache
+from runtime.cache import LruCache
 
 __all__ = [
     "CONSTRAINT_INTERVALS",
-    "INTERPOLATION_NODES",
     "LIMIT_MARGIN",
     "MAX_EXPONENT",
     "MAX_MODES",
-    "MAX_PHASE_RAD",
     "MIN_SEPARATION",
     "PROBE_ITERATIONS",
     "PROBLEM_CACHE_MIB",
@@ -67,17 +61,11 @@ __all__ = [
     "SEARCH_ITERATIONS",
     "SYMBOLIC_KINDS",
     "build_mib",
-    "evaluate",
     "limit_grid_u",
     "lower_bound",
-    "product_weights",
     "warm_up",
 ]
 
-INTERPOLATION_NODES = 96  # Chebyshev nodes of the product integration (module docstring)
-PANEL_NODES = 32  # Gauss-Legendre nodes per panel of the kernel's integration
-PANEL_PHASE_RAD = 8.0  # each panel spans at most this much of |z| (the kernel turns <= 16 rad in it)
-MAX_PHASE_RAD = 2 * math.pi * 5000  # 5000 periods: the kernel's integration stays below ~50 ms
 MAX_MODES = 3  # oscillatory modes handled; the problem's size grows with modes x nodes x exponents
 CONSTRAINT_INTERVALS = 100  # limits are imposed at T/100 spacing, then checked on the samples
 MIN_SEPARATION = 0.05  # consecutive exponents at least this far apart: Z stays invertible, C finite
@@ -86,76 +74,6 @@ QUICK_ITERATIONS = 150  # the first try: a reachable closest zero converges in t
 PROBE_ITERATIONS = 25  # a duration probe (warm-started from a neighbour; a capped zero-energy iterate is polished)
 SEARCH_ITERATIONS = 250  # each minimum-energy start; its best feasible iterate is kept
 LIMIT_MARGIN = 1e-4  # limits are imposed 0.01 % tighter than asked, absorbing the grid
-
-
-def chebyshev_nodes(count: int = INTERPOLATION_NODES) -> FloatArray:
-    """Chebyshev points of the first kind mapped to (0, 1): v_j = (1 - cos((2j + 1) pi / (2 count))) / 2."""
-    return 0.5 * (1.0 - np.cos((2 * np.arange(count) + 1) * np.pi / (2 * count)))
-
-
-def _check_phase(phase_rad: float) -> None:
-    if phase_rad > MAX_PHASE_RAD:
-        raise InvalidParameter(
-            "duration_s",
-            phase_rad,
-            f"the move lasts {phase_rad / (2 * math.pi):.0f} periods of the plant's mode; pseudo-polynomial design "
-            f"supports up to {MAX_PHASE_RAD / (2 * math.pi):.0f}",
-        )
-
-
-PANEL_CACHE_BYTES = 48 * 1024 * 1024  # a block of 512 panels is 12.6 MB (its Chebyshev table): ~4 blocks kept
-_PANEL_RULES: ArrayCache[tuple[int, int, int, int], tuple[FloatArray, FloatArray, FloatArray]] = ArrayCache(
-    PANEL_CACHE_BYTES
-)
-
-
-def _panel_rule(panels: int, first: int, stop: int, count: int) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Nodes, weights and T_k(2 v - 1), k < count, of panels first..stop-1 of ``panels`` equal ones on [0, 1].
-
-    Cached by bytes (``PANEL_CACHE_BYTES``): the panel count follows |lambda T|, so every distinct plant or
-    duration makes new tables, and an ``lru_cache(32)`` of them held up to 400 MB per worker (issue 15)."""
-    return _PANEL_RULES.get((panels, first, stop, count), lambda: _build_panel_rule(panels, first, stop, count))
-
-
-def _build_panel_rule(panels: int, first: int, stop: int, count: int) -> tuple[FloatArray, FloatArray, FloatArray]:
-    x, w = np.polynomial.legendre.leggauss(PANEL_NODES)
-    edges = np.arange(first, stop + 1) / panels
-    a, b = edges[:-1, None], edges[1:, None]
-    v = (a + 0.5 * (b - a) * (x + 1.0)).ravel()
-    weight = (0.5 * (b - a) * w).ravel()
-    chebyshev = np.cos(np.outer(np.arccos(np.clip(2.0 * v - 1.0, -1.0, 1.0)), np.arange(count)))
-    return v, weight, chebyshev
-
-
-@functools.lru_cache(maxsize=4)
-def _nodal_basis(count: int) -> FloatArray:
-    """(2/count) T_k(x_j) with the k = 0 column halved: Chebyshev moments -> nodal weights."""
-    nodes_x = 2.0 * chebyshev_nodes(count) - 1.0
-    basis = np.cos(np.outer(np.arccos(nodes_x), np.arange(count)))
-    basis[:, 0] *= 0.5
-    out: FloatArray = (2.0 / count) * basis
-    return out
-
-
-def product_weights(z: complex, count: int = INTERPOLATION_NODES) -> NDArray[np.complex128]:
-    """W_j = int_0^1 l_j(v) exp(z v^2) dv for the Lagrange basis l_j at ``chebyshev_nodes(count)``, so that
-    int_0^1 f(v) exp(z v^2) dv ~ sum_j W_j f(v_j) for any smooth f.
-
-    l_j(v) = (2/count) sum'_k T_k(x_j) T_k(x) with x = 2 v - 1 (discrete orthogonality of the nodes; the
-    k = 0 term halved), so W_j = (2/count) sum'_k T_k(x_j) m_k with the kernel's Chebyshev moments
-    m_k = int_0^1 T_k(2 v - 1) exp(z v^2) dv, integrated by composite Gauss-Legendre: panels of at most
-    ``PANEL_PHASE_RAD`` of |z| (and enough for the degree count - 1 of T_k), ``PANEL_NODES`` nodes each.
-    """
-    _check_phase(abs(z))
-    panels = max(math.ceil(abs(z) / PANEL_PHASE_RAD), math.ceil(count / 8), 1)
-    moments = np.zeros(count, dtype=complex)
-    for first in range(0, panels, 512):  # blocks of panels bound the memory at long moves
-        v, weight, chebyshev = _panel_rule(panels, first, min(first + 512, panels), count)
-        kernel = weight * np.exp(z * v * v)
-        moments += chebyshev.T @ kernel.real + 1j * (chebyshev.T @ kernel.imag)  # real BLAS products
-    basis = _nodal_basis(count)
-    weights: NDArray[np.complex128] = basis @ moments.real + 1j * (basis @ moments.imag)
-    return weights
 
 
 @dataclass
@@ -444,78 +362,3 @@ def warm_up(caps: SolveCaps | None = None) -> None:
         if plant.kind in SYMBOLIC_KINDS:
             for order in (2, 3, 4):
                 _compiled(order, 1, (False,) * 4, caps or SolveCaps(), plant)
-
-
-# ------------------------------------------------------------------------------------------
-# The parameters of a request
-
-
-def _oscillatory(plant: Plant) -> ModalForm:
-    num, den = plant.load_transfer_function()
-    modal = modal_form(num, den, 1)
-    keep = modal.oscillatory
-    if not np.any(keep):
-        raise InvalidParameter("plant", plant.kind, "the plant has no vibration mode to suppress")
-    if np.count_nonzero(keep) > MAX_MODES:
-        raise InvalidParameter(
-            "plant",
-            f"{np.count_nonzero(keep)} modes",
-            f"the pseudo-polynomial design handles up to {MAX_MODES} vibration modes",
-        )
-    return ModalForm(modal.taylor, modal.poles[keep], modal.residues[keep], modal.weights[keep])
-
-
-def _parameters(
-    request: PseudoPolynomialRequest, modal: ModalForm, compiled: _Compiled, gamma0: FloatArray
-) -> FloatArray:
-    lay = compiled.layout
-    p = np.zeros(compiled.parameter_count)
-    p[lay["phi"]] = request.displacement
-    p[lay["T"]] = request.duration_s
-    p[lay["gamma0"]] = gamma0
-    if "plant" in lay:
-        p[lay["plant"]] = request.plant.symbolic_parameter_values()
-    else:
-        p[lay["sigma"]] = -modal.poles.real
-        p[lay["wd"]] = modal.poles.imag
-        wr = modal.weights * modal.residues
-        p[lay["wr_re"]] = wr.real
-        p[lay["wr_im"]] = wr.imag
-        inertia = request.plant.energy_inertia
-        p[lay["mass"]] = inertia if inertia is not None and modal.poles.size == 1 else 1.0
-        if isinstance(request.plant, TwoInertiaPlant):
-            p[lay["torque"]] = [
-                request.plant.motor_inertia_kgm2,
-                request.plant.stiffness_nm_per_rad,
-                request.plant.damping_nms_per_rad,
-            ]
-    quad = np.concatenate([product_weights(complex(pole) * request.duration_s) for pole in modal.poles])
-    p[lay["quad_re"]], p[lay["quad_im"]] = quad.real, quad.imag
-    p[lay["scale"]] = 1.0
-    p[lay["energy_ref"]] = 1.0
-    lim = request.limits
-    p[lay["inv_limit"]] = [
-        0.0 if x is None else 1.0 / x for x in (lim.max_velocity, lim.max_acceleration, lim.max_jerk, lim.max_torque_nm)
-    ]
-    return p
-
-
-def _prepare(request: PseudoPolynomialRequest) -> tuple[_Compiled, FloatArray, FloatArray]:
-    """The compiled problem for a request, its parameter vector (scaled at the initial design)
-    and the initial exponents."""
-    modal = _oscillatory(request.plant)
-    compiled = _compiled(request.order, modal.poles.size, _active(request.limits), request.caps, request.plant)
-    gamma0 = np.sort(np.asarray(request.initial_exponents, dtype=float))
-    p = _parameters(request, modal, compiled, gamma0)
-    energy0, _, free0 = (np.asarray(v).ravel() for v in compiled.evaluate(gamma0, p))
-    scales = np.hypot(free0[0::2], free0[1::2])
-    p[compiled.layout["scale"]] = np.where(scales > 0, scales, 1.0)
-    p[compiled.layout["energy_ref"]] = energy0[0] if energy0[0] > 0 else 1.0
-    return compiled, p, gamma0
-
-
-def evaluate(request: PseudoPolynomialRequest, exponents: FloatArray) -> tuple[float, float]:
-    """Final energy and residual amplitude of given exponents (the optimiser's own model)."""
-    compiled, p, _ = _prepare(replace(request, initial_exponents=tuple(exponents)))
-    energy, residual, _ = compiled.evaluate(np.asarray(exponents, dtype=float), p)
-    return float(energy), float(residual)

@@ -26,7 +26,8 @@ import numpy as np
 from models.errors import Infeasible, SolverTimedOut
 from models.plants import Plant
 from models.pseudo_polynomial import PseudoPolynomial
-from optim.families.pseudo_polynomial.problem import MAX_EXPONENT, MIN_SEPARATION, _active, _prepare, lower_bound
+from optim.families.pseudo_polynomial.parameters import _prepare
+from optim.families.pseudo_polynomial.problem import MAX_EXPONENT, MIN_SEPARATION, _active, lower_bound
 from optim.families.pseudo_polynomial.types import FloatArray, Limits, PseudoPolynomialRequest
 from optim.solver import SolverReport, raise_for_status, report_of
 

@@ -15,13 +15,8 @@ package composes them:
 
 from __future__ import annotations
 
-from models.stap import (
-    min_acceleration_time,
-    nodal_acceleration_limit,
-    paper_delta_f,
-    paper_k_j_max,
-    worst_torque_overshoot,
-)
+from models.stap import worst_torque_overshoot
+from models.stap_design import min_acceleration_time, nodal_acceleration_limit, paper_delta_f, paper_k_j_max
 from optim.families.stap.limits import (
     BAND_POINTS,
     LIMIT_RTOL,

@@ -16,14 +16,8 @@ import numpy as np
 
 from models.errors import InvalidParameter
 from models.plants import Mode, Plant, TwoInertiaPlant
-from models.stap import (
-    FloatArray,
-    Stap,
-    nodal_acceleration_limit,
-    stap_sensitivity,
-    torque_coefficient,
-    worst_torque_overshoot,
-)
+from models.stap import FloatArray, Stap, stap_sensitivity, torque_coefficient, worst_torque_overshoot
+from models.stap_design import nodal_acceleration_limit
 from optim.families.stap.types import StapRequest, TorqueLimit
 
 BAND_POINTS = 401  # SC samples over the band for auto and the reported worst case

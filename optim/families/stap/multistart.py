@@ -32,7 +32,8 @@ from dataclasses import replace
 import numpy as np
 
 from models.errors import Infeasible, InvalidParameter, SolverTimedOut
-from models.stap import FloatArray, RestToRest, Stap, max_jerk_time
+from models.stap import FloatArray, RestToRest, Stap
+from models.stap_design import max_jerk_time
 from optim.families.stap.limits import estimated_mode, has_no_acceleration_limit, torque_plant
 from optim.families.stap.moves import check_request
 from optim.families.stap.problem import (

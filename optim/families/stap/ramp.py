@@ -38,11 +38,9 @@ from dataclasses import replace
 import numpy as np
 
 from models.errors import Infeasible, InvalidParameter
-from models.stap import (
-    MAX_TIME_S,
-    Stap,
+from models.stap import MAX_TIME_S, Stap, load_acceleration_oscillation
+from models.stap_design import (
     decimal_part,
-    load_acceleration_oscillation,
     max_jerk_time,
     min_acceleration_time,
     nodal_acceleration_limit,

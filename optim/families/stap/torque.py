@@ -3,7 +3,7 @@
 Eq. (19) bounds the rigid part (J_M + J_L) a_M; eqs. (57)-(59) add the undamped oscillation of one
 ramp with a long t_c. Damping, a short t_c and the deceleration ramp of a rest-to-rest move meeting
 the first ramp's oscillation can still push the real torque past M (an audit found 71.6956 N m for
-M = 71.6677 N m). So every design is checked on its exact peak (``models.stap.peak_motor_torque_nm``)
+M = 71.6677 N m). So every design is checked on its exact peak (``models.stap_torque.peak_motor_torque_nm``)
 and, where it breaks the limit, the closed form is redesigned with a lower acceleration cap found
 by a 1-D search on that exact peak.
 """
@@ -16,7 +16,8 @@ from dataclasses import replace
 from models.commands import PiecewiseCommand
 from models.errors import Infeasible, InvalidParameter
 from models.plants import Plant
-from models.stap import RestToRest, Stap, peak_motor_torque_nm
+from models.stap import RestToRest, Stap
+from models.stap_torque import peak_motor_torque_nm
 from optim.families.stap.types import StapDesign, StapRequest
 
 TORQUE_RTOL = 1e-12  # round-off allowed above M (a design touching eq. 19 exactly); the pipeline refuses 1e-9

@@ -13,6 +13,8 @@ z_(k+1) = Phi z_k + Gamma u_k. The states are LP variables, so that the LP stays
 - zero residual at each cancelled pole: Re F_n = Im F_n = 0 (optim.families.time_optimal.weights), two dense rows;
 - each band point |F_0| <= (1 - BAND_MARGIN) c, by the 16-gon inscribed in that circle.
 
+The chain is ``state_chain.chain``, the LP's variables and rows are built by ``sparse_lp.SparseLp``.
+
 ``relaxed_lp`` is the LP every continuous command of duration T satisfies in its step averages of the
 acceleration, abar_k: the velocity at the nodes is exact, the other equalities are widened by what
 averaging can change (|int f a - sum abar_k int_step f| <= A max|f'| T dt / 4), the band polygons are
@@ -36,17 +38,17 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
-from scipy.linalg import expm
 from scipy.optimize import linprog
 
 from models.errors import InvalidParameter, SolverFailed, SolverTimedOut
+from optim.families.time_optimal.sparse_lp import SparseLp
+from optim.families.time_optimal.state_chain import chain
 from optim.families.time_optimal.types import Spec
 from optim.families.time_optimal.weights import exponential_moment
 from optim.solver import SolverReport, record_solve
 
 Array = NDArray[np.float64]
 CArray = NDArray[np.complex128]
-POLYGON_SIDES = 16
 MARGIN = 1e-7  # bounds tightened by this fraction so that HiGHS's feasibility tolerance cannot break a limit
 # The band's bound at its points is lowered by this fraction: between points a PHASE_STEP apart the residual
 # rises by about (PHASE_STEP / 2)^2 / 2 = 0.28 % (its phase turns, its modulus is smooth), so the dense check
@@ -104,204 +106,6 @@ def acceleration_moment(spec: Spec, poles: CArray, start: Array, end: Array, tot
     return w
 
 
-# --- the state-space model --------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class StateChain:
-    """z' = A z + B u: the motor's derivatives (p, v[, a]) and, with a torque, G's two states."""
-
-    a: Array
-    b: Array
-    scale: Array  # a natural size of each state, so that the LP's rows are balanced
-    velocity: int = 1
-    acceleration: int | None = None  # the state index of a (order 3)
-    torque: tuple[Array, float] | None = None  # (row c, d): tau = c z + d u
-
-
-def chain(spec: Spec, total_s: float) -> StateChain:
-    q, unit = spec.order, spec.scale
-    n = q + (2 if spec.torque is not None else 0)
-    a = np.zeros((n, n))
-    b = np.zeros(n)
-    for m in range(q - 1):
-        a[m, m + 1] = 1.0
-    b[q - 1] = 1.0
-    scale = np.array([unit * total_s ** (q - m) for m in range(q)] + [1.0] * (n - q))
-    # Each state in units of the size it can reach: its limit where that is smaller (a slow move over a
-    # long time would otherwise put the bound below HiGHS's feasibility tolerance in scaled units).
-    scale[0] = min(scale[0], spec.move) if spec.rest_to_rest else scale[0]
-    if spec.max_velocity is not None:
-        scale[1] = min(scale[1], spec.max_velocity)
-    if q == 3 and spec.max_acceleration is not None:
-        scale[2] = min(scale[2], spec.max_acceleration)
-    torque = None
-    if spec.torque is not None:
-        tq = spec.torque
-        w2 = abs(tq.pole) ** 2
-        two_zw = -2.0 * tq.pole.real
-        # g1'' + 2 zeta w g1' + w^2 g1 = a (the motor's acceleration), a_L = w^2 g1 + 2 zeta w g1'
-        a[q, q + 1] = 1.0
-        a[q + 1, q] = -w2
-        a[q + 1, q + 1] = -two_zw
-        accel = np.zeros(n)
-        if q == 2:
-            b[q + 1] = 1.0
-            d = tq.motor_inertia_kgm2
-        else:
-            a[q + 1, 2] = 1.0
-            accel[2] = 1.0
-            d = 0.0
-        row = tq.motor_inertia_kgm2 * accel
-        row[q] += tq.load_inertia_kgm2 * w2
-        row[q + 1] += tq.load_inertia_kgm2 * two_zw
-        a_size = spec.max_acceleration or unit * (total_s if q == 3 else 1.0)
-        scale[q:] = [a_size / w2, a_size / math.sqrt(w2)]
-        torque = (row, d)
-    return StateChain(a, b, scale, 1, 2 if q == 3 else None, torque)
-
-
-def discretise(c: StateChain, h: float) -> tuple[Array, Array]:
-    """Phi = e^(A h), Gamma = int_0^h e^(A s) ds B."""
-    n = c.a.shape[0]
-    big = np.zeros((n + 1, n + 1))
-    big[:n, :n] = c.a * h
-    big[:n, n] = c.b * h
-    e = expm(big)
-    return e[:n, :n], e[:n, n]
-
-
-@dataclass
-class _Lp:
-    """A sparse LP in x (N held values) then z_0..z_N (scaled states)."""
-
-    steps: int
-    states: int
-    extra: int = 0  # variables after the states (|x_k| of the weighted L1 objective)
-    cut_count: int = 0  # then (Re F, Im F) / bound of each band point
-    lower: Array = field(init=False)
-    upper: Array = field(init=False)
-    eq: list[sp.coo_matrix] = field(default_factory=list)
-    eq_rhs: list[Array] = field(default_factory=list)
-    ub: list[sp.coo_matrix] = field(default_factory=list)
-    ub_rhs: list[Array] = field(default_factory=list)
-
-    def __post_init__(self) -> None:
-        size = self.steps + (self.steps + 1) * self.states + self.extra + 2 * self.cut_count
-        self.cost = np.zeros(size)
-        self.lower = np.full(size, -np.inf)
-        self.upper = np.full(size, np.inf)
-
-    def state(self, k: int | NDArray[np.integer[Any]], i: int | NDArray[np.integer[Any]]) -> NDArray[np.intp]:
-        """The variable index of state i at node k (arrays broadcast)."""
-        out: NDArray[np.intp] = np.asarray(self.steps + np.asarray(k) * self.states + np.asarray(i), dtype=np.intp)
-        return out
-
-    def dense_x_rows(self, rows: Array) -> sp.coo_matrix:
-        pad = sp.coo_matrix((rows.shape[0], self.lower.size - self.steps))
-        return sp.hstack([sp.coo_matrix(rows), pad]).tocoo()
-
-    def weighted_l1(self, weights: Array) -> None:
-        """Minimise sum_k weights_k |x_k| (a feasibility LP returns any vertex, often chattering): another
-        vertex, with another arc structure for the refinement to start from."""
-        n, first = self.steps, self.lower.size - self.extra - 2 * self.cut_count
-        k = np.arange(n)
-        w = first + k
-        for sign in (1.0, -1.0):
-            m = sp.coo_matrix(
-                (np.concatenate([sign * np.ones(n), -np.ones(n)]), (np.concatenate([k, k]), np.concatenate([k, w]))),
-                shape=(n, self.lower.size),
-            )
-            self.add_ub(m, np.zeros(n))
-        self.lower[w] = 0.0
-        self.cost[w] = weights
-
-    def band(self, weights: CArray, bounds: Array, inscribed: bool) -> None:
-        """|weights_p . x| <= bounds_p for each band point: (Re, Im) / bound as two variables (two dense rows),
-        then the 16-gon on them (sparse): inscribed in the unit circle (the bound holds) or circumscribed
-        (a relaxation)."""
-        count = weights.shape[0]
-        first = self.lower.size - 2 * count
-        scaled = weights / bounds[:, None]
-        parts = np.vstack([scaled.real, scaled.imag])
-        scale = np.max(np.abs(parts), axis=1)
-        scale[scale == 0.0] = 1.0
-        dense = self.dense_x_rows(parts / scale[:, None]).tocsr()
-        aux = sp.coo_matrix(
-            (-1.0 / scale, (np.arange(2 * count), first + np.arange(2 * count))), shape=(2 * count, self.lower.size)
-        )
-        self.add_eq((dense + aux).tocoo(), np.zeros(2 * count))
-        theta = 2 * math.pi * np.arange(POLYGON_SIDES) / POLYGON_SIDES
-        factor = math.cos(math.pi / POLYGON_SIDES) if inscribed else 1.0
-        p = np.arange(count)
-        rows = (p[:, None] * POLYGON_SIDES + np.arange(POLYGON_SIDES)[None, :]).ravel()
-        re_cols = np.repeat(first + p, POLYGON_SIDES)
-        im_cols = np.repeat(first + count + p, POLYGON_SIDES)
-        cos, sin = np.tile(np.cos(theta), count), np.tile(np.sin(theta), count)
-        m = sp.coo_matrix(
-            (np.concatenate([cos, sin]), (np.concatenate([rows, rows]), np.concatenate([re_cols, im_cols]))),
-            shape=(count * POLYGON_SIDES, self.lower.size),
-        )
-        self.add_ub(m, np.full(count * POLYGON_SIDES, factor))
-
-    def add_eq(self, m: sp.coo_matrix, rhs: Array) -> None:
-        self.eq.append(m)
-        self.eq_rhs.append(np.asarray(rhs, dtype=float))
-
-    def add_ub(self, m: sp.coo_matrix, rhs: Array) -> None:
-        self.ub.append(m)
-        self.ub_rhs.append(np.asarray(rhs, dtype=float))
-
-    def dynamics(self, c: StateChain, h: float, unit: float) -> None:
-        """z_(k+1) - Phi z_k - Gamma U x_k = 0, in scaled states (row i divided by scale_i)."""
-        phi, gamma = discretise(c, h)
-        n, s = self.states, c.scale
-        phi_s = phi * s[None, :] / s[:, None]
-        gamma_s = gamma * unit / s
-        k = np.arange(self.steps)
-        rows, cols, vals = [], [], []
-        for i in range(n):
-            r = k * n + i
-            rows.append(r)
-            cols.append(self.state(k + 1, i))
-            vals.append(np.ones(k.size))
-            for j in range(n):
-                if phi_s[i, j] != 0.0:
-                    rows.append(r)
-                    cols.append(self.state(k, j))
-                    vals.append(np.full(k.size, -phi_s[i, j]))
-            if gamma_s[i] != 0.0:
-                rows.append(r)
-                cols.append(k)
-                vals.append(np.full(k.size, -gamma_s[i]))
-        m = sp.coo_matrix(
-            (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-            shape=(self.steps * n, self.lower.size),
-        )
-        self.add_eq(m, np.zeros(self.steps * n))
-
-    def output_rows(
-        self, c: StateChain, row: Array, d: float, h: float, unit: float, points: tuple[float, ...]
-    ) -> sp.coo_matrix:
-        """Rows of row . z(t_k + theta h) + d u_k for each step and theta (scaled states)."""
-        mats = []
-        k = np.arange(self.steps)
-        for theta in points:
-            phi, gamma = discretise(c, theta * h) if theta > 0 else (np.eye(self.states), np.zeros(self.states))
-            cz = (row @ phi) * c.scale
-            du = float(row @ gamma) * unit + d * unit
-            rows = [k] * (self.states + 1)
-            cols = [self.state(k, j) for j in range(self.states)] + [k]
-            vals = [np.full(k.size, cz[j]) for j in range(self.states)] + [np.full(k.size, du)]
-            mats.append(
-                sp.coo_matrix(
-                    (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                    shape=(self.steps, self.lower.size),
-                )
-            )
-        return sp.vstack(mats).tocoo()
-
-
 def _unit_rows(rows: Array, rhs: Array) -> tuple[Array, Array]:
     scale = np.max(np.abs(rows), axis=1)
     scale[scale == 0.0] = 1.0
@@ -313,11 +117,11 @@ def grid_lp(
     spec: Spec, steps: int, dt: float, cuts: list[Cut], counter: LpCounter, weights: Array | None = None
 ) -> Array | None:
     """A feasible x on N = ``steps`` steps of ``dt`` (u_k = spec.scale x_k), or None if none is found; with
-    ``weights`` the one of least weighted L1 norm (see _Lp.weighted_l1)."""
+    ``weights`` the one of least weighted L1 norm (see SparseLp.weighted_l1)."""
     q, unit = spec.order, spec.scale
     total = steps * dt
     c = chain(spec, total)
-    lp = _Lp(steps, c.a.shape[0], 0 if weights is None else steps, len(cuts))
+    lp = SparseLp(steps, c.a.shape[0], 0 if weights is None else steps, len(cuts))
     if weights is not None:
         lp.weighted_l1(weights)
     tight = 1.0 - MARGIN
@@ -374,7 +178,7 @@ def relaxed_lp(spec: Spec, total_s: float, steps: int, cuts: list[Cut], counter:
     accel = spec.max_acceleration
     dt = total_s / steps
     start, end = pieces(steps, dt)
-    lp = _Lp(steps, 1, 0, len(cuts))  # the velocity at the nodes, exact for averages
+    lp = SparseLp(steps, 1, 0, len(cuts))  # the velocity at the nodes, exact for averages
     lp.lower[:steps], lp.upper[:steps] = -1.0, 1.0
     slack = 1e-9  # relative, against round-off (a wider relaxation stays valid)
     v_scale = accel * total_s
@@ -450,7 +254,7 @@ def _require_finite(*parts: Array | sp.csr_matrix | None) -> None:
             )
 
 
-def _solve(lp: _Lp, counter: LpCounter) -> tuple[Array | None, int]:
+def _solve(lp: SparseLp, counter: LpCounter) -> tuple[Array | None, int]:
     """HiGHS's solution (None unless optimal) and scipy's status (0 optimal, 1 iteration cap, 2 infeasible, ...).
 
     HiGHS's simplex now and then stalls on one of these small LPs (seen: 316 steps, held jerk): stopped at
