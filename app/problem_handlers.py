@@ -15,6 +15,7 @@ from app.body_middleware import JSONBodyOnly
 from app.encoding import dumps
 from app.problems import (
     PROBLEM_MEDIA_TYPE,
+    InvalidRequestBody,
     ProblemError,
     domain_problem,
     invalid_input,
@@ -33,11 +34,15 @@ def install(app: FastAPI) -> None:
 
     @app.exception_handler(RequestValidationError)
     async def _validation(_: Request, exc: RequestValidationError) -> Response:
-        errors = validation_errors(exc)
+        errors = validation_errors(exc.errors())
         malformed = [e for e in errors if e["field"] == "body" and e["rule"].startswith("the body is not valid JSON")]
         if malformed:
             return problem_response("malformed-body", malformed[0]["rule"], field="body", errors=malformed[:1])
         return invalid_input(errors, total=len(exc.errors()))
+
+    @app.exception_handler(InvalidRequestBody)
+    async def _invalid_body(_: Request, exc: InvalidRequestBody) -> Response:
+        return invalid_input(validation_errors(exc.errors), total=len(exc.errors))
 
     @app.exception_handler(DomainError)
     async def _domain(_: Request, exc: DomainError) -> Response:

@@ -10,10 +10,10 @@ error into one, ``app.body_middleware`` answers a body too large or not JSON, ``
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from fastapi import APIRouter
-from fastapi.exceptions import RequestValidationError
 from pydantic import BaseModel, ConfigDict, Field
 from starlette.responses import Response
 
@@ -61,7 +61,7 @@ class FieldError(BaseModel):
 class ProblemDetails(BaseModel):
     """RFC 9457 problem details."""
 
-    model_config = ConfigDict(extra="allow")
+    model_config = ConfigDict(extra="allow", title="Problem")
     type: str = Field(description="URI reference of the problem type, documented at that path.")
     title: str
     status: int
@@ -211,9 +211,19 @@ def field_path(loc: tuple[Any, ...]) -> str:
 MAX_REPORTED_ERRORS = 20
 
 
-def validation_errors(exc: RequestValidationError) -> list[dict[str, Any]]:
+class InvalidRequestBody(Exception):
+    """A request body that fails its schema where the service, not the route, validates it (a sweep's base
+    request): pydantic's errors, their ``loc`` from the body's root. Answered as the 422 of a route's own."""
+
+    def __init__(self, errors: Sequence[Mapping[str, Any]]) -> None:
+        self.errors = list(errors)
+        super().__init__(f"{len(self.errors)} validation errors")
+
+
+def validation_errors(errors: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """pydantic's (or FastAPI's) errors as the problem's ``errors``: field, value and rule, at most 20."""
     out = []
-    for err in exc.errors()[:MAX_REPORTED_ERRORS]:
+    for err in errors[:MAX_REPORTED_ERRORS]:
         rule = str(err.get("msg", "invalid"))
         field = field_path(tuple(err.get("loc", ())))
         if err.get("type") == "json_invalid":

@@ -15,7 +15,6 @@ from typing import Any
 
 import orjson
 import structlog
-from fastapi.exceptions import RequestValidationError
 from pydantic import ValidationError
 
 from app import problems
@@ -162,8 +161,8 @@ def sweep(
 
     try:
         return Sweep(_run(run()))
-    except RequestValidationError as exc:
-        response = problems.invalid_input(problems.validation_errors(exc))
+    except problems.InvalidRequestBody as exc:
+        response = problems.invalid_input(problems.validation_errors(exc.errors), total=len(exc.errors))
         raise VibfreeError(orjson.loads(response.body)) from None
 
 
@@ -188,7 +187,7 @@ def _validate(model: type[Any], request: Mapping[str, Any] | str | bytes) -> Any
     try:
         return model.model_validate(data)
     except ValidationError as exc:
-        response = problems.invalid_input(problems.validation_errors(RequestValidationError(exc.errors())))
+        response = problems.invalid_input(problems.validation_errors(exc.errors()))
         raise VibfreeError(orjson.loads(response.body)) from None
 
 

@@ -19,7 +19,6 @@ from collections.abc import AsyncIterator, Callable
 from typing import Annotated, Any
 
 import orjson
-from fastapi.exceptions import RequestValidationError
 from pydantic import BaseModel, ValidationError
 
 from app import problems
@@ -58,7 +57,7 @@ class SweepPlan:
         try:
             model = self.schema.model_validate(self.base)
         except ValidationError as exc:
-            raise RequestValidationError(
+            raise problems.InvalidRequestBody(
                 [{**e, "loc": ("body", "request", *e.get("loc", ()))} for e in exc.errors()]
             ) from None
         if body.points > settings.sweep_max_points:
@@ -187,7 +186,7 @@ def _set(raw: dict[str, Any], path: str, value: float) -> None:
 def describe(exc: Exception, request: Any) -> dict[str, Any]:
     """A point's failure as the problem+json its endpoint would answer (fields named as in its request)."""
     if isinstance(exc, ValidationError):
-        response = problems.invalid_input(problems.validation_errors(RequestValidationError(exc.errors())))
+        response = problems.invalid_input(problems.validation_errors(exc.errors()))
     elif isinstance(exc, DomainError):
         if isinstance(request, ProfileRequest):
             exc = profiles.as_sent(exc, request)
