@@ -81,7 +81,7 @@ class PointOutcome:
 
 
 @dataclass(frozen=True)
-class RowLine:
+class PointDone:
     """A point done: its row, or its failure (the error and the context ``prepare`` gave, None if it failed there)."""
 
     index: int
@@ -93,7 +93,7 @@ class RowLine:
 
 
 @dataclass(frozen=True)
-class CheckLine(Block):
+class PairCheck(Block):
     """The table check of one pair of neighbours; passes is None where a point failed or V is undefined."""
 
     axis: str
@@ -106,7 +106,7 @@ class CheckLine(Block):
 
 
 @dataclass(frozen=True)
-class SummaryLine(Block):
+class SweepSummary(Block):
     points: int
     failed: int
     refined: int
@@ -118,7 +118,7 @@ class SummaryLine(Block):
     elapsed_s: float
 
 
-Line = RowLine | CheckLine | SummaryLine
+Line = PointDone | PairCheck | SweepSummary
 
 
 def run_point(family_name: str, problem: Problem, options: Any) -> PointOutcome:
@@ -327,7 +327,7 @@ async def sweep(
             refined += 1
         _release(state, pending, keep_failing=False)  # only the ends of the pairs still to check stay
     leaves = [state.checks.get(p) for p in state.leaves]
-    yield SummaryLine(
+    yield SweepSummary(
         points=len(state.values),
         failed=len(state.failed),
         refined=refined,
@@ -386,13 +386,13 @@ async def _run_round(
                 if exc is None:
                     problem, outcome = task.result()
                     state.problems[index], state.commands[index] = problem, outcome.command
-                    yield RowLine(index, at, bisected, outcome.row)
+                    yield PointDone(index, at, bisected, outcome.row)
                 else:
                     state.failed.add(index)
                     if not isinstance(exc, Exception):
                         raise exc
                     failure, context = (exc.error, exc.context) if isinstance(exc, _Failed) else (exc, None)
-                    yield RowLine(index, at, bisected, None, failure, context)
+                    yield PointDone(index, at, bisected, None, failure, context)
                 for pair in [p for p in open_pairs if _finished(p, state)]:
                     open_pairs.remove(pair)
                     # two simulations of a command (a sampled one may hold thousands of samples): off the loop
@@ -428,7 +428,7 @@ def _finished(pair: Pair, state: _State) -> bool:
     return done(pair.a) and done(pair.b)
 
 
-def _check(pair: Pair, axes: Sequence[Axis], state: _State, threshold_percent: float) -> CheckLine:
+def _check(pair: Pair, axes: Sequence[Axis], state: _State, threshold_percent: float) -> PairCheck:
     """The check line of one pair; passes is None where a point failed or V is undefined (no mode)."""
     a_at_b = b_at_a = None
     if pair.a in state.commands and pair.b in state.commands:
@@ -437,7 +437,7 @@ def _check(pair: Pair, axes: Sequence[Axis], state: _State, threshold_percent: f
     worst = None if a_at_b is None or b_at_a is None else max(a_at_b, b_at_a)
     passes = None if worst is None else worst <= threshold_percent
     state.checks[pair] = passes
-    return CheckLine(
+    return PairCheck(
         axis=axes[pair.axis].path,
         pair=(pair.a, pair.b),
         values=(state.values[pair.a][pair.axis], state.values[pair.b][pair.axis]),

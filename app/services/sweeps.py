@@ -209,7 +209,7 @@ def capacity_of(executor: Executor) -> int:
 def line_json(line: engine.Line, described: Callable[[Exception, Any], dict[str, Any]] | None = None) -> dict[str, Any]:
     """One NDJSON line: ``row`` (the point's numbers, or its failure as problem+json: ``describe``), ``check`` or
     ``summary``."""
-    if isinstance(line, engine.RowLine):
+    if isinstance(line, engine.PointDone):
         out: dict[str, Any] = {
             "line": "row",
             "index": line.index,
@@ -220,7 +220,7 @@ def line_json(line: engine.Line, described: Callable[[Exception, Any], dict[str,
             return out | {"ok": True, **present(line.row), "problem": None}
         assert line.error is not None
         return out | {"ok": False, "problem": (described or describe)(line.error, line.context)}
-    return {"line": "check" if isinstance(line, engine.CheckLine) else "summary", **present(line)}
+    return {"line": "check" if isinstance(line, engine.PairCheck) else "summary", **present(line)}
 
 
 async def lines(plan: SweepPlan, executor: Executor, capacity: int | None = None) -> AsyncIterator[dict[str, Any]]:

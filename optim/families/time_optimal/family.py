@@ -23,7 +23,7 @@ from optim.families.time_optimal.options import Robustness, TimeOptimalOptions, 
 from optim.families.time_optimal.report import (
     TimeOptimalExtras,
     TimeOptimalReport,
-    TradeoffRow,
+    TradeoffPoint,
     design_report,
     robustness_report,
 )
@@ -44,7 +44,7 @@ class _TimeOptimalDetail:
     solution: Solution
     modes: tuple[int, ...]
     robustness: Robustness | None
-    tradeoff: tuple[TradeoffRow, ...] | None
+    tradeoff: tuple[TradeoffPoint, ...] | None
 
 
 def selected_modes(problem: Problem, options: TimeOptimalOptions) -> tuple[tuple[int, ...], tuple[str, ...]]:
@@ -246,14 +246,14 @@ class TimeOptimalFamily(BaseFamily):
 
     def _tradeoff(
         self, problem: Problem, options: TimeOptimalOptions, chosen: tuple[int, ...]
-    ) -> tuple[tuple[TradeoffRow, ...], int]:
+    ) -> tuple[tuple[TradeoffPoint, ...], int]:
         """One row per half-width h: the minimum duration for the band [1 - h, 1 + h] (h = 0: zero residual),
         and the rows' LPs stopped at their iteration cap. A design for a wider band meets every narrower one, so a
         row never shows more than a wider band's duration (``from_half_width`` says which design it is: band
         designs are grid optima, within a step). A row's failure is its status, but a row that reaches the
         wall-clock last resort fails the design (SolverTimedOut): no answer depends on the machine's load."""
         robust = options.robustness or Robustness()
-        solved: dict[float, TradeoffRow] = {}
+        solved: dict[float, TradeoffPoint] = {}
         capped = 0
         for h in sorted(set(options.tradeoff or ())):
             band = Robustness(
@@ -267,9 +267,9 @@ class TimeOptimalFamily(BaseFamily):
             except SolverTimedOut:
                 raise
             except DomainError as exc:
-                solved[h] = TradeoffRow(h, (1.0 - h, 1.0 + h), None, None, exc.problem_type, str(exc))
+                solved[h] = TradeoffPoint(h, (1.0 - h, 1.0 + h), None, None, exc.problem_type, str(exc))
                 continue
-            solved[h] = TradeoffRow(h, (1.0 - h, 1.0 + h), s.duration_s, s.lower_bound_s, "ok", None)
+            solved[h] = TradeoffPoint(h, (1.0 - h, 1.0 + h), s.duration_s, s.lower_bound_s, "ok", None)
             capped += s.capped_lps
         durations = {w: row.duration_s for w, row in solved.items() if row.duration_s is not None}
         bounds = {w: row.lower_bound_s for w, row in solved.items() if row.lower_bound_s is not None}

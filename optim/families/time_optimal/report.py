@@ -112,7 +112,7 @@ class TimeOptimalReport(Block):
 
 
 @dataclass(frozen=True)
-class TradeoffRow(Block):
+class TradeoffPoint(Block):
     """The minimum duration for the band [1 - h, 1 + h] (h = 0: zero residual), or why there is none."""
 
     half_width: float
@@ -127,7 +127,7 @@ class TradeoffRow(Block):
 
 @dataclass(frozen=True)
 class TimeOptimalExtras(Block):
-    tradeoff: tuple[TradeoffRow, ...] | None = omitted_when_none()
+    tradeoff: tuple[TradeoffPoint, ...] | None = omitted_when_none()
 
 
 def arc_report(arc: Arc, order: int, unit: float) -> ArcReport:
