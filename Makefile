@@ -37,7 +37,7 @@ test: $(VENV)/.installed-test  ## lint, format and type gates, the docs site, th
 	$(BIN)/mypy --strict models optim runtime
 	$(BIN)/mypy --strict app vibfree
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --site-dir site  # docs/: a broken link or anchor fails (not --quiet: it hides them)
-	bash scripts/ensure-chromium.sh
+	bash scripts/ensure-test-tools.sh
 	$(BIN)/python -m pytest
 
 bench: $(VENV)/.installed-test  ## run the benchmarks whose figures are in docs/benchmarks.md

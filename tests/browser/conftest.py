@@ -73,8 +73,8 @@ def live_server() -> Iterator[str]:
 def browser():
     if not Path(CHROMIUM).exists():
         if os.environ.get("CI"):
-            pytest.fail(f"{CHROMIUM} is missing: `make test` installs Debian's chromium (scripts/ensure-chromium.sh)")
-        pytest.skip(f"{CHROMIUM} is not installed (run scripts/ensure-chromium.sh)")
+            pytest.fail(f"{CHROMIUM} is missing: `make test` installs Debian's chromium (scripts/ensure-test-tools.sh)")
+        pytest.skip(f"{CHROMIUM} is not installed (run scripts/ensure-test-tools.sh)")
     from playwright.sync_api import sync_playwright
 
     with sync_playwright() as playwright:
