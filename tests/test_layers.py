@@ -141,5 +141,10 @@ def test_every_class_and_module_has_one_name_and_stays_readable() -> None:
             for node in ast.parse(source).body:
                 if isinstance(node, ast.ClassDef) and not node.name.startswith("_"):
                     defined.setdefault(node.name, []).append(str(path.relative_to(ROOT)))
+    for folder in ("tests", "bench", "scripts"):
+        for path in sorted((ROOT / folder).rglob("*.py")):
+            lines = path.read_text().count("\n")
+            if lines > 450:
+                long.append(f"{path.relative_to(ROOT)}: {lines} lines")
     assert {name: paths for name, paths in defined.items() if len(paths) > 1} == {}
     assert long == []
