@@ -13,6 +13,8 @@ from fastapi.routing import APIRoute
 from starlette.concurrency import run_in_threadpool
 from starlette.responses import Response
 
+from app.problems import InvalidRequestBody
+
 # Integers beyond 64 bits: orjson reads them as the nearest double, the standard parser as Python ints. A body
 # with an integer token of 19 digits or more (``has_long_integer``) is read again by the standard parser when its
 # validation fails, so that the 422 is the one ``json.loads`` gives (the field, the integer echoed as such).
@@ -70,7 +72,8 @@ class JSONRoute(APIRoute):
 
     A body refused by validation that holds a long integer token is validated again as the standard parser reads
     it (an exact Python int, not orjson's double): the 422 is then the one the service gave before orjson; the
-    route's function has not run (FastAPI validates before calling it), so nothing runs twice."""
+    route's function has not run (FastAPI validates before calling it; a sweep's service validates its base request
+    before it designs anything), so nothing runs twice."""
 
     def get_route_handler(self) -> Callable[[Request], Coroutine[Any, Any, Response]]:
         handler = super().get_route_handler()
@@ -79,7 +82,7 @@ class JSONRoute(APIRoute):
             fast = JSONRequest(request.scope, request.receive)
             try:
                 return await handler(fast)
-            except RequestValidationError:
+            except (RequestValidationError, InvalidRequestBody):  # a service's validation (a sweep's request)
                 body = getattr(fast, "_body", None)
                 if not hasattr(fast, "_json") or body is None or not has_long_integer(body):
                     raise

@@ -8,6 +8,7 @@ same code writes the CSV. An error is a ``VibfreeError`` holding the problem+jso
 from __future__ import annotations
 
 import asyncio
+import warnings
 from collections.abc import Callable, Iterable, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -34,12 +35,25 @@ from optim import registry, tables
 from optim.synthesis import Result
 from runtime.executor import InlineExecutor
 
-if not structlog.is_configured():  # the service's log lines go to stdlib logging: the caller's config decides
-    structlog.configure(
-        processors=[structlog.stdlib.filter_by_level, structlog.stdlib.render_to_log_kwargs],
-        logger_factory=structlog.stdlib.LoggerFactory(),
-        wrapper_class=structlog.stdlib.BoundLogger,
-    )
+
+def _route_logs_to_stdlib() -> None:
+    """On the first call (not on import): unless the caller configured structlog, the service's log lines go to
+    stdlib logging, whose configuration (the caller's) decides what is shown."""
+    if not structlog.is_configured():
+        structlog.configure(
+            processors=[structlog.stdlib.filter_by_level, structlog.stdlib.render_to_log_kwargs],
+            logger_factory=structlog.stdlib.LoggerFactory(),
+            wrapper_class=structlog.stdlib.BoundLogger,
+        )
+
+
+def __getattr__(name: str) -> Any:
+    if name == "FAMILIES":  # the old name of REQUEST_SCHEMAS (family name -> request schema)
+        warnings.warn(
+            "vibfree.api.FAMILIES is deprecated: use vibfree.api.REQUEST_SCHEMAS", DeprecationWarning, stacklevel=2
+        )
+        return REQUEST_SCHEMAS
+    raise AttributeError(f"module 'vibfree.api' has no attribute {name!r}")
 
 
 class VibfreeError(Exception):
@@ -187,13 +201,14 @@ def _validate(model: type[Any], request: Mapping[str, Any] | str | bytes) -> Any
     try:
         return model.model_validate(data)
     except ValidationError as exc:
-        response = problems.invalid_input(problems.validation_errors(exc.errors()))
+        response = problems.invalid_input(problems.validation_errors(exc.errors()), total=len(exc.errors()))
         raise VibfreeError(orjson.loads(response.body)) from None
 
 
 def _run(coroutine: Any) -> Any:
     """The coroutine's result, on a new event loop: here, or in a thread of its own where this thread already
     runs one (a notebook, an async caller), since asyncio.run cannot start inside a running loop."""
+    _route_logs_to_stdlib()
     try:
         asyncio.get_running_loop()
     except RuntimeError:

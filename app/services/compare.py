@@ -7,9 +7,10 @@ The route (app.routers.compare) and the Python API (vibfree.api) both call ``ans
 
 from __future__ import annotations
 
-import asyncio
 import dataclasses
 from typing import Any
+
+import anyio.to_thread
 
 from app.family_names import endpoint_of
 from app.presenters import load_json, present
@@ -32,7 +33,7 @@ async def answer(
     route's and the Python API's."""
     if body.sensitivity is None:
         body = body.model_copy(update={"sensitivity": DEFAULT_SENSITIVITY})
-    problem = await asyncio.to_thread(body.to_problem, settings)
+    problem = await anyio.to_thread.run_sync(body.to_problem, settings)
     # every row is held until the last one ends: each gets its share of the sample cap (VIBFREE_COMPARE_MAX_SAMPLES)
     problem = dataclasses.replace(problem, max_samples=min(problem.max_samples, settings.compare_max_samples))
     if not problem.plant.modes():
@@ -74,7 +75,7 @@ def _row(request: CompareIn, common: dict[str, Any], row: ComparedRow, load_move
         "percentage_vibration": result.percentage_vibration,
         "residual_vibration": amplitude / load_move,
         "residual_amplitude": amplitude,
-        "band_5_percent": result.sensitivity.band_5_percent if result.sensitivity else None,
+        "band_5_percent": present(result.sensitivity.band_5_percent) if result.sensitivity else None,
         "peak_velocity": m.peak_velocity,
         "peak_acceleration": m.peak_acceleration,
         "peak_jerk": m.peak_jerk,

@@ -8,9 +8,10 @@ the calling process (``InlineExecutor``).
 
 from __future__ import annotations
 
-import asyncio
 import time
 from typing import Any
+
+import anyio.to_thread
 
 from app.observability import record_solve
 from app.presenters import answer_body
@@ -60,7 +61,7 @@ async def design(
 ) -> tuple[dict[str, Any], Result]:
     """The answer of a family endpoint and the pipeline's ``Result`` it was made from (for the CSV table)."""
     try:
-        problem = await asyncio.to_thread(body.to_problem, settings)
+        problem = await anyio.to_thread.run_sync(body.to_problem, settings)
         reason = family.not_applicable(problem)
         if reason is not None:  # before the options, whose defaults may need what is missing (a mode)
             raise NotApplicable(reason)

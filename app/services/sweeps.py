@@ -186,7 +186,7 @@ def _set(raw: dict[str, Any], path: str, value: float) -> None:
 def describe(exc: Exception, request: Any) -> dict[str, Any]:
     """A point's failure as the problem+json its endpoint would answer (fields named as in its request)."""
     if isinstance(exc, ValidationError):
-        response = problems.invalid_input(problems.validation_errors(exc.errors()))
+        response = problems.invalid_input(problems.validation_errors(exc.errors()), total=len(exc.errors()))
     elif isinstance(exc, DomainError):
         if isinstance(request, ProfileRequest):
             exc = profiles.as_sent(exc, request)

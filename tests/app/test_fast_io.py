@@ -115,6 +115,17 @@ def test_a_huge_integer_is_validated_as_the_standard_parser_reads_it(client):
     assert problem["errors"][0]["value"] == f"an integer of {(10**30).bit_length()} bits"
 
 
+def test_a_sweeps_base_request_echoes_a_huge_integer_as_the_standard_parser_reads_it(client):
+    # The sweep's service validates its base request itself (app.problems.InvalidRequestBody): the same exact
+    # re-read as a route's own validation (before, 1.2345678901234568e+22 was echoed).
+    body = b'{"family": "time-optimal", "axes": [{"path": "displacement", "values": [0.1, 0.2]}], "request": {"plant": '
+    body += b'{"kind": "mode", "natural_frequency_hz": 10}, "displacement": 0.1, "limits": {"max_acceleration": '
+    body += b"12345678901234567890123}}}"
+    problem = assert_problem(client.post("/v1/sweeps", content=body, headers=JSON), 422)
+    assert problem["errors"][0]["field"] == "request.limits.max_acceleration"
+    assert problem["errors"][0]["value"] == f"an integer of {(12345678901234567890123).bit_length()} bits"
+
+
 def test_has_long_integer_finds_integer_tokens_only():
     # 19 digits or more in an integer token; a run of digits after a decimal point is a fraction (orjson writes
     # 1e-5 as 0.00001000010000100001) and is not one.

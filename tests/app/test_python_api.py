@@ -172,3 +172,13 @@ def test_the_python_api_works_inside_a_running_event_loop():
         return vibfree.synthesize("stap", STAP, settings=TEST_SETTINGS).answer["metrics"]["settling_time_s"]
 
     assert aio.run(inside()) == pytest.approx(0.175, rel=1e-9)
+
+
+def test_the_old_name_of_the_request_schemas_still_works_with_a_warning():
+    import vibfree
+    from vibfree import api
+
+    with pytest.warns(DeprecationWarning, match="REQUEST_SCHEMAS"):
+        assert vibfree.FAMILIES is vibfree.REQUEST_SCHEMAS
+    with pytest.warns(DeprecationWarning, match="REQUEST_SCHEMAS"):
+        assert api.FAMILIES is api.REQUEST_SCHEMAS
