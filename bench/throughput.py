@@ -64,7 +64,7 @@ LOADS = {
 
 def _cold_requests() -> dict[str, tuple[str, dict]]:
     """The examples whose problems have active limits (the issue's cold requests), from the routes' own."""
-    from app.routers import pseudo_polynomial, stap
+    from app.examples import pseudo_polynomial, stap
 
     return {
         "pp shortest_with_limits": (

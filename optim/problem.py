@@ -1,6 +1,6 @@
 """The synthesis problem every family designs for: one plant, one move, one set of limits.
 
-The vocabulary is the service's (DESIGN.md): a rest-to-rest ``displacement`` xor a rest-to-velocity
+The vocabulary is the service's (docs/api.md, One vocabulary): a rest-to-rest ``displacement`` xor a rest-to-velocity
 ``target_velocity``, both signed, in the plant's motor coordinate; ``limits`` with Ruckig's
 ``max_`` names (``max_velocity`` is also the cruise speed of a rest-to-rest move); the sampling and
 horizon of the returned series; the settling band; the sensitivity grid. Families read only this

@@ -8,7 +8,7 @@ the design's command, which is all the table check needs: the sampled ``Result``
 The table check, for each pair of neighbouring points (consecutive values along one axis, the other
 coordinates equal): the percentage vibration V of each point's command on the other's plant, in the product's
 definition (``optim.synthesis.nominal_percentage_vibration``: the residual at the neighbour's first mode over the
-residual envelope of the neighbour's unshaped rigid reference; ../shared/DESIGN.md). The pair passes when both
+residual envelope of the neighbour's unshaped rigid reference; docs/api.md). The pair passes when both
 stay <= the threshold. Refinement bisects a failing pair along its axis (the midpoint, the other coordinates
 unchanged) and checks both halves, round after round, up to a budget of new points; rounds and the order of the
 new points do not depend on which point finishes first, so the same sweep gives the same rows on any executor.

@@ -223,19 +223,13 @@ def _check_sensitivity_work(
         )
 
 
-def rigid_reference(problem: Problem) -> PiecewiseCommand:
-    """The unshaped rigid command under the same limits (``Problem.rigid_reference``, built once per problem: its
-    jumps and end serve every percentage of the answer)."""
-    return problem.rigid_reference
-
-
 def reference_wording(problem: Problem) -> str:
-    """What ``rigid_reference`` built, in words."""
+    """What ``Problem.rigid_reference`` is, in words."""
     if problem.acceleration_limit is None:
         return "the unshaped step" if problem.rest_to_rest else "the unshaped velocity step"
     if not problem.rest_to_rest:
         return "the rigid ramp to the target velocity at the acceleration limit (jerk limits ignored)"
-    reference = rigid_reference(problem)
+    reference = problem.rigid_reference
     cruise = " with a cruise at limits.max_velocity" if reference.time_s.size == 4 else " (bang-bang)"
     return f"the rigid time-optimal move at the acceleration limit{cruise} (jerk limits ignored)"
 
@@ -254,7 +248,7 @@ def percentage_vibration(
     w = np.repeat(ratios[None, :] * omega, zetas.size, axis=0)
     z = np.repeat(zetas[:, None], ratios.size, axis=1)
     derivative = 0 if problem.rest_to_rest else 1
-    envelope = residual_envelope(rigid_reference(problem), w.ravel(), z.ravel(), derivative).reshape(w.shape)
+    envelope = residual_envelope(problem.rigid_reference, w.ravel(), z.ravel(), derivative).reshape(w.shape)
     if not np.all(envelope > 0.0):  # underflow: a move or a limit too small for double precision here
         raise InvalidParameter(
             problem.move_field, problem.move, "too small for its reference residual to be representable"
@@ -336,7 +330,7 @@ def _load_arrays(response: Response) -> dict[str, NDArray[np.float64] | None]:
     }
 
 
-def metrics_report(problem: Problem, command: PiecewiseCommand) -> MetricsReport:
+def simulated_metrics(problem: Problem, command: PiecewiseCommand) -> MetricsReport:
     """The metrics of any command the answer shows beside the design (simulated here)."""
     return MetricsReport(
         metrics_of(problem, simulate(problem.plant, command)), nominal_percentage_vibration(problem, command)

@@ -8,7 +8,7 @@ from fastapi import APIRouter, Body, Depends, Response
 
 from app import problems
 from app.deps import PoolDep, SettingsDep, ThreadsDep
-from app.examples.stap import EXAMPLES as EXAMPLES
+from app.examples.stap import EXAMPLES
 from app.family_names import slug_of
 from app.json_bodies import JSONRoute
 from app.responses import CSV_RESPONSE_DOC, Output, ProfileOutput, respond

@@ -14,7 +14,7 @@ rest-to-rest move) the damped harmonic smoother, single and doubled. Each includ
 grid that extends past the interval, so its band is computed. ``recommend`` runs them with an injected
 runner (the service's pipeline over HTTP, or in-process), keeps those whose returned
 ``sensitivity.band_5_percent`` covers the interval, and picks the one that settles first
-(``metrics.settling_time_s``, the product's yardstick: DESIGN.md).
+(``metrics.settling_time_s``, the product's yardstick: docs/api.md, Settling).
 """
 
 from __future__ import annotations

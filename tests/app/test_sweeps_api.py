@@ -123,7 +123,7 @@ def test_rows_equal_the_endpoints_metrics_and_the_check_an_independent_simulatio
 
     # Independent check of the table check: point 0's command (the endpoint's profile) simulated with scipy's lsim
     # on point 1's plant (40 Hz, undamped): the residual after the command ends over the rigid bang-bang
-    # reference's envelope 4 a / w^2 (DESIGN.md, percentage vibration). lsim holds the position samples
+    # reference's envelope 4 a / w^2 (docs/api.md, Percentage vibration). lsim holds the position samples
     # first-order: its error a dt^2 / 8 is about 1e-4 of this residual, hence the 1e-3 tolerance.
     profile = answers[0]["profile"]
     t, x = np.asarray(profile["time_s"]), np.asarray(profile["position"])

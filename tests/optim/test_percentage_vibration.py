@@ -16,7 +16,7 @@ from models.sensitivity import residual_envelope
 from optim.families.input_shaped.options import InputShapedOptions
 from optim.problem import Limits, Problem, SensitivityGrid
 from optim.registry import FAMILIES
-from optim.synthesis import rigid_reference, synthesize
+from optim.synthesis import synthesize
 
 HZ = 2.0
 RATIOS = tuple(np.linspace(0.5, 1.5, 2001))
@@ -95,7 +95,7 @@ def test_the_damped_reference_sums_each_step_decayed_to_the_end():
         displacement=move,
         limits=Limits(max_velocity=top, max_acceleration=accel),
     )
-    reference = rigid_reference(problem)
+    reference = problem.rigid_reference
     ramp, cruise = top / accel, move / top - top / accel
     np.testing.assert_allclose(reference.time_s, [0, ramp, ramp + cruise, 2 * ramp + cruise], rtol=1e-12)
     w = 2 * math.pi * HZ

@@ -177,7 +177,8 @@ def test_catalogue_bands_are_computed_from_v():
     entries, missing = catalogue(0.0, 0.05, 0.05)
     assert not missing
     by_name = {e.name: e for e in entries}
-    # (impulse count, duration in damped periods): the conventional definitions (DESIGN.md).
+    # (impulse count, duration in damped periods): the standard shapers of the input-shaping literature (ZVD:
+    # Sec. 3.1 of Chatlatanagulchai & Pongpanich).
     expected = {
         "zv": (2, 0.5),
         "mzv": (3, 0.75),

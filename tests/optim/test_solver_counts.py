@@ -17,7 +17,7 @@ import optim.families.time_optimal.lp as lp
 from app.families import BY_NAME
 from app.schemas.registry import REQUEST_SCHEMAS
 from app.settings import Settings
-from optim.registry import FAMILIES as REGISTRY
+from optim.registry import FAMILIES
 from optim.solver import report_of
 from runtime.cache import LruCache
 
@@ -78,7 +78,7 @@ def _example(route: str, name: str) -> tuple[Any, Any, Any]:
     payload = BY_NAME[route].examples[name]["value"]
     body = REQUEST_SCHEMAS[route].model_validate(payload)
     problem = body.to_problem(Settings(workers=1))
-    return REGISTRY[route], problem, body.options(problem)
+    return FAMILIES[route], problem, body.options(problem)
 
 
 @pytest.mark.parametrize(

@@ -27,7 +27,7 @@ from optim.families.time_optimal.options import Robustness, TimeOptimalOptions
 from optim.problem import Limits, Problem
 from optim.registry import FAMILIES
 from optim.solver import SolveCaps
-from optim.synthesis import Result, rigid_reference, synthesize
+from optim.synthesis import Result, synthesize
 
 FAMILY = FAMILIES["time_optimal"]
 KNOWN = Problem(ModePlant(40.0, 0.0), displacement=0.12, limits=Limits(max_velocity=5.0, max_acceleration=10.0))
@@ -58,7 +58,7 @@ def _v(problem: Result | Problem, result: Result, ratios: np.ndarray, zeta: floa
     assert isinstance(problem, Problem)
     omega = problem.plant.modes()[0].natural_frequency_rad_s
     amplitude = sensitivity(result.design.command, omega, ratios, [zeta]).amplitude[0]
-    envelope = residual_envelope(rigid_reference(problem), ratios * omega, np.full(ratios.size, zeta), 0)
+    envelope = residual_envelope(problem.rigid_reference, ratios * omega, np.full(ratios.size, zeta), 0)
     out: np.ndarray = 100 * amplitude / envelope
     return out
 

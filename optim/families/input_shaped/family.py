@@ -341,7 +341,7 @@ class InputShapedFamily(BaseFamily):
         return profile_at_instants(design.detail.shaped, time_s)
 
     def finish(self, problem: Problem, design: Design, run: Run) -> Finish:
-        from optim.synthesis import metrics_report, profile_arrays
+        from optim.synthesis import profile_arrays, simulated_metrics
 
         commands: Commands = design.detail
         grid = run.grid
@@ -354,6 +354,6 @@ class InputShapedFamily(BaseFamily):
             baseline=profile_arrays(commands.baseline.resampled(grid.period_s, grid.horizon_s)),
             impulses=ImpulsesReport(commands.impulses.amplitudes, commands.impulses.times_s),
             ramp_time_s=commands.ramp_time_s,
-            unmodified=metrics_report(problem, plain.resampled(period, end)),
+            unmodified=simulated_metrics(problem, plain.resampled(period, end)),
         )
         return Finish(extras=extras)

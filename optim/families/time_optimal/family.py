@@ -32,7 +32,6 @@ from optim.family import BaseFamily, Candidate, Design, Run, SolverSummary, coun
 from optim.problem import Problem
 from optim.results import Finish
 from optim.solver import SolverReport
-from optim.synthesis import rigid_reference
 
 LIMIT_RTOL = 1e-10  # a refined command must meet its limits this tightly (the pipeline refuses above 1e-9)
 SEARCH_PERIODS = 20.0  # default max_duration_s: 4 x the rigid time plus this many periods of the slowest mode,
@@ -80,7 +79,7 @@ def spec_of(problem: Problem, options: TimeOptimalOptions, chosen: tuple[int, ..
     keep = robust is None or robust.zero_residual_at_modes  # by default the load settles when the command ends
     zero = tuple(modes[i].pole for i in chosen if keep or i not in covered)
     order = 0 if robust is None else robust.derivative_order
-    reference = rigid_reference(problem)
+    reference = problem.rigid_reference
     floor = problem.kinematic_floor_s()
     rigid = float(reference.time_s[-1]) if problem.acceleration_limit is not None else floor
     periods = sum((0.5 + 0.5 * order) * modes[i].damped_period_s for i in chosen)

@@ -15,7 +15,7 @@ from optim.families.time_optimal.options import Robustness, TimeOptimalOptions, 
 from optim.families.time_optimal.types import Arc, Solution, Spec
 from optim.problem import Problem
 from optim.results import Block, omitted_when_none
-from optim.synthesis import percentage_vibration, rigid_reference
+from optim.synthesis import percentage_vibration
 
 CHECK_POINTS = 2001  # the independent dense check of a band: at least this many frequencies,
 MAX_CHECK_POINTS = 40_001  # about 50 per radian of the residual's phase across it (T dw), at most this many
@@ -145,7 +145,7 @@ def design_report(
     chosen: tuple[int, ...],
 ) -> TimeOptimalReport:
     modes = problem.plant.modes()
-    reference = rigid_reference(problem) if problem.acceleration_limit is not None else None
+    reference = problem.rigid_reference if problem.acceleration_limit is not None else None
     rigid = None if reference is None else float(reference.time_s[-1])
     bands, covered = bands_of(problem, options.robustness, chosen)
     grid = solution.grid
