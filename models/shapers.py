@@ -24,10 +24,6 @@ from scipy.optimize import brentq
 
 from models.breakpoints import integrated, merge_times, merge_tolerance, snap
 from models.commands import PiecewiseCommand, check_time_grid
-
-# The drive (models.drives) as optim.families.input_shaped.family imports it: from here.
-from models.drives import follow_position as follow_position
-from models.drives import rate_limit as rate_limit
 from models.errors import InvalidParameter
 
 # ------------------------------------------------------------------------------------------

@@ -9,7 +9,7 @@ overlap). The modified baseline (Sec. 4) keeps v_s within the limit when t_(i+1)
 What the drive makes of v_s: with a velocity command (rest-to-velocity, Fig. 5) a rate limiter at
 the acceleration limit; with a rest-to-rest move the drive is in position mode and its profile
 generator follows the shaped position reference time-optimally within the acceleration and
-velocity limits (``models.shapers.follow_position``), so it arrives at the displacement, where a
+velocity limits (``models.drives.follow_position``), so it arrives at the displacement, where a
 rate limiter on the velocity would lose (or gain) distance whenever it lags. Either is the identity
 for a command within the limit; the load is simulated with its output.
 """
@@ -25,16 +25,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from models.commands import PiecewiseCommand
+from models.drives import follow_position, rate_limit
 from models.errors import Infeasible, InvalidParameter
-from models.shapers import (
-    ImpulseSequence,
-    RampTrain,
-    follow_position,
-    rate_limit,
-    shape_command,
-)
+from models.shapers import ImpulseSequence, RampTrain, shape_command
 from models.torque import peak_motor_torque_nm as exact_peak_motor_torque_nm
 from optim.families.input_shaped.baseline_choice import ShaperPlan, plan
+from optim.families.input_shaped.firmware_blocks import firmware_block, shaper_residual_percent
 from optim.families.input_shaped.options import MAX_SHAPED_MODES, MAX_SHAPED_RAMPS, InputShapedOptions
 from optim.families.input_shaped.report import (
     BaselineReport,
@@ -52,6 +48,7 @@ from optim.families.input_shaped.shapers import (
 from optim.family import BaseFamily, Candidate, Design, Grid, Profile, Run, profile_at_instants
 from optim.problem import Problem
 from optim.results import Finish
+from optim.synthesis import nominal_percentage_vibration, profile_arrays, simulated_metrics
 
 TORQUE_ITERATIONS = 8  # lowering the acceleration limit until the motor torque fits: 2-3 passes seen
 TORQUE_SLACK = 1e-9  # a design is kept when its exact torque peak is this far below the limit (round-off)
@@ -226,8 +223,6 @@ def firmware_residual(problem: Problem, commands: Commands) -> Callable[[Impulse
     baseline (the baseline shaped by them, exactly: models.shapers.shape_command), in the definition of
     metrics.percentage_vibration; 100 V of the impulses alone (its value on a step) where that is not
     representable."""
-    from optim.families.input_shaped.firmware_blocks import shaper_residual_percent
-    from optim.synthesis import nominal_percentage_vibration
 
     mode = problem.plant.modes()[0]
     seen: dict[bytes, float] = {}  # the firmwares often apply the same impulses (a named ZVD, a custom one)
@@ -283,7 +278,6 @@ class InputShapedFamily(BaseFamily):
         )
 
     def design(self, problem: Problem, options: InputShapedOptions) -> Design:
-        from optim.families.input_shaped.firmware_blocks import firmware_block
 
         design = shaper_design(problem, options)
         shaper, limit = design.impulses, problem.acceleration_limit
@@ -332,7 +326,6 @@ class InputShapedFamily(BaseFamily):
 
     def profile(self, design: Design, sampled: PiecewiseCommand, grid: Grid) -> Profile:
         """The shaped command sent to the drive (v_s); the load is simulated with what the drive makes of it."""
-        from optim.synthesis import profile_arrays
 
         return profile_arrays(design.detail.shaped.resampled(grid.period_s, grid.horizon_s))
 
@@ -341,7 +334,6 @@ class InputShapedFamily(BaseFamily):
         return profile_at_instants(design.detail.shaped, time_s)
 
     def finish(self, problem: Problem, design: Design, run: Run) -> Finish:
-        from optim.synthesis import profile_arrays, simulated_metrics
 
         commands: Commands = design.detail
         grid = run.grid

@@ -22,6 +22,7 @@ from optim.family import BaseFamily, Design, Grid, Profile, Run, SolverSummary, 
 from optim.problem import Problem
 from optim.results import Finish, MetricsReport
 from optim.solver import SolveCaps
+from optim.synthesis import grid_until, horizon_of, metrics_of, nominal_percentage_vibration
 
 
 @dataclass(frozen=True)
@@ -37,7 +38,6 @@ def sampled_peaks(problem: Problem) -> pp.PeaksOf:
     """The peaks the pipeline checks (``optim.synthesis.limit_violations``): those of the law sampled as
     ``PseudoPolynomialFamily.sample`` does on the pipeline's grid for that duration, the motor torque
     from its exact simulation."""
-    from optim.synthesis import grid_until
 
     def peaks(law: PseudoPolynomial) -> pp.Peaks:
         grid = grid_until(problem, law.duration_s)
@@ -78,7 +78,6 @@ class PseudoPolynomialFamily(BaseFamily):
         pp.warm_up(solver)
 
     def design(self, problem: Problem, options: PseudoPolynomialOptions) -> Design:
-        from optim.synthesis import grid_until
 
         if problem.displacement is None:
             raise InvalidParameter("displacement", None, "pseudo-polynomial commands are rest-to-rest moves")
@@ -139,7 +138,6 @@ class PseudoPolynomialFamily(BaseFamily):
 
     def finish(self, problem: Problem, design: Design, run: Run) -> Finish:
         """The initial design's profile, load response and metrics on the same sampling."""
-        from optim.synthesis import horizon_of, metrics_of, nominal_percentage_vibration
 
         initial = design.detail.initial
         command = initial.command(run.grid.period_s, horizon_of(problem, initial.duration_s))

@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from models.errors import NotApplicable
+from models.sensitivity import sensitivity
 from models.stap import RestToRest, Stap, load_acceleration_oscillation, stap_sensitivity
 from optim.families import stap as S
 from optim.families.stap.report import StapReport, optimization_report, torque_report
@@ -21,6 +22,7 @@ from optim.family import BaseFamily, Candidate, Design, Run, SolverSummary, coun
 from optim.problem import Problem
 from optim.results import Finish, SensitivityCurve
 from optim.solver import SolveCaps
+from optim.synthesis import sensitivity_curve
 
 AUTO_RULE = (
     "auto follows the Fig. 25 flowchart (Sec. 4). A design 'meets' when its undamped sensitivity curve (Appendix B) "
@@ -229,8 +231,6 @@ class StapFamily(BaseFamily):
         self, problem: Problem, design: Design, ratios: NDArray[np.float64], zetas: NDArray[np.float64]
     ) -> SensitivityCurve | None:
         """Appendix B's closed form where it applies (zeta = 0, rest-to-velocity), else the exact free state."""
-        from models.sensitivity import sensitivity
-        from optim.synthesis import sensitivity_curve
 
         detail: _StapDetail = design.detail
         if design.command is None:
