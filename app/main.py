@@ -31,6 +31,9 @@ from app.routers import (
     sweeps,
     time_optimal,
 )
+from app.routers import (
+    problems as problem_types,
+)
 from app.schemas.common import unschemed_rules
 from app.settings import Settings, get_settings
 from app.warmup import example_jobs, warm_up_worker
@@ -126,8 +129,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         metrics,
         page,
         docs,
+        problem_types,
     )
-    for router in (*(r.router for r in routers), problems.router):
+    for router in (r.router for r in routers):
         app.include_router(router)
     app.mount("/static", page.static, name="static")
     _declare_problem_schema(app)

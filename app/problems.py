@@ -13,7 +13,6 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from fastapi import APIRouter
 from pydantic import BaseModel, ConfigDict, Field
 from starlette.responses import Response
 
@@ -22,6 +21,7 @@ from models.errors import DomainError, Infeasible, InvalidParameter, NotApplicab
 from models.plants import PLANT_KINDS
 
 PROBLEM_MEDIA_TYPE = "application/problem+json"
+PROBLEM_TYPE_PATH = "/problems/{slug}"  # where a problem's type URI resolves (app.routers.problems)
 
 # slug -> (status, title, what it means); served at /problems/{slug}
 PROBLEM_TYPES: dict[str, tuple[int, str, str]] = {
@@ -316,7 +316,7 @@ def declared_statuses(route: Any) -> tuple[int, ...]:
             stack.extend(dep.dependencies)
         if get_pool in calls or get_threads in calls:
             statuses.update({503, 504})
-    if route.endpoint is problem_type:
+    if route.path == PROBLEM_TYPE_PATH:
         statuses.add(404)
     return tuple(sorted(statuses))
 
@@ -334,14 +334,3 @@ def api_routes(app: Any) -> list[tuple[str, Any]]:
         if isinstance(route, routing.APIRoute) and path is not None:
             out.append((path, route))
     return out
-
-
-router = APIRouter(tags=["problems"])
-
-
-@router.get("/problems/{slug}", summary="What a problem type means")
-async def problem_type(slug: str) -> dict[str, Any]:
-    if slug not in PROBLEM_TYPES:
-        raise ProblemError("not-found", f"no problem type {slug!r}; known: {', '.join(PROBLEM_TYPES)}")
-    status, title, meaning = PROBLEM_TYPES[slug]
-    return {"type": f"/problems/{slug}", "title": title, "status": status, "description": meaning}
