@@ -163,10 +163,10 @@ def test_problem_is_built_once_per_plant_kind_from_its_symbolic_form():
     new = set(pp._CACHE) - keys_before
     assert len({key[-1] for key in new}) <= 1  # at most one new plant-kind key (none if warm)
     request = pp.PseudoPolynomialRequest(a, 1.0, 0.6, 2, (3.2, 4.4, 6.1))
-    symbolic_compiled, p_symbolic, gamma = pp._prepare(request)
-    modal = pp._oscillatory(a)
+    symbolic_compiled, p_symbolic, gamma = pp.prepare(request)
+    modal = pp.oscillatory_modal_form(a)
     numeric_compiled = pp._build(2, 1, (False,) * 4, request.caps, None)
-    p_numeric = pp._parameters(request, modal, numeric_compiled, gamma)
+    p_numeric = pp.parameter_vector(request, modal, numeric_compiled, gamma)
     e_symbolic = float(symbolic_compiled.evaluate(gamma, p_symbolic)[0])
     e_numeric = float(numeric_compiled.evaluate(gamma, p_numeric)[0])
     assert "plant" in symbolic_compiled.layout and "plant" not in numeric_compiled.layout

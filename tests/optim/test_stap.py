@@ -414,4 +414,4 @@ def test_a_capped_solve_is_never_a_design():
 
 def test_warm_up_builds_the_common_problems():
     S.warm_up()
-    assert ("sum", 1, 0, 0, SolveCaps()) in S._CACHE and ("max", 21, 0, 0, SolveCaps()) in S._CACHE
+    assert ("sum", 1, 0, 0, SolveCaps()) in S.SOLVER_CACHE and ("max", 21, 0, 0, SolveCaps()) in S.SOLVER_CACHE

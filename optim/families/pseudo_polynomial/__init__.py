@@ -25,7 +25,7 @@ from models.errors import InvalidParameter, SolverFailed, SolverTimedOut
 from models.plants import TwoInertiaPlant
 from models.pseudo_polynomial import PseudoPolynomial, check_exponents
 from optim.families.pseudo_polynomial.duration_search import SEARCH_METHOD, Search, shortest
-from optim.families.pseudo_polynomial.parameters import _oscillatory, _parameters, _prepare, evaluate
+from optim.families.pseudo_polynomial.parameters import evaluate, oscillatory_modal_form, parameter_vector, prepare
 from optim.families.pseudo_polynomial.problem import (
     _CACHE,
     CONSTRAINT_INTERVALS,
@@ -37,8 +37,8 @@ from optim.families.pseudo_polynomial.problem import (
     QUICK_ITERATIONS,
     SEARCH_ITERATIONS,
     SYMBOLIC_KINDS,
-    _active,
     _build,
+    active_limits,
     limit_grid_u,
     lower_bound,
     warm_up,
@@ -83,9 +83,6 @@ __all__ = [
     "PseudoPolynomialDesign",
     "PseudoPolynomialRequest",
     "_build",
-    "_oscillatory",
-    "_parameters",
-    "_prepare",
     "check_limits_possible",
     "default_exponents",
     "design",
@@ -93,7 +90,10 @@ __all__ = [
     "law_peaks",
     "limit_grid_u",
     "lower_bound",
+    "oscillatory_modal_form",
     "overshoot",
+    "parameter_vector",
+    "prepare",
     "product_weights",
     "spread_starts",
     "warm_up",
@@ -134,7 +134,7 @@ def _checked(request: PseudoPolynomialRequest) -> tuple[PseudoPolynomialRequest,
             request.limits.max_torque_nm,
             f"a {request.plant.kind} plant does not define the motor torque",
         )
-    if request.minimize_duration and not any(_active(request.limits)):
+    if request.minimize_duration and not any(active_limits(request.limits)):
         raise InvalidParameter(
             "minimize_duration", True, "needs at least one limit (without limits any duration works)"
         )
@@ -195,7 +195,8 @@ def _design(request: PseudoPolynomialRequest, peaks_of: PeaksOf | None) -> Pseud
         selection=attempt.stage,
         solver=replace(solver, solve_time_s=time.perf_counter() - started),
         solves=solves,
-        energy_is_physical=request.plant.energy_inertia is not None and _oscillatory(request.plant).poles.size == 1,
+        energy_is_physical=request.plant.energy_inertia is not None
+        and oscillatory_modal_form(request.plant).poles.size == 1,
         duration_search=tried,
         longest_infeasible_below_s=below,
         fallback_reason=attempt.note,

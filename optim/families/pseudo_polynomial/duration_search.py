@@ -24,8 +24,8 @@ import numpy as np
 
 from models.errors import Infeasible, SolverFailed
 from models.pseudo_polynomial import PseudoPolynomial
-from optim.families.pseudo_polynomial.parameters import _oscillatory
-from optim.families.pseudo_polynomial.problem import _active
+from optim.families.pseudo_polynomial.parameters import oscillatory_modal_form
+from optim.families.pseudo_polynomial.problem import active_limits
 from optim.families.pseudo_polynomial.solve import (
     PeaksOf,
     _Attempt,
@@ -102,7 +102,7 @@ def shortest(request: PseudoPolynomialRequest, peaks_of: PeaksOf | None) -> Sear
     def meets(trial: PseudoPolynomialRequest, result: _Attempt) -> bool:
         if result.residual > tolerance:
             return False
-        if peaks_of is None or not any(_active(trial.limits)):
+        if peaks_of is None or not any(active_limits(trial.limits)):
             return True
         return not overshoot(
             trial.limits, peaks_of(PseudoPolynomial(trial.displacement, trial.duration_s, tuple(result.gamma)))
@@ -141,7 +141,7 @@ def shortest(request: PseudoPolynomialRequest, peaks_of: PeaksOf | None) -> Sear
         tried.append((duration, found is not None))
         return found
 
-    period = float(np.max(2 * np.pi / np.abs(_oscillatory(request.plant).poles)))
+    period = float(np.max(2 * np.pi / np.abs(oscillatory_modal_form(request.plant).poles)))
     initial = np.asarray(request.initial_exponents)
     best: _Attempt | None = None
     below: float | None = None  # the infeasible candidate just below the first feasible one

@@ -9,14 +9,14 @@ import numpy as np
 from models.errors import InvalidParameter
 from models.plants import Plant, TwoInertiaPlant
 from models.simulation import ModalForm, modal_form
-from optim.families.pseudo_polynomial.problem import MAX_MODES, _active, _Compiled, _compiled
+from optim.families.pseudo_polynomial.problem import MAX_MODES, CompiledLaw, active_limits, compiled_problem
 from optim.families.pseudo_polynomial.product_integration import product_weights
 from optim.families.pseudo_polynomial.types import FloatArray, PseudoPolynomialRequest
 
 __all__ = ["evaluate"]
 
 
-def _oscillatory(plant: Plant) -> ModalForm:
+def oscillatory_modal_form(plant: Plant) -> ModalForm:
     num, den = plant.load_transfer_function()
     modal = modal_form(num, den, 1)
     keep = modal.oscillatory
@@ -31,8 +31,8 @@ def _oscillatory(plant: Plant) -> ModalForm:
     return ModalForm(modal.taylor, modal.poles[keep], modal.residues[keep], modal.weights[keep])
 
 
-def _parameters(
-    request: PseudoPolynomialRequest, modal: ModalForm, compiled: _Compiled, gamma0: FloatArray
+def parameter_vector(
+    request: PseudoPolynomialRequest, modal: ModalForm, compiled: CompiledLaw, gamma0: FloatArray
 ) -> FloatArray:
     lay = compiled.layout
     p = np.zeros(compiled.parameter_count)
@@ -66,13 +66,15 @@ def _parameters(
     return p
 
 
-def _prepare(request: PseudoPolynomialRequest) -> tuple[_Compiled, FloatArray, FloatArray]:
+def prepare(request: PseudoPolynomialRequest) -> tuple[CompiledLaw, FloatArray, FloatArray]:
     """The compiled problem for a request, its parameter vector (scaled at the initial design)
     and the initial exponents."""
-    modal = _oscillatory(request.plant)
-    compiled = _compiled(request.order, modal.poles.size, _active(request.limits), request.caps, request.plant)
+    modal = oscillatory_modal_form(request.plant)
+    compiled = compiled_problem(
+        request.order, modal.poles.size, active_limits(request.limits), request.caps, request.plant
+    )
     gamma0 = np.sort(np.asarray(request.initial_exponents, dtype=float))
-    p = _parameters(request, modal, compiled, gamma0)
+    p = parameter_vector(request, modal, compiled, gamma0)
     energy0, _, free0 = (np.asarray(v).ravel() for v in compiled.evaluate(gamma0, p))
     scales = np.hypot(free0[0::2], free0[1::2])
     p[compiled.layout["scale"]] = np.where(scales > 0, scales, 1.0)
@@ -82,6 +84,6 @@ def _prepare(request: PseudoPolynomialRequest) -> tuple[_Compiled, FloatArray, F
 
 def evaluate(request: PseudoPolynomialRequest, exponents: FloatArray) -> tuple[float, float]:
     """Final energy and residual amplitude of given exponents (the optimiser's own model)."""
-    compiled, p, _ = _prepare(replace(request, initial_exponents=tuple(exponents)))
+    compiled, p, _ = prepare(replace(request, initial_exponents=tuple(exponents)))
     energy, residual, _ = compiled.evaluate(np.asarray(exponents, dtype=float), p)
     return float(energy), float(residual)

@@ -28,7 +28,7 @@ what the pipeline checks and re-solved with tightened limits where needed (``sol
 
 Each problem is built once per (order, plant kind, number of modes, active limits, caps) with the
 plant's parameters, displacement, duration, initial exponents and limits as named CasADi parameters
-(``parameters._parameters``), and kept in this process's cache: the service builds them in its worker processes
+(``parameters.parameter_vector``), and kept in this process's cache: the service builds them in its worker processes
 (``warm_up``). The plant enters through its symbolic form (models.plants.Plant.symbolic) for the
 second-order kinds (mode, two_inertia, belt_platform), whose mode is a closed-form expression of the
 parameters; for higher-order plants (rigid_flexible, transfer functions), whose poles have no closed
@@ -77,7 +77,7 @@ LIMIT_MARGIN = 1e-4  # limits are imposed 0.01 % tighter than asked, absorbing t
 
 
 @dataclass
-class _Compiled:
+class CompiledLaw:
     probe: Any  # nlpsol: closest zero-energy design, very few iterations (duration search)
     quick: Any  # nlpsol: closest zero-energy design, few iterations (the first try)
     closest: Any  # nlpsol: closest zero-energy design
@@ -124,7 +124,9 @@ def _weight(key: tuple[object, ...]) -> float:
     return build_mib(order, modes, active)
 
 
-_CACHE: LruCache[tuple[object, ...], _Compiled] = LruCache("pseudo_polynomial", weigh=_weight, budget=PROBLEM_CACHE_MIB)
+_CACHE: LruCache[tuple[object, ...], CompiledLaw] = LruCache(
+    "pseudo_polynomial", weigh=_weight, budget=PROBLEM_CACHE_MIB
+)
 
 
 def _complex_mul(a: tuple[Any, Any], b: tuple[Any, Any]) -> tuple[Any, Any]:
@@ -146,7 +148,7 @@ def lower_bound(order: int) -> float:
 
 def _build(
     order: int, modes: int, active: tuple[bool, bool, bool, bool], caps: SolveCaps, plant: Plant | None
-) -> _Compiled:
+) -> CompiledLaw:
     """The problems of one shape. With ``plant`` (a second-order kind) the plant enters through its
     symbolic form (``Plant.symbolic``): its parameters are the problem's parameters and the mode,
     residue, energy inertia and torque coefficients are expressions of them. Otherwise (plants of
@@ -279,7 +281,7 @@ def _build(
     evaluate = ca.Function("pp_evaluate", [gamma, p], [energy, residual, ca.vertcat(*free)])
     breach = ca.vertcat(ca.fabs(limit_rows) - 1.0, MIN_SEPARATION - separation)
     violation = ca.Function("pp_violation", [gamma, p], [ca.mmax(breach) if breach.numel() else ca.SX(-1.0)])
-    return _Compiled(probe, quick, closest, minimum, evaluate, violation, (lbg_c, ubg_c, lbg_m, ubg_m), layout, start)
+    return CompiledLaw(probe, quick, closest, minimum, evaluate, violation, (lbg_c, ubg_c, lbg_m, ubg_m), layout, start)
 
 
 def _torque_rows(ca: Any, gamma: Any, coefs: Any, phi: Any, T: Any, sigma: Any, wd: Any, torque_par: Any) -> Any:
@@ -331,20 +333,20 @@ def _torque_rows(ca: Any, gamma: Any, coefs: Any, phi: Any, T: Any, sigma: Any, 
 SYMBOLIC_KINDS = ("mode", "two_inertia", "belt_platform")  # second order: the mode has a closed form
 
 
-def _compiled(
+def compiled_problem(
     order: int,
     modes: int,
     active: tuple[bool, bool, bool, bool],
     caps: SolveCaps,
     plant: Plant | None = None,
-) -> _Compiled:
+) -> CompiledLaw:
     """The cached problems: per plant kind for the symbolic kinds, per number of modes otherwise."""
     symbolic = plant if plant is not None and plant.kind in SYMBOLIC_KINDS else None
     key = (order, modes, active, caps, symbolic.symbolic_key() if symbolic is not None else None)
     return _CACHE.get(key, lambda: _build(order, modes, active, caps, symbolic))
 
 
-def _active(limits: Limits) -> tuple[bool, bool, bool, bool]:
+def active_limits(limits: Limits) -> tuple[bool, bool, bool, bool]:
     return (
         limits.max_velocity is not None,
         limits.max_acceleration is not None,
@@ -361,4 +363,4 @@ def warm_up(caps: SolveCaps | None = None) -> None:
     for plant in example_plants().values():
         if plant.kind in SYMBOLIC_KINDS:
             for order in (2, 3, 4):
-                _compiled(order, 1, (False,) * 4, caps or SolveCaps(), plant)
+                compiled_problem(order, 1, (False,) * 4, caps or SolveCaps(), plant)

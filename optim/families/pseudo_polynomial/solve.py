@@ -26,8 +26,8 @@ import numpy as np
 from models.errors import Infeasible, SolverTimedOut
 from models.plants import Plant
 from models.pseudo_polynomial import PseudoPolynomial
-from optim.families.pseudo_polynomial.parameters import _prepare
-from optim.families.pseudo_polynomial.problem import MAX_EXPONENT, MIN_SEPARATION, _active, lower_bound
+from optim.families.pseudo_polynomial.parameters import prepare
+from optim.families.pseudo_polynomial.problem import MAX_EXPONENT, MIN_SEPARATION, active_limits, lower_bound
 from optim.families.pseudo_polynomial.types import FloatArray, Limits, PseudoPolynomialRequest
 from optim.solver import SolverReport, raise_for_status, report_of
 
@@ -172,7 +172,7 @@ def _solve_at(
     Raises Infeasible when no start yields a design within the limits, SolverTimedOut when a solve
     reaches its wall-time cap. Every solve's report is appended to ``ledger``.
     """
-    compiled, p, gamma0 = _prepare(request)
+    compiled, p, gamma0 = prepare(request)
     lbg_c, ubg_c, lbg_m, ubg_m = compiled.g_bounds
     lbx, ubx = np.full(gamma0.size, lower_bound(request.order)), np.full(gamma0.size, MAX_EXPONENT)
     iterations, elapsed, solves = 0, 0.0, 0  # elapsed: reported only, never a reason to stop
@@ -270,7 +270,7 @@ def solve_within(
     for _ in range(TIGHTENING_ROUNDS + 1):
         trial = replace(request, limits=_scaled(request.limits, factors))
         result = _solve_at(trial, start, effort, ledger)
-        if peaks_of is None or not any(_active(request.limits)):
+        if peaks_of is None or not any(active_limits(request.limits)):
             return result
         over = overshoot(
             request.limits, peaks_of(PseudoPolynomial(request.displacement, request.duration_s, tuple(result.gamma)))

@@ -35,9 +35,9 @@ from optim.families.stap.multistart import (
     TORQUE_BAND_POINTS,
     optimize,
 )
-from optim.families.stap.problem import _CACHE as _CACHE
 from optim.families.stap.problem import (
     OPTIONS,
+    SOLVER_CACHE,
     TORQUE_GRID_SIZES,
     TORQUE_MARGIN,
     TORQUE_POINTS_PER_PERIOD,
@@ -73,6 +73,7 @@ __all__ = [
     "MAX_STARTS",
     "OBJECTIVES",
     "OPTIONS",
+    "SOLVER_CACHE",
     "TIME_RANGE",
     "TORQUE_BAND_POINTS",
     "TORQUE_GRID_SIZES",

@@ -64,7 +64,7 @@ class CompiledProblem:
 
 
 ProblemKey = tuple[str, int, int, int, SolveCaps]  # kind, points, torque modes, torque grid, caps
-_CACHE: LruCache[ProblemKey, CompiledProblem] = LruCache("stap")
+SOLVER_CACHE: LruCache[ProblemKey, CompiledProblem] = LruCache("stap")
 
 
 def build_problem(kind: str, points: int, torque_modes: int, torque_grid: int, caps: SolveCaps) -> CompiledProblem:
@@ -164,7 +164,7 @@ def build_problem(kind: str, points: int, torque_modes: int, torque_grid: int, c
 def compiled_problem(kind: str, points: int, torque_modes: int, torque_grid: int, caps: SolveCaps) -> CompiledProblem:
     """The cached problem of this shape, built on first use (least recently used dropped: ``runtime.cache``)."""
     key: ProblemKey = (kind, points, torque_modes, torque_grid, caps)
-    return _CACHE.get(key, lambda: build_problem(kind, points, torque_modes, torque_grid, caps))
+    return SOLVER_CACHE.get(key, lambda: build_problem(kind, points, torque_modes, torque_grid, caps))
 
 
 def warm_up(caps: SolveCaps | None = None) -> None:
