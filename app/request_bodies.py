@@ -11,6 +11,10 @@ from collections.abc import Callable
 from typing import Any
 
 from app.presenters import present
+from optim.families.pseudo_polynomial.family import PseudoPolynomialOptions
+from optim.families.smoother.family import SmootherOptions
+from optim.families.stap.family import StapOptions
+from optim.families.time_optimal.options import TimeOptimalOptions
 
 
 def _set_fields(options: Any) -> dict[str, Any]:
@@ -18,10 +22,10 @@ def _set_fields(options: Any) -> dict[str, Any]:
     return {k: v for k, v in dataclasses.asdict(options).items() if v is not None}
 
 
-def _time_optimal(options: Any) -> dict[str, Any]:
+def _time_optimal(options: TimeOptimalOptions) -> dict[str, Any]:
     out: dict[str, Any] = {}
     if options.robustness is not None:
-        out["robustness"] = {k: v for k, v in vars(options.robustness).items() if v is not None}
+        out["robustness"] = _set_fields(options.robustness)
     if options.modes is not None:
         out["modes"] = options.modes
     if options.tradeoff is not None:
@@ -31,7 +35,7 @@ def _time_optimal(options: Any) -> dict[str, Any]:
     return out
 
 
-def _smoother(options: Any) -> dict[str, Any]:
+def _smoother(options: SmootherOptions) -> dict[str, Any]:
     out: dict[str, Any] = {
         "filters": [
             {"type": f.kind, **({"duration_s": f.duration_s} if f.duration_s is not None else {})}
@@ -43,14 +47,14 @@ def _smoother(options: Any) -> dict[str, Any]:
     return out
 
 
-def _stap(options: Any) -> dict[str, Any]:
+def _stap(options: StapOptions) -> dict[str, Any]:
     out = _set_fields(options)
     if out.get("optimization") and out["optimization"].get("damping_ratios") is None:
         out["optimization"].pop("damping_ratios", None)
     return out
 
 
-def _pseudo_polynomial(options: Any) -> dict[str, Any]:
+def _pseudo_polynomial(options: PseudoPolynomialOptions) -> dict[str, Any]:
     out = _set_fields(options)
     if not options.minimize_duration:
         out.pop("minimize_duration", None)
@@ -59,7 +63,7 @@ def _pseudo_polynomial(options: Any) -> dict[str, Any]:
     return out
 
 
-FIELDS: dict[str, Callable[[Any], dict[str, Any]]] = {
+FIELDS: dict[str, Callable[[Any], dict[str, Any]]] = {  # the family's options class -> its fields
     "time_optimal": _time_optimal,
     "smoother": _smoother,
     "stap": _stap,
@@ -69,4 +73,5 @@ FIELDS: dict[str, Callable[[Any], dict[str, Any]]] = {
 
 def request_fields(family: str, options: Any) -> dict[str, Any]:
     """The family's own request fields that reproduce ``options`` (JSON-ready)."""
-    return present(FIELDS.get(family, _set_fields)(options))  # type: ignore[no-any-return]
+    fields: dict[str, Any] = present(FIELDS.get(family, _set_fields)(options))
+    return fields
