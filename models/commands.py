@@ -129,9 +129,17 @@ class PiecewiseCommand:
             return row
         return np.zeros_like(self.time_s)
 
+    @cached_property
+    def _max_abs_by_order(self) -> dict[int, float]:
+        return {}
+
+    @cached_property
+    def _left_limit_by_order(self) -> dict[int, NDArray[np.float64]]:
+        return {}
+
     def max_abs(self, m: int) -> float:
         """max_k |p^(m)(t_k+)| (0 above the degree), computed once per order."""
-        cache: dict[int, float] = self.__dict__.setdefault("_max_abs_cache", {})
+        cache = self._max_abs_by_order
         if m not in cache:
             row = self.derivative(m)
             cache[m] = max(float(row.max()), -float(row.min())) if m <= self.degree else 0.0
@@ -143,7 +151,7 @@ class PiecewiseCommand:
 
     def left_limit(self, m: int) -> NDArray[np.float64]:
         """p^(m)(t_k-) for one order m (computed once)."""
-        cache: dict[int, NDArray[np.float64]] = self.__dict__.setdefault("_left_cache", {})
+        cache = self._left_limit_by_order
         if m not in cache:
             d = self.degree
             left = np.empty_like(self.time_s)
@@ -338,7 +346,8 @@ class PiecewiseCommand:
         command = cls(t, der, continuous_orders=continuous)
         h.setflags(write=False)
         command.__dict__["steps_s"] = h  # computed by the grid check
-        command.__dict__["_max_abs_cache"] = {order: max(float(u.max()), -float(u.min()))} if hold != "cubic" else {}
+        if hold != "cubic":
+            command._max_abs_by_order[order] = max(float(u.max()), -float(u.min()))
         return command
 
     def resampled(self, period_s: float, end_s: float | None = None) -> PiecewiseCommand:

@@ -214,6 +214,11 @@ class Plant:
     def _cached_modes(self) -> tuple[Mode, ...]:
         return self._modes()
 
+    @functools.cached_property
+    def modal_forms(self) -> dict[int, Any]:
+        """models.simulation's modal forms of G(s), by Taylor count, filled on first use (one plant, many runs)."""
+        return {}
+
     def load_transfer_function(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """G(s) from the motor position to the load position (numerator, denominator); fresh copies of
         arrays computed once per plant."""

@@ -366,7 +366,7 @@ def _weighted_rows(
 
 def plant_modal_form(plant: Plant, taylor_count: int) -> ModalForm:
     """``modal_form`` of the plant's load transfer function, computed once per plant and count."""
-    cache: dict[int, ModalForm] = plant.__dict__.setdefault("_modal_cache", {})
+    cache: dict[int, ModalForm] = plant.modal_forms
     if taylor_count not in cache:
         num, den = plant.load_transfer_function()
         modal = modal_form(num, den, taylor_count)
