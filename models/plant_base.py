@@ -67,7 +67,7 @@ class Mode:
         return 1.0 / self.damped_frequency_hz
 
     def as_dict(self) -> dict[str, float]:
-        """Every derived quantity of the mode, by name (the API's mode object)."""
+        """Every derived quantity of the mode, by name."""
         return {
             "natural_frequency_hz": self.natural_frequency_hz,
             "natural_frequency_rad_s": self.natural_frequency_rad_s,

@@ -47,10 +47,6 @@ class Limits:
     def any(self) -> bool:
         return any(value is not None for _, value in self.items())
 
-    def as_dict(self) -> dict[str, float]:
-        """The limits that are set, by name (a request's ``limits`` object)."""
-        return {name: value for name, value in self.items() if value is not None}
-
 
 VIBRATION_FRACTION_OF_DEFLECTION = 0.01  # default vibration tolerance: 1 % of the quasi-static deflection
 VIBRATION_FRACTION_OF_MOVE = 1e-3  # ... or, without an acceleration limit, 1e-3 of the load's move

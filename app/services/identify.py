@@ -18,6 +18,7 @@ import numpy as np
 from pydantic import ValidationError
 
 from app import problems
+from app.presenters import present
 from app.schemas.family import ProfileRequest
 from app.schemas.identify import MeasurementParams
 from app.schemas.registry import REQUEST_SCHEMAS
@@ -29,7 +30,7 @@ from app.settings import Settings
 from models.errors import InvalidParameter
 from models.plants import FREQUENCY_MAX_HZ, FREQUENCY_MIN_HZ
 from optim.families.smoother.smoothers import identify, tuned_duration_s, vibration_free_durations_s
-from optim.identification.modal import CONFIDENCE, ModalIdentification, identify_modes
+from optim.identification.modal import CONFIDENCE, IdentifiedMode, ModalIdentification, identify_modes
 from optim.identification.record_csv import parse_record_csv
 from optim.registry import FAMILIES
 from runtime.executor import Executor, InlineExecutor
@@ -110,8 +111,10 @@ def in_process_runner(settings: Settings) -> RunOne:
     return runner(settings, InlineExecutor())
 
 
-def _mode_dict(mode: Any) -> dict[str, Any]:
-    return dict(mode.as_dict())
+def _mode_dict(mode: IdentifiedMode) -> dict[str, Any]:
+    """An identified mode as the answer's object: its fields, in order (app.presenters)."""
+    body: dict[str, Any] = present(mode)
+    return body
 
 
 def _measurement_body(result: ModalIdentification, samples: int) -> dict[str, Any]:

@@ -71,25 +71,6 @@ class IdentifiedMode:
     periods_above_noise: float  # damped periods until the envelope falls to the noise's std
     samples_per_period: float
 
-    def as_dict(self) -> dict[str, object]:
-        return {
-            "natural_frequency_hz": self.natural_frequency_hz,
-            "damping_ratio": self.damping_ratio,
-            "natural_frequency_ci_hz": list(self.natural_frequency_ci_hz),
-            "damping_ratio_ci": list(self.damping_ratio_ci),
-            "natural_frequency_std_hz": self.natural_frequency_std_hz,
-            "damping_ratio_std": self.damping_ratio_std,
-            "damped_frequency_hz": self.damped_frequency_hz,
-            "decay_rate_1_s": self.decay_rate_1_s,
-            "peak_frequency_hz": self.peak_frequency_hz,
-            "amplitude": list(self.amplitude),
-            "signal_to_noise": self.signal_to_noise,
-            "detection_snr": self.detection_snr,
-            "periods": self.periods,
-            "periods_above_noise": self.periods_above_noise,
-            "samples_per_period": self.samples_per_period,
-        }
-
 
 @dataclass(frozen=True)
 class ModalIdentification:
