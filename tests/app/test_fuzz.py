@@ -146,8 +146,9 @@ SAMPLER = RssSampler()
 
 @pytest.fixture
 def running_app() -> None:
-    # Schemathesis keeps the lifespan it starts until the process exits (its atexit hook stops the pool);
-    # a per-test fixture, because schemathesis' generated items do not share module fixtures' teardown.
+    # One lifespan for every fuzzed operation: schemathesis ends it at each test's teardown, except between two
+    # items of this fixture (tests/app/conftest.py); a per-test fixture, because schemathesis' generated items do
+    # not share module fixtures' teardown.
     start_and_wait_ready(APP)
     if not SAMPLER.is_alive() and not SAMPLER.stopped.is_set():
         warm_up(APP)
