@@ -78,6 +78,10 @@ CHECKS = [
     negative_data_rejection,
 ]
 
+# A time budget per answer, a replacement worker's warm-up within a deadline, RSS peaks: on the CPU first
+# (tests/conftest.py).
+pytestmark = pytest.mark.serial
+
 
 def fuzz_schema(app: FastAPI) -> schemathesis.schemas.BaseSchema:
     """The app's OpenAPI as a client reads it, bound to the app (called in-process over ASGI)."""
