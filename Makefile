@@ -38,7 +38,7 @@ test: $(VENV)/.installed-test  ## lint, format and type gates, the docs site, th
 	$(BIN)/mypy --strict app vibfree
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --site-dir site  # docs/: a broken link or anchor fails (not --quiet: it hides them)
 	bash scripts/ensure-test-tools.sh
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n 2 --dist loadscope  # two processes; tests marked serial run alone (tests/conftest.py)
 
 bench: $(VENV)/.installed-test  ## run the benchmarks whose figures are in docs/benchmarks.md
 	$(BIN)/python bench/simulation.py

@@ -55,6 +55,26 @@ def client() -> Iterator[TestClient]:
         yield test_client
 
 
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_teardown(item: pytest.Item, nextitem: pytest.Item | None):  # type: ignore[no-untyped-def]
+    """tests/app/test_fuzz.py: one lifespan of its app (one solver pool) from its first fuzzed operation to its
+    last. Schemathesis (4.x) ends every ASGI lifespan it started at each test's teardown, so each of the 15
+    operations started and warmed a pool of its own; the lifespan is kept from one item using ``running_app`` to
+    the next, and ended after the last."""
+    uses = "running_app"
+    if nextitem is None or uses not in getattr(item, "fixturenames", ()) or uses not in nextitem.fixturenames:
+        yield
+        return
+    from schemathesis.python import asgi
+
+    shutdown = asgi.shutdown_lifespans
+    asgi.shutdown_lifespans = lambda: None
+    try:
+        yield
+    finally:
+        asgi.shutdown_lifespans = shutdown
+
+
 def direct_body(family, schema, payload: dict, settings: Settings) -> dict:
     """A family endpoint's answer without HTTP: the same request through the pipeline in-process."""
     from app.responses import drop_duplicates

@@ -78,6 +78,10 @@ CHECKS = [
     negative_data_rejection,
 ]
 
+# A time budget per answer, a replacement worker's warm-up within a deadline, RSS peaks: on the CPU first
+# (tests/conftest.py).
+pytestmark = pytest.mark.serial
+
 
 def fuzz_schema(app: FastAPI) -> schemathesis.schemas.BaseSchema:
     """The app's OpenAPI as a client reads it, bound to the app (called in-process over ASGI)."""
@@ -146,8 +150,9 @@ SAMPLER = RssSampler()
 
 @pytest.fixture
 def running_app() -> None:
-    # Schemathesis keeps the lifespan it starts until the process exits (its atexit hook stops the pool);
-    # a per-test fixture, because schemathesis' generated items do not share module fixtures' teardown.
+    # One lifespan for every fuzzed operation: schemathesis ends it at each test's teardown, except between two
+    # items of this fixture (tests/app/conftest.py); a per-test fixture, because schemathesis' generated items do
+    # not share module fixtures' teardown.
     start_and_wait_ready(APP)
     if not SAMPLER.is_alive() and not SAMPLER.stopped.is_set():
         warm_up(APP)

@@ -29,6 +29,10 @@ SOLVER_PATH = "/v1/profiles/pseudo-polynomial"
 SOLVER_MOVE = {"plant": INCERTI_TABLE_III, "displacement": 30 * math.pi, "duration_s": 1.0}
 RECOVERY_S = 15.0  # the bound: the next solver request is answered correctly within 15 s
 
+# Wall-clock bounds (healthz < 0.5 s while busy, recovery < 15 s) and an admission order timed by the clock: on the CPU
+# first (tests/conftest.py).
+pytestmark = pytest.mark.serial
+
 
 def pool_of(client: TestClient):
     return client.app.state.pool  # type: ignore[attr-defined]

@@ -12,7 +12,10 @@ import pytest
 
 from tests.app.server import get, readyz, scrape, serving
 
-pytestmark = pytest.mark.skipif(not hasattr(os, "sched_getaffinity"), reason="Linux process supervision")
+pytestmark = [
+    pytest.mark.skipif(not hasattr(os, "sched_getaffinity"), reason="Linux process supervision"),
+    pytest.mark.serial,  # kills the server's processes and reads their children: on the CPU first (tests/conftest.py)
+]
 
 
 @pytest.fixture(scope="module")

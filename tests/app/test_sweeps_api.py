@@ -183,6 +183,7 @@ def _stats(base: str) -> dict:
         return orjson.loads(response.read())
 
 
+@pytest.mark.serial  # arrival times of the rows against the designs' own times (tests/conftest.py)
 def test_rows_stream_as_the_points_finish(server):
     body = sweep_body([{"path": FREQUENCY, "start": 36.0, "stop": 44.0, "num": 8}])
     arrivals = []
@@ -197,6 +198,7 @@ def test_rows_stream_as_the_points_finish(server):
     assert rows[-1][0] - rows[0][0] >= 2 * shortest
 
 
+@pytest.mark.serial  # the pool idle within 8 s of the client leaving (tests/conftest.py)
 def test_a_client_that_goes_away_stops_the_remaining_points(server):
     body = sweep_body([{"path": FREQUENCY, "start": 30.0, "stop": 50.0, "num": 60}])
     with _post(server, body) as response:

@@ -58,6 +58,7 @@ def significant_digits(text):
     return len(text.lstrip("-").replace(".", "").lstrip("0"))
 
 
+@pytest.mark.serial  # the first plot within 2 s of the click (tests/conftest.py)
 def test_default_design_appears_fast_with_units_residual_and_sensitivity(page, screenshots):
     page.goto("/")
     button = page.get_by_role("button", name="Design")

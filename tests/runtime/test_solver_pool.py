@@ -23,6 +23,9 @@ from runtime.pool import SolverPool
 from tests import aio
 from tests.app import slow_solves
 
+# Wall-clock bounds ("refused at once" < 0.1 s, a deadline's kill within 0.4-2 s): on the CPU first (tests/conftest.py).
+pytestmark = pytest.mark.serial
+
 
 def run_async(main: Callable[[], Coroutine[Any, Any, None]]) -> None:
     aio.run(main())
