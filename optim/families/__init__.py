@@ -1,2 +1,2 @@
-"""The families' adapters, one module each, between the pipeline and each family's synthesis; the registry of
-them is optim.registry."""
+"""One folder per design family: its method, its typed design block (report.py) and its adapter to the pipeline
+(family.py); the registry of them is optim.registry."""

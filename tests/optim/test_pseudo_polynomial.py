@@ -156,11 +156,11 @@ def test_problem_is_built_once_per_plant_kind_from_its_symbolic_form():
     # higher-order plants, evaluated on the same plant.
     a = TwoInertiaPlant(0.005, 0.02, 50.0, 0.05)
     b = TwoInertiaPlant(0.01, 0.03, 80.0, 0.0)
-    keys_before = set(pp._CACHE)
+    keys_before = set(pp.SOLVER_CACHE)
     for plant in (a, b):
         design = pp.design(pp.PseudoPolynomialRequest(plant, 1.0, 5 * plant.modes()[0].natural_period_s))
         assert design.energy_is_physical and design.energy_ratio < 1.0
-    new = set(pp._CACHE) - keys_before
+    new = set(pp.SOLVER_CACHE) - keys_before
     assert len({key[-1] for key in new}) <= 1  # at most one new plant-kind key (none if warm)
     request = pp.PseudoPolynomialRequest(a, 1.0, 0.6, 2, (3.2, 4.4, 6.1))
     symbolic_compiled, p_symbolic, gamma = pp.prepare(request)
@@ -335,7 +335,7 @@ def test_every_problem_a_request_can_ask_for_fits_the_worker_budget():
     assert build_mib(4, 1, (True,) * 4) == pytest.approx(56.7, abs=0.1)
     warm = sum(build_mib(order, 1, (False,) * 4) for order in (2, 3, 4)) * len(pp.SYMBOLIC_KINDS)
     assert warm < PROBLEM_CACHE_MIB
-    assert pp._CACHE.budget == PROBLEM_CACHE_MIB and pp._CACHE.weight <= PROBLEM_CACHE_MIB
+    assert pp.SOLVER_CACHE.budget == PROBLEM_CACHE_MIB and pp.SOLVER_CACHE.weight <= PROBLEM_CACHE_MIB
 
 
 def test_a_built_problem_costs_no_more_than_its_estimate():

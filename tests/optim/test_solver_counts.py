@@ -59,9 +59,9 @@ def calls(monkeypatch: pytest.MonkeyPatch) -> Calls:
 
     # Fresh caches, so that every problem used here is a wrapped one.
     monkeypatch.setattr(pp_problem, "_build", pp_build)
-    monkeypatch.setattr(pp_problem, "_CACHE", LruCache("test-pp"))
+    monkeypatch.setattr(pp_problem, "SOLVER_CACHE", LruCache("test-pp"))
     monkeypatch.setattr(stap_problem, "build_problem", stap_build)
-    monkeypatch.setattr(stap_problem, "_CACHE", LruCache("test-stap"))
+    monkeypatch.setattr(stap_problem, "SOLVER_CACHE", LruCache("test-stap"))
 
     real_linprog = lp.linprog
 

@@ -27,7 +27,6 @@ from models.pseudo_polynomial import PseudoPolynomial, check_exponents
 from optim.families.pseudo_polynomial.duration_search import SEARCH_METHOD, Search, shortest
 from optim.families.pseudo_polynomial.parameters import evaluate, oscillatory_modal_form, parameter_vector, prepare
 from optim.families.pseudo_polynomial.problem import (
-    _CACHE,
     CONSTRAINT_INTERVALS,
     LIMIT_MARGIN,
     MAX_EXPONENT,
@@ -36,6 +35,7 @@ from optim.families.pseudo_polynomial.problem import (
     PROBE_ITERATIONS,
     QUICK_ITERATIONS,
     SEARCH_ITERATIONS,
+    SOLVER_CACHE,
     SYMBOLIC_KINDS,
     _build,
     active_limits,
@@ -73,10 +73,10 @@ __all__ = [
     "QUICK_ITERATIONS",
     "SEARCH_ITERATIONS",
     "SEARCH_METHOD",
+    "SOLVER_CACHE",
     "SPREAD_STARTS",
     "SYMBOLIC_KINDS",
     "ZERO_ENERGY",
-    "_CACHE",
     "Limits",
     "Peaks",
     "PeaksOf",

@@ -124,7 +124,7 @@ def _weight(key: tuple[object, ...]) -> float:
     return build_mib(order, modes, active)
 
 
-_CACHE: LruCache[tuple[object, ...], CompiledLaw] = LruCache(
+SOLVER_CACHE: LruCache[tuple[object, ...], CompiledLaw] = LruCache(
     "pseudo_polynomial", weigh=_weight, budget=PROBLEM_CACHE_MIB
 )
 
@@ -343,7 +343,7 @@ def compiled_problem(
     """The cached problems: per plant kind for the symbolic kinds, per number of modes otherwise."""
     symbolic = plant if plant is not None and plant.kind in SYMBOLIC_KINDS else None
     key = (order, modes, active, caps, symbolic.symbolic_key() if symbolic is not None else None)
-    return _CACHE.get(key, lambda: _build(order, modes, active, caps, symbolic))
+    return SOLVER_CACHE.get(key, lambda: _build(order, modes, active, caps, symbolic))
 
 
 def active_limits(limits: Limits) -> tuple[bool, bool, bool, bool]:
