@@ -48,7 +48,6 @@ def test_every_post_operation_documents_an_example_and_its_problems(client):
     assert "HTTPValidationError" not in spec["components"]["schemas"]
 
 
-@pytest.mark.serial  # each answer within the 45 s solve deadline: wall time (tests/conftest.py)
 def test_every_documented_example_succeeds(client):
     spec = _openapi(client)
     count = 0
