@@ -51,16 +51,8 @@ class ModeReport(Block):
 
     @classmethod
     def of(cls, mode: Mode) -> ModeReport:
-        return cls(
-            natural_frequency_hz=mode.natural_frequency_hz,
-            natural_frequency_rad_s=mode.natural_frequency_rad_s,
-            damping_ratio=mode.damping_ratio,
-            damped_frequency_hz=mode.damped_frequency_hz,
-            damped_frequency_rad_s=mode.damped_frequency_rad_s,
-            natural_period_s=mode.natural_period_s,
-            damped_period_s=mode.damped_period_s,
-            decay_rate_1_s=mode.decay_rate_1_s,
-        )
+        """The mode's derived quantities, named once (models.plant_base.Mode.as_dict)."""
+        return cls(**mode.as_dict())
 
 
 @dataclass(frozen=True)
