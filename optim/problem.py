@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from models.commands import PiecewiseCommand
 from models.errors import Infeasible, InvalidParameter
 from models.plants import Plant
+from models.rigid_motion import rigid_move
 from optim.solver import SolveCaps
 
 MAX_MOVE = 1e9
@@ -189,8 +190,24 @@ class Problem:
             )
         return PiecewiseCommand.from_held_steps([0.0, ramp_s, 2 * ramp_s], [accel, -accel, 0.0], 2)
 
+    @functools.cached_property
+    def rigid_minimum_s(self) -> float | None:
+        """The rigid machine's minimum time within every limit, the jerk's included (Ruckig's time-optimal
+        move; a torque limit as the acceleration M / (J_M + J_L)); None without an acceleration or jerk bound."""
+        if self.acceleration_limit is None and self.limits.max_jerk is None:
+            return None
+        lim = self.limits
+        try:
+            move = rigid_move(
+                abs(self.move), self.rest_to_rest, lim.max_velocity, self.acceleration_limit, lim.max_jerk
+            )
+        except ValueError:  # limits too far apart for Ruckig even scaled (models.rigid_motion): not known
+            return None
+        return move.duration_s
+
     def kinematic_floor_s(self) -> float:
-        """The least duration any rest-to-rest move (or acceleration phase) can have within the limits."""
+        """A closed-form floor on the duration of any rest-to-rest move (or acceleration phase) within the limits,
+        each limit alone (D / V, 2 sqrt(D / A), (32 D / J)^(1/3)); rigid_floor_s is the exact one."""
         lim = self.limits
         accel = self.acceleration_limit
         d = abs(self.move)
@@ -202,6 +219,22 @@ class Problem:
             floors = [d / accel] if accel else []
             floors += [2 * math.sqrt(d / lim.max_jerk)] if lim.max_jerk else []
         return max(floors, default=0.0)
+
+    @functools.cached_property
+    def rigid_floor_s(self) -> float:
+        """The least duration any command can have within the limits: the motor's rigid optimum within its own
+        velocity, acceleration and jerk limits (Ruckig: the motor is at rest, or at the target speed, at both ends
+        whatever the plant), and with a torque limit the centre of mass's move under M / (J_M + J_L) whatever the
+        motor does (in kinematic_floor_s)."""
+        lim = self.limits
+        floor = self.kinematic_floor_s()
+        if lim.max_acceleration is None and lim.max_jerk is None:
+            return floor
+        try:
+            move = rigid_move(abs(self.move), self.rest_to_rest, lim.max_velocity, lim.max_acceleration, lim.max_jerk)
+        except ValueError:  # Ruckig refuses limits too far apart: the closed-form floor still holds
+            return floor
+        return max(floor, move.duration_s)
 
 
 def nice_period(span_s: float, samples: int = DEFAULT_SAMPLES) -> float:

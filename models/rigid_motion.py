@@ -1,0 +1,82 @@
+"""The rigid time-optimal move under velocity, acceleration and jerk limits, by Ruckig (Berscheid and Kroeger
+2021): the reference no vibration-aware command may beat, and the profile the ZV-shaped recipe shapes.
+
+A move is rest-to-rest (``rest_to_rest``: position 0 -> ``move``) or rest-to-velocity (velocity 0 -> ``move``,
+acceleration back to 0). A limit left as None is unbounded. Ruckig's profile has seven phases of constant
+jerk; without a jerk limit its phases hold the acceleration instead (the jerk is impulsive).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class RigidMove:
+    """The rigid optimum as held steps: ``levels[k]`` of the derivative of ``order`` on [edges[k], edges[k + 1])
+    (order 3: jerk, order 2: acceleration), zero after the last edge."""
+
+    edges_s: Array
+    levels: Array
+    order: int
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.edges_s[-1])
+
+
+def rigid_move(
+    move: float,
+    rest_to_rest: bool,
+    max_velocity: float | None,
+    max_acceleration: float | None,
+    max_jerk: float | None,
+) -> RigidMove:
+    """The time-optimal rigid move of ``move`` (> 0) within the limits (at least one of acceleration or jerk).
+
+    Ruckig runs on the move scaled to 1 and time scaled to the move's own (sqrt(move / A), or (move / J)^(1/3)),
+    so that its numbers stay near 1 whatever the units (it refuses a move of 1e9 at 1e-6 m/s^2 as given); the
+    profile is scaled back exactly (a power of the scales per derivative)."""
+    from ruckig import ControlInterface, InputParameter, Result, Ruckig, RuckigError, Trajectory
+
+    if max_acceleration is None and max_jerk is None:
+        raise ValueError("the rigid optimum needs an acceleration or a jerk limit")
+    if rest_to_rest:
+        tau = math.sqrt(move / max_acceleration) if max_acceleration is not None else (move / max_jerk) ** (1 / 3)  # type: ignore[operator]
+    else:  # to speed ``move``: its time at the acceleration limit, or under the jerk alone
+        tau = move / max_acceleration if max_acceleration is not None else math.sqrt(move / max_jerk)  # type: ignore[operator]
+    unit = move if rest_to_rest else move * tau  # position unit: the move, or the distance at speed ``move`` in tau
+
+    def scaled(limit: float | None, order: int) -> float:
+        return math.inf if limit is None else limit * tau**order / unit
+
+    given = InputParameter(1)
+    given.current_position, given.current_velocity, given.current_acceleration = [0.0], [0.0], [0.0]
+    given.max_velocity = [scaled(max_velocity, 1) if rest_to_rest else math.inf]
+    given.max_acceleration = [scaled(max_acceleration, 2)]
+    given.max_jerk = [scaled(max_jerk, 3)]
+    if rest_to_rest:
+        given.target_position = [1.0]
+    else:
+        given.control_interface = ControlInterface.Velocity
+        given.target_velocity = [move * tau / unit]
+    trajectory = Trajectory(1)
+    try:
+        status = Ruckig(1).calculate(given, trajectory)
+    except RuckigError as exc:
+        raise ValueError(f"Ruckig found no rigid move: {str(exc).strip().splitlines()[0]}") from None
+    if status not in (Result.Working, Result.Finished):
+        raise ValueError(f"Ruckig found no rigid move ({status})")
+    profile = trajectory.profiles[0][0]
+    phases = np.asarray(profile.t, dtype=float)
+    order = 3 if max_jerk is not None else 2
+    held = np.asarray(profile.j if order == 3 else profile.a[:-1], dtype=float) * unit / tau**order
+    keep = phases > 0.0
+    edges = np.concatenate(([0.0], np.cumsum(phases[keep]))) * tau
+    return RigidMove(edges, held[keep], order)
