@@ -18,9 +18,29 @@ import warnings
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from vibfree.api import REQUEST_SCHEMAS, Sweep, Synthesis, VibfreeError, compare, identify, sweep, synthesize
+    from vibfree.api import (
+        REQUEST_SCHEMAS,
+        Sweep,
+        Synthesis,
+        VibfreeError,
+        compare,
+        identify,
+        sweep,
+        synthesize,
+        synthesize_many,
+    )
 
-__all__ = ["REQUEST_SCHEMAS", "Sweep", "Synthesis", "VibfreeError", "compare", "identify", "sweep", "synthesize"]
+__all__ = [
+    "REQUEST_SCHEMAS",
+    "Sweep",
+    "Synthesis",
+    "VibfreeError",
+    "compare",
+    "identify",
+    "sweep",
+    "synthesize",
+    "synthesize_many",
+]
 
 
 def __getattr__(name: str) -> Any:

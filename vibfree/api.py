@@ -96,6 +96,33 @@ def synthesize(family: str, request: Mapping[str, Any] | str | bytes, *, setting
     return Synthesis(name, body, drop_duplicates(answer), result)  # as the endpoint answers (no load.time_s)
 
 
+def synthesize_many(
+    family: str, requests: Iterable[Mapping[str, Any] | str | bytes], *, settings: Settings | None = None
+) -> list[Synthesis | VibfreeError]:
+    """Design ``family``'s command for each request, in order, on one event loop: a batch of moves (a machine
+    planning its cycle). A request the service would refuse gives its ``VibfreeError`` in its place, so one bad
+    move does not lose the others."""
+    name, model = _family(family)
+    chosen = settings or get_settings()
+
+    async def each() -> list[Synthesis | VibfreeError]:
+        out: list[Synthesis | VibfreeError] = []
+        for request in requests:
+            try:
+                body = _validate(model, request)
+                answer, result = await profiles.design(registry.FAMILIES[name], body, chosen, InlineExecutor())
+            except VibfreeError as exc:
+                out.append(exc)
+            except DomainError as exc:
+                out.append(VibfreeError(orjson.loads(problems.domain_problem(exc).body)))
+            else:
+                out.append(Synthesis(name, body, drop_duplicates(answer), result))
+        return out
+
+    designs: list[Synthesis | VibfreeError] = _run(each())
+    return designs
+
+
 def compare(request: Mapping[str, Any] | str | bytes, *, settings: Settings | None = None) -> dict[str, Any]:
     """Every family on one plant, move and limits, as ``POST /v1/compare`` (its JSON answer)."""
     body = _validate(CompareIn, request)

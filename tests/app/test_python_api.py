@@ -32,6 +32,21 @@ def _numbers(body):
     return orjson.loads(orjson.dumps(body, option=orjson.OPT_SERIALIZE_NUMPY))
 
 
+def test_synthesize_many_answers_each_move_in_order_and_keeps_a_refusal_in_its_place():
+    # A batch as a machine plans its cycle: each answer is synthesize's own (the same bytes), a refused move is
+    # its VibfreeError (the problem+json synthesize raises) and does not lose the others.
+    moves = [dict(STAP, target_velocity=v) for v in (150.0, 100.0)]
+    bad = dict(STAP, limits={"max_acceleration": -1.0})
+    designs = vibfree.synthesize_many("stap", [moves[0], bad, moves[1]], settings=TEST_SETTINGS)
+    assert [type(d).__name__ for d in designs] == ["Synthesis", "VibfreeError", "Synthesis"]
+    for design, move in zip((designs[0], designs[2]), moves, strict=True):
+        assert isinstance(design, vibfree.Synthesis)
+        assert design.json() == vibfree.synthesize("stap", move, settings=TEST_SETTINGS).json()
+    with pytest.raises(vibfree.VibfreeError) as refused:
+        vibfree.synthesize("stap", bad, settings=TEST_SETTINGS)
+    assert isinstance(designs[1], vibfree.VibfreeError) and designs[1].problem == refused.value.problem
+
+
 def test_synthesize_gives_the_endpoints_answer_and_csv_byte_for_byte(client):
     # The same schemas, service layer and CSV writer: in-process and over HTTP agree exactly.
     design = vibfree.synthesize("stap", STAP, settings=TEST_SETTINGS)
