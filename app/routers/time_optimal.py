@@ -44,19 +44,25 @@ async def time_optimal_profile(
     (Re F = Im F = 0, F = int a(t) exp(lambda (T - t)) dt), each band point |F| <= c by an inscribed 16-gon, the
     points added as cutting planes until a dense check (at least 1500 frequencies per damping ratio, more for a
     wide band) passes. Feasibility is monotone in the number of steps, so bisection gives the grid's optimum
-    (HiGHS); its switching times are then made exact (SLSQP and a Newton polish), kept only if every limit and
-    the dense band check hold and the command is shorter (nominal designs; with a band or a torque limit the
-    answer is the optimum of a 4x finer grid). A band also keeps exactly zero residual at the nominal modes
-    unless robustness.zero_residual_at_modes is false; lower_bound_s certifies the problem as asked.
+    (HiGHS). The answer is the shortest exact candidate, each kept only if every limit and the dense band check
+    hold: the grid optimum's structure, the shaped rigid optimum (Ruckig's rigid time-optimal move, jerk
+    included, convolved with ZV per mode, and for a band with ZVs spread over it: exactly feasible, so the
+    answer is never longer than that recipe and a move it shows feasible is never refused), the symmetric
+    three-switch structure and finer-grid probes, refined by SLSQP and a Newton polish. A band also keeps
+    exactly zero residual at the nominal modes unless robustness.zero_residual_at_modes is false;
+    lower_bound_s certifies the problem as asked.
 
-    design: duration_s; lower_bound_s (a certificate: HiGHS proves infeasible a relaxation that every command of
-    that duration satisfies, by its step averages, or the rigid kinematic floor; no command at all, on any grid,
-    is shorter); arcs (start, duration, level, bang/coast/partial); robustness (requested, achieved band and the
-    worst V inside the request, by an independent dense check with models.sensitivity on the exact command);
-    modes cancelled; the grid, the refinement and the search's LP counts. tradeoff: one row per half-width.
-    solver: status "refined" (exact switching times: the shortest command found, not proven globally optimal;
-    lower_bound_s bounds the gap) or "grid" (the search grid's optimum); solves, iterations and time count every
-    LP of the design, its tightenings and its trade-off rows.
+    design: duration_s; method ("refined": exact switching times, the shortest command found, not proven
+    globally optimal, lower_bound_s bounds the gap; "shaped_rigid": the shaped rigid optimum itself; "grid": the
+    optimum of a 4x finer search grid, with a band or a torque limit); rigid_duration_s (Ruckig's rigid minimum
+    within every limit, jerk included); lower_bound_s (a certificate: HiGHS proves infeasible a relaxation that
+    every command of that duration satisfies, by its step averages, or the motor's rigid minimum; no command at
+    all, on any grid, is shorter); arcs (start, duration, level, bang/coast/partial); robustness (requested,
+    achieved band and the worst V inside the request, by an independent dense check with models.sensitivity on
+    the exact command); modes cancelled; the grid (null when the grid search found nothing and the shaped rigid
+    optimum answers), the refinement and the search's LP counts. tradeoff: one row per half-width.
+    solver: status, the design's method; solves, iterations and time count every LP of the design, its
+    tightenings and its trade-off rows.
     Infeasible within max_duration_s is a 422 /problems/infeasible only where proven; a search that found
     nothing without a proof is /problems/solver-failed; over the time limit, 504."""
     answer, result = await profiles.design(FAMILY, body, settings, pool, threads)

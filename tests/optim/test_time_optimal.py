@@ -294,17 +294,26 @@ def test_snapped_grid_commands_keep_the_acceleration_limit(monkeypatch: pytest.M
 
 
 def test_a_stalling_lp_does_not_spend_the_request() -> None:
-    # This move's 4x-finer fallback grid once made HiGHS's simplex stall for 9.5 s (the whole budget): each LP
-    # is capped in iterations, then retried with the interior-point method. One LP of it never ends in the simplex
-    # (515 000 iterations in 30 s, measured for issue 23) and the interior-point method proves it infeasible: one
-    # run at the cap, reported, and no LP counted as not found.
+    # This move's 4x-finer grid once made HiGHS's simplex stall for 9.5 s (the whole budget): each LP is capped
+    # in iterations, then retried with the interior-point method. One LP of it never ends in the simplex (515 000
+    # iterations in 30 s, measured for issue 23) and the interior-point method proves it infeasible: one run at
+    # the cap, and no LP counted as not found. The design no longer needs that grid (its answer is exact), so the
+    # search runs it directly, from the floor it had then (the bang-bang's 2 sqrt(D / A), not Ruckig's optimum).
+    from dataclasses import replace
+
+    from optim.families.time_optimal.family import selected_modes, spec_of
+    from optim.families.time_optimal.search import GridSearch
+
     problem = Problem(ModePlant(3.0, 0.03), displacement=0.2, limits=Limits(None, 2.0, 100.0))
-    result = _design(problem)
-    assert result.limit_violations == ()
-    assert result.summary.lower_bound_s <= result.summary.duration_s
-    search = result.summary.search
-    assert search.lp_runs_at_iteration_cap == 1 and search.lps_not_found_at_iteration_cap == 0
-    assert result.solver is not None and result.solver.iterations >= search.max_lp_iterations  # it ran to the cap
+    options = TimeOptimalOptions()
+    spec = spec_of(problem, options, selected_modes(problem, options)[0])
+    then = 2 * math.sqrt(0.2 / 2.0)
+    search = GridSearch(replace(spec, floor_s=then, upper_guess_s=spec.upper_guess_s - (spec.floor_s - then)))
+    grid = search.grid_optimum()
+    fine = search.bisect(grid.step_s / 4, 4 * grid.infeasible_steps, 4 * grid.steps)
+    assert fine is not None and fine.steps * fine.step_s <= grid.steps * grid.step_s
+    assert search.counter.capped_runs == 1 and search.counter.capped_lps == 0
+    assert search.counter.iterations >= search.counter.max_iterations  # it ran to the cap
 
 
 def test_an_lp_at_its_iteration_cap_counts_as_not_found_and_says_so(monkeypatch: pytest.MonkeyPatch) -> None:

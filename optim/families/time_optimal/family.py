@@ -80,7 +80,7 @@ def spec_of(problem: Problem, options: TimeOptimalOptions, chosen: tuple[int, ..
     zero = tuple(modes[i].pole for i in chosen if keep or i not in covered)
     order = 0 if robust is None else robust.derivative_order
     reference = problem.rigid_reference
-    floor = problem.kinematic_floor_s()
+    floor = problem.rigid_floor_s
     rigid = float(reference.time_s[-1]) if problem.acceleration_limit is not None else floor
     periods = sum((0.5 + 0.5 * order) * modes[i].damped_period_s for i in chosen)
     slowest = max(modes[i].natural_period_s for i in chosen)
@@ -227,7 +227,7 @@ class TimeOptimalFamily(BaseFamily):
                 tradeoff, row_capped = self._tradeoff(problem, options, chosen)
         detail = _TimeOptimalDetail(solution, chosen, options.robustness, tradeoff)
         extra: tuple[str, ...] = (
-            () if solution.refined else (f"the switching times are the grid's ({solution.refinement})",)
+            () if solution.method != "grid" else (f"the switching times are the grid's ({solution.refinement})",)
         )
         if solution.capped_lps + row_capped:
             count = solution.capped_lps + row_capped
@@ -237,9 +237,10 @@ class TimeOptimalFamily(BaseFamily):
                 f"({solution.max_lp_iterations} HiGHS iterations per method) and counted as 'no command found' "
                 "at their length: a duration may exceed its search grid's optimum",
             )
-        # "refined": exact switching times, the shortest command found (no proof of global optimality: see
-        # design.lower_bound_s); "grid": the optimum of the search grid. Counts cover every solve, rows too.
-        report = SolverSummary.of_tally("refined" if solution.refined else "grid", counts)
+        # design.method (optim.families.time_optimal.minimum_time): "refined", exact switching times, the shortest
+        # command found (no proof of global optimality: see design.lower_bound_s); "shaped_rigid", the shaped rigid
+        # optimum; "grid", the search grid's optimum. Counts cover every solve, rows too.
+        report = SolverSummary.of_tally(solution.method, counts)
         block = design_report(problem, spec, options, solution, arcs, chosen)
         return Design(command, block, (*notes, *extra), report, detail=detail)
 

@@ -103,8 +103,9 @@ class TimeOptimalReport(Block):
     modes: tuple[ModeConstraint, ...]
     derivative_order: int
     max_duration_s: float
-    grid: GridReport
-    refined: bool
+    grid: GridReport | None  # None: the grid search found no command (the shaped rigid optimum is the answer)
+    method: str  # "refined", "shaped_rigid" or "grid"
+    refined: bool  # exact switching times ("refined" or "shaped_rigid")
     refinement: str
     search: SearchReport
     bands_rad_s: tuple[tuple[float, float], ...]
@@ -145,8 +146,7 @@ def design_report(
     chosen: tuple[int, ...],
 ) -> TimeOptimalReport:
     modes = problem.plant.modes()
-    reference = problem.rigid_reference if problem.acceleration_limit is not None else None
-    rigid = None if reference is None else float(reference.time_s[-1])
+    rigid = problem.rigid_minimum_s
     bands, covered = bands_of(problem, options.robustness, chosen)
     grid = solution.grid
     return TimeOptimalReport(
@@ -169,9 +169,12 @@ def design_report(
         ),
         derivative_order=spec.derivative_order,
         max_duration_s=spec.max_duration_s,
-        grid=GridReport(
+        grid=None
+        if grid is None
+        else GridReport(
             grid.step_s, grid.steps, grid.steps * grid.step_s, longest_not_found_s=grid.infeasible_steps * grid.step_s
         ),
+        method=solution.method,
         refined=solution.refined,
         refinement=solution.refinement,
         search=SearchReport(

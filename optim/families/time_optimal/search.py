@@ -1,30 +1,25 @@
-"""The minimum-time search: bisection on the grid, cutting planes for the bands, exact refinement, certificate.
+"""The grid search: bisection on the grid, cutting planes for the bands, the certificate.
 
 1. On a grid of ``STEPS`` steps over an upper guess (doubled until feasible, up to max_duration_s),
    feasibility is monotone in the number of steps (a feasible command padded with rest stays
    feasible: its residual at the end only decays), so bisection finds the grid's shortest command.
    Bands enter as cutting planes: each LP holds the band at the points found so far, the dense check
    (optim.families.time_optimal.check) adds the worst violating points until it passes.
-2. The grid optimum's structure is refined to exact switching times (optim.families.time_optimal.refine), kept
-   only if it meets every constraint on the dense check and is shorter; a probe on a finer grid looks for
-   a better structure (see ``solve``). With a torque limit or a band, the grid optimum on a 4x finer grid
-   is the answer (within one of its steps of that grid's optimum).
+2. The grid optimum is one start of the exact answer (optim.families.time_optimal.minimum_time).
 3. ``lower_bound_s``: the largest duration whose relaxed LP (optim.families.time_optimal.lp.relaxed_lp) HiGHS
-   proves infeasible, found by bisection, or the rigid kinematic floor: no command at all (not only on
-   the grid) that short meets the constraints.
+   proves infeasible, found by bisection, or the rigid floor (Ruckig's optimum within the motor's limits): no
+   command at all (not only on the grid) that short meets the constraints.
 """
 
 from __future__ import annotations
 
 import math
-import time
-from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import NDArray
 
 from models.errors import Infeasible, SolverFailed
-from optim.families.time_optimal.arcs import SNAP, arcs_of, merged, structure
+from optim.families.time_optimal.arcs import SNAP
 from optim.families.time_optimal.check import (
     CHECK_MARGIN,
     INITIAL_POINTS,
@@ -34,25 +29,19 @@ from optim.families.time_optimal.check import (
     worst_ratios,
 )
 from optim.families.time_optimal.lp import MARGIN, Cut, LpCounter, grid_lp, pieces, relaxed_lp
-from optim.families.time_optimal.refine import refine
-from optim.families.time_optimal.shaped import shaped_start
-from optim.families.time_optimal.types import Arc, Band, GridSolution, Solution, Spec
+from optim.families.time_optimal.types import Arc, Band, GridSolution, Spec
 from optim.families.time_optimal.weights import exponential_moment, integrated_box
 
 Array = NDArray[np.float64]
-FALLBACK_FINER = 4  # without a refinement, the grid optimum is sought again on steps this much shorter
-PROBES = 3
-PROBE_FINER = 4  # the probe's grid is this much finer than the search's
 STEPS = 96  # steps over the search's upper duration
 CUT_ROUNDS = 12
 RELAXED_STEPS = 250
 BOUND_BISECTIONS = 2
 PHASE_STEP = 0.15  # rad
 MAX_INITIAL_POINTS = 200
-MAX_ARCS = 16  # a grid solution with more arcs is not refined (it chatters: another start is tried)
 
 
-class _Search:
+class GridSearch:
     def __init__(self, spec: Spec) -> None:
         self.spec = spec
         self.counter = LpCounter(time_limit_s=spec.lp_time_limit_s)
@@ -84,9 +73,10 @@ class _Search:
                 added = True
         return added
 
-    def grid_optimum(self) -> GridSolution:
+    def grid_optimum(self, upper_s: float | None = None) -> GridSolution:
+        """The grid's shortest command, searched from ``upper_s`` (default the spec's upper guess) down."""
         spec = self.spec
-        upper = max(spec.upper_guess_s, spec.floor_s * 1.01)
+        upper = max(upper_s or spec.upper_guess_s, spec.floor_s * 1.01)
         while True:
             dt = upper / STEPS
             x = self.feasible(STEPS, dt)
@@ -250,144 +240,5 @@ def equality_system(spec: Spec, steps: int, dt: float) -> tuple[Array, Array]:
     return np.vstack(rows) if rows else np.zeros((0, steps)), np.asarray(rhs)
 
 
-def _clip(spec: Spec, values: Array) -> Array:
+def clip(spec: Spec, values: Array) -> Array:
     return np.clip(values, -1.0, 1.0) if (spec.order == 3 or spec.max_acceleration is not None) else values
-
-
-def _refine_best(
-    spec: Spec,
-    search: _Search,
-    starts: list[tuple[Array, float]],
-    best: tuple[Arc, ...] | None,
-    check_limits: Callable[[tuple[Arc, ...]], bool] | None,
-) -> tuple[tuple[Arc, ...] | None, str]:
-    """The shortest refined command from the given grid starts that checks out (or ``best``), and how."""
-    how = ""
-    for start, step in starts:
-        parts = structure(start, step)
-        if len(parts[0]) > MAX_ARCS:
-            continue
-        result = refine(spec, *parts, search.cuts)
-        if result is None:
-            continue
-        total = sum(a.duration_s for a in result.arcs)
-        shorter = best is None or total < sum(a.duration_s for a in best)
-        if shorter and (check_limits is None or check_limits(result.arcs)) and search.verified(result.arcs):
-            best, how = merged(result.arcs), result.status
-    return best, how
-
-
-def _shaped_best(
-    spec: Spec,
-    search: _Search,
-    best: tuple[Arc, ...] | None,
-    how: str,
-    check_limits: Callable[[tuple[Arc, ...]], bool] | None,
-    grid_s: float,
-) -> tuple[tuple[Arc, ...] | None, str]:
-    """The shaped rigid move (optim.families.time_optimal.shaped), refined, or as it is, where it is shorter than
-    ``best`` and than the grid optimum (``grid_s``): the answer is never longer than ZV shaping of the rigid
-    move (ZV^(n+1) for derivative order n)."""
-    start = shaped_start(spec)
-    if start is None:
-        return best, how
-    durations, levels, free = start
-    edges = np.concatenate(([0.0], np.cumsum(durations)))
-    shaped = tuple(Arc(float(edges[k]), float(durations[k]), float(levels[k] * spec.scale)) for k in range(len(levels)))
-    candidates = [(merged(shaped), "the rigid move shaped by ZV per mode (no shorter command was found)")]
-    result = refine(spec, durations, levels, free, search.cuts) if len(durations) <= MAX_ARCS else None
-    if result is not None:
-        candidates.insert(0, (merged(result.arcs), f"{result.status} (from the shaped rigid move)"))
-    for arcs, note in candidates:
-        total = sum(a.duration_s for a in arcs)
-        if total >= grid_s or (best is not None and total >= sum(a.duration_s for a in best)):
-            continue
-        if (check_limits is None or check_limits(arcs)) and search.verified(arcs):
-            return arcs, note
-    return best, how
-
-
-def solve(
-    spec: Spec, check_limits: Callable[[tuple[Arc, ...]], bool] | None = None, bound_spec: Spec | None = None
-) -> Solution:
-    """The minimum-time command of ``spec`` (see the module's docstring). ``check_limits(arcs) -> bool``
-    tells whether a refined command meets the limits exactly (the caller's independent check); ``bound_spec``
-    is the problem lower_bound_s certifies (default ``spec``).
-
-    Without a torque limit or a band, the grid optimum's structure is refined to exact switching times (or,
-    failing that, the structure of the early-acting weighted-L1 vertex); then a probe asks a grid PROBE_FINER
-    times finer for the early-acting vertex at the refined duration: if one exists, its structure is refined in
-    turn (at most PROBES times), so that a local optimum of one structure is not returned where a shorter one
-    exists on the fine grid."""
-    began = time.perf_counter()  # for solve_time_s only: the search's caps are counts (optim.families.time_optimal.lp)
-    search = _Search(spec)
-    grid = search.grid_optimum()
-    values = _clip(spec, project(spec, grid))
-    arcs = arcs_of(spec.scale * values, grid.step_s)
-    refined, how = False, "not refined"
-    if spec.torque is not None or spec.bands:
-        how = (
-            "not refined: with a torque limit or a band the grid optimum is returned (on the finer grid, within one "
-            "of its steps of it)"
-        )
-    else:
-        best, how = _refine_best(spec, search, [(values, grid.step_s)], None, check_limits)
-        if best is None:  # another vertex, another structure
-            late = search.late_vertex(grid.steps, grid.step_s)
-            if late is not None:
-                best, how = _refine_best(spec, search, [(_clip(spec, late), grid.step_s)], None, check_limits)
-        best, how = _shaped_best(spec, search, best, how, check_limits, grid.steps * grid.step_s)
-        for _ in range(PROBES if best is not None else 0):
-            assert best is not None
-            total = sum(a.duration_s for a in best)
-            steps = PROBE_FINER * grid.steps
-            dt = total / steps
-            probe = search.late_vertex(steps, dt)
-            if probe is None:
-                break
-            better, note = _refine_best(spec, search, [(np.clip(probe, -1, 1), dt)], best, check_limits)
-            if better is best:
-                break
-            best, how = better, note
-        if best is None:
-            how = (
-                "the refined switching times did not converge or check out (limits, band): the grid optimum is returned"
-            )
-        else:
-            arcs, refined = best, True
-    if not refined:  # the grid optimum on a grid FALLBACK_FINER times finer, from the coarse bounds
-        fine = search.bisect(
-            grid.step_s / FALLBACK_FINER, FALLBACK_FINER * grid.infeasible_steps, FALLBACK_FINER * grid.steps
-        )
-        if fine is not None:
-            grid = fine
-            values = _clip(spec, project(spec, fine))
-            arcs = arcs_of(spec.scale * values, fine.step_s)
-            if spec.torque is None and not spec.bands:  # the finer grid's structures, refined in turn
-                starts = [(values, fine.step_s)]
-                late = search.late_vertex(fine.steps, fine.step_s)
-                if late is not None:
-                    starts.append((_clip(spec, late), fine.step_s))
-                best, note = _refine_best(spec, search, starts, arcs, check_limits)
-                if best is not arcs and best is not None:
-                    arcs, refined, how = best, True, f"{note} (from the finer grid's structure)"
-    duration = sum(a.duration_s for a in arcs)
-    bound, method = search.lower_bound(duration, bound_spec)
-    return Solution(
-        arcs=arcs,
-        order=spec.order,
-        duration_s=duration,
-        lower_bound_s=min(bound, duration),
-        lower_bound_method=method,
-        grid=grid,
-        refined=refined,
-        refinement=how,
-        lp_solves=search.counter.solves,
-        lp_iterations=search.counter.iterations,
-        solve_time_s=time.perf_counter() - began,
-        cut_frequencies=len(search.cuts),
-        max_lp_iterations=search.counter.max_iterations,
-        max_lp_solves=search.counter.max_solves,
-        capped_runs=search.counter.capped_runs,
-        capped_lps=search.counter.capped_lps,
-    )

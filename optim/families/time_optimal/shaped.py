@@ -1,68 +1,102 @@
-"""A feasible start that is never worse than shaping: the rigid time-optimal move convolved with a ZV shaper
-per cancelled mode (ZV^(n+1) for derivative order n; Singer and Seering 1990).
+"""The shaped rigid optimum, a feasible command no answer may be longer than: the rigid time-optimal move
+(Ruckig, models.rigid_motion) convolved with a ZV shaper per cancelled mode (ZV^(n+1) for derivative order n;
+Singer and Seering 1990), and for a band a robust shaper over it.
 
-The rigid move (bang-bang, or a trapezoidal velocity at max_velocity; a ramp for rest-to-velocity) has
-|a| <= A and |v| <= V; a shaper's impulses are positive and sum to 1, so the shaped acceleration and velocity
-are convex combinations of shifted copies and stay within both limits, and the end state is the rigid
-move's. ZV^(n+1) zeroes the residual and its first n frequency derivatives at the mode. So the shaped
-command meets every constraint of a nominal time-optimal problem without torque, jerk or band; the
-refinement starts from it (its free levels are the impulses' partial sums) and can only shorten it.
+A shaper's impulses are positive and sum to 1, so the shaped velocity, acceleration and jerk are convex
+combinations of shifted copies of the rigid move's and stay within its limits, and the end state is the rigid
+move's. ZV^(n+1) zeroes the residual and its first n frequency derivatives at the mode. The held derivative
+(jerk, or acceleration without a jerk limit) of the shaped move is piecewise constant: it is a command of the
+arc form the refinement starts from (its levels that are no bang or coast are free).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 
 import numpy as np
 from numpy.typing import NDArray
 
-from optim.families.time_optimal.types import Spec
+from models.rigid_motion import RigidMove, rigid_move
+from optim.families.time_optimal.types import Arc, Band, Spec
 
 Array = NDArray[np.float64]
+Shaper = tuple[Array, Array]  # (times_s, amplitudes): positive amplitudes summing to 1
+MAX_BAND_SHAPERS = 4  # ZVs spread over a band, at most: each adds a half period to the command
+ROUND_S = 15  # breakpoints closer than 1e-15 s are one
 
 
-def rigid_arcs(spec: Spec) -> tuple[Array, Array]:
-    """(breakpoints, levels in units of max_acceleration) of the rigid time-optimal move."""
-    accel = spec.max_acceleration
-    assert accel is not None
-    if not spec.rest_to_rest:
-        return np.array([0.0, spec.move / accel]), np.array([1.0])
-    ramp = math.sqrt(spec.move / accel)
-    if spec.max_velocity is not None and accel * ramp > spec.max_velocity:
-        ramp = spec.max_velocity / accel
-        cruise = spec.move / spec.max_velocity - ramp
-        return np.array([0.0, ramp, ramp + cruise, 2 * ramp + cruise]), np.array([1.0, 0.0, -1.0])
-    return np.array([0.0, ramp, 2 * ramp]), np.array([1.0, -1.0])
-
-
-def zv_impulses(pole: complex) -> tuple[Array, Array]:
-    """(times, amplitudes) of the ZV shaper of a mode: 1/(1+K), K/(1+K) half a damped period apart."""
+def zv_impulses(pole: complex) -> Shaper:
+    """The ZV shaper of a mode: 1/(1+K), K/(1+K) half a damped period apart, K = exp(-zeta pi / sqrt(1-zeta^2))."""
     sigma, omega_d = -pole.real, pole.imag
     k = math.exp(-sigma * math.pi / omega_d)
     return np.array([0.0, math.pi / omega_d]), np.array([1.0, k]) / (1.0 + k)
 
 
-def shaped_start(spec: Spec) -> tuple[list[float], list[float], list[bool]] | None:
-    """(durations, levels, free) of the shaped rigid move, in optim.families.time_optimal.arcs.structure's form, or None
-    where it does not apply (a held jerk, a torque limit, a band, no acceleration limit)."""
-    if spec.order != 2 or spec.torque is not None or spec.bands or spec.max_acceleration is None:
-        return None
-    times, amplitudes = np.array([0.0]), np.array([1.0])
+def convolved(first: Shaper, second: Shaper) -> Shaper:
+    times = (first[0][:, None] + second[0][None, :]).ravel()
+    amplitudes = (first[1][:, None] * second[1][None, :]).ravel()
+    return times, amplitudes
+
+
+def nominal_shaper(spec: Spec) -> Shaper:
+    """ZV^(n+1) at every zero-residual pole."""
+    shaper: Shaper = (np.array([0.0]), np.array([1.0]))
     for pole in spec.zero_poles:
-        t, a = zv_impulses(pole)
         for _ in range(spec.derivative_order + 1):
-            times = (times[:, None] + t[None, :]).ravel()
-            amplitudes = (amplitudes[:, None] * a[None, :]).ravel()
-    edges, levels = rigid_arcs(spec)
-    breaks = np.unique(np.round((times[:, None] + edges[None, :]).ravel(), 15))
+            shaper = convolved(shaper, zv_impulses(pole))
+    return shaper
+
+
+def _pole(omega: float, zeta: float) -> complex:
+    return complex(-zeta * omega, omega * math.sqrt(1.0 - zeta * zeta))
+
+
+def band_shapers(band: Band) -> Iterator[Shaper]:
+    """Robust shapers over a band, shortest first: k = 1..MAX_BAND_SHAPERS ZVs at the band's k quantiles of
+    equal log-width (k = 1: its geometric centre), each at the band's middle damping ratio; the caller keeps
+    the first that its dense check passes."""
+    zetas = sorted(band.damping_ratios)
+    zeta = min(zetas[len(zetas) // 2], 0.99)
+    lo, hi = math.log(band.low_rad_s), math.log(band.high_rad_s)
+    for k in range(1, MAX_BAND_SHAPERS + 1):
+        shaper: Shaper = (np.array([0.0]), np.array([1.0]))
+        for i in range(k):
+            omega = math.exp(lo + (hi - lo) * (i + 0.5) / k)
+            shaper = convolved(shaper, zv_impulses(_pole(omega, zeta)))
+        yield shaper
+
+
+def rigid_of(spec: Spec) -> RigidMove | None:
+    """The rigid optimum within the spec's limits, or None where shaping it does not bound the problem (a
+    torque limit: the shaped move's torque is not the rigid move's; no acceleration or jerk limit)."""
+    if spec.torque is not None or (spec.max_acceleration is None and spec.max_jerk is None):
+        return None
+    try:
+        return rigid_move(spec.move, spec.rest_to_rest, spec.max_velocity, spec.max_acceleration, spec.max_jerk)
+    except ValueError:  # limits too far apart for Ruckig: no shaped candidate (the grid search answers)
+        return None
+
+
+def shaped_arcs(spec: Spec, rigid: RigidMove, shaper: Shaper) -> tuple[Arc, ...]:
+    """The rigid move convolved with the shaper, as arcs of the held derivative (absolute levels)."""
+    times, amplitudes = shaper
+    edges, levels = rigid.edges_s, rigid.levels
+    breaks = np.unique(np.round((times[:, None] + edges[None, :]).ravel(), ROUND_S))
     mids = 0.5 * (breaks[:-1] + breaks[1:])
-    shifted = mids[None, :] - times[:, None]  # (impulses, intervals)
-    index = np.searchsorted(edges, shifted, side="right") - 1
+    index = np.searchsorted(edges, mids[None, :] - times[:, None], side="right") - 1  # (impulses, intervals)
     inside = (index >= 0) & (index < levels.size)
-    value = np.where(inside, levels[np.clip(index, 0, levels.size - 1)], 0.0)
-    shaped = amplitudes @ value
+    shaped = amplitudes @ np.where(inside, levels[np.clip(index, 0, levels.size - 1)], 0.0)
     durations = np.diff(breaks)
     keep = durations > 0.0
-    durations, shaped = durations[keep], shaped[keep]
-    free = [not any(abs(v - level) < 1e-12 for level in (-1.0, 0.0, 1.0)) for v in shaped]
-    return list(durations), list(shaped), free
+    return tuple(
+        Arc(float(s), float(d), float(v))
+        for s, d, v in zip(breaks[:-1][keep], durations[keep], shaped[keep], strict=True)
+    )
+
+
+def as_start(spec: Spec, arcs: tuple[Arc, ...]) -> tuple[list[float], list[float], list[bool]]:
+    """(durations, levels in the unit, free) of arcs, in optim.families.time_optimal.arcs.structure's form."""
+    levels = [a.level / spec.scale for a in arcs]
+    free = [not any(abs(v - level) < 1e-12 for level in (-1.0, 0.0, 1.0)) for v in levels]
+    return [a.duration_s for a in arcs], levels, free

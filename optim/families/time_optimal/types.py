@@ -107,8 +107,8 @@ class Solution:
     duration_s: float
     lower_bound_s: float
     lower_bound_method: str
-    grid: GridSolution
-    refined: bool
+    grid: GridSolution | None  # None: the grid search found no command, the shaped rigid optimum is the answer
+    method: str  # "refined", "shaped_rigid" or "grid" (optim.families.time_optimal.minimum_time)
     refinement: str
     lp_solves: int
     lp_iterations: int
@@ -119,3 +119,8 @@ class Solution:
     max_lp_solves: int = 0
     capped_runs: int = 0  # HiGHS runs stopped at max_lp_iterations
     capped_lps: int = 0  # LPs counted as "not found" because both methods stopped there
+
+    @property
+    def refined(self) -> bool:
+        """Exact switching times: a refined structure, or the shaped rigid optimum (exact by construction)."""
+        return self.method != "grid"

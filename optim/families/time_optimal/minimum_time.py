@@ -1,0 +1,241 @@
+"""The minimum-time answer: the shortest exact candidate, never longer than the shaped rigid optimum.
+
+Candidates, each refined to exact switching times (optim.families.time_optimal.refine) and kept only if it meets
+the limits exactly (the caller's check) and the bands on the dense check (optim.families.time_optimal.check):
+
+- the shaped rigid optimum (optim.families.time_optimal.shaped), as it is and refined: the recipe's answer,
+  feasible by construction, so that no answer is longer and no move it shows feasible is refused;
+- the grid optimum's structure (optim.families.time_optimal.search), or its early-acting vertex's;
+- known structures: the symmetric three-switch bang-bang of Singh and Vadali (1993) for a held acceleration;
+- probes: the early-acting vertex of a grid PROBE_FINER times finer at the best duration found, refined.
+
+``method`` of the answer: "refined" (exact switching times of a structure), "shaped_rigid" (the shaped rigid
+optimum itself: nothing shorter was found) or "grid" (no exact candidate checks out, or none applies: the
+grid optimum on a grid FALLBACK_FINER times finer). With a torque limit or a band no structure is refined (SLSQP
+on the band's cut points took seconds and rarely passed the dense check): the grid optimum, or the shaped rigid
+optimum where it is shorter.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from models.errors import SolverFailed, SolverTimedOut
+from models.rigid_motion import RigidMove
+from optim.families.time_optimal.arcs import arcs_of, merged, structure
+from optim.families.time_optimal.refine import refine
+from optim.families.time_optimal.search import GridSearch, clip, project
+from optim.families.time_optimal.shaped import (
+    Shaper,
+    as_start,
+    band_shapers,
+    convolved,
+    nominal_shaper,
+    rigid_of,
+    shaped_arcs,
+)
+from optim.families.time_optimal.types import Arc, GridSolution, Solution, Spec
+
+Array = NDArray[np.float64]
+Start = tuple[list[float], list[float], list[bool]]  # durations, levels in the unit, which levels are free
+LimitCheck = Callable[[tuple[Arc, ...]], bool]
+FALLBACK_FINER = 4  # without an exact candidate, the grid optimum is sought again on steps this much shorter
+PROBES = 3
+PROBE_FINER = 4  # the probe's grid is this much finer than the search's
+MAX_ARCS = 24  # a start with more arcs is not refined (a chattering grid vertex: another start is tried)
+GUESS_MARGIN = 0.05  # the grid search starts this much above the shaped rigid optimum's duration
+SHORTER = 1e-12  # a candidate replaces the best only if shorter by more than this (relative)
+REVERSALS = (1 / 6, 1 / 4)  # the three-switch start's reversal pulses, in damped periods
+
+
+@dataclass(frozen=True)
+class Found:
+    arcs: tuple[Arc, ...]
+    method: str
+    note: str
+
+    @property
+    def duration_s(self) -> float:
+        return sum(a.duration_s for a in self.arcs)
+
+
+class _Best:
+    """The shortest candidate that checks out so far."""
+
+    def __init__(self, spec: Spec, search: GridSearch, check_limits: LimitCheck | None) -> None:
+        self.spec, self.search, self.check_limits = spec, search, check_limits
+        self.found: Found | None = None
+
+    def accepts(self, arcs: tuple[Arc, ...]) -> bool:
+        return (self.check_limits is None or self.check_limits(arcs)) and self.search.verified(arcs)
+
+    def offer(self, arcs: tuple[Arc, ...], method: str, note: str) -> bool:
+        total = sum(a.duration_s for a in arcs)
+        if self.found is not None and total >= self.found.duration_s * (1 - SHORTER):
+            return False
+        if total > self.spec.max_duration_s or not self.accepts(arcs):
+            return False
+        self.found = Found(merged(arcs), method, note)
+        return True
+
+    def refine_from(self, start: Start, note: str = "") -> bool:
+        if len(start[0]) > MAX_ARCS:
+            return False
+        result = refine(self.spec, *start, self.search.cuts)
+        return result is not None and self.offer(result.arcs, "refined", result.status + note)
+
+    def refine_grid(self, values: Array, step_s: float, note: str = "") -> bool:
+        return self.refine_from(structure(values, step_s), note)
+
+
+def shapers(spec: Spec) -> list[Shaper]:
+    """The shapers tried on the rigid optimum, shortest first: ZV^(n+1) at every zero-residual pole, and with
+    bands the same times a robust shaper over every band (optim.families.time_optimal.shaped.band_shapers)."""
+    base = nominal_shaper(spec)
+    if not spec.bands:
+        return [base]
+    out = [base] if spec.zero_poles else []
+    for per_band in zip(*(band_shapers(b) for b in spec.bands), strict=True):
+        shaper = base
+        for extra in per_band:
+            shaper = convolved(shaper, extra)
+        out.append(shaper)
+    return out
+
+
+def shaped_rigid(best: _Best, rigid: RigidMove | None) -> Found | None:
+    """The first shaped rigid optimum that checks out (the shapers of ``shapers``), offered to ``best``."""
+    if rigid is None:
+        return None
+    for shaper in shapers(best.spec):
+        arcs = shaped_arcs(best.spec, rigid, shaper)
+        impulses = int(np.count_nonzero(shaper[1]))
+        note = f"the rigid time-optimal move (Ruckig) shaped by {impulses} positive impulses (no shorter command found)"
+        if best.offer(arcs, "shaped_rigid", note):
+            return best.found
+    return None
+
+
+def three_switch_starts(spec: Spec, rigid: RigidMove | None) -> list[Start]:
+    """Singh and Vadali's symmetric three-switch structure (+1, -1, +1, -1) around a bang-bang rigid move, with a
+    reversal pulse of REVERSALS damped periods of each zero-residual pole: a start the grid may not show."""
+    if rigid is None or rigid.order != 2 or spec.bands or not spec.rest_to_rest or rigid.levels.size != 2:
+        return []
+    half = rigid.duration_s / 2
+    starts: list[Start] = []
+    for pole in spec.zero_poles:
+        for fraction in REVERSALS:
+            pulse = min(fraction * 2 * math.pi / pole.imag, 0.45 * half)
+            starts.append(([half - pulse, pulse, pulse, half - pulse], [1.0, -1.0, 1.0, -1.0], [False] * 4))
+    return starts
+
+
+def _grid(search: GridSearch, shaped: Found | None) -> GridSolution | None:
+    """The grid optimum, searched from just above the shaped rigid optimum; None if the search finds no command
+    within its caps (counts of work) where the shaped rigid optimum exists (it is then the answer)."""
+    try:
+        return search.grid_optimum(None if shaped is None else shaped.duration_s * (1 + GUESS_MARGIN))
+    except SolverTimedOut:  # the wall-clock last resort: a time-out, never an answer that depends on the load
+        raise
+    except SolverFailed:
+        if shaped is None:
+            raise
+        return None
+
+
+def _refined(best: _Best, search: GridSearch, grid: GridSolution | None, rigid: RigidMove | None) -> None:
+    """Every exact candidate offered to ``best``: the grid's structures, the shaped rigid optimum's, the known
+    structures, then the probes."""
+    spec = best.spec
+    shaped = best.found
+    if grid is not None:
+        values = clip(spec, project(spec, grid))
+        if not best.refine_grid(values, grid.step_s):
+            late = search.late_vertex(grid.steps, grid.step_s)
+            if late is not None:
+                best.refine_grid(clip(spec, late), grid.step_s)
+    if shaped is not None:
+        best.refine_from(as_start(spec, shaped.arcs), " (from the shaped rigid optimum)")
+    for start in three_switch_starts(spec, rigid):
+        best.refine_from(start, " (from the symmetric three-switch structure)")
+    for _ in range(PROBES if grid is not None and best.found is not None else 0):
+        assert best.found is not None and grid is not None
+        steps = PROBE_FINER * grid.steps
+        dt = best.found.duration_s / steps
+        probe = search.late_vertex(steps, dt)
+        if probe is None or not best.refine_grid(np.clip(probe, -1, 1), dt, " (from a finer grid's vertex)"):
+            break
+
+
+def _grid_answer(best: _Best, search: GridSearch, grid: GridSolution) -> GridSolution:
+    """The grid optimum on a grid FALLBACK_FINER times finer (its structures refined in turn), where no exact
+    candidate was found or the grid could still beat the shaped rigid optimum; the grid it used."""
+    spec, found = best.spec, best.found
+    if found is not None and (found.method == "refined" or (grid.steps - 1) * grid.step_s >= found.duration_s):
+        return grid
+    fine = search.bisect(
+        grid.step_s / FALLBACK_FINER, FALLBACK_FINER * grid.infeasible_steps, FALLBACK_FINER * grid.steps
+    )
+    if fine is None:
+        fine = grid
+    values = clip(spec, project(spec, fine))
+    if spec.torque is None and not spec.bands:
+        note = " (from the finer grid's structure)"
+        if not best.refine_grid(values, fine.step_s, note):
+            late = search.late_vertex(fine.steps, fine.step_s)
+            if late is not None:
+                best.refine_grid(clip(spec, late), fine.step_s, note)
+    arcs = arcs_of(spec.scale * values, fine.step_s)
+    how = (
+        "the grid optimum (no exact structure checks out: its switching times are the grid's, within one step of "
+        "that grid's optimum)"
+    )
+    if best.found is None:
+        best.found = Found(arcs, "grid", how)  # the caller checks its limits between the nodes
+    elif best.found.method != "refined":
+        best.offer(arcs, "grid", how)
+    return fine
+
+
+def solve(spec: Spec, check_limits: LimitCheck | None = None, bound_spec: Spec | None = None) -> Solution:
+    """The minimum-time command of ``spec`` (see the module's docstring). ``check_limits(arcs) -> bool`` tells
+    whether a command meets the limits exactly (the caller's independent check); ``bound_spec`` is the problem
+    lower_bound_s certifies (default ``spec``)."""
+    began = time.perf_counter()  # for solve_time_s only: the search's caps are counts (optim.families.time_optimal.lp)
+    search = GridSearch(spec)
+    best = _Best(spec, search, check_limits)
+    rigid = rigid_of(spec)
+    shaped = shaped_rigid(best, rigid)
+    grid = _grid(search, shaped)
+    exact = spec.torque is None and not spec.bands  # a torque limit or a band: the grid optimum (or the shaped one)
+    if exact:
+        _refined(best, search, grid, rigid)
+    if grid is not None:
+        grid = _grid_answer(best, search, grid)
+    found = best.found
+    assert found is not None  # the shaped rigid optimum, or the grid's
+    bound, method = search.lower_bound(found.duration_s, bound_spec)
+    return Solution(
+        arcs=found.arcs,
+        order=spec.order,
+        duration_s=found.duration_s,
+        lower_bound_s=min(bound, found.duration_s),
+        lower_bound_method=method,
+        grid=grid,
+        method=found.method,
+        refinement=found.note,
+        lp_solves=search.counter.solves,
+        lp_iterations=search.counter.iterations,
+        solve_time_s=time.perf_counter() - began,
+        cut_frequencies=len(search.cuts),
+        max_lp_iterations=search.counter.max_iterations,
+        max_lp_solves=search.counter.max_solves,
+        capped_runs=search.counter.capped_runs,
+        capped_lps=search.counter.capped_lps,
+    )

@@ -1,0 +1,77 @@
+"""The time-optimal family is never beaten by the recipe anyone can build (issue 25): Ruckig's rigid optimum
+shaped by a ZV shaper per mode. That recipe is exactly feasible with zero residual, so its duration, computed here
+in closed form (the double-S of tests/models/test_rigid_motion.py plus half a damped period per mode; Singer and
+Seering 1990), bounds every answer from above; the double-S alone bounds it from below."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from models.plants import ModePlant
+from optim.families.time_optimal.options import TimeOptimalOptions
+from optim.problem import Limits, Problem
+from optim.registry import FAMILIES
+from optim.synthesis import Result, synthesize
+from tests.models.test_rigid_motion import double_s_s
+from tests.time_optimal_oracle import minimum_time
+
+
+def _design(problem: Problem) -> Result:
+    return synthesize(FAMILIES["time_optimal"], problem, TimeOptimalOptions())
+
+
+def _residual(result: Result, omega: float, zeta: float) -> float:
+    """The load's free vibration after the command, by integrating x'' + 2 zeta w x' + w^2 x = -a(t) (x = load
+    - motor) with a' = the held jerk, arc by arc (DOP853, rtol 1e-13)."""
+    state = np.zeros(3)
+    for arc in result.summary.arcs:
+
+        def rhs(_t: float, y: np.ndarray, jerk: float = arc.level) -> list[float]:
+            return [y[1], -2 * zeta * omega * y[1] - omega**2 * y[0] - y[2], jerk]
+
+        state = solve_ivp(rhs, (0.0, arc.duration_s), state, method="DOP853", rtol=1e-13, atol=1e-16).y[:, -1]
+    x, v, _ = state
+    return float(math.hypot(x, (v + zeta * omega * x) / (omega * math.sqrt(1 - zeta**2))))
+
+
+def _zv_s(hz: float, zeta: float) -> float:
+    return 0.5 / (hz * math.sqrt(1 - zeta * zeta))
+
+
+# Seeded random moves: f 5-60 Hz, zeta 0-0.2, D 0.05-1, V 0.2-1, A 2-40, J = A / (5-50 ms).
+RANDOM = np.random.default_rng(25).uniform((5, 0, 0.05, 0.2, 2, 0.005), (60, 0.2, 1, 1, 40, 0.05), (4, 6))
+JERK_MOVES = [  # (f Hz, zeta, D, V, A, J): the issue's two moves (a 29 % loss, a refusal), then the random ones
+    (2000.0, 0.7, 0.17148, 0.52916, 6.4285, 4964.7),
+    (25.0, 0.02, 0.86714, 0.27188, 27.488, 4942.4),
+    *[(f, z, d, v, a, a / ramp) for f, z, d, v, a, ramp in RANDOM.tolist()],
+]
+
+
+@pytest.mark.parametrize(("hz", "zeta", "d", "v", "a", "j"), JERK_MOVES)
+def test_jerk_limited_never_longer_than_zv_shaped_ruckig(
+    hz: float, zeta: float, d: float, v: float, a: float, j: float
+) -> None:
+    problem = Problem(ModePlant(hz, zeta), displacement=d, limits=Limits(v, a, j))
+    result = _design(problem)
+    rigid = double_s_s(d, v, a, j)
+    design = result.summary
+    assert rigid * (1 - 1e-12) <= design.duration_s <= (rigid + _zv_s(hz, zeta)) * (1 + 1e-12)
+    assert design.rigid_duration_s == pytest.approx(rigid, rel=1e-12)  # the jerk counts
+    assert rigid * (1 - 1e-12) <= design.lower_bound_s <= design.duration_s
+    assert design.method in ("refined", "shaped_rigid") and result.limit_violations == ()
+    # the residual, of the quasi-static deflection a / w^2 (tolerance: round-off of arcs integrated over 1e4 periods)
+    assert _residual(result, 2 * math.pi * hz, zeta) < 1e-6 * a / (2 * math.pi * hz) ** 2
+
+
+def test_the_symmetric_three_switch_optimum_is_found() -> None:
+    # The grid's structure was a bang-coast-bang of 1.584519 s; Singh and Vadali's three-switch answer
+    # (tests/time_optimal_oracle.py, proven by the maximum principle) is 1.583956 s.
+    hz, d, a = 20.753648826531734, 1.2046848561232875, 1.9214912031853593
+    result = _design(Problem(ModePlant(hz, 0.0), displacement=d, limits=Limits(max_acceleration=a)))
+    exact = minimum_time(2 * math.pi * hz, a, None, d)
+    assert result.summary.duration_s == pytest.approx(exact, rel=1e-9)  # both exact: round-off of brentq and Newton
+    assert result.summary.method == "refined"
