@@ -75,3 +75,31 @@ def test_the_symmetric_three_switch_optimum_is_found() -> None:
     exact = minimum_time(2 * math.pi * hz, a, None, d)
     assert result.summary.duration_s == pytest.approx(exact, rel=1e-9)  # both exact: round-off of brentq and Newton
     assert result.summary.method == "refined"
+
+
+def test_a_torque_limited_move_the_grid_could_not_hold_is_the_shaped_rigid_optimum() -> None:
+    # bench/time_optimal_random.py #75 (seed 25): a stiff shaft (212 Hz) whose grid command broke the torque
+    # limit between its check points after three tightenings (a 422). The rigid move at a lowered acceleration,
+    # shaped by ZV, holds the torque: J_M a + J_L a_L is a convex combination of the rigid move's.
+    from models.plants import TwoInertiaPlant
+
+    jm, jl, k, torque, d = 0.01, 0.027601225561135593, 49111.03086401297, 0.07792229143809387, 0.41030945475230296
+    problem = Problem(TwoInertiaPlant(jm, jl, k), displacement=d, limits=Limits(max_torque_nm=torque))
+    result = _design(problem)
+    design = result.summary
+    assert design.method == "shaped_rigid" and result.limit_violations == ()
+    # Independently: J_L x_L'' = k (x_M - x_L) under the motor's acceleration, arc by arc (DOP853); the motor
+    # torque J_M a + J_L x_L'' on 50 points an arc, and the load at rest at D after the command.
+    omega2 = k / jl
+    state, peak = np.zeros(4), 0.0  # x_M, v_M, x_L, v_L
+    for arc in design.arcs:
+
+        def rhs(_t: float, y: np.ndarray, accel: float = arc.level) -> list[float]:
+            return [y[1], accel, y[3], omega2 * (y[0] - y[2])]
+
+        times = np.linspace(0.0, arc.duration_s, 50)
+        path = solve_ivp(rhs, (0.0, arc.duration_s), state, method="DOP853", t_eval=times, rtol=1e-12, atol=1e-14).y
+        peak = max(peak, float(np.max(np.abs(jm * arc.level + jl * omega2 * (path[0] - path[2])))))
+        state = path[:, -1]
+    assert peak <= torque * (1 + 1e-6)  # the integrator's tolerance on the deflection
+    assert abs(state[2] - d) < 1e-6 * d and abs(state[3]) < 1e-6 * d / design.duration_s

@@ -27,6 +27,7 @@ from optim.families.time_optimal.report import (
     design_report,
     robustness_report,
 )
+from optim.families.time_optimal.shaped import nominal_shaper, rigid_of, shaped_arcs
 from optim.families.time_optimal.types import MAX_MODES
 from optim.family import BaseFamily, Candidate, Design, Run, SolverSummary, counted
 from optim.problem import Problem
@@ -150,9 +151,56 @@ def excess(problem: Problem, spec: Spec, arcs: tuple[Arc, ...]) -> dict[str, flo
     return out
 
 
+SHAPED_TORQUE_ROUNDS = 8  # the shaped rigid optimum's acceleration lowered at most this many times
+
+
+def shaped_within_torque(problem: Problem, spec: Spec) -> tuple[Arc, ...] | None:
+    """With a torque limit, the shaped rigid optimum (optim.families.time_optimal.shaped) whose acceleration is
+    lowered by its torque's excess until the motor torque, simulated as ``excess`` does, is within the limit. The
+    shaped command's torque J_M a + J_L a_L is the shaper's convex combination of the rigid move's, so it is at
+    most the rigid move's peak, which scales with the acceleration: a few rounds suffice. None without a torque
+    limit, or if it does not settle within SHAPED_TORQUE_ROUNDS."""
+    if spec.torque is None:
+        return None
+    accel = problem.acceleration_limit
+    for _ in range(SHAPED_TORQUE_ROUNDS):
+        rigid_spec = replace(spec, torque=None, max_acceleration=accel)
+        rigid = rigid_of(rigid_spec)
+        if rigid is None:
+            return None
+        arcs = shaped_arcs(rigid_spec, rigid, nominal_shaper(rigid_spec))
+        over = excess(problem, spec, arcs)
+        if not over and limits_met(problem, spec, arcs):
+            return arcs
+        if set(over) != {"max_torque_nm"} or accel is None:
+            return None
+        accel = accel / over["max_torque_nm"] * (1.0 - 1e-6)
+    return None
+
+
+def _with_shaped_torque(problem: Problem, spec: Spec, solution: Solution, valid: bool) -> Solution | None:
+    """The torque-limited shaped rigid optimum where it is shorter than ``solution`` or ``solution`` is not
+    ``valid`` (it breaks a limit), else ``solution`` if valid, else None. The search's counts and its lower bound
+    (of the problem as asked) are kept."""
+    arcs = shaped_within_torque(problem, spec)
+    if arcs is None or (valid and solution.duration_s <= sum(a.duration_s for a in arcs)):
+        return solution if valid else None
+    total = sum(a.duration_s for a in arcs)
+    note = "the rigid move (Ruckig) at the acceleration its shaped torque allows, shaped by ZV per mode"
+    return replace(
+        solution,
+        arcs=arcs,
+        duration_s=total,
+        lower_bound_s=min(solution.lower_bound_s, total),
+        method="shaped_rigid",
+        refinement=note,
+    )
+
+
 def solve_within_limits(problem: Problem, spec: Spec) -> Solution:
     """solve, with a limit the grid command breaks between its check points tightened by its excess and solved
-    again (at most TIGHTENINGS times); the refined commands are checked exactly by limits_met."""
+    again (at most TIGHTENINGS times); the refined commands are checked exactly by limits_met. With a torque
+    limit the shaped rigid optimum within it answers where it is shorter, or where the tightenings fail."""
     current = spec
     solves = iterations = capped_runs = capped_lps = 0
     seconds = 0.0
@@ -162,8 +210,8 @@ def solve_within_limits(problem: Problem, spec: Spec) -> Solution:
         capped_runs, capped_lps = capped_runs + solution.capped_runs, capped_lps + solution.capped_lps
         seconds += solution.solve_time_s
         over = excess(problem, spec, solution.arcs)
-        if not over:  # the report counts every solve, the tightened ones too
-            return replace(
+        if not over or attempt == TIGHTENINGS - 1:  # the report counts every solve, the tightened ones too
+            counted = replace(
                 solution,
                 lp_solves=solves,
                 lp_iterations=iterations,
@@ -171,6 +219,10 @@ def solve_within_limits(problem: Problem, spec: Spec) -> Solution:
                 capped_runs=capped_runs,
                 capped_lps=capped_lps,
             )
+            best = _with_shaped_torque(problem, spec, counted, valid=not over)
+            if best is not None:
+                return best
+            break
         margin = 1.0 - (1e-6, 1e-3, 1e-2)[attempt]  # a little more each time: the excess moves with the limit
         if "max_velocity" in over and current.max_velocity is not None:
             current = replace(current, max_velocity=current.max_velocity / over["max_velocity"] * margin)
