@@ -8,9 +8,9 @@ same code writes the CSV. An error is a ``VibfreeError`` holding the problem+jso
 from __future__ import annotations
 
 import asyncio
+import threading
 import warnings
 from collections.abc import Callable, Iterable, Mapping
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -232,16 +232,28 @@ def _validate(model: type[Any], request: Mapping[str, Any] | str | bytes) -> Any
         raise VibfreeError(orjson.loads(response.body)) from None
 
 
+_LOOP: asyncio.AbstractEventLoop | None = None
+_LOOP_LOCK = threading.Lock()
+
+
+def _loop() -> asyncio.AbstractEventLoop:
+    """The API's own event loop, running in a daemon thread for the life of the process: asyncio.run per call
+    spent 0.2 s closing its loop (joining the worker thread that parsed the request), as long as a whole design."""
+    global _LOOP
+    with _LOOP_LOCK:
+        if _LOOP is None:
+            loop = asyncio.new_event_loop()
+            threading.Thread(target=loop.run_forever, name="vibfree-api-loop", daemon=True).start()
+            _LOOP = loop
+        return _LOOP
+
+
 def _run(coroutine: Any) -> Any:
-    """The coroutine's result, on a new event loop: here, or in a thread of its own where this thread already
-    runs one (a notebook, an async caller), since asyncio.run cannot start inside a running loop."""
+    """The coroutine's result, run on the API's event loop (its own thread: the caller may run a loop of its own,
+    a notebook or an async caller). Calls from several threads take turns on it, as IPOPT needs."""
     _route_logs_to_stdlib()
-    try:
-        asyncio.get_running_loop()
-    except RuntimeError:
-        return _guard(lambda: asyncio.run(coroutine))
-    with ThreadPoolExecutor(max_workers=1) as thread:
-        return _guard(lambda: thread.submit(asyncio.run, coroutine).result())
+    future = asyncio.run_coroutine_threadsafe(coroutine, _loop())
+    return _guard(future.result)
 
 
 def _guard(call: Any) -> Any:
