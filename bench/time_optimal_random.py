@@ -9,7 +9,9 @@ In-process (``vibfree.synthesize``), side by side on each move:
   with a torque limit: the shaped move's torque is not bounded by the rigid move's);
 - the residual at the end of the returned arcs by an independent quadrature (scipy.integrate.quad) of the
   acceleration against each mode, a fraction of the move: must be below 1e-6;
-- refusals: a non-200 answer where the ZV-shaped Ruckig move exists is a defect.
+- refusals: a non-200 answer where the ZV-shaped Ruckig move exists is a defect;
+- on every LP_EVERY-th move without a torque limit, the minimum of an independent 800-step LP
+  (bench/lp_reference.py, bisection to 1e-6): ``duration / LP`` (the issue's target: at most 1.0005).
 
 Moves: modes from near-rigid (2 kHz) to 5 Hz (log-uniform), damping 0 to 0.2, displacement 0.01 to 2, with
 and without velocity and jerk limits; one mode (70 %), two modes (a transfer function, 15 %), a two-inertia
@@ -31,10 +33,13 @@ from scipy.integrate import quad
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from bench.lp_reference import minimum_s  # noqa: E402
 from models.rigid_motion import rigid_move  # noqa: E402
 from vibfree import VibfreeError, synthesize  # noqa: E402
 
 RESIDUAL_BOUND = 1e-6  # of the move
+LP_EVERY = 5
+LP_STEPS = 800
 
 
 def _log_uniform(rng: np.random.Generator, low: float, high: float) -> float:
@@ -114,6 +119,7 @@ def residual_fraction(design: dict[str, Any], modes: list[tuple[float, float]], 
 def main(count: int = 200, seed: int = 25) -> int:
     rng = np.random.default_rng(seed)
     over_zv, over_rigid, seconds, methods = [], [], [], {}
+    over_lp: list[tuple[float, int]] = []
     defects: list[str] = []
     for k in range(count):
         request, modes, torque = random_move(rng)
@@ -136,6 +142,19 @@ def main(count: int = 200, seed: int = 25) -> int:
                 defects.append(f"#{k} longer than ZV-shaped Ruckig ({duration} > {zv_s}): {request}")
         if design["lower_bound_s"] < rigid_s * (1 - 1e-9) and not torque:
             defects.append(f"#{k} lower_bound_s {design['lower_bound_s']} below the rigid minimum {rigid_s}")
+        if not torque and k % LP_EVERY == 0:
+            poles = [complex(-z * w, w * math.sqrt(1 - z * z)) for w, z in modes]
+            lim = request["limits"]
+            args = (
+                request["displacement"],
+                poles,
+                lim.get("max_velocity"),
+                lim["max_acceleration"],
+                lim.get("max_jerk"),
+            )
+            lp_s = minimum_s(rigid_s, duration * 1.001, LP_STEPS, *args)
+            if lp_s is not None:
+                over_lp.append((duration / lp_s, k))
         residual = residual_fraction(design, modes, request["displacement"])
         if residual > RESIDUAL_BOUND:
             defects.append(f"#{k} residual {residual:.3g} of the move: {request}")
@@ -145,6 +164,12 @@ def main(count: int = 200, seed: int = 25) -> int:
           f"shorter on {int(np.sum(zv < 1 - 1e-9))}")  # fmt: skip
     print(f"duration / Ruckig's rigid minimum: min {min(over_rigid):.6f}, median {statistics.median(over_rigid):.6f}")
     print(f"seconds a design: p50 {statistics.median(seconds):.3f}, max {max(seconds):.3f}")
+    if over_lp:
+        ratios = sorted(over_lp, reverse=True)
+        median = statistics.median(r for r, _ in ratios)
+        over = sum(r > 1.0005 for r, _ in ratios)
+        print(f"duration / {LP_STEPS}-step LP ({len(ratios)} moves): max {ratios[0][0]:.5f} (#{ratios[0][1]}), ")
+        print(f"  median {median:.5f}, over 1.0005 on {over}")
     print(f"defects: {len(defects)}")
     for line in defects:
         print("  " + line[:400])
