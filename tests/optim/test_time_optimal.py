@@ -308,7 +308,7 @@ def test_a_stalling_lp_does_not_spend_the_request() -> None:
     options = TimeOptimalOptions()
     spec = spec_of(problem, options, selected_modes(problem, options)[0])
     then = 2 * math.sqrt(0.2 / 2.0)
-    search = GridSearch(replace(spec, floor_s=then, upper_guess_s=spec.upper_guess_s - (spec.floor_s - then)))
+    search = GridSearch(replace(spec, floor_s=then))
     grid = search.grid_optimum()
     fine = search.bisect(grid.step_s / 4, 4 * grid.infeasible_steps, 4 * grid.steps)
     assert fine is not None and fine.steps * fine.step_s <= grid.steps * grid.step_s

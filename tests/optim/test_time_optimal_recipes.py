@@ -103,3 +103,27 @@ def test_a_torque_limited_move_the_grid_could_not_hold_is_the_shaped_rigid_optim
         state = path[:, -1]
     assert peak <= torque * (1 + 1e-6)  # the integrator's tolerance on the deflection
     assert abs(state[2] - d) < 1e-6 * d and abs(state[3]) < 1e-6 * d / design.duration_s
+
+
+def test_a_jerk_limited_grid_command_holds_the_velocity_between_its_check_points() -> None:
+    # bench/time_optimal.py's 5 Hz cruise with a jerk limit: its 4x-finer grid command (1028.8 ms, shorter than
+    # every refined structure) reached 0.6000235 > max_velocity 0.6 between the check points, so it needed a
+    # tightened re-solve. With the velocity held J h^2 / 32 below the limit at the nodes and mid-steps (a parabola
+    # with |v''| <= J exceeds its chord between points h / 2 apart by at most J (h / 2)^2 / 8), the grid command
+    # meets the limit exactly (optim.families.time_optimal.family.limits_met: exact peaks, 1e-10).
+    from optim.families.time_optimal.arcs import arcs_of, command_of
+    from optim.families.time_optimal.family import limits_met, selected_modes, spec_of
+    from optim.families.time_optimal.search import GridSearch, clip, project
+
+    problem = Problem(ModePlant(5.0, 0.05), displacement=0.5, limits=Limits(0.6, 5.0, 100.0))
+    options = TimeOptimalOptions()
+    spec = spec_of(problem, options, selected_modes(problem, options)[0])
+    search = GridSearch(spec)
+    grid = search.grid_optimum()
+    fine = search.bisect(grid.step_s / 4, 4 * grid.infeasible_steps, 4 * grid.steps)
+    assert fine is not None
+    arcs = arcs_of(spec.scale * clip(spec, project(spec, fine)), fine.step_s)
+    peak = command_of(arcs, 3, True).peak_abs(1)
+    assert peak is not None and peak <= 0.6 and limits_met(problem, spec, arcs)
+    result = _design(problem)
+    assert result.summary.duration_s <= fine.steps * fine.step_s * (1 + 1e-12)  # never longer than that grid's

@@ -81,13 +81,17 @@ def spec_of(problem: Problem, options: TimeOptimalOptions, chosen: tuple[int, ..
     zero = tuple(modes[i].pole for i in chosen if keep or i not in covered)
     order = 0 if robust is None else robust.derivative_order
     reference = problem.rigid_reference
-    floor = problem.rigid_floor_s
-    rigid = float(reference.time_s[-1]) if problem.acceleration_limit is not None else floor
+    floor = problem.rigid_floor_s  # the proven floor (Ruckig's, jerk included)
+    # The search's first guess and its default cap come from the closed-form floor and the jerk-free rigid move, as
+    # before issue 25: the grids they give are the ones whose structures refine well (a guess from Ruckig's floor
+    # lost 4 % on bench/time_optimal.py's 10 Hz cruise with a jerk limit).
+    closed = problem.kinematic_floor_s()
+    rigid = float(reference.time_s[-1]) if problem.acceleration_limit is not None else closed
     periods = sum((0.5 + 0.5 * order) * modes[i].damped_period_s for i in chosen)
     slowest = max(modes[i].natural_period_s for i in chosen)
     periods += sum(min(2 * math.pi / b.low_rad_s, 2 * slowest) for b in bands)  # the search doubles it if short
-    upper = max(rigid, floor) + periods
-    cap = options.max_duration_s or min(MAX_DURATION_S, 4.0 * max(rigid, floor) + SEARCH_PERIODS * slowest)
+    upper = max(rigid, closed) + periods  # GridSearch.grid_optimum starts at least 1 % above the floor
+    cap = options.max_duration_s or min(MAX_DURATION_S, 4.0 * max(rigid, closed, floor) + SEARCH_PERIODS * slowest)
     if cap <= floor and options.max_duration_s is not None:
         raise InvalidParameter(
             "max_duration_s", cap, f"must exceed the rigid minimum time within the limits ({floor:.6g} s)"

@@ -113,6 +113,17 @@ def _unit_rows(rows: Array, rhs: Array) -> tuple[Array, Array]:
 
 
 @np.errstate(divide="ignore", invalid="ignore", over="ignore")  # rows are checked whole: _require_finite
+def velocity_bound(spec: Spec, dt: float) -> float:
+    """The velocity bound the grid LP holds at its check points (the nodes, and with a held jerk every step's
+    middle) so that the command holds max_velocity everywhere: with a held jerk the velocity is a parabola on each
+    step, |v''| <= J, so between check points h / 2 apart it exceeds their chord by at most J (h / 2)^2 / 8 =
+    J h^2 / 32 (the interpolation error of a linear interpolant); without one it is linear between the nodes."""
+    assert spec.max_velocity is not None
+    if spec.order != 3 or spec.max_jerk is None:
+        return spec.max_velocity
+    return max(spec.max_velocity - spec.max_jerk * dt * dt / 32.0, 0.5 * spec.max_velocity)
+
+
 def grid_lp(
     spec: Spec, steps: int, dt: float, cuts: list[Cut], counter: LpCounter, weights: Array | None = None
 ) -> Array | None:
@@ -135,15 +146,16 @@ def grid_lp(
         lp.lower[last[m]] = lp.upper[last[m]] = target / c.scale[m]
     nodes = lp.state(np.arange(1, steps), 0)
     if spec.max_velocity is not None:
-        bound = spec.max_velocity * tight / c.scale[1]
+        velocity = velocity_bound(spec, dt) * tight
+        bound = velocity / c.scale[1]
         lp.lower[nodes + 1] = np.maximum(lp.lower[nodes + 1], -bound)
         lp.upper[nodes + 1] = np.minimum(lp.upper[nodes + 1], bound)
         if q == 3:  # mid-step velocity of a held jerk
             e = np.zeros(lp.states)
             e[1] = 1.0
             rows = lp.output_rows(c, e, 0.0, dt, unit, (0.5,))
-            lp.add_ub(rows, np.full(steps, spec.max_velocity * tight))
-            lp.add_ub(-rows, np.full(steps, spec.max_velocity * tight))
+            lp.add_ub(rows, np.full(steps, velocity))
+            lp.add_ub(-rows, np.full(steps, velocity))
     if q == 3 and spec.max_acceleration is not None:
         bound = spec.max_acceleration * tight / c.scale[2]
         lp.lower[nodes + 2] = np.maximum(lp.lower[nodes + 2], -bound)
