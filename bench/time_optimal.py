@@ -13,7 +13,7 @@ b. robust: the V <= 5 % band of the ZVD-shaped command (its sensitivity on a den
    re-measured on the service's own dense sensitivity grid);
 c. with max_jerk: the jerk-limited time-optimal design vs ZV shaping of Ruckig's jerk-limited rigid profile
    (convolved here with A1 = 1/(1+K), A2 = K/(1+K) half a damped period apart, settling from /v1/simulate
-   with the same vibration window; target: never slower). Needs ``pip install ruckig``; skipped without it;
+   with the same vibration window; target: never slower). Ruckig is a dependency of the service (models.rigid_motion);
 d. speed: p50 wall time of nominal and robust single-mode designs and of two- and three-mode
    transfer-function plants (targets 100 ms, 1 s, 2 s).
 

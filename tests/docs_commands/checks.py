@@ -203,6 +203,10 @@ assert table.splitlines()[0] == "time_s,position,load_position", table[:200]
 assert ranking and {"stap", "time_optimal"} <= {row["family"] for row in ranking}, ranking[:1]
 """
 
+BATCH_SNIPPET_CHECK = """
+assert round(durations[0], 4) == 0.2197 and durations[1] > durations[0], durations
+"""
+
 NPZ_SNIPPET_CHECK = """
 assert position.dtype == np.float64 and position.size > 100 and position[0] == 0.0
 assert round(meta["metrics"]["settling_time_s"], 3) == 0.175 and "profile" not in meta
