@@ -117,7 +117,7 @@ def shaped_rigid(best: _Best, rigid: RigidMove | None) -> Found | None:
         return None
     for shaper in shapers(best.spec):
         arcs = shaped_arcs(best.spec, rigid, shaper)
-        impulses = int(np.count_nonzero(shaper[1]))
+        impulses = np.unique(np.round(shaper[0], 15)).size  # ZV^2 is ZVD: three impulses
         note = f"the rigid time-optimal move (Ruckig) shaped by {impulses} positive impulses (no shorter command found)"
         if best.offer(arcs, "shaped_rigid", note):
             return best.found
@@ -140,8 +140,8 @@ def three_switch_starts(spec: Spec, rigid: RigidMove | None) -> list[Start]:
 
 def _grid(search: GridSearch, shaped: Found | None) -> GridSolution | None:
     """The grid optimum, searched from the spec's upper guess or just above the shaped rigid optimum where that is
-    shorter; None if the search finds no command
-    within its caps (counts of work) where the shaped rigid optimum exists (it is then the answer)."""
+    shorter; None if the search finds no command within its caps (counts of work) where the shaped rigid optimum
+    exists (it is then the answer)."""
     try:
         guess = search.spec.upper_guess_s
         return search.grid_optimum(guess if shaped is None else min(guess, shaped.duration_s * (1 + GUESS_MARGIN)))
@@ -180,8 +180,11 @@ def _refined(best: _Best, search: GridSearch, grid: GridSolution | None, rigid: 
 def _grid_answer(best: _Best, search: GridSearch, grid: GridSolution) -> GridSolution:
     """The grid optimum on a grid FALLBACK_FINER times finer: its structures refined in turn (another local optimum
     than the coarse grid's: 1028.8 ms instead of 1032.4 on bench/time_optimal.py's 5 Hz cruise with a jerk limit),
-    and itself the answer where nothing exact checks out. The grid it used."""
-    spec = best.spec
+    and itself the answer where nothing exact checks out or it is shorter. Searched where no structure was refined,
+    or with a held jerk (whose refined structures are often local optima); the grid it used."""
+    spec, found = best.spec, best.found
+    if found is not None and found.method == "refined" and spec.order == 2:
+        return grid  # a held acceleration's refined structures are exact where known: the finer grid cost 2.5x
     fine = search.bisect(
         grid.step_s / FALLBACK_FINER, FALLBACK_FINER * grid.infeasible_steps, FALLBACK_FINER * grid.steps
     )
