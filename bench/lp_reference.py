@@ -17,6 +17,7 @@ bracketed by bisection on T to a relative 1e-6, the feasible end reported.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -44,72 +45,63 @@ def _moment(lam: complex, total: float, starts: Array, ends: Array, order: int) 
     return big(np.maximum(total - starts, 0.0)) - big(np.maximum(total - ends, 0.0))
 
 
-def feasible(
-    total: float,
-    steps: int,
-    move: float,
-    poles: list[complex],
-    max_velocity: float | None,
-    max_acceleration: float,
-    max_jerk: float | None,
-) -> bool:
-    order = 3 if max_jerk is not None else 2
-    limit = max_jerk if max_jerk is not None else max_acceleration
-    h = total / steps
-    starts, ends = np.arange(steps) * h, np.arange(1, steps + 1) * h
-    nodes = ends
-    a_ub: list[Array] = []
-    b_ub: list[Array] = []
-    if max_velocity is not None:
-        points = np.concatenate([nodes, nodes - h / 2]) if order == 3 else nodes
-        rows = _lower(points, starts, ends, order - 1)
-        a_ub += [rows, -rows]
-        b_ub += [np.full(points.size, max_velocity)] * 2
-    if order == 3:
-        rows = _lower(nodes, starts, ends, 1)
-        a_ub += [rows, -rows]
-        b_ub += [np.full(nodes.size, max_acceleration)] * 2
-    end = np.array([total])
-    a_eq = [_lower(end, starts, ends, order), _lower(end, starts, ends, order - 1)]
-    b_eq = [move, 0.0]
-    if order == 3:
-        a_eq.append(_lower(end, starts, ends, 1))
-        b_eq.append(0.0)
-    for lam in poles:
-        row = _moment(lam, total, starts, ends, order)
-        scale = float(np.max(np.abs(row)))
-        a_eq += [row.real[None, :] / scale, row.imag[None, :] / scale]
-        b_eq += [0.0, 0.0]
-    result = linprog(
-        np.zeros(steps),
-        A_ub=np.vstack(a_ub) if a_ub else None,
-        b_ub=np.concatenate(b_ub) if b_ub else None,
-        A_eq=np.vstack(a_eq),
-        b_eq=np.array(b_eq),
-        bounds=[(-limit, limit)] * steps,
-        method="highs",
-    )
-    return bool(result.status == 0)
+@dataclass(frozen=True)
+class GridMove:
+    """A rest-to-rest move of ``move`` > 0 with zero residual at ``poles``, within the limits."""
 
+    move: float
+    poles: tuple[complex, ...]
+    max_velocity: float | None
+    max_acceleration: float
+    max_jerk: float | None
 
-def minimum_s(
-    low: float,
-    high: float,
-    steps: int,
-    move: float,
-    poles: list[complex],
-    max_velocity: float | None,
-    max_acceleration: float,
-    max_jerk: float | None,
-    rtol: float = 1e-6,
-) -> float | None:
-    """The least feasible duration in (low, high] on ``steps`` steps, by bisection; None if ``high`` is not."""
-    if not feasible(high, steps, move, poles, max_velocity, max_acceleration, max_jerk):
-        return None
-    while high - low > rtol * high:
-        mid = 0.5 * (low + high)
-        if feasible(mid, steps, move, poles, max_velocity, max_acceleration, max_jerk):
-            high = mid
-        else:
-            low = mid
-    return high
+    def feasible(self, total: float, steps: int) -> bool:
+        """Whether HiGHS finds a command of ``steps`` held steps lasting ``total``."""
+        order = 3 if self.max_jerk is not None else 2
+        limit = self.max_jerk if self.max_jerk is not None else self.max_acceleration
+        h = total / steps
+        starts, ends = np.arange(steps) * h, np.arange(1, steps + 1) * h
+        a_ub: list[Array] = []
+        b_ub: list[Array] = []
+        if self.max_velocity is not None:
+            points = np.concatenate([ends, ends - h / 2]) if order == 3 else ends
+            rows = _lower(points, starts, ends, order - 1)
+            a_ub += [rows, -rows]
+            b_ub += [np.full(points.size, self.max_velocity)] * 2
+        if order == 3:
+            rows = _lower(ends, starts, ends, 1)
+            a_ub += [rows, -rows]
+            b_ub += [np.full(ends.size, self.max_acceleration)] * 2
+        end = np.array([total])
+        a_eq = [_lower(end, starts, ends, order), _lower(end, starts, ends, order - 1)]
+        b_eq = [self.move, 0.0]
+        if order == 3:
+            a_eq.append(_lower(end, starts, ends, 1))
+            b_eq.append(0.0)
+        for lam in self.poles:
+            row = _moment(lam, total, starts, ends, order)
+            scale = float(np.max(np.abs(row)))
+            a_eq += [row.real[None, :] / scale, row.imag[None, :] / scale]
+            b_eq += [0.0, 0.0]
+        result = linprog(
+            np.zeros(steps),
+            A_ub=np.vstack(a_ub) if a_ub else None,
+            b_ub=np.concatenate(b_ub) if b_ub else None,
+            A_eq=np.vstack(a_eq),
+            b_eq=np.array(b_eq),
+            bounds=[(-limit, limit)] * steps,
+            method="highs",
+        )
+        return bool(result.status == 0)
+
+    def minimum_s(self, low: float, high: float, steps: int, rtol: float = 1e-6) -> float | None:
+        """The least feasible duration in (low, high] on ``steps`` steps, by bisection; None if ``high`` is not."""
+        if not self.feasible(high, steps):
+            return None
+        while high - low > rtol * high:
+            mid = 0.5 * (low + high)
+            if self.feasible(mid, steps):
+                high = mid
+            else:
+                low = mid
+        return high

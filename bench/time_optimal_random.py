@@ -33,7 +33,7 @@ from scipy.integrate import quad
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from bench.lp_reference import minimum_s  # noqa: E402
+from bench.lp_reference import GridMove  # noqa: E402
 from models.rigid_motion import rigid_move  # noqa: E402
 from vibfree import VibfreeError, synthesize  # noqa: E402
 
@@ -143,16 +143,12 @@ def main(count: int = 200, seed: int = 25) -> int:
         if design["lower_bound_s"] < rigid_s * (1 - 1e-9) and not torque:
             defects.append(f"#{k} lower_bound_s {design['lower_bound_s']} below the rigid minimum {rigid_s}")
         if not torque and k % LP_EVERY == 0:
-            poles = [complex(-z * w, w * math.sqrt(1 - z * z)) for w, z in modes]
+            poles = tuple(complex(-z * w, w * math.sqrt(1 - z * z)) for w, z in modes)
             lim = request["limits"]
-            args = (
-                request["displacement"],
-                poles,
-                lim.get("max_velocity"),
-                lim["max_acceleration"],
-                lim.get("max_jerk"),
+            grid_move = GridMove(
+                request["displacement"], poles, lim.get("max_velocity"), lim["max_acceleration"], lim.get("max_jerk")
             )
-            lp_s = minimum_s(rigid_s, duration * 1.001, LP_STEPS, *args)
+            lp_s = grid_move.minimum_s(rigid_s, duration * 1.001, LP_STEPS)
             if lp_s is not None:
                 over_lp.append((duration / lp_s, k))
         residual = residual_fraction(design, modes, request["displacement"])
