@@ -144,7 +144,9 @@ def _grid(search: GridSearch, shaped: Found | None) -> GridSolution | None:
     exists (it is then the answer)."""
     try:
         guess = search.spec.upper_guess_s
-        return search.grid_optimum(guess if shaped is None else min(guess, shaped.duration_s * (1 + GUESS_MARGIN)))
+        if shaped is None or search.spec.bands:  # a band's grids from the first guess (its answers were tuned so)
+            return search.grid_optimum(guess)
+        return search.grid_optimum(min(guess, shaped.duration_s * (1 + GUESS_MARGIN)))
     except SolverTimedOut:  # the wall-clock last resort: a time-out, never an answer that depends on the load
         raise
     except SolverFailed:
@@ -181,10 +183,13 @@ def _grid_answer(best: _Best, search: GridSearch, grid: GridSolution) -> GridSol
     """The grid optimum on a grid FALLBACK_FINER times finer: its structures refined in turn (another local optimum
     than the coarse grid's: 1028.8 ms instead of 1032.4 on bench/time_optimal.py's 5 Hz cruise with a jerk limit),
     and itself the answer where nothing exact checks out or it is shorter. Searched where no structure was refined,
-    or with a held jerk (whose refined structures are often local optima); the grid it used."""
+    where the refined one is longer than the coarse grid's own command (a local optimum: 509.9 ms against the
+    finer grid's 504.2 on bench/time_optimal.py's two-mode case), or with a held jerk (whose refined structures are
+    often local optima); the grid it used."""
     spec, found = best.spec, best.found
-    if found is not None and found.method == "refined" and spec.order == 2:
-        return grid  # a held acceleration's refined structures are exact where known: the finer grid cost 2.5x
+    coarse_s = grid.steps * grid.step_s
+    if found is not None and found.method == "refined" and spec.order == 2 and found.duration_s <= coarse_s:
+        return grid  # a refined held acceleration shorter than the grid's own command: the finer grid cost 2.5x
     fine = search.bisect(
         grid.step_s / FALLBACK_FINER, FALLBACK_FINER * grid.infeasible_steps, FALLBACK_FINER * grid.steps
     )
