@@ -8,6 +8,7 @@ same code writes the CSV. An error is a ``VibfreeError`` holding the problem+jso
 from __future__ import annotations
 
 import asyncio
+import os
 import threading
 import warnings
 from collections.abc import Callable, Iterable, Mapping
@@ -232,20 +233,21 @@ def _validate(model: type[Any], request: Mapping[str, Any] | str | bytes) -> Any
         raise VibfreeError(orjson.loads(response.body)) from None
 
 
-_LOOP: asyncio.AbstractEventLoop | None = None
+_LOOP: tuple[int, asyncio.AbstractEventLoop] | None = None  # (the process that started it, the loop)
 _LOOP_LOCK = threading.Lock()
 
 
 def _loop() -> asyncio.AbstractEventLoop:
     """The API's own event loop, running in a daemon thread for the life of the process: asyncio.run per call
-    spent 0.2 s closing its loop (joining the worker thread that parsed the request), as long as a whole design."""
+    spent 0.2 s closing its loop (joining the worker thread that parsed the request), as long as a whole design.
+    A forked child starts its own (the parent's thread does not exist there)."""
     global _LOOP
     with _LOOP_LOCK:
-        if _LOOP is None:
+        if _LOOP is None or _LOOP[0] != os.getpid():
             loop = asyncio.new_event_loop()
             threading.Thread(target=loop.run_forever, name="vibfree-api-loop", daemon=True).start()
-            _LOOP = loop
-        return _LOOP
+            _LOOP = (os.getpid(), loop)
+        return _LOOP[1]
 
 
 def _run(coroutine: Any) -> Any:

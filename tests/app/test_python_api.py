@@ -197,3 +197,27 @@ def test_the_old_name_of_the_request_schemas_still_works_with_a_warning():
         assert vibfree.FAMILIES is vibfree.REQUEST_SCHEMAS
     with pytest.warns(DeprecationWarning, match="REQUEST_SCHEMAS"):
         assert api.FAMILIES is api.REQUEST_SCHEMAS
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="fork is POSIX")
+def test_a_forked_child_designs_on_a_loop_of_its_own():
+    # The API keeps one event loop in a daemon thread; a child forked after it ran has the loop object but not the
+    # thread, so reusing it would wait forever. The child must start its own (exit 0), within 60 s.
+    import time
+
+    vibfree.synthesize("stap", STAP, settings=TEST_SETTINGS)
+    pid = os.fork()
+    if pid == 0:  # the child: a design, then its exit status says whether it matched
+        try:
+            design = vibfree.synthesize("stap", STAP, settings=TEST_SETTINGS)
+            os._exit(0 if round(design.answer["metrics"]["settling_time_s"], 3) == 0.175 else 1)
+        except BaseException:
+            os._exit(2)
+    deadline = time.monotonic() + 60.0
+    while (done := os.waitpid(pid, os.WNOHANG))[0] == 0 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    if done[0] == 0:
+        os.kill(pid, 9)
+        os.waitpid(pid, 0)
+        pytest.fail("the forked child's design did not finish in 60 s")
+    assert os.waitstatus_to_exitcode(done[1]) == 0
