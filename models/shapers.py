@@ -6,7 +6,8 @@ baseline command convolved with it, v_s(t) = sum_i A_i v_b(t - t_i); the drive t
 slope of the velocity command to the acceleration limit a, v_a = rate_limit(v_s).
 
 Everything here is pure: the design of a shaper (which A_i, t_i) and of a baseline lives in
-``optim.families.input_shaped.shapers``, the drive's rate limiter and position follower in ``models.drives``.
+``optim.families.input_shaped.shapers``, the drive's rate limiter and position follower in ``models.drives``;
+the closed-form ZV^(k+1) (``zv_family``, eq. 11) is here, since the time-optimal family shapes with it too.
 Velocity commands made of steps and ramps (the baseline v_b, the shaped v_s and the rate-limited v_a) are
 described exactly by a ``RampTrain`` and become exact ``PiecewiseCommand`` objects (velocity piecewise linear, a
 breakpoint at every kink), so that the simulation of the load is exact.
@@ -25,6 +26,7 @@ from scipy.optimize import brentq
 from models.breakpoints import integrated, merge_times, merge_tolerance, snap
 from models.commands import PiecewiseCommand, check_time_grid
 from models.errors import InvalidParameter
+from models.plant_base import Mode
 
 # ------------------------------------------------------------------------------------------
 # Impulse sequences
@@ -80,6 +82,17 @@ class ImpulseSequence:
     @property
     def gain(self) -> float:
         return float(np.sum(self.amplitudes))
+
+
+def zv_family(mode: Mode, derivatives: int) -> ImpulseSequence:
+    """ZV (k = 0), ZVD (k = 1, eqs. 8-11), ZVDD, ...: (k + 2) impulses half a damped period apart,
+    A_i = C(k+1, i) K^i / (1 + K)^(k+1), K = exp(-zeta pi / sqrt(1 - zeta^2)) (eq. 11)."""
+    zeta = mode.damping_ratio
+    big_k = math.exp(-zeta * math.pi / math.sqrt(1.0 - zeta * zeta))
+    n = derivatives + 1
+    amplitudes = np.array([math.comb(n, i) * big_k**i for i in range(n + 1)]) / (1.0 + big_k) ** n
+    times = np.arange(n + 1) * math.pi / mode.damped_frequency_rad_s
+    return ImpulseSequence(amplitudes, times)
 
 
 def percentage_vibration(

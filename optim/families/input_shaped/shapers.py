@@ -41,7 +41,7 @@ from scipy.optimize import root
 
 from models.errors import Infeasible, InvalidParameter
 from models.plants import Mode
-from models.shapers import ImpulseSequence, convolve, vibration_band
+from models.shapers import ImpulseSequence, convolve, vibration_band, zv_family
 from optim.families.input_shaped.shaper_baselines import (
     Baseline,
     BaselineChoice,
@@ -147,17 +147,6 @@ def _check_tolerance(value: float) -> float:
 
 # ------------------------------------------------------------------------------------------
 # Closed forms
-
-
-def zv_family(mode: Mode, derivatives: int) -> ImpulseSequence:
-    """ZV (k = 0), ZVD (k = 1, eqs. 8-11), ZVDD, ...: (k + 2) impulses half a damped period apart,
-    A_i = C(k+1, i) K^i / (1 + K)^(k+1), K = exp(-zeta pi / sqrt(1 - zeta^2)) (eq. 11)."""
-    zeta = mode.damping_ratio
-    big_k = math.exp(-zeta * math.pi / math.sqrt(1.0 - zeta * zeta))
-    n = derivatives + 1
-    amplitudes = np.array([math.comb(n, i) * big_k**i for i in range(n + 1)]) / (1.0 + big_k) ** n
-    times = np.arange(n + 1) * math.pi / mode.damped_frequency_rad_s
-    return ImpulseSequence(amplitudes, times)
 
 
 def mzv(mode: Mode) -> ImpulseSequence:

@@ -30,18 +30,11 @@ from numpy.typing import NDArray
 
 from models.errors import SolverFailed, SolverTimedOut
 from models.rigid_motion import RigidMove
+from models.shapers import ImpulseSequence, convolve
 from optim.families.time_optimal.arcs import arcs_of, merged, structure
 from optim.families.time_optimal.refine import refine
 from optim.families.time_optimal.search import GridSearch, clip, project
-from optim.families.time_optimal.shaped import (
-    Shaper,
-    as_start,
-    band_shapers,
-    convolved,
-    nominal_shaper,
-    rigid_of,
-    shaped_arcs,
-)
+from optim.families.time_optimal.shaped import as_start, band_shapers, nominal_shaper, rigid_of, shaped_arcs
 from optim.families.time_optimal.types import Arc, GridSolution, Solution, Spec
 
 Array = NDArray[np.float64]
@@ -96,7 +89,7 @@ class _Best:
         return self.refine_from(structure(values, step_s), note)
 
 
-def shapers(spec: Spec) -> list[Shaper]:
+def shapers(spec: Spec) -> list[ImpulseSequence]:
     """The shapers tried on the rigid optimum, shortest first: ZV^(n+1) at every zero-residual pole, and with
     bands the same times a robust shaper over every band (optim.families.time_optimal.shaped.band_shapers)."""
     base = nominal_shaper(spec)
@@ -106,7 +99,7 @@ def shapers(spec: Spec) -> list[Shaper]:
     for per_band in zip(*(band_shapers(b) for b in spec.bands), strict=True):
         shaper = base
         for extra in per_band:
-            shaper = convolved(shaper, extra)
+            shaper = convolve(shaper, extra)
         out.append(shaper)
     return out
 
@@ -117,8 +110,10 @@ def shaped_rigid(best: _Best, rigid: RigidMove | None) -> Found | None:
         return None
     for shaper in shapers(best.spec):
         arcs = shaped_arcs(best.spec, rigid, shaper)
-        impulses = np.unique(np.round(shaper[0], 15)).size  # ZV^2 is ZVD: three impulses
-        note = f"the rigid time-optimal move (Ruckig) shaped by {impulses} positive impulses (no shorter command found)"
+        note = (
+            f"the rigid time-optimal move (Ruckig) shaped by {shaper.count} positive impulses "
+            "(no shorter command found)"
+        )
         if best.offer(arcs, "shaped_rigid", note):
             return best.found
     return None

@@ -17,42 +17,26 @@ from collections.abc import Iterator
 import numpy as np
 from numpy.typing import NDArray
 
+from models.plant_base import Mode
 from models.rigid_motion import RigidMove, rigid_move
+from models.shapers import ImpulseSequence, convolve, zv_family
 from optim.families.time_optimal.types import Arc, Band, Spec
 
 Array = NDArray[np.float64]
-Shaper = tuple[Array, Array]  # (times_s, amplitudes): positive amplitudes summing to 1
 MAX_BAND_SHAPERS = 4  # ZVs spread over a band, at most: each adds a half period to the command
 ROUND_S = 15  # breakpoints closer than 1e-15 s are one
+IDENTITY = ImpulseSequence(np.array([1.0]), np.array([0.0]))
 
 
-def zv_impulses(pole: complex) -> Shaper:
-    """The ZV shaper of a mode: 1/(1+K), K/(1+K) half a damped period apart, K = exp(-zeta pi / sqrt(1-zeta^2))."""
-    sigma, omega_d = -pole.real, pole.imag
-    k = math.exp(-sigma * math.pi / omega_d)
-    return np.array([0.0, math.pi / omega_d]), np.array([1.0, k]) / (1.0 + k)
-
-
-def convolved(first: Shaper, second: Shaper) -> Shaper:
-    times = (first[0][:, None] + second[0][None, :]).ravel()
-    amplitudes = (first[1][:, None] * second[1][None, :]).ravel()
-    return times, amplitudes
-
-
-def nominal_shaper(spec: Spec) -> Shaper:
-    """ZV^(n+1) at every zero-residual pole."""
-    shaper: Shaper = (np.array([0.0]), np.array([1.0]))
+def nominal_shaper(spec: Spec) -> ImpulseSequence:
+    """ZV^(n+1) at every zero-residual pole (models.shapers.zv_family, eq. 11)."""
+    shaper = IDENTITY
     for pole in spec.zero_poles:
-        for _ in range(spec.derivative_order + 1):
-            shaper = convolved(shaper, zv_impulses(pole))
+        shaper = convolve(shaper, zv_family(Mode.from_pole(pole), spec.derivative_order))
     return shaper
 
 
-def _pole(omega: float, zeta: float) -> complex:
-    return complex(-zeta * omega, omega * math.sqrt(1.0 - zeta * zeta))
-
-
-def band_shapers(band: Band) -> Iterator[Shaper]:
+def band_shapers(band: Band) -> Iterator[ImpulseSequence]:
     """Robust shapers over a band, shortest first: k = 1..MAX_BAND_SHAPERS ZVs at the band's k quantiles of
     equal log-width (k = 1: its geometric centre), each at the band's middle damping ratio; the caller keeps
     the first that its dense check passes."""
@@ -60,10 +44,9 @@ def band_shapers(band: Band) -> Iterator[Shaper]:
     zeta = min(zetas[len(zetas) // 2], 0.99)
     lo, hi = math.log(band.low_rad_s), math.log(band.high_rad_s)
     for k in range(1, MAX_BAND_SHAPERS + 1):
-        shaper: Shaper = (np.array([0.0]), np.array([1.0]))
+        shaper = IDENTITY
         for i in range(k):
-            omega = math.exp(lo + (hi - lo) * (i + 0.5) / k)
-            shaper = convolved(shaper, zv_impulses(_pole(omega, zeta)))
+            shaper = convolve(shaper, zv_family(Mode(math.exp(lo + (hi - lo) * (i + 0.5) / k), zeta), 0))
         yield shaper
 
 
@@ -78,9 +61,9 @@ def rigid_of(spec: Spec) -> RigidMove | None:
         return None
 
 
-def shaped_arcs(spec: Spec, rigid: RigidMove, shaper: Shaper) -> tuple[Arc, ...]:
+def shaped_arcs(spec: Spec, rigid: RigidMove, shaper: ImpulseSequence) -> tuple[Arc, ...]:
     """The rigid move convolved with the shaper, as arcs of the held derivative (absolute levels)."""
-    times, amplitudes = shaper
+    times, amplitudes = shaper.times_s, shaper.amplitudes
     edges, levels = rigid.edges_s, rigid.levels
     breaks = np.unique(np.round((times[:, None] + edges[None, :]).ravel(), ROUND_S))
     mids = 0.5 * (breaks[:-1] + breaks[1:])
