@@ -93,12 +93,21 @@ def _checked_grid(time_s: ArrayLike, field: str) -> tuple[NDArray[np.float64], N
 class PiecewiseCommand:
     """A motor command that is a polynomial of degree ``degree`` between breakpoints.
 
-    ``derivatives[m, k]`` is p^(m)(t_k+), the right-hand m-th derivative at breakpoint k.
+    ``derivatives[m, k]`` is p^(m)(t_k+), the right-hand m-th derivative at breakpoint k. ``motion_before`` is
+    (p'(t_0-), p''(t_0-), ...): the motion the command continues, which the load has followed long enough to be in
+    its quasi-static state (its free response is zero at t_0-); () is rest.
     """
 
     time_s: NDArray[np.float64]
     derivatives: NDArray[np.float64]
     continuous_orders: int = 0  # p .. p^(continuous_orders - 1) are continuous after t_0
+    motion_before: tuple[float, ...] = ()
+
+    def before(self, m: int) -> float:
+        """p^(m)(t_0-): p(t_0) for m = 0, the motion before the command otherwise (0 at rest)."""
+        if m == 0:
+            return float(self.derivatives[0, 0])
+        return self.motion_before[m - 1] if m - 1 < len(self.motion_before) else 0.0
 
     @property
     def degree(self) -> int:
@@ -146,7 +155,7 @@ class PiecewiseCommand:
         return cache[m]
 
     def left_limits(self) -> NDArray[np.float64]:
-        """p^(m)(t_k-), from the piece before each breakpoint; rest at p(t_0) before t_0."""
+        """p^(m)(t_k-), from the piece before each breakpoint; ``before(m)`` at t_0."""
         return np.array([self.left_limit(m) for m in range(self.degree + 1)])
 
     def left_limit(self, m: int) -> NDArray[np.float64]:
@@ -155,7 +164,7 @@ class PiecewiseCommand:
         if m not in cache:
             d = self.degree
             left = np.empty_like(self.time_s)
-            left[0] = self.derivatives[0, 0] if m == 0 else 0.0
+            left[0] = self.before(m)
             if m == d:  # the top order is constant on each piece
                 left[1:] = self.derivatives[d, :-1]
             else:
@@ -168,8 +177,8 @@ class PiecewiseCommand:
     def _jumps(self) -> NDArray[np.float64]:
         d = self.degree
         jumps = np.zeros(self.derivatives.shape)  # calloc: rows that stay zero are never written
-        # Leaving rest at t_0; values at round-off level of their own row count as zero.
-        first = self.derivatives[1:, 0]
+        # Leaving rest (or the motion before) at t_0; values at round-off level of their own row count as zero.
+        first = self.derivatives[1:, 0] - np.array([self.before(m) for m in range(1, d + 1)])
         row_scale = np.max(np.abs(self.derivatives[1:]), axis=1)
         jumps[1:, 0] = np.where(np.abs(first) <= _JUMP_RELATIVE_TOLERANCE * row_scale, 0.0, first)
         for m in range(self.continuous_orders, d + 1):  # loop over derivative orders
@@ -366,7 +375,7 @@ class PiecewiseCommand:
         t = np.union1d(grid[~near], inside)
         if t[-1] < stop:
             t = np.append(t, stop)
-        return PiecewiseCommand(t, self._evaluate_orders(t), self.continuous_orders)
+        return PiecewiseCommand(t, self._evaluate_orders(t), self.continuous_orders, self.motion_before)
 
     def _evaluate_orders(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
         """``evaluate(m, t)`` for every order m (one row each), with one search and one set of powers of
@@ -391,11 +400,14 @@ class PiecewiseCommand:
         return cls(check_time_grid(time_s), np.atleast_2d(np.asarray(derivatives, dtype=float)))
 
     @classmethod
-    def from_held_steps(cls, time_s: ArrayLike, levels: ArrayLike, order: int) -> PiecewiseCommand:
-        """The command from rest whose derivative of ``order`` is ``levels[k]`` on [t_k, t_(k+1)) (the last
-        level holds after the last breakpoint), its lower derivatives integrated exactly: a bang-bang or
-        trapezoidal acceleration (order 2), a piecewise-constant jerk (order 3). Built directly: steps may be
-        shorter than a sampled grid allows."""
+    def from_held_steps(
+        cls, time_s: ArrayLike, levels: ArrayLike, order: int, initial: tuple[float, ...] = ()
+    ) -> PiecewiseCommand:
+        """The command whose derivative of ``order`` is ``levels[k]`` on [t_k, t_(k+1)) (the last level holds
+        after the last breakpoint), its lower derivatives integrated exactly: a bang-bang or trapezoidal
+        acceleration (order 2), a piecewise-constant jerk (order 3). ``initial`` = (p, p', ...) at t_0 (default
+        rest), continuing that motion (``motion_before``). Built directly: steps may be shorter than a sampled
+        grid allows."""
         t = np.asarray(time_s, dtype=float)
         held = np.asarray(levels, dtype=float)
         h = np.diff(t)
@@ -404,4 +416,7 @@ class PiecewiseCommand:
         for m in range(order - 1, -1, -1):  # each derivative from the higher ones, exact over every step
             step = sum(state[n, :-1] * h ** (n - m) / math.factorial(n - m) for n in range(m + 1, order + 1))
             state[m, 1:] = np.cumsum(step)
-        return cls(t, state, continuous_orders=order)
+            if m < len(initial) and initial[m] != 0.0:
+                state[m] += initial[m]
+        motion = tuple(float(v) for v in initial[1:order]) if any(initial[1:order]) else ()
+        return cls(t, state, continuous_orders=order, motion_before=motion)

@@ -1,7 +1,8 @@
 """The rigid time-optimal move under velocity, acceleration and jerk limits, by Ruckig (Berscheid and Kroeger
 2021): the reference no vibration-aware command may beat, and the profile the ZV-shaped recipe shapes.
 
-A move is rest-to-rest (``rest_to_rest``: position 0 -> ``move``) or rest-to-velocity (velocity 0 -> ``move``,
+A move is rest-to-rest (``rest_to_rest``: position 0 -> ``move``, possibly starting and ending in motion) or
+rest-to-velocity (velocity 0 -> ``move``,
 acceleration back to 0). A limit left as None is unbounded. Ruckig's profile has seven phases of constant
 jerk; without a jerk limit its phases hold the acceleration instead (the jerk is impulsive).
 """
@@ -31,14 +32,29 @@ class RigidMove:
         return float(self.edges_s[-1])
 
 
+def _length_scale(move: float, speed: float, max_acceleration: float | None, max_jerk: float | None) -> float:
+    """A length near the move's own: |move|, or the distance to brake from ``speed`` if that is larger."""
+    brake = speed * speed / max_acceleration if max_acceleration is not None else 0.0
+    if max_jerk is not None and max_acceleration is None:
+        brake = speed**1.5 / math.sqrt(max_jerk)
+    return max(abs(move), brake) or 1.0
+
+
 def rigid_move(
     move: float,
     rest_to_rest: bool,
     max_velocity: float | None,
     max_acceleration: float | None,
     max_jerk: float | None,
+    *,
+    current_velocity: float = 0.0,
+    current_acceleration: float = 0.0,
+    target_velocity: float = 0.0,
+    target_acceleration: float = 0.0,
 ) -> RigidMove:
-    """The time-optimal rigid move of ``move`` (> 0) within the limits (at least one of acceleration or jerk).
+    """The time-optimal rigid move of ``move`` (> 0 from rest) within the limits (at least one of acceleration or
+    jerk). A rest-to-rest move (``rest_to_rest``) may start and end in motion (Ruckig's current_ and target_
+    velocity and acceleration; then ``move`` is signed).
 
     Ruckig runs on the move scaled to 1 and time scaled to the move's own (sqrt(move / A), or (move / J)^(1/3)),
     so that its numbers stay near 1 whatever the units (it refuses a move of 1e9 at 1e-6 m/s^2 as given); the
@@ -48,21 +64,27 @@ def rigid_move(
     if max_acceleration is None and max_jerk is None:
         raise ValueError("the rigid optimum needs an acceleration or a jerk limit")
     if rest_to_rest:
-        tau = math.sqrt(move / max_acceleration) if max_acceleration is not None else (move / max_jerk) ** (1 / 3)  # type: ignore[operator]
+        speed = max(abs(current_velocity), abs(target_velocity))
+        length = _length_scale(move, speed, max_acceleration, max_jerk)
+        tau = math.sqrt(length / max_acceleration) if max_acceleration is not None else (length / max_jerk) ** (1 / 3)  # type: ignore[operator]
     else:  # to speed ``move``: its time at the acceleration limit, or under the jerk alone
         tau = move / max_acceleration if max_acceleration is not None else math.sqrt(move / max_jerk)  # type: ignore[operator]
-    unit = move if rest_to_rest else move * tau  # position unit: the move, or the distance at speed ``move`` in tau
+    unit = length if rest_to_rest else move * tau  # position unit: the move, or the distance at speed ``move`` in tau
 
     def scaled(limit: float | None, order: int) -> float:
         return math.inf if limit is None else limit * tau**order / unit
 
     given = InputParameter(1)
-    given.current_position, given.current_velocity, given.current_acceleration = [0.0], [0.0], [0.0]
+    given.current_position = [0.0]
+    given.current_velocity = [current_velocity * tau / unit]
+    given.current_acceleration = [current_acceleration * tau**2 / unit]
     given.max_velocity = [scaled(max_velocity, 1) if rest_to_rest else math.inf]
     given.max_acceleration = [scaled(max_acceleration, 2)]
     given.max_jerk = [scaled(max_jerk, 3)]
     if rest_to_rest:
-        given.target_position = [1.0]
+        given.target_position = [move / unit]
+        given.target_velocity = [target_velocity * tau / unit]
+        given.target_acceleration = [target_acceleration * tau**2 / unit]
     else:
         given.control_interface = ControlInterface.Velocity
         given.target_velocity = [move * tau / unit]

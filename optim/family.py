@@ -152,6 +152,7 @@ class BaseFamily:
     implements ``design``."""
 
     name: ClassVar[str] = ""
+    moves_in_motion: ClassVar[bool] = False  # designs moves that start or end in motion (Problem.in_motion)
 
     def not_applicable(self, problem: Problem) -> str | None:
         return None

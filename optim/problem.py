@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from models.commands import PiecewiseCommand
 from models.errors import Infeasible, InvalidParameter
 from models.plants import Plant
-from models.rigid_motion import rigid_move
+from models.rigid_motion import RigidMove, rigid_move
 from optim.solver import SolveCaps
 
 MAX_MOVE = 1e9
@@ -72,6 +72,22 @@ class SensitivityGrid:
 
 
 @dataclass(frozen=True)
+class MotionState:
+    """The motor's velocity and acceleration where a move starts or ends (Ruckig's current_/target_ state); the
+    load is quasi-static in that motion (it has followed it long enough for its free vibration to have died)."""
+
+    velocity: float = 0.0
+    acceleration: float = 0.0
+
+    @property
+    def moving(self) -> bool:
+        return self.velocity != 0.0 or self.acceleration != 0.0
+
+
+REST = MotionState()
+
+
+@dataclass(frozen=True)
 class Problem:
     plant: Plant
     displacement: float | None = None
@@ -84,6 +100,8 @@ class Problem:
     max_samples: int = 200_000
     solver: SolveCaps = field(default_factory=SolveCaps)
     allow_limit_violation: bool = False
+    initial_state: MotionState = REST
+    final_state: MotionState = REST
 
     def __post_init__(self) -> None:
         if (self.displacement is None) == (self.target_velocity is None):
@@ -111,6 +129,7 @@ class Problem:
                 self.limits.max_torque_nm,
                 f"a {self.plant.kind} plant defines no motor torque (two_inertia does)",
             )
+        self._check_states()
         top = self.limits.max_velocity
         if self.target_velocity is not None and top is not None and abs(self.target_velocity) > top:
             raise Infeasible(
@@ -118,9 +137,59 @@ class Problem:
                 "target_velocity",
             )
 
+    def _check_states(self) -> None:
+        """A move in motion has a displacement; its states lie within the velocity and acceleration limits; a
+        non-zero acceleration needs a jerk limit."""
+        for name, state in (("initial_state", self.initial_state), ("final_state", self.final_state)):
+            if not state.moving:
+                continue
+            if self.target_velocity is not None:
+                raise InvalidParameter(
+                    name, state.velocity, "a move in motion needs a displacement, not target_velocity"
+                )
+            for part, value, limit in (
+                ("velocity", state.velocity, self.limits.max_velocity),
+                ("acceleration", state.acceleration, self.acceleration_limit),
+            ):
+                if not math.isfinite(value) or abs(value) > MAX_MOVE:
+                    raise InvalidParameter(f"{name}.{part}", value, f"must be finite and within +-{MAX_MOVE:g}")
+                if limit is not None and abs(value) > limit:
+                    raise InvalidParameter(f"{name}.{part}", value, f"must be within the limit {limit:g} (|{part}|)")
+            if state.acceleration != 0.0 and self.limits.max_jerk is None:
+                raise InvalidParameter(
+                    f"{name}.acceleration",
+                    state.acceleration,
+                    "a move between non-zero accelerations needs limits.max_jerk (without one the acceleration is "
+                    "held piecewise constant and may jump: give 0)",
+                )
+
     @property
     def rest_to_rest(self) -> bool:
+        """A displacement is asked (a position move, from and to rest unless ``in_motion``)."""
         return self.displacement is not None
+
+    @property
+    def in_motion(self) -> bool:
+        """The move starts or ends with the motor moving (initial_state, final_state)."""
+        return self.initial_state.moving or self.final_state.moving
+
+    def rigid_move(
+        self, max_velocity: float | None, max_acceleration: float | None, max_jerk: float | None
+    ) -> RigidMove:
+        """Ruckig's rigid optimum of this move (its states included) within the limits given (ValueError if
+        Ruckig finds none)."""
+        start, end = self.initial_state, self.final_state
+        return rigid_move(
+            abs(self.move) if not self.in_motion else self.move,
+            self.rest_to_rest,
+            max_velocity,
+            max_acceleration,
+            max_jerk,
+            current_velocity=start.velocity,
+            current_acceleration=start.acceleration,
+            target_velocity=end.velocity,
+            target_acceleration=end.acceleration,
+        )
 
     @property
     def move_field(self) -> str:
@@ -198,16 +267,17 @@ class Problem:
             return None
         lim = self.limits
         try:
-            move = rigid_move(
-                abs(self.move), self.rest_to_rest, lim.max_velocity, self.acceleration_limit, lim.max_jerk
-            )
+            move = self.rigid_move(lim.max_velocity, self.acceleration_limit, lim.max_jerk)
         except ValueError:  # limits too far apart for Ruckig even scaled (models.rigid_motion): not known
             return None
         return move.duration_s
 
     def kinematic_floor_s(self) -> float:
         """A closed-form floor on the duration of any rest-to-rest move (or acceleration phase) within the limits,
-        each limit alone (D / V, 2 sqrt(D / A), (32 D / J)^(1/3)); rigid_floor_s is the exact one."""
+        each limit alone (D / V, 2 sqrt(D / A), (32 D / J)^(1/3)); rigid_floor_s is the exact one. 0 for a move
+        in motion (these forms assume rest at both ends)."""
+        if self.in_motion:
+            return 0.0
         lim = self.limits
         accel = self.acceleration_limit
         d = abs(self.move)
@@ -228,13 +298,30 @@ class Problem:
         motor does (in kinematic_floor_s)."""
         lim = self.limits
         floor = self.kinematic_floor_s()
+        if self.in_motion and self.acceleration_limit != lim.max_acceleration:
+            floor = max(floor, self._centre_of_mass_floor_s())
         if lim.max_acceleration is None and lim.max_jerk is None:
             return floor
         try:
-            move = rigid_move(abs(self.move), self.rest_to_rest, lim.max_velocity, lim.max_acceleration, lim.max_jerk)
+            move = self.rigid_move(lim.max_velocity, lim.max_acceleration, lim.max_jerk)
         except ValueError:  # Ruckig refuses limits too far apart: the closed-form floor still holds
             return floor
         return max(floor, move.duration_s)
+
+    def _centre_of_mass_floor_s(self) -> float:
+        """A move in motion under a torque limit: the centre of mass, whose acceleration is the torque over
+        J_M + J_L, moves D from v0 to vf (the load quasi-static at both ends moves with the motor), no faster than
+        Ruckig's rigid optimum at M / (J_M + J_L) with no other limit; 0 where the ends accelerate (the centre's
+        acceleration may then jump) or Ruckig finds none."""
+        start, end, accel = self.initial_state, self.final_state, self.acceleration_limit
+        if start.acceleration or end.acceleration or accel is None:
+            return 0.0
+        try:
+            return rigid_move(
+                self.move, True, None, accel, None, current_velocity=start.velocity, target_velocity=end.velocity
+            ).duration_s
+        except ValueError:
+            return 0.0
 
 
 def nice_period(span_s: float, samples: int = DEFAULT_SAMPLES) -> float:

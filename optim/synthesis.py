@@ -70,6 +70,8 @@ class Result:
 def synthesize(family: Family, problem: Problem, options: Any) -> Result:
     """Design, sample, simulate and evaluate one family's command for ``problem``."""
     reason = family.not_applicable(problem)
+    if problem.in_motion and not getattr(family, "moves_in_motion", False):
+        reason = f"{family.name} designs moves from rest: only time_optimal starts or ends in motion"
     if reason is not None:
         raise NotApplicable(reason)
     design = family.design(problem, options)

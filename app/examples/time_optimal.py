@@ -34,6 +34,18 @@ EXAMPLES: dict[str, dict[str, Any]] = {
             "limits": {"max_velocity": 1.0, "max_acceleration": 10.0, "max_jerk": 200.0},
         },
     },
+    "in_motion": {
+        "summary": "Starting and ending in motion: from 0.2 m/s to 0.1 m/s over 0.3 m, the load still vibration-free",
+        "description": "initial_state / final_state chain moves: each starts where the previous one ended (the load "
+        "quasi-static in that motion).",
+        "value": {
+            "plant": {"kind": "mode", "natural_frequency_hz": 5.0, "damping_ratio": 0.05},
+            "displacement": 0.3,
+            "limits": {"max_velocity": 0.5, "max_acceleration": 3.0},
+            "initial_state": {"velocity": 0.2},
+            "final_state": {"velocity": 0.1},
+        },
+    },
     "tradeoff": {
         "summary": "What robustness costs: the minimum duration for bands of +-0, 5, 10, 15, 20 %",
         "value": {**_40HZ, "limits": _LIMITS, "tradeoff": [0, 0.05, 0.1, 0.15, 0.2]},

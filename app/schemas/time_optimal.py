@@ -2,16 +2,31 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Annotated, Any, ClassVar
 
 from pydantic import Field, field_validator, model_validator
 
-from app.schemas.common import INTEGRAL, DampingRatio, OutModel, StrictModel, either, given, limit_given
+from app.schemas.common import (
+    INTEGRAL,
+    Cond,
+    DampingRatio,
+    OutModel,
+    StrictModel,
+    either,
+    given,
+    inside,
+    leaf,
+    limit_given,
+    never,
+)
 from app.schemas.family import FamilyResponse, ProfileRequest
+from app.settings import Settings
+from models.errors import InvalidParameter
 from models.plants import FREQUENCY_MAX_HZ, FREQUENCY_MIN_HZ
 from optim.families.time_optimal.options import MAX_TRADEOFF, Robustness, TimeOptimalOptions
 from optim.families.time_optimal.types import DEFAULT_MAX_PERCENTAGE_VIBRATION, MAX_MODES, MIN_PERCENTAGE_VIBRATION
-from optim.problem import Problem
+from optim.problem import REST, MotionState, Problem
 from optim.registry import FAMILIES
 
 FAMILY = FAMILIES["time_optimal"]
@@ -116,6 +131,29 @@ class RobustnessIn(StrictModel):
         )
 
 
+class MotionStateIn(StrictModel):
+    """The motor's motion where a move starts or ends (Ruckig's current_/target_ velocity and acceleration); the
+    load is taken as quasi-static in it (it has followed that motion long enough for its vibration to have died)."""
+
+    velocity: float = Field(
+        0.0, ge=-1e9, le=1e9, description="Motor velocity (m/s or rad/s), within limits.max_velocity."
+    )
+    acceleration: float = Field(
+        0.0,
+        ge=-1e9,
+        le=1e9,
+        description="Motor acceleration, within limits.max_acceleration; non-zero only with limits.max_jerk.",
+    )
+
+    def to_core(self) -> MotionState:
+        return MotionState(float(self.velocity), float(self.acceleration))
+
+
+def _accelerating(name: str) -> Cond:
+    """``<name>.acceleration`` is given and not 0."""
+    return inside(name, leaf("acceleration", {"not": {"const": 0}}, {"const": 0}))
+
+
 class TimeOptimalIn(ProfileRequest):
     """The shortest command within the limits that leaves no residual vibration at the plant's modes, or whose
     percentage vibration stays below max_percentage_vibration over a band of frequencies (robustness).
@@ -140,6 +178,14 @@ class TimeOptimalIn(ProfileRequest):
         "band [1 - h, 1 + h] of frequency ratios (h = 0: zero residual), with the same max_percentage_vibration "
         "and damping_ratio_range: what robustness costs.",
     )
+    initial_state: MotionStateIn | None = Field(
+        None,
+        description="Where the move starts in motion (default rest): the previous move's end, so that moves chain. "
+        "Only with a displacement.",
+    )
+    final_state: MotionStateIn | None = Field(
+        None, description="Where the move ends in motion (default rest), the load's vibration zero there."
+    )
     max_duration_s: float | None = Field(
         None,
         ge=1e-6,
@@ -152,7 +198,37 @@ class TimeOptimalIn(ProfileRequest):
     def schema_rules(cls) -> list[dict[str, Any]]:
         # without a bound on the acceleration the minimum-time command is impulsive: the family's not_applicable
         bound = either(limit_given("max_acceleration"), limit_given("max_jerk"), limit_given("max_torque_nm"))
-        return [*super().schema_rules(), bound.holds]
+        states = [
+            # optim.problem.Problem._check_states: a move in motion has a displacement
+            never(given("initial_state", "object"), given("target_velocity")),
+            never(given("final_state", "object"), given("target_velocity")),
+            # optim.problem.Problem._check_states: an acceleration at either end needs a jerk limit
+            never(_accelerating("initial_state"), ~limit_given("max_jerk")),
+            never(_accelerating("final_state"), ~limit_given("max_jerk")),
+        ]
+        return [*super().schema_rules(), bound.holds, *states]
+
+    UNSCHEMED_RULES: ClassVar[tuple[str, ...]] = (
+        "initial_state and final_state: |velocity| within limits.max_velocity, |acceleration| within "
+        "limits.max_acceleration (and M / (J_M + J_L) with a torque limit).",
+    )
+
+    def to_problem(self, settings: Settings) -> Problem:
+        problem = super().to_problem(settings)
+        start, end = self.initial_state, self.final_state
+        if start is None and end is None:
+            return problem
+        if not problem.rest_to_rest:  # even at rest: a ramp has its own end (the schema's rule)
+            raise InvalidParameter(
+                "initial_state" if start is not None else "final_state",
+                "given",
+                "a move that starts or ends in motion needs a displacement, not target_velocity",
+            )
+        return replace(
+            problem,
+            initial_state=start.to_core() if start is not None else REST,
+            final_state=end.to_core() if end is not None else REST,
+        )
 
     @field_validator("modes")
     @classmethod

@@ -111,6 +111,19 @@ CASES = [
     # optim.families.smoother.smoothers.design_chain: no filter needs a limit to design for
     ("/v1/profiles/smoother", {"plant": MODE, "displacement": 1.0, "filters": []}, {}, False),
     ("/v1/profiles/smoother", {"plant": MODE, "displacement": 1.0, "filters": [], "limits": LIMITS}, {}, True),
+    # TimeOptimalIn.to_problem and optim.problem.Problem._check_states: a move in motion has a displacement; an
+    # acceleration at either end needs a jerk limit
+    ("/v1/profiles/time-optimal", {**SHAPED, "initial_state": {"velocity": 0.5}}, {}, True),
+    ("/v1/profiles/time-optimal", {**STAP, "initial_state": {"velocity": 0.5}}, {}, False),
+    ("/v1/profiles/time-optimal", {**STAP, "final_state": {"acceleration": 0}}, {}, False),
+    ("/v1/profiles/time-optimal", {**SHAPED, "final_state": {"acceleration": 1.0}}, {}, False),
+    ("/v1/profiles/time-optimal", {**SHAPED, "final_state": {"acceleration": 0.0}}, {}, True),
+    (
+        "/v1/profiles/time-optimal",
+        {**SHAPED, "limits": {**LIMITS, "max_jerk": 100.0}, "initial_state": {"acceleration": -1.0}},
+        {},
+        True,
+    ),
     # RobustnessIn._check: exactly one kind of robustness
     ("/v1/profiles/time-optimal", {**SHAPED, "robustness": {}}, {}, False),
     ("/v1/profiles/time-optimal", {**SHAPED, "robustness": {"derivative_order": 1.0}}, {}, True),

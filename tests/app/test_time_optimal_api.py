@@ -37,7 +37,7 @@ def test_csv_of_the_design(client) -> None:
     assert data["position"][-1] == pytest.approx(0.12, rel=1e-9)
 
 
-@pytest.mark.parametrize("name", ["robust_band", "zvd_like", "jerk_limited", "two_inertia_torque"])
+@pytest.mark.parametrize("name", ["robust_band", "zvd_like", "jerk_limited", "two_inertia_torque", "in_motion"])
 def test_examples(client, name: str) -> None:
     response = client.post(PATH, json=EXAMPLES[name]["value"])
     assert response.status_code == 200, response.text
@@ -58,6 +58,10 @@ def test_examples(client, name: str) -> None:
         ({"tradeoff": [0.95]}, "tradeoff"),
         ({"modes": [3]}, "modes[0]"),
         ({"max_duration_s": 0.1}, "max_duration_s"),
+        ({"initial_state": {"velocity": 9.0}}, "initial_state.velocity"),  # above limits.max_velocity
+        ({"final_state": {"acceleration": 1.0}}, "final_state.acceleration"),  # no max_jerk to ramp it
+        ({"final_state": {"velocity": 1.0}, "displacement": None, "target_velocity": 1.0}, "final_state"),
+        ({"initial_state": {"velocity": 1.0, "position": 0.0}}, "initial_state.position"),
     ],
 )
 def test_bad_input_names_the_field(client, patch: dict, field: str | None) -> None:
@@ -110,3 +114,20 @@ def test_a_band_bound_below_the_rounding_floor_is_a_422_naming_it(client):
     response = client.post("/v1/profiles/time-optimal", json=body)
     assert response.status_code == 422, response.text
     assert response.json()["field"] == "robustness.max_percentage_vibration"
+
+
+def test_a_move_in_motion_starts_and_ends_in_it(client) -> None:
+    """The profile starts at initial_state and ends at final_state; the residual is zero there (the family's
+    independent checks are in tests/optim/test_time_optimal_motion.py)."""
+    body = client.post(PATH, json=EXAMPLES["in_motion"]["value"]).json()
+    profile, metrics = body["profile"], body["metrics"]
+    assert profile["velocity"][0] == 0.2 and profile["velocity"][-1] == pytest.approx(0.1, abs=1e-12)
+    assert profile["position"][-1] == pytest.approx(0.3 + 0.1 * (profile["time_s"][-1] - body["design"]["duration_s"]))
+    assert metrics["residual_amplitude"] < 1e-12 and body["design"]["rigid_duration_s"] <= body["design"]["duration_s"]
+
+
+def test_other_families_start_at_rest(client) -> None:
+    body = assert_problem(
+        client.post("/v1/profiles/input-shaped", json={**KNOWN, "initial_state": {"velocity": 1.0}}), 422
+    )
+    assert body["field"] == "initial_state"

@@ -207,6 +207,12 @@ BATCH_SNIPPET_CHECK = """
 assert round(durations[0], 4) == 0.2197 and durations[1] > durations[0], durations
 """
 
+CHAIN_SNIPPET_CHECK = """
+assert [d.answer["profile"]["velocity"][0] for d in chain] == [0.0, 0.2, -0.1], chain
+assert all(d.answer["metrics"]["residual_amplitude"] < 1e-12 for d in chain), [d.answer["metrics"] for d in chain]
+assert 1.0 < cycle_s < 3.0, cycle_s
+"""
+
 NPZ_SNIPPET_CHECK = """
 assert position.dtype == np.float64 and position.size > 100 and position[0] == 0.0
 assert round(meta["metrics"]["settling_time_s"], 3) == 0.175 and "profile" not in meta

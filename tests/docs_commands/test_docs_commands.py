@@ -11,6 +11,7 @@ import pytest
 
 from tests.docs_commands.checks import (
     BATCH_SNIPPET_CHECK,
+    CHAIN_SNIPPET_CHECK,
     NPZ_SNIPPET_CHECK,
     PYTHON_SNIPPET_CHECK,
     check_compare,
@@ -82,6 +83,7 @@ COMMANDS: dict[str, Spec] = {
     # README.md and docs/cli-and-python.md: from Python
     "from vibfree import compare, synthesize": Run(ok, python_check=PYTHON_SNIPPET_CHECK),
     "from vibfree import synthesize_many": Run(ok, python_check=BATCH_SNIPPET_CHECK),
+    "import vibfree": Run(ok, python_check=CHAIN_SNIPPET_CHECK),
     # docs/api.md: an npz answer
     "import io": Run(ok, server=True, python_check=NPZ_SNIPPET_CHECK),
     # docs/identification.md

@@ -64,3 +64,42 @@ def test_a_speed_up_ramps_the_acceleration() -> None:
     # To speed V from rest: V / A + A / J when A is reached (V >= A^2 / J), else 2 sqrt(V / J).
     assert rigid_move(1.0, False, None, 2.0, 10.0).duration_s == pytest.approx(1.0 / 2.0 + 2.0 / 10.0, rel=1e-12)
     assert rigid_move(0.1, False, None, 2.0, 10.0).duration_s == pytest.approx(2 * math.sqrt(0.1 / 10.0), rel=1e-12)
+
+
+@pytest.mark.parametrize(("d", "v0", "vf"), [(1.0, 0.2, 0.1), (1.0, -0.3, 0.4), (0.3, 0.5, 0.5), (-0.2, 0.4, -0.1)])
+def test_between_velocities_it_is_the_trapezoid(d: float, v0: float, vf: float) -> None:
+    """Without a jerk limit, from v0 to vf over D > 0 at V = 0.5, A = 2 (both v0, vf toward the target or a reversal
+    first): the trapezoid's closed form, t = (V - v0) / A + (V - vf) / A + (D - (V^2 - v0^2) / 2A - (V^2 - vf^2) / 2A)
+    / V (the ramps' signed distances), where its cruise is long enough (these cases; D < 0 is the mirror image)."""
+    sign = math.copysign(1.0, d)
+    top, accel = 0.5, 2.0
+    u0, uf = sign * v0, sign * vf
+    cruise = (abs(d) - (top**2 - u0**2) / (2 * accel) - (top**2 - uf**2) / (2 * accel)) / top
+    expected = (top - u0) / accel + (top - uf) / accel + cruise
+    assert cruise >= 0.0
+    move = rigid_move(d, True, top, accel, None, current_velocity=v0, target_velocity=vf)
+    assert move.duration_s == pytest.approx(expected, rel=1e-12)
+    command = PiecewiseCommand.from_held_steps(move.edges_s, [*move.levels, 0.0], 2, initial=(0.0, v0))
+    assert command.derivatives[0, -1] == pytest.approx(d, rel=1e-12)
+    assert command.derivatives[1, -1] == pytest.approx(vf, abs=1e-12)
+    assert np.max(np.abs(command.derivatives[1])) <= top * (1 + 1e-12)
+
+
+def test_between_accelerations_it_ends_in_the_target_state() -> None:
+    """Ruckig's current_/target_ acceleration: the command integrated from (0, v0, a0) ends at (D, vf, af) and
+    holds V, A, J; it is no shorter than the same move's time with the accelerations' velocity change alone."""
+    move = rigid_move(
+        0.5,
+        True,
+        0.5,
+        2.0,
+        20.0,
+        current_velocity=0.3,
+        current_acceleration=0.5,
+        target_velocity=0.1,
+        target_acceleration=-0.5,
+    )
+    command = PiecewiseCommand.from_held_steps(move.edges_s, [*move.levels, 0.0], 3, initial=(0.0, 0.3, 0.5))
+    assert command.derivatives[:3, -1] == pytest.approx([0.5, 0.1, -0.5], abs=1e-12)
+    peaks = np.max(np.abs(command.derivatives[1:4]), axis=1)
+    assert np.all(peaks <= np.array([0.5, 2.0, 20.0]) * (1 + 1e-12))

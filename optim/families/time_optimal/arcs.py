@@ -18,12 +18,15 @@ Array = NDArray[np.float64]
 SNAP = 1e-5  # a step within this of +-1 or 0 (of the unit) is on that level
 
 
-def command_of(arcs: tuple[Arc, ...], order: int, rest_to_rest: bool) -> PiecewiseCommand:
-    """The exact command: the held derivative on each arc, integrated from rest in closed form; at rest (or
-    cruising at the final speed) after the last arc."""
+def command_of(
+    arcs: tuple[Arc, ...], order: int, rest_to_rest: bool, initial: tuple[float, ...] = ()
+) -> PiecewiseCommand:
+    """The exact command: the held derivative on each arc, integrated in closed form from rest or from the
+    motion ``initial`` = (0, velocity[, acceleration]) (Spec.start_state); at rest (or cruising at the final
+    speed) after the last arc."""
     starts = np.array([a.start_s for a in arcs])
     time_s = np.append(starts, starts[-1] + arcs[-1].duration_s)
-    command = PiecewiseCommand.from_held_steps(time_s, [*(a.level for a in arcs), 0.0], order)
+    command = PiecewiseCommand.from_held_steps(time_s, [*(a.level for a in arcs), 0.0], order, initial)
     if not rest_to_rest and order == 3:
         command.derivatives[2, -1] = 0.0  # the acceleration ends at 0 (to round-off)
     return command

@@ -87,6 +87,8 @@ def spec_of(problem: Problem, options: TimeOptimalOptions, chosen: tuple[int, ..
     # lost 4 % on bench/time_optimal.py's 10 Hz cruise with a jerk limit).
     closed = problem.kinematic_floor_s()
     rigid = float(reference.time_s[-1]) if problem.acceleration_limit is not None else closed
+    if problem.in_motion:  # the rest-to-rest forms say little of a move between velocities: Ruckig's does
+        rigid = max(rigid, floor)
     periods = sum((0.5 + 0.5 * order) * modes[i].damped_period_s for i in chosen)
     slowest = max(modes[i].natural_period_s for i in chosen)
     periods += sum(min(2 * math.pi / b.low_rad_s, 2 * slowest) for b in bands)  # the search doubles it if short
@@ -102,6 +104,8 @@ def spec_of(problem: Problem, options: TimeOptimalOptions, chosen: tuple[int, ..
             f"({MAX_DURATION_S:g} s)",
             problem.move_field,
         )
+    start, end = problem.initial_state, problem.final_state
+    sign = math.copysign(1.0, problem.move)  # the spec's move is positive: the states in its direction
     return Spec(
         move=abs(problem.move),
         rest_to_rest=problem.rest_to_rest,
@@ -117,18 +121,21 @@ def spec_of(problem: Problem, options: TimeOptimalOptions, chosen: tuple[int, ..
         upper_guess_s=min(upper, cap),
         max_duration_s=cap,
         lp_time_limit_s=problem.solver.max_wall_time_s,
+        start_velocity=sign * start.velocity,
+        start_acceleration=sign * start.acceleration,
+        end_velocity=sign * end.velocity,
+        end_acceleration=sign * end.acceleration,
     )
 
 
 def limits_met(problem: Problem, spec: Spec, arcs: tuple[Arc, ...]) -> bool:
     """The refined command's exact peaks within the limits (the pipeline's own check is 1e-9)."""
-    command = command_of(arcs, spec.order, spec.rest_to_rest)
+    command = command_of(arcs, spec.order, spec.rest_to_rest, spec.start_state())
     for m, limit in ((1, spec.max_velocity), (2, spec.max_acceleration), (3, spec.max_jerk)):
         peak = command.peak_abs(m)
         if limit is not None and (peak is None or peak > limit * (1 + LIMIT_RTOL)):
             return False
-    end = command.end_index()
-    return not (problem.rest_to_rest and abs(command.derivatives[0, end] - spec.move) > 1e-12 * spec.move)
+    return not (problem.rest_to_rest and abs(command.derivatives[0, -1] - spec.move) > 1e-12 * spec.move)
 
 
 TIGHTENINGS = 3
@@ -138,7 +145,7 @@ def excess(problem: Problem, spec: Spec, arcs: tuple[Arc, ...]) -> dict[str, flo
     """peak / limit > 1 for every limit a grid command breaks beyond the LP's own check: the velocity of a held
     jerk between nodes, the acceleration (a safety net: the nodes are checked), the torque (simulated on 4000
     points and the corners)."""
-    command = command_of(arcs, spec.order, spec.rest_to_rest)
+    command = command_of(arcs, spec.order, spec.rest_to_rest, spec.start_state())
     out: dict[str, float] = {}
     peak = command.peak_abs(1)
     if spec.max_velocity is not None and peak is not None and peak > spec.max_velocity * (1 + LIMIT_RTOL):
@@ -246,6 +253,7 @@ def solve_within_limits(problem: Problem, spec: Spec) -> Solution:
 
 class TimeOptimalFamily(BaseFamily):
     name: ClassVar[str] = "time_optimal"
+    moves_in_motion: ClassVar[bool] = True
 
     def not_applicable(self, problem: Problem) -> str | None:
         if not problem.plant.modes():
@@ -277,7 +285,7 @@ class TimeOptimalFamily(BaseFamily):
             solution = solve_within_limits(problem, spec)
             sign = math.copysign(1.0, problem.move)
             arcs = tuple(replace(a, level=sign * a.level) for a in solution.arcs)
-            command = command_of(arcs, spec.order, spec.rest_to_rest)
+            command = command_of(arcs, spec.order, spec.rest_to_rest, tuple(sign * v for v in spec.start_state()))
             tradeoff, row_capped = None, 0
             if options.tradeoff is not None:
                 tradeoff, row_capped = self._tradeoff(problem, options, chosen)

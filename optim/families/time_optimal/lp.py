@@ -142,6 +142,11 @@ def grid_lp(
     lp.dynamics(c, dt, unit)
     first, last = lp.state(0, np.arange(lp.states)), lp.state(steps, np.arange(lp.states))
     lp.lower[first] = lp.upper[first] = 0.0
+    start_state = np.asarray(spec.start_state())
+    lp.lower[first[:q]] = lp.upper[first[:q]] = start_state / c.scale[:q]
+    if spec.torque is not None and spec.start_acceleration:  # the load quasi-static: g1 = a0 / w^2, g1' = 0
+        quasi_static = spec.start_acceleration / abs(spec.torque.pole) ** 2
+        lp.lower[first[q]] = lp.upper[first[q]] = quasi_static / c.scale[q]
     for m, target in spec.end_targets().items():
         lp.lower[last[m]] = lp.upper[last[m]] = target / c.scale[m]
     nodes = lp.state(np.arange(1, steps), 0)
@@ -185,8 +190,8 @@ def grid_lp(
 def relaxed_lp(spec: Spec, total_s: float, steps: int, cuts: list[Cut], counter: LpCounter) -> bool:
     """False only if HiGHS proves the relaxation of duration ``total_s`` infeasible (then no command of that
     duration exists); x are step averages of the acceleration over max_acceleration."""
-    if spec.max_acceleration is None:
-        return True
+    if spec.max_acceleration is None or spec.start_acceleration or spec.end_acceleration:
+        return True  # (the relaxation of a move between accelerations is not written: nothing is proven)
     accel = spec.max_acceleration
     dt = total_s / steps
     start, end = pieces(steps, dt)
@@ -203,8 +208,8 @@ def relaxed_lp(spec: Spec, total_s: float, steps: int, cuts: list[Cut], counter:
         shape=(steps, lp.lower.size),
     )
     lp.add_eq(dyn, np.zeros(steps))
-    lp.lower[lp.state(0, 0)] = lp.upper[lp.state(0, 0)] = 0.0
-    v_end = (0.0 if spec.rest_to_rest else spec.move) / v_scale
+    lp.lower[lp.state(0, 0)] = lp.upper[lp.state(0, 0)] = spec.start_velocity / v_scale
+    v_end = (spec.end_velocity if spec.rest_to_rest else spec.move) / v_scale
     lp.lower[lp.state(steps, 0)], lp.upper[lp.state(steps, 0)] = v_end - slack, v_end + slack
     if spec.max_velocity is not None:
         nodes = lp.state(np.arange(1, steps), 0)
@@ -215,7 +220,8 @@ def relaxed_lp(spec: Spec, total_s: float, steps: int, cuts: list[Cut], counter:
     ranged: list[tuple[Array, float, float]] = []  # row . x within target +- width
     if spec.rest_to_rest:
         row = accel * dt * (total_s - 0.5 * (start + end))
-        ranged.append((row, spec.move, accel * total_s * dt / 4 + slack * spec.move))
+        moved = spec.move - spec.start_velocity * total_s  # what the acceleration adds to the start's drift
+        ranged.append((row, moved, accel * total_s * dt / 4 + slack * spec.move))
     if spec.zero_poles:
         poles = np.asarray(spec.zero_poles)
         for n in range(spec.derivative_order + 1):

@@ -104,11 +104,12 @@ def shapers(spec: Spec) -> list[ImpulseSequence]:
     return out
 
 
-def shaped_rigid(best: _Best, rigid: RigidMove | None) -> Found | None:
+def shaped_rigid(best: _Best) -> Found | None:
     """The first shaped rigid optimum that checks out (the shapers of ``shapers``), offered to ``best``."""
-    if rigid is None:
-        return None
     for shaper in shapers(best.spec):
+        rigid = rigid_of(best.spec, shaper)
+        if rigid is None:
+            continue
         arcs = shaped_arcs(best.spec, rigid, shaper)
         note = (
             f"the rigid time-optimal move (Ruckig) shaped by {shaper.count} positive impulses "
@@ -122,7 +123,9 @@ def shaped_rigid(best: _Best, rigid: RigidMove | None) -> Found | None:
 def three_switch_starts(spec: Spec, rigid: RigidMove | None) -> list[Start]:
     """Singh and Vadali's symmetric three-switch structure (+1, -1, +1, -1) around a bang-bang rigid move, with a
     reversal pulse of REVERSALS damped periods of each zero-residual pole: a start the grid may not show."""
-    if rigid is None or rigid.order != 2 or spec.bands or not spec.rest_to_rest or rigid.levels.size != 2:
+    if rigid is None or rigid.order != 2 or rigid.levels.size != 2 or spec.bands or spec.in_motion:
+        return []
+    if not spec.rest_to_rest:
         return []
     half = rigid.duration_s / 2
     starts: list[Start] = []
@@ -217,7 +220,7 @@ def solve(spec: Spec, check_limits: LimitCheck | None = None, bound_spec: Spec |
     search = GridSearch(spec)
     best = _Best(spec, search, check_limits)
     rigid = rigid_of(spec)
-    shaped = shaped_rigid(best, rigid)
+    shaped = shaped_rigid(best)
     grid = _grid(search, shaped)
     exact = spec.torque is None and not spec.bands  # a torque limit or a band: the grid optimum (or the shaped one)
     if exact:

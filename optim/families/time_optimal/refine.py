@@ -117,8 +117,10 @@ class _Model:
         self.moment_scales: dict[int, Array] = {}  # fixed at the first evaluation (z0)
         arc_ends = np.tril(np.ones((self.count, self.count)))[:-1]  # e_b = sum_{i <= b} d_i, b < last
         mid = np.tril(np.ones((self.count, self.count)), -1) + 0.5 * np.eye(self.count)
-        self.arc_ends = _coefficients(arc_ends)
-        self.arc_ends_mid = _coefficients(np.vstack([arc_ends, mid]))
+        self.arc_end_times = arc_ends  # the points' times are these rows . d
+        self.arc_end_mid_times = np.vstack([arc_ends, mid])
+        self.arc_ends = _coefficients(self.arc_end_times)
+        self.arc_ends_mid = _coefficients(self.arc_end_mid_times)
 
     def unpack(self, z: Array) -> tuple[Array, Array, Array]:
         d = np.maximum(z[: self.count], 0.0) * self.t0
@@ -141,12 +143,14 @@ class _Model:
         values: list[Array] = []
         jacs: list[Array] = []
         if kind == "eq":
+            total = np.array([float(np.sum(d))])
             for m, target in spec.end_targets().items():
                 phi, dphi = _poly(q - m)
                 v, jd, diff = _terms(phi, dphi, self.ends, d, lv, want_jac)
-                values.append((u * v - target) / self.eq_scale[m])
-                if want_jac:
-                    jacs.append(self._jac(u * jd, u * diff, self.eq_scale[m]))
+                values.append((u * v + spec.free_motion(m, total) - target) / self.eq_scale[m])
+                if want_jac:  # the start's share depends on T = sum d: d/dd_i = its (m + 1)-th derivative's share
+                    drift = np.ones((1, d.size)) * spec.free_motion(m + 1, total)[0] if m + 1 < q else 0.0
+                    jacs.append(self._jac(u * jd + drift, u * diff, self.eq_scale[m]))
             for n in range(spec.derivative_order + 1):
                 if not spec.zero_poles:
                     break
@@ -161,12 +165,17 @@ class _Model:
         for m, limit in bounds:
             if limit is None or self.count < 2:
                 continue
-            points = self.arc_ends_mid if m == 1 and q == 3 else self.arc_ends
+            mid = m == 1 and q == 3
+            points = self.arc_ends_mid if mid else self.arc_ends
             phi, dphi = _poly(q - m)
             v, jd, diff = _terms(phi, dphi, points, d, lv, want_jac)
-            values += [1.0 - u * v / limit, 1.0 + u * v / limit]
+            at = self.arc_end_mid_times if mid else self.arc_end_times  # the points' times: at . d
+            times = at @ d
+            v = u * v + spec.free_motion(m, times)
+            values += [1.0 - v / limit, 1.0 + v / limit]
             if want_jac:
-                jac = self._jac(u * jd, u * diff, limit)
+                drift = spec.free_motion(m + 1, times)[:, None] * at if m + 1 < q else 0.0
+                jac = self._jac(u * jd + drift, u * diff, limit)
                 jacs += [-jac, jac]
         if self.cuts:
             poles = np.array([c.pole for c in self.cuts])

@@ -211,7 +211,8 @@ def _nodes_within(spec: Spec, grid: GridSolution, values: Array) -> bool:
     for m, limit in ((1, spec.max_velocity), (2, spec.max_acceleration if spec.order == 3 else None)):
         if limit is None:
             continue
-        peak = float(np.max(np.abs(spec.scale * integrated_box(nodes, start, end, spec.order - m) @ values)))
+        motion = spec.scale * integrated_box(nodes, start, end, spec.order - m) @ values + spec.free_motion(m, nodes)
+        peak = float(np.max(np.abs(motion)))
         if peak > limit * (1.0 - 0.5 * MARGIN):
             return False
     return True
@@ -228,7 +229,7 @@ def equality_system(spec: Spec, steps: int, dt: float) -> tuple[Array, Array]:
         row = unit * integrated_box(np.array([total]), start, end, q - m)[0]
         scale = np.max(np.abs(row))
         rows.append(row / scale)
-        rhs.append(target / scale)
+        rhs.append(float(target - spec.free_motion(m, np.array([total]))[0]) / scale)
     for n in range(spec.derivative_order + 1):
         if not spec.zero_poles:
             break

@@ -53,17 +53,33 @@ def band_shapers(band: Band) -> Iterator[ImpulseSequence]:
         yield shaper
 
 
-def rigid_of(spec: Spec) -> RigidMove | None:
-    """The rigid optimum within the spec's limits, or None where shaping it does not bound the problem (a
-    torque limit: the shaped move's torque is not the rigid move's; no acceleration or jerk limit)."""
+def rigid_of(spec: Spec, shaper: ImpulseSequence = IDENTITY) -> RigidMove | None:
+    """The rigid optimum within the spec's limits that ``shaper`` turns into the spec's move, or None where shaping
+    it does not bound the problem (a torque limit: the shaped move's torque is not the rigid move's; no
+    acceleration or jerk limit; a start or end acceleration, which the shaped move would not keep).
+
+    A move between velocities v0 and vf is the rigid move continued at v0 before and at vf after: the shaper
+    averages that motion, so the shaped move starts at v0 and ends at vf with the shaper's mean delay tbar =
+    sum A_i t_i spent at v0 and its last time t_n - tbar at vf; the rigid move covers D - v0 tbar - vf (t_n - tbar)."""
     if spec.torque is not None or (spec.max_acceleration is None and spec.max_jerk is None):
+        return None
+    if spec.start_acceleration or spec.end_acceleration:
         return None
     inside = [
         None if limit is None else limit * (1.0 - ROUND_OFF)
         for limit in (spec.max_velocity, spec.max_acceleration, spec.max_jerk)
     ]
+    mean_s = float(shaper.amplitudes @ shaper.times_s)
+    last_s = float(shaper.times_s[-1])
+    move = spec.move - spec.start_velocity * mean_s - spec.end_velocity * (last_s - mean_s)
     try:
-        return rigid_move(spec.move, spec.rest_to_rest, *inside)
+        return rigid_move(
+            move,
+            spec.rest_to_rest,
+            *inside,
+            current_velocity=spec.start_velocity,
+            target_velocity=spec.end_velocity,
+        )
     except ValueError:  # limits too far apart for Ruckig: no shaped candidate (the grid search answers)
         return None
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -59,19 +60,44 @@ class Spec:
     upper_guess_s: float  # a duration at which a command is expected to exist (the search starts there)
     max_duration_s: float
     lp_time_limit_s: float = 10.0  # each LP's wall-clock last resort (HiGHS's time_limit): reached, SolverTimedOut
+    # A rest-to-rest move may start and end in motion (the motor's velocity and acceleration, in the move's
+    # direction; the load quasi-static in that motion): the accelerations are 0 unless the jerk is held.
+    start_velocity: float = 0.0
+    start_acceleration: float = 0.0
+    end_velocity: float = 0.0
+    end_acceleration: float = 0.0
 
     @property
     def order(self) -> int:
         """q: the derivative held piecewise constant (2: acceleration, 3: jerk)."""
         return 3 if self.max_jerk is not None else 2
 
+    @property
+    def in_motion(self) -> bool:
+        """The move starts or ends with a non-zero velocity or acceleration."""
+        return any((self.start_velocity, self.start_acceleration, self.end_velocity, self.end_acceleration))
+
+    def start_state(self) -> tuple[float, ...]:
+        """(position 0, velocity[, acceleration]) at the start: the motor's derivatives below the held one."""
+        return (0.0, self.start_velocity, self.start_acceleration)[: self.order]
+
+    def free_motion(self, m: int, t: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The start state's share of the m-th derivative at times ``t``: sum_(k >= m) s_k t^(k - m) / (k - m)!
+        (the command's own share is linear in its held levels)."""
+        state = self.start_state()
+        out = np.zeros_like(np.asarray(t, dtype=float))
+        for k in range(m, len(state)):
+            if state[k] != 0.0:
+                out = out + state[k] * np.asarray(t, dtype=float) ** (k - m) / math.factorial(k - m)
+        return out
+
     def end_targets(self) -> dict[int, float]:
         """The motor's derivatives fixed at the end, {order: value}, ascending: the position of a rest-to-rest
-        move, the velocity (0 or the target speed) and, with a held jerk, the acceleration (0)."""
+        move, the velocity (the end state's, or the target speed) and, with a held jerk, the acceleration."""
         targets = {0: self.move} if self.rest_to_rest else {}
-        targets[1] = 0.0 if self.rest_to_rest else self.move
+        targets[1] = self.end_velocity if self.rest_to_rest else self.move
         if self.order == 3:
-            targets[2] = 0.0
+            targets[2] = self.end_acceleration
         return targets
 
     @property

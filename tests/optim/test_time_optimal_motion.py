@@ -1,0 +1,114 @@
+"""Moves that start and end in motion (issue 25: initial_state / final_state), checked by integrating the motor and
+the load's deflection through the designed arcs (scipy's DOP853, independent of models.simulation), and bounded by
+Ruckig's rigid optimum between the same states (below) and the ZV-shaped one (above), both computed here."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from ruckig import InputParameter, Result, Ruckig, Trajectory
+from scipy.integrate import solve_ivp
+
+from models.plants import ModePlant
+from optim.families.time_optimal.options import TimeOptimalOptions
+from optim.problem import REST, Limits, MotionState, Problem
+from optim.registry import FAMILIES
+from optim.synthesis import Result as Synthesis
+from optim.synthesis import synthesize
+
+HZ, ZETA = 5.0, 0.05
+OMEGA = 2 * math.pi * HZ
+WITH_JERK, WITHOUT_JERK = Limits(0.5, 3.0, 60.0), Limits(0.5, 3.0)
+# The deflection under the acceleration limit is A / w^2 = 3e-3: a residual of 1e-9 of the move (3e-10) is 1e-7 of
+# it, far below what a wrong state (a jump of velocity or acceleration at a junction) leaves, and above the
+# integration's error (rtol 1e-13 on states of order 1).
+RESIDUAL = 1e-9
+
+
+def _design(d: float, start: MotionState, end: MotionState, limits: Limits) -> Synthesis:
+    problem = Problem(ModePlant(HZ, ZETA), displacement=d, limits=limits, initial_state=start, final_state=end)
+    return synthesize(FAMILIES["time_optimal"], problem, TimeOptimalOptions())
+
+
+def _through(result: Synthesis, state: np.ndarray) -> np.ndarray:
+    """(p, v, a, x, x') after the design's arcs from ``state``; x = load - motor obeys x'' + 2 zeta w x' + w^2 x =
+    -a (the mode (2 zeta w s + w^2) / (s^2 + 2 zeta w s + w^2)); the arcs hold the jerk, or the acceleration."""
+    jerk = result.summary.held_quantity == "jerk"
+    for arc in result.summary.arcs:
+        if not jerk:
+            state = np.array([*state[:2], arc.level, *state[3:]])
+
+        def rhs(_t: float, y: np.ndarray, level: float = arc.level if jerk else 0.0) -> list[float]:
+            return [y[1], y[2], level, y[4], -2 * ZETA * OMEGA * y[4] - OMEGA**2 * y[3] - y[2]]
+
+        state = solve_ivp(rhs, (0.0, arc.duration_s), state, method="DOP853", rtol=1e-13, atol=1e-16).y[:, -1]
+    return state if jerk else np.array([*state[:2], 0.0, *state[3:]])
+
+
+def _residual(state: np.ndarray) -> float:
+    """The free vibration's amplitude about the quasi-static deflection -a / w^2 of the motion it ends in."""
+    x = state[3] + state[2] / OMEGA**2
+    damped = OMEGA * math.sqrt(1 - ZETA**2)
+    return math.hypot(x, (state[4] + ZETA * OMEGA * x) / damped)
+
+
+CHAIN = [(0.3, MotionState(0.2)), (0.2, MotionState(-0.1)), (-0.4, REST)]
+
+
+@pytest.mark.parametrize("limits", [WITH_JERK, WITHOUT_JERK], ids=["jerk", "acceleration"])
+def test_three_moves_chained_through_velocities_end_at_rest_without_residual(limits: Limits) -> None:
+    state, start = np.zeros(5), REST
+    for d, end in CHAIN:
+        result = _design(d, start, end, limits)
+        before = state[0]
+        state = _through(result, state)
+        assert state[0] - before == pytest.approx(d, abs=1e-12)
+        assert state[1] == pytest.approx(end.velocity, abs=1e-12)
+        assert _residual(state) < RESIDUAL * abs(d)  # zero at every junction, not only at the last stop
+        peaks = result.metrics
+        assert peaks.peak_velocity <= 0.5 * (1 + 1e-9) and peaks.peak_acceleration <= 3.0 * (1 + 1e-9)
+        assert result.command.derivatives[1, 0] == start.velocity  # the profile starts in the motion it continues
+        start = end
+    assert abs(state[1]) < 1e-12 and _residual(state) < RESIDUAL
+
+
+def test_a_move_between_accelerations_leaves_no_residual() -> None:
+    start, end = MotionState(0.2, 1.0), MotionState(0.1, -0.5)
+    state = np.array([0.0, start.velocity, start.acceleration, -start.acceleration / OMEGA**2, 0.0])  # quasi-static
+    state = _through(_design(0.3, start, end, WITH_JERK), state)
+    assert state[:3] == pytest.approx([0.3, 0.1, -0.5], abs=1e-12)
+    assert _residual(state) < RESIDUAL * 0.3
+
+
+def _ruckig_s(d: float, v0: float, vf: float, limits: Limits) -> float:
+    given = InputParameter(1)
+    given.current_position, given.current_velocity, given.current_acceleration = [0.0], [v0], [0.0]
+    given.target_position, given.target_velocity, given.target_acceleration = [d], [vf], [0.0]
+    given.max_velocity, given.max_acceleration = [limits.max_velocity], [limits.max_acceleration]
+    given.max_jerk = [limits.max_jerk or math.inf]
+    trajectory = Trajectory(1)
+    assert Ruckig(1).calculate(given, trajectory) in (Result.Working, Result.Finished)
+    return float(trajectory.duration)
+
+
+MOVES = np.random.default_rng(2025).uniform((-0.6, -0.5, -0.5), (0.6, 0.5, 0.5), (4, 3)).tolist()
+
+
+@pytest.mark.parametrize(("d", "v0", "vf"), MOVES)
+def test_between_the_rigid_optimum_and_the_zv_shaped_one(d: float, v0: float, vf: float) -> None:
+    """The ZV shaper (amplitudes 1 / (1 + K), K / (1 + K) at 0 and t2 = pi / w_d, K = exp(-zeta pi / sqrt(1 -
+    zeta^2)); Singer and Seering 1990) applied to Ruckig's move continued at v0 before and vf after covers that move
+    plus v0 K t2 / (1 + K) + vf t2 / (1 + K): shaping Ruckig's move of D minus those is a zero-residual command of
+    D, t2 longer. No answer may be longer; none can be shorter than Ruckig's own move between the states."""
+    damped = OMEGA * math.sqrt(1 - ZETA**2)
+    t2 = math.pi / damped
+    k = math.exp(-ZETA * math.pi / math.sqrt(1 - ZETA**2))
+    recipe = _ruckig_s(d - v0 * k * t2 / (1 + k) - vf * t2 / (1 + k), v0, vf, WITH_JERK) + t2
+    result = _design(d, MotionState(v0), MotionState(vf), WITH_JERK)
+    duration = result.summary.duration_s
+    assert _ruckig_s(d, v0, vf, WITH_JERK) * (1 - 1e-12) <= duration <= recipe * (1 + 1e-12)
+    assert result.summary.rigid_duration_s == pytest.approx(_ruckig_s(d, v0, vf, WITH_JERK), rel=1e-9)
+    state = np.array([0.0, v0, 0.0, 0.0, 0.0])
+    assert _residual(_through(result, state)) < RESIDUAL * abs(d)
