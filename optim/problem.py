@@ -162,6 +162,33 @@ class Problem:
                     "a move between non-zero accelerations needs limits.max_jerk (without one the acceleration is "
                     "held piecewise constant and may jump: give 0)",
                 )
+        self._check_overshoot()
+
+    def _check_overshoot(self) -> None:
+        """Infeasible (proven) where the jerk limit cannot bring an end's acceleration to the other's before the
+        velocity passes max_velocity: from (v0, a0 > 0) every command has a >= a0 - J t, so v >= v0 + a0 t - J t^2 / 2
+        until a reaches max(a_end, 0), at t = (a0 - max(a_end, 0)) / J at the earliest; the end state is the start
+        of the time-reversed move (velocity vf, acceleration -af)."""
+        jerk, top = self.limits.max_jerk, self.limits.max_velocity
+        if jerk is None or top is None:
+            return
+        start, end = self.initial_state, self.final_state
+        for name, v0, a0, a_end in (
+            ("initial_state", start.velocity, start.acceleration, end.acceleration),
+            ("final_state", end.velocity, -end.acceleration, -start.acceleration),
+        ):
+            if a0 < 0.0:
+                v0, a0, a_end = -v0, -a0, -a_end
+            if a0 == 0.0 or a_end >= a0:
+                continue
+            t = (a0 - max(a_end, 0.0)) / jerk
+            peak = v0 + a0 * t - jerk * t * t / 2.0
+            if peak > top * (1.0 + 1e-12):
+                raise Infeasible(
+                    f"{name}: the velocity passes {peak:.6g} (limits.max_velocity = {top:.6g}) in the time "
+                    "limits.max_jerk needs to change the acceleration between the two ends",
+                    name,
+                )
 
     @property
     def rest_to_rest(self) -> bool:

@@ -210,7 +210,9 @@ class TimeOptimalIn(ProfileRequest):
 
     UNSCHEMED_RULES: ClassVar[tuple[str, ...]] = (
         "initial_state and final_state: |velocity| within limits.max_velocity, |acceleration| within "
-        "limits.max_acceleration (and M / (J_M + J_L) with a torque limit).",
+        "limits.max_acceleration (and M / (J_M + J_L) with a torque limit); with limits.max_jerk, an end's "
+        "acceleration brought to the other's no faster than the jerk allows must not carry the velocity past "
+        "limits.max_velocity (a 422 infeasible).",
     )
 
     def to_problem(self, settings: Settings) -> Problem:

@@ -131,3 +131,12 @@ def test_other_families_start_at_rest(client) -> None:
         client.post("/v1/profiles/input-shaped", json={**KNOWN, "initial_state": {"velocity": 1.0}}), 422
     )
     assert body["field"] == "initial_state"
+
+
+def test_an_end_state_the_jerk_cannot_leave_within_the_velocity_limit_is_infeasible(client) -> None:
+    """4.9 m/s at 9 m/s^2 reaches 4.9 + 9^2 / (2 x 100) = 5.3 m/s before a jerk of 100 m/s^3 brings the acceleration
+    to 0: beyond max_velocity 5, whatever the command (optim.problem.Problem._check_overshoot)."""
+    limits = {**KNOWN["limits"], "max_jerk": 100.0}
+    body = {**KNOWN, "limits": limits, "initial_state": {"velocity": 4.9, "acceleration": 9.0}}
+    problem = assert_problem(client.post(PATH, json=body), 422, slug="infeasible")
+    assert problem["field"] == "initial_state" and "5.3" in problem["detail"]

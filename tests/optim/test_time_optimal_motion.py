@@ -11,6 +11,7 @@ import pytest
 from ruckig import InputParameter, Result, Ruckig, Trajectory
 from scipy.integrate import solve_ivp
 
+from models.errors import Infeasible
 from models.plants import ModePlant
 from optim.families.time_optimal.options import TimeOptimalOptions
 from optim.problem import REST, Limits, MotionState, Problem
@@ -112,3 +113,21 @@ def test_between_the_rigid_optimum_and_the_zv_shaped_one(d: float, v0: float, vf
     assert result.summary.rigid_duration_s == pytest.approx(_ruckig_s(d, v0, vf, WITH_JERK), rel=1e-9)
     state = np.array([0.0, v0, 0.0, 0.0, 0.0])
     assert _residual(_through(result, state)) < RESIDUAL * abs(d)
+
+
+@pytest.mark.parametrize(("start", "end"), [(MotionState(0.46, 1.0), REST), (REST, MotionState(0.46, -1.0))])
+def test_a_state_the_jerk_cannot_leave_within_the_velocity_limit_is_proven_infeasible(
+    start: MotionState, end: MotionState
+) -> None:
+    """At 0.46 m/s and 1 m/s^2 a jerk of 10 m/s^3 needs 0.1 s to bring the acceleration to 0, in which the velocity
+    rises by 1^2 / (2 x 10) = 0.05 to 0.51 > 0.5 (and the same arriving, time reversed): no command exists."""
+    with pytest.raises(Infeasible, match=r"0\.51 "):
+        _design(0.3, start, end, Limits(0.5, 3.0, 10.0))
+
+
+def test_just_inside_that_bound_a_move_is_designed() -> None:
+    """0.44 m/s at 1 m/s^2 peaks at 0.49 m/s: the check refuses only what it proves."""
+    state = np.array([0.0, 0.44, 1.0, -1.0 / OMEGA**2, 0.0])
+    result = _design(0.3, MotionState(0.44, 1.0), REST, Limits(0.5, 3.0, 10.0))
+    assert result.metrics.peak_velocity <= 0.5 * (1 + 1e-9)
+    assert _residual(_through(result, state)) < RESIDUAL * 0.3

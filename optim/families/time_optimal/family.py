@@ -135,7 +135,8 @@ def limits_met(problem: Problem, spec: Spec, arcs: tuple[Arc, ...]) -> bool:
         peak = command.peak_abs(m)
         if limit is not None and (peak is None or peak > limit * (1 + LIMIT_RTOL)):
             return False
-    return not (problem.rest_to_rest and abs(command.derivatives[0, -1] - spec.move) > 1e-12 * spec.move)
+    scale = spec.position_scale(float(command.time_s[-1]))  # round-off is relative to the positions passed through
+    return not (problem.rest_to_rest and abs(command.derivatives[0, -1] - spec.move) > 1e-12 * scale)
 
 
 TIGHTENINGS = 3

@@ -117,11 +117,14 @@ def velocity_bound(spec: Spec, dt: float) -> float:
     """The velocity bound the grid LP holds at its check points (the nodes, and with a held jerk every step's
     middle) so that the command holds max_velocity everywhere: with a held jerk the velocity is a parabola on each
     step, |v''| <= J, so between check points h / 2 apart it exceeds their chord by at most J (h / 2)^2 / 8 =
-    J h^2 / 32 (the interpolation error of a linear interpolant); without one it is linear between the nodes."""
+    J h^2 / 32 (the interpolation error of a linear interpolant); without one it is linear between the nodes. Never
+    below the start's and end's own speeds (the first and last check points could not hold it): there the exact
+    check of the command decides (family.limits_met)."""
     assert spec.max_velocity is not None
     if spec.order != 3 or spec.max_jerk is None:
         return spec.max_velocity
-    return max(spec.max_velocity - spec.max_jerk * dt * dt / 32.0, 0.5 * spec.max_velocity)
+    ends = max(abs(spec.start_velocity), abs(spec.end_velocity))
+    return max(spec.max_velocity - spec.max_jerk * dt * dt / 32.0, 0.5 * spec.max_velocity, ends)
 
 
 def grid_lp(
@@ -221,7 +224,7 @@ def relaxed_lp(spec: Spec, total_s: float, steps: int, cuts: list[Cut], counter:
     if spec.rest_to_rest:
         row = accel * dt * (total_s - 0.5 * (start + end))
         moved = spec.move - spec.start_velocity * total_s  # what the acceleration adds to the start's drift
-        ranged.append((row, moved, accel * total_s * dt / 4 + slack * spec.move))
+        ranged.append((row, moved, accel * total_s * dt / 4 + slack * spec.position_scale(total_s)))
     if spec.zero_poles:
         poles = np.asarray(spec.zero_poles)
         for n in range(spec.derivative_order + 1):

@@ -112,7 +112,7 @@ class _Model:
         self.cuts = cuts
         self.z0 = np.concatenate([np.asarray(durations) / self.t0, self.levels[self.free]])
         q, u = spec.order, spec.scale
-        self.eq_scale = [spec.move] + [u * self.t0 ** (q - m) for m in range(1, q)]
+        self.eq_scale = [spec.position_scale(self.t0)] + [u * self.t0 ** (q - m) for m in range(1, q)]
         self.ends = _coefficients(np.ones((1, self.count)))
         self.moment_scales: dict[int, Array] = {}  # fixed at the first evaluation (z0)
         arc_ends = np.tril(np.ones((self.count, self.count)))[:-1]  # e_b = sum_{i <= b} d_i, b < last

@@ -37,7 +37,7 @@ def chain(spec: Spec, total_s: float) -> StateChain:
     scale = np.array([unit * total_s ** (q - m) for m in range(q)] + [1.0] * (n - q))
     # Each state in units of the size it can reach: its limit where that is smaller (a slow move over a
     # long time would otherwise put the bound below HiGHS's feasibility tolerance in scaled units).
-    scale[0] = min(scale[0], spec.move) if spec.rest_to_rest else scale[0]
+    scale[0] = min(scale[0], spec.position_scale(total_s)) if spec.rest_to_rest else scale[0]
     if spec.max_velocity is not None:
         scale[1] = min(scale[1], spec.max_velocity)
     if q == 3 and spec.max_acceleration is not None:

@@ -84,12 +84,19 @@ class Spec:
     def free_motion(self, m: int, t: NDArray[np.float64]) -> NDArray[np.float64]:
         """The start state's share of the m-th derivative at times ``t``: sum_(k >= m) s_k t^(k - m) / (k - m)!
         (the command's own share is linear in its held levels)."""
-        state = self.start_state()
         out = np.zeros_like(np.asarray(t, dtype=float))
+        if not (self.start_velocity or self.start_acceleration):
+            return out  # from rest (the common case: the refinement calls this at every evaluation)
+        state = self.start_state()
         for k in range(m, len(state)):
             if state[k] != 0.0:
                 out = out + state[k] * np.asarray(t, dtype=float) ** (k - m) / math.factorial(k - m)
         return out
+
+    def position_scale(self, total_s: float) -> float:
+        """The size of the positions a move of ``total_s`` passes through: the move, or the distance its start and
+        end velocities cover in that time if larger (a reversal from speed travels far beyond a short move)."""
+        return max(self.move, (abs(self.start_velocity) + abs(self.end_velocity)) * total_s)
 
     def end_targets(self) -> dict[int, float]:
         """The motor's derivatives fixed at the end, {order: value}, ascending: the position of a rest-to-rest
