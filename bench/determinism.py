@@ -48,8 +48,11 @@ TIMING_FIELDS = {"solve_time_s"}  # the only wall times an answer reports
 
 def random_requests(count: int, seed: int = 23) -> list[dict[str, Any]]:
     """Single-mode time-optimal requests: 2-40 Hz, damping 0-0.1, moves 0.02-1, limits of everyday axes; a quarter
-    jerk-limited, 40 % with a band of +-3-20 %, 15 % with derivative_order 1 (the rest zero residual)."""
+    jerk-limited, 40 % with a band of +-3-20 %, 15 % with derivative_order 1 (the rest zero residual); a fifth start
+    and end in motion (velocities within +-80 % of max_velocity, drawn from a second generator so that the other
+    draws are those of the runs before issue 25's initial_state)."""
     rng = random.Random(seed)
+    motion = random.Random(seed + 25)
     out = []
     for _ in range(count):
         plant = {
@@ -68,6 +71,10 @@ def random_requests(count: int, seed: int = 23) -> list[dict[str, Any]]:
             request["robustness"] = {"frequency_ratio_range": [1 - h, 1 + h]}
         elif kind < 0.55:
             request["robustness"] = {"derivative_order": 1}
+        if motion.random() < 0.2:
+            top = 0.8 * limits["max_velocity"]
+            request["initial_state"] = {"velocity": round(motion.uniform(-top, top), 3)}
+            request["final_state"] = {"velocity": round(motion.uniform(-top, top), 3)}
         out.append(request)
     return out
 
