@@ -12,7 +12,7 @@ from ruckig import InputParameter, Result, Ruckig, Trajectory
 from scipy.integrate import solve_ivp
 
 from models.errors import Infeasible
-from models.plants import ModePlant
+from models.plants import ModePlant, TwoInertiaPlant
 from optim.families.time_optimal.options import TimeOptimalOptions
 from optim.problem import REST, Limits, MotionState, Problem
 from optim.registry import FAMILIES
@@ -131,3 +131,43 @@ def test_just_inside_that_bound_a_move_is_designed() -> None:
     result = _design(0.3, MotionState(0.44, 1.0), REST, Limits(0.5, 3.0, 10.0))
     assert result.metrics.peak_velocity <= 0.5 * (1 + 1e-9)
     assert _residual(_through(result, state)) < RESIDUAL * 0.3
+
+
+@pytest.mark.parametrize(
+    ("start", "limits"),
+    [
+        (MotionState(10.0), Limits(20.0, None, None, 10.0)),
+        (MotionState(10.0, 100.0), Limits(20.0, None, 2000.0, 10.0)),
+    ],
+    ids=["velocity", "acceleration"],
+)
+def test_a_two_inertia_move_in_motion_holds_the_torque_and_leaves_no_residual(
+    start: MotionState, limits: Limits
+) -> None:
+    """Cusimano's Table 2 motor with J_L = J_M on an 8 Hz shaft (k = 12.633, c = 0.01), 2 rad from 10 rad/s to rest
+    under 10 N m. J_L th_L'' = k (th_M - th_L) + c (th_M' - th_L') is integrated through the arcs from the load
+    quasi-static in the start (th_M - th_L = J_L a0 / k, equal speeds), sampled densely: the torque J_M th_M'' +
+    J_L th_L'' within the limit (the design's own check is its simulation, 1e-10), the load at rest at the end."""
+    j_m, j_l, k, c = 0.005, 0.005, 12.633093633, 0.01
+    problem = Problem(TwoInertiaPlant(j_m, j_l, k, c), displacement=2.0, limits=limits, initial_state=start)
+    result = synthesize(FAMILIES["time_optimal"], problem, TimeOptimalOptions())
+    jerk = result.summary.held_quantity == "jerk"
+    state = np.array([0.0, start.velocity, start.acceleration, -j_l * start.acceleration / k, start.velocity])
+    peak = 0.0
+    for arc in result.summary.arcs:
+        if not jerk:
+            state[2] = arc.level
+
+        def rhs(_t: float, y: np.ndarray, level: float = arc.level if jerk else 0.0) -> list[float]:
+            load = (k * (y[0] - y[3]) + c * (y[1] - y[4])) / j_l
+            return [y[1], y[2], level, y[4], load]
+
+        run = solve_ivp(rhs, (0.0, arc.duration_s), state, method="DOP853", rtol=1e-12, atol=1e-14, dense_output=True)
+        y = run.sol(np.linspace(0.0, arc.duration_s, 200))
+        torque = j_m * y[2] + k * (y[0] - y[3]) + c * (y[1] - y[4])
+        peak = max(peak, float(np.max(np.abs(torque))))
+        state = run.y[:, -1]
+    assert peak <= 10.0 * (1 + 1e-6)
+    assert state[0] == pytest.approx(2.0, abs=1e-9) and abs(state[1]) < 1e-9
+    assert math.hypot(state[0] - state[3], (state[1] - state[4]) / (2 * math.pi * 8)) < 1e-9 * 2.0
+    assert 0.0 < result.summary.lower_bound_s <= result.summary.duration_s
