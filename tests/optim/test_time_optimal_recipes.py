@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from models.plants import ModePlant
+from models.plants import ModePlant, TransferFunctionPlant
 from optim.families.time_optimal.options import TimeOptimalOptions
 from optim.problem import Limits, Problem
 from optim.registry import FAMILIES
@@ -131,3 +131,19 @@ def test_a_jerk_limited_grid_command_holds_the_velocity_between_its_check_points
     assert peak is not None and peak <= 0.6 and limits_met(problem, spec, arcs)
     result = _design(problem)
     assert result.summary.duration_s <= fine.steps * fine.step_s * (1 + 1e-12)  # never longer than that grid's
+
+
+def test_a_refinement_stopped_at_its_iteration_cap_still_shortens_a_near_rigid_two_mode_move() -> None:
+    """bench/time_optimal_random.py's move #5 (seed 25): modes at 136 and 232 Hz, a jerk limit. Its 800-step LP
+    (bench/lp_reference.py) needs 466.6 ms, Ruckig's rigid move 465.65 ms, the ZV-shaped one 471.52 ms, which was the
+    answer while SLSQP's capped points were dropped (1.0105 of the LP). SLSQP stops at its cap from a finer grid's
+    vertex; polished, its point is a 467.28 ms command: the bound 1.002 of the LP (0.47 s) fails without it."""
+    numerator = [23140.30039685453, 489785422.9903582, 1555373969439.6284]
+    denominator = [1.0, 589.5116575131228, 2882825.6381897917, 489785422.99035823, 1555373969439.6284]
+    plant = TransferFunctionPlant(tuple(numerator), tuple(denominator))
+    problem = Problem(
+        plant, displacement=0.22090573358374935, limits=Limits(None, 4.513795658811519, 199.48855414933138)
+    )
+    result = _design(problem)
+    assert 0.46565 < result.summary.duration_s < 0.4666 * 1.002
+    assert result.metrics.residual_amplitude < 1e-9 * 0.2209

@@ -6,8 +6,9 @@ small smooth problem: minimise sum d_j subject to the end state and the residual
 the node bounds and the band points (|F_0|^2 <= c^2, true circles). It has a few to a few dozen
 unknowns and closed-form constraints, so scipy's SLSQP solves it in milliseconds with no build cost
 (a CasADi problem would have to be built for each structure); a Newton polish on the active
-constraints then brings the equalities to round-off. The caller keeps the result only if it checks
-out (limits, dense band) and is shorter than the grid's.
+constraints then brings the equalities to round-off (from SLSQP's last point also where it stopped at its
+iteration cap: often a shorter command than its start). The caller keeps the result only if it checks out
+(limits, dense band) and is shorter than the best so far.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from optim.families.time_optimal.types import Arc, Spec
 
 Array = NDArray[np.float64]
 MAX_ITERATIONS = 80  # SLSQP's cap: a structure that needs more is not the optimum's (the grid's is kept)
+ITERATION_CAP = 9  # scipy's SLSQP status when it stops at MAX_ITERATIONS
 TINY_ARC = 1e-6  # of the duration: a shorter refined arc is tried without
 ACTIVE = 1e-7  # a scaled inequality within this of its bound is held as an equality by the polish
 
@@ -225,7 +227,9 @@ def refine(
         constraints=constraints,
         options={"maxiter": MAX_ITERATIONS, "ftol": 1e-10},
     )
-    if not result.success:
+    # SLSQP's status 9: its iteration cap. Its last point is often a shorter command than the start, short of
+    # converged: the polish brings it onto the equalities or drops it, and the caller checks every limit exactly.
+    if not result.success and result.status != ITERATION_CAP:
         return None
     z = _polish(model, np.asarray(result.x, dtype=float))
     if z is None:
@@ -244,7 +248,8 @@ def refine(
         for s, e, level, k in zip(start, end, lv, keep, strict=True)
         if k
     )
-    return Refined(arcs, f"SLSQP converged in {result.nit} iterations; Newton polish on the active constraints")
+    how = f"converged in {result.nit} iterations" if result.success else f"stopped at its cap of {MAX_ITERATIONS}"
+    return Refined(arcs, f"SLSQP {how}; Newton polish on the active constraints")
 
 
 def _polish(model: _Model, z: Array, iterations: int = 20) -> Array | None:
