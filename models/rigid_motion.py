@@ -96,6 +96,8 @@ def rigid_move(
     if status not in (Result.Working, Result.Finished):
         raise ValueError(f"Ruckig found no rigid move ({status})")
     profile = trajectory.profiles[0][0]
+    if profile.brake.duration > 0.0:  # a start outside the limits: Ruckig's brake breaks them, no rigid optimum
+        raise ValueError("Ruckig found no rigid move within the limits from this state (it needs a brake phase)")
     phases = np.asarray(profile.t, dtype=float)
     order = 3 if max_jerk is not None else 2
     held = np.asarray(profile.j if order == 3 else profile.a[:-1], dtype=float) * unit / tau**order

@@ -85,10 +85,13 @@ def residual_envelope(
     return _free_sums(command, natural_frequency_rad_s, damping_ratio, derivative)[1]
 
 
-def move_scale(command: PiecewiseCommand) -> tuple[str, float]:
+def move_scale(command: PiecewiseCommand, position: bool | None = None) -> tuple[str, float]:
     """What the residual is measured against: the displacement, or the final speed if the
-    command ends moving (then the velocity residual is the one that matters)."""
+    command ends moving (then the velocity residual is the one that matters). ``position`` True: the
+    displacement whatever the end (a position move that ends in motion, issue 25's final_state)."""
     end = command.end_index()
+    if position:
+        return "position", abs(float(command.derivatives[0, end] - command.derivatives[0, 0]))
     final_velocity = float(command.derivatives[1, end]) if command.degree >= 1 else 0.0
     peak = float(np.max(np.abs(command.derivatives[1]))) if command.degree >= 1 else 0.0
     if abs(final_velocity) > 1e-9 * peak:  # round-off of a stop is no final speed
@@ -101,9 +104,10 @@ def sensitivity(
     natural_frequency_rad_s: float,
     frequency_ratios: ArrayLike,
     damping_ratios: ArrayLike,
+    position: bool | None = None,
 ) -> Sensitivity:
-    """Residual (fraction of the move) versus w/w_e for each damping ratio."""
-    quantity, scale = move_scale(command)
+    """Residual (fraction of the move) versus w/w_e for each damping ratio (``position``: see move_scale)."""
+    quantity, scale = move_scale(command, position)
     ratios = np.asarray(frequency_ratios, dtype=float)
     zetas = np.atleast_1d(np.asarray(damping_ratios, dtype=float))
     w = np.repeat(ratios[None, :] * natural_frequency_rad_s, zetas.size, axis=0)

@@ -167,8 +167,9 @@ class Problem:
     def _check_overshoot(self) -> None:
         """Infeasible (proven) where the jerk limit cannot bring an end's acceleration to the other's before the
         velocity passes max_velocity: from (v0, a0 > 0) every command has a >= a0 - J t, so v >= v0 + a0 t - J t^2 / 2
-        until a reaches max(a_end, 0), at t = (a0 - max(a_end, 0)) / J at the earliest; the end state is the start
-        of the time-reversed move (velocity vf, acceleration -af)."""
+        until t = a0 / J, and the move lasts at least |a0 - a_end| / J: v passes v0 + a0 t - J t^2 / 2 at
+        t = min(|a0 - a_end|, a0) / J; the end state is the start of the time-reversed move (velocity vf,
+        acceleration -af)."""
         jerk, top = self.limits.max_jerk, self.limits.max_velocity
         if jerk is None or top is None:
             return
@@ -179,9 +180,9 @@ class Problem:
         ):
             if a0 < 0.0:
                 v0, a0, a_end = -v0, -a0, -a_end
-            if a0 == 0.0 or a_end >= a0:
+            if a0 == 0.0:
                 continue
-            t = (a0 - max(a_end, 0.0)) / jerk
+            t = min(abs(a0 - a_end), a0) / jerk  # no sooner can it reach a_end, nor turn the velocity down
             peak = v0 + a0 * t - jerk * t * t / 2.0
             if peak > top * (1.0 + 1e-12):
                 raise Infeasible(

@@ -265,7 +265,7 @@ def nominal_percentage_vibration(problem: Problem, command: PiecewiseCommand) ->
         return None
     ratio, zeta = np.array([1.0]), np.array([modes[0].damping_ratio])
     try:
-        amplitude = sensitivity(command, modes[0].natural_frequency_rad_s, ratio, zeta).amplitude
+        amplitude = sensitivity(command, modes[0].natural_frequency_rad_s, ratio, zeta, problem.rest_to_rest).amplitude
     except InvalidParameter:
         return None  # round-off would spoil it (the simulation accepted the command on its own scale)
     return float(percentage_vibration(problem, amplitude, ratio, zeta)[0][0, 0])
@@ -281,10 +281,10 @@ def sensitivity_curve(
     """Percentage vibration versus f_n / f_n,e around the plant's first mode (exact free state, one dot
     product per frequency; models.sensitivity), from the residual fractions of the move ``rows`` when a
     family gives them (one per damping ratio)."""
-    quantity, scale = move_scale(command)
+    quantity, scale = move_scale(command, problem.rest_to_rest)
     if rows is None:
         mode = problem.plant.modes()[0]
-        amplitude = sensitivity(command, mode.natural_frequency_rad_s, ratios, zetas).amplitude
+        amplitude = sensitivity(command, mode.natural_frequency_rad_s, ratios, zetas, problem.rest_to_rest).amplitude
         rows = amplitude / (scale if scale > 0 else 1.0)
     else:
         amplitude = rows * (scale if scale > 0 else 1.0)

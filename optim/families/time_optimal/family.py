@@ -177,10 +177,11 @@ def shaped_within_torque(problem: Problem, spec: Spec) -> tuple[Arc, ...] | None
     accel = problem.acceleration_limit
     for _ in range(SHAPED_TORQUE_ROUNDS):
         rigid_spec = replace(spec, torque=None, max_acceleration=accel)
-        rigid = rigid_of(rigid_spec)
+        shaper = nominal_shaper(rigid_spec)
+        rigid = rigid_of(rigid_spec, shaper)  # the shaper's delays at the end velocities (a move in motion)
         if rigid is None:
             return None
-        arcs = shaped_arcs(rigid_spec, rigid, nominal_shaper(rigid_spec))
+        arcs = shaped_arcs(rigid_spec, rigid, shaper)
         over = excess(problem, spec, arcs)
         if not over and limits_met(problem, spec, arcs):
             return arcs

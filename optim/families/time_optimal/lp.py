@@ -117,14 +117,32 @@ def velocity_bound(spec: Spec, dt: float) -> float:
     """The velocity bound the grid LP holds at its check points (the nodes, and with a held jerk every step's
     middle) so that the command holds max_velocity everywhere: with a held jerk the velocity is a parabola on each
     step, |v''| <= J, so between check points h / 2 apart it exceeds their chord by at most J (h / 2)^2 / 8 =
-    J h^2 / 32 (the interpolation error of a linear interpolant); without one it is linear between the nodes. Never
-    below the start's and end's own speeds (the first and last check points could not hold it): there the exact
-    check of the command decides (family.limits_met)."""
+    J h^2 / 32 (the interpolation error of a linear interpolant); without one it is linear between the nodes."""
     assert spec.max_velocity is not None
     if spec.order != 3 or spec.max_jerk is None:
         return spec.max_velocity
-    ends = max(abs(spec.start_velocity), abs(spec.end_velocity))
-    return max(spec.max_velocity - spec.max_jerk * dt * dt / 32.0, 0.5 * spec.max_velocity, ends)
+    return max(spec.max_velocity - spec.max_jerk * dt * dt / 32.0, 0.5 * spec.max_velocity)
+
+
+def velocity_bounds(spec: Spec, times_s: Array, total_s: float, dt: float) -> Array:
+    """velocity_bound at check points ``times_s``, except next to an end in motion: within one step plus the time
+    the jerk needs to bring that end's acceleration to 0 (|a| / J), the speed that end cannot avoid (|v|, plus
+    a^2 / 2J where the acceleration points the same way) may be above it (a start at max_velocity, or rising
+    towards it): there the bound is that speed (at most max_velocity), and the exact check of the command decides
+    (family.limits_met, and the tightening of family.solve_within_limits)."""
+    assert spec.max_velocity is not None
+    bound = velocity_bound(spec, dt)
+    out = np.full(times_s.shape, bound)
+    if spec.order != 3 or spec.max_jerk is None or not spec.in_motion:
+        return out
+    jerk, top = spec.max_jerk, spec.max_velocity
+    for velocity, accel, near in (
+        (spec.start_velocity, spec.start_acceleration, times_s <= dt + abs(spec.start_acceleration) / jerk),
+        (spec.end_velocity, -spec.end_acceleration, times_s >= total_s - dt - abs(spec.end_acceleration) / jerk),
+    ):
+        unavoidable = abs(velocity) + (accel * accel / (2.0 * jerk) if velocity * accel > 0.0 else 0.0)
+        out[near] = np.maximum(out[near], min(top, unavoidable))
+    return out
 
 
 def grid_lp(
@@ -154,16 +172,17 @@ def grid_lp(
         lp.lower[last[m]] = lp.upper[last[m]] = target / c.scale[m]
     nodes = lp.state(np.arange(1, steps), 0)
     if spec.max_velocity is not None:
-        velocity = velocity_bound(spec, dt) * tight
-        bound = velocity / c.scale[1]
+        at_nodes = velocity_bounds(spec, np.arange(1, steps) * dt, total, dt) * tight
+        bound = at_nodes / c.scale[1]
         lp.lower[nodes + 1] = np.maximum(lp.lower[nodes + 1], -bound)
         lp.upper[nodes + 1] = np.minimum(lp.upper[nodes + 1], bound)
         if q == 3:  # mid-step velocity of a held jerk
             e = np.zeros(lp.states)
             e[1] = 1.0
             rows = lp.output_rows(c, e, 0.0, dt, unit, (0.5,))
-            lp.add_ub(rows, np.full(steps, velocity))
-            lp.add_ub(-rows, np.full(steps, velocity))
+            mid = velocity_bounds(spec, (np.arange(steps) + 0.5) * dt, total, dt) * tight
+            lp.add_ub(rows, mid)
+            lp.add_ub(-rows, mid)
     if q == 3 and spec.max_acceleration is not None:
         bound = spec.max_acceleration * tight / c.scale[2]
         lp.lower[nodes + 2] = np.maximum(lp.lower[nodes + 2], -bound)

@@ -274,5 +274,5 @@ def _v(
     problem: Problem, command: PiecewiseCommand, omega: float, ratios: NDArray[np.float64], zetas: NDArray[np.float64]
 ) -> NDArray[np.float64]:
     """V (%) per (damping ratio, frequency ratio) around the mode ``omega`` (optim.synthesis's definition)."""
-    amplitude = sensitivity(command, omega, ratios, zetas).amplitude
+    amplitude = sensitivity(command, omega, ratios, zetas, problem.rest_to_rest).amplitude
     return percentage_vibration(problem, amplitude, ratios, zetas, omega)[0]

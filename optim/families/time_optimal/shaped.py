@@ -69,6 +69,8 @@ def rigid_of(spec: Spec, shaper: ImpulseSequence = IDENTITY) -> RigidMove | None
         None if limit is None else limit * (1.0 - ROUND_OFF)
         for limit in (spec.max_velocity, spec.max_acceleration, spec.max_jerk)
     ]
+    if inside[0] is not None:  # an end at max_velocity itself stays inside Ruckig's limits
+        inside[0] = max(inside[0], abs(spec.start_velocity), abs(spec.end_velocity))
     mean_s = float(shaper.amplitudes @ shaper.times_s)
     last_s = float(shaper.times_s[-1])
     move = spec.move - spec.start_velocity * mean_s - spec.end_velocity * (last_s - mean_s)
