@@ -172,7 +172,7 @@ def grid_lp(
         lp.lower[last[m]] = lp.upper[last[m]] = target / c.scale[m]
     nodes = lp.state(np.arange(1, steps), 0)
     if spec.max_velocity is not None:
-        at_nodes = velocity_bounds(spec, np.arange(1, steps) * dt, total, dt) * tight
+        at_nodes = velocity_bounds(spec, np.arange(1, steps, dtype=float) * dt, total, dt) * tight
         bound = at_nodes / c.scale[1]
         lp.lower[nodes + 1] = np.maximum(lp.lower[nodes + 1], -bound)
         lp.upper[nodes + 1] = np.minimum(lp.upper[nodes + 1], bound)
@@ -180,7 +180,7 @@ def grid_lp(
             e = np.zeros(lp.states)
             e[1] = 1.0
             rows = lp.output_rows(c, e, 0.0, dt, unit, (0.5,))
-            mid = velocity_bounds(spec, (np.arange(steps) + 0.5) * dt, total, dt) * tight
+            mid = velocity_bounds(spec, (np.arange(steps, dtype=float) + 0.5) * dt, total, dt) * tight
             lp.add_ub(rows, mid)
             lp.add_ub(-rows, mid)
     if q == 3 and spec.max_acceleration is not None:
