@@ -123,9 +123,9 @@ def shaped_rigid(best: _Best) -> Found | None:
 def three_switch_starts(spec: Spec, rigid: RigidMove | None) -> list[Start]:
     """Singh and Vadali's symmetric three-switch structure (+1, -1, +1, -1) around a bang-bang rigid move, with a
     reversal pulse of REVERSALS damped periods of each zero-residual pole: a start the grid may not show."""
-    if rigid is None or rigid.order != 2 or rigid.levels.size != 2 or spec.bands or spec.in_motion:
+    if rigid is None or rigid.order != 2 or rigid.levels.size != 2:
         return []
-    if not spec.rest_to_rest:
+    if spec.bands or spec.in_motion or not spec.rest_to_rest:
         return []
     half = rigid.duration_s / 2
     starts: list[Start] = []

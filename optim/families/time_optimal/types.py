@@ -84,13 +84,14 @@ class Spec:
     def free_motion(self, m: int, t: NDArray[np.float64]) -> NDArray[np.float64]:
         """The start state's share of the m-th derivative at times ``t``: sum_(k >= m) s_k t^(k - m) / (k - m)!
         (the command's own share is linear in its held levels)."""
-        out = np.zeros_like(np.asarray(t, dtype=float))
+        times = np.asarray(t, dtype=float)
+        out = np.zeros_like(times)
         if not (self.start_velocity or self.start_acceleration):
             return out  # from rest (the common case: the refinement calls this at every evaluation)
         state = self.start_state()
         for k in range(m, len(state)):
             if state[k] != 0.0:
-                out = out + state[k] * np.asarray(t, dtype=float) ** (k - m) / math.factorial(k - m)
+                out += state[k] * times ** (k - m) / math.factorial(k - m)
         return out
 
     def position_scale(self, total_s: float) -> float:
