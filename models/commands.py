@@ -255,8 +255,8 @@ class PiecewiseCommand:
             out[0, before] = self.derivatives[0, 0]
         return out
 
-    def peak_abs(self, m: int) -> float | None:
-        """max |p^(m)| over [t_0, t_{N-1}], including extrema inside the pieces.
+    def peak_abs(self, m: int, until: int | None = None) -> float | None:
+        """max |p^(m)| over [t_0, t_{N-1}] (or [t_0, t_until]), including extrema inside the pieces.
 
         None when p^(m) is impulsive, i.e. a lower derivative jumps somewhere (including a start
         from rest with a non-zero value). Exact when p^(m) has degree <= 3 inside a piece (its derivative's
@@ -269,10 +269,11 @@ class PiecewiseCommand:
                 return None
         if m > self.degree:
             return 0.0
-        candidates = [np.abs(self.derivatives[m]), np.abs(self.left_limit(m)[1:])]
-        h = self.steps_s
+        last = self.time_s.size - 1 if until is None else until
+        candidates = [np.abs(self.derivatives[m, : last + 1]), np.abs(self.left_limit(m)[1 : last + 1])]
+        h = self.steps_s[:last]
         deg_inside = self.degree - m  # degree of p^(m) within a piece
-        coeffs = [self.derivatives[m + 1 + i, :-1] / math.factorial(i) for i in range(deg_inside)]
+        coeffs = [self.derivatives[m + 1 + i, :last] / math.factorial(i) for i in range(deg_inside)]
         # Roots tau of p^(m+1)(t_k + tau) = sum_i coeffs[i] tau^i inside (0, h_k).
         roots: list[NDArray[np.float64]] = []
         if deg_inside == 2:
@@ -291,9 +292,9 @@ class PiecewiseCommand:
             tau = np.where(np.isfinite(tau) & (tau > 0.0) & (tau < h), tau, np.nan)
             # Horner over the orders (a handful), every piece and candidate at once:
             # p^(m)(t_k + tau) = D_m + tau (D_(m+1) + tau / 2 (D_(m+2) + ...)).
-            value = np.broadcast_to(self.derivatives[self.degree, :-1], tau.shape)
+            value = np.broadcast_to(self.derivatives[self.degree, :last], tau.shape)
             for n in range(self.degree - 1, m - 1, -1):
-                value = value * tau / (n - m + 1) + self.derivatives[n, :-1]
+                value = value * tau / (n - m + 1) + self.derivatives[n, :last]
             inside = np.abs(value[np.isfinite(value)])
             candidates.append(inside)
         return float(max(np.max(c) if c.size else 0.0 for c in candidates))

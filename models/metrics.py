@@ -201,8 +201,8 @@ def metrics(
         modes=modes,
         final_energy_j=None if energy is None else float(energy),
         settling=settling(response, tolerance, window, vibration_window, vibration_fraction),
-        peak_velocity=cmd.peak_abs(1),
-        peak_acceleration=cmd.peak_abs(2),
-        peak_jerk=cmd.peak_abs(3),
+        peak_velocity=cmd.peak_abs(1, end),  # the command's own span: after its end it continues its final motion
+        peak_acceleration=cmd.peak_abs(2, end),
+        peak_jerk=cmd.peak_abs(3, end),
         peak_motor_torque_nm=None if torque is None else float(np.max(np.abs(torque))),
     )

@@ -127,7 +127,19 @@ def evaluate(family: Family, problem: Problem, design: Design) -> Result:
 
 
 def horizon_of(problem: Problem, end_s: float) -> float:
-    """``problem.horizon_s`` (>= the command's end), else the end plus 5 periods of the slowest mode."""
+    """``problem.horizon_s`` (>= the command's end), else the end plus 5 periods of the slowest mode; the end itself
+    for a move ending with an acceleration (held after the end, its velocity would grow without bound: the next move
+    continues it)."""
+    accelerating = problem.final_state.acceleration != 0.0
+    if accelerating and problem.horizon_s is not None and problem.horizon_s > end_s:
+        raise InvalidParameter(
+            "horizon_s",
+            problem.horizon_s,
+            f"a move ending with a non-zero final_state.acceleration has no tail after its end ({end_s:.6g} s): the "
+            "next move continues it; omit horizon_s",
+        )
+    if accelerating:
+        return end_s
     if problem.horizon_s is None:
         return end_s + TAIL_PERIODS * problem.slowest_period_s
     if problem.horizon_s < end_s:

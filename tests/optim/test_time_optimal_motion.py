@@ -11,7 +11,7 @@ import pytest
 from ruckig import InputParameter, Result, Ruckig, Trajectory
 from scipy.integrate import solve_ivp
 
-from models.errors import Infeasible
+from models.errors import Infeasible, InvalidParameter
 from models.plants import ModePlant, TwoInertiaPlant
 from optim.families.time_optimal.options import Robustness, TimeOptimalOptions
 from optim.problem import REST, Limits, MotionState, Problem
@@ -81,6 +81,22 @@ def test_a_move_between_accelerations_leaves_no_residual() -> None:
     state = _through(_design(0.3, start, end, WITH_JERK), state)
     assert state[:3] == pytest.approx([0.3, 0.1, -0.5], abs=1e-12)
     assert _residual(state) < RESIDUAL * 0.3
+
+
+def test_a_move_ending_accelerating_next_to_max_velocity_is_designed_and_ends_at_its_end() -> None:
+    """Ending at 0.45 m/s and 2 m/s^2 under max_velocity 0.5: held after the end, that acceleration would pass the
+    limit within 25 ms. The profile and its limit check stop at the command's end (the next move continues it);
+    they ran on into a 5-period tail (a false 422: "the velocity peaks at 1.5 > 0.5")."""
+    end = MotionState(0.45, 2.0)
+    result = _design(0.3, REST, end, WITH_JERK)
+    state = _through(result, np.zeros(5))
+    assert state[:3] == pytest.approx([0.3, 0.45, 2.0], abs=1e-12)
+    assert _residual(state) < RESIDUAL * 0.3
+    assert result.command.time_s[-1] == pytest.approx(sum(arc.duration_s for arc in result.summary.arcs), rel=1e-12)
+    assert result.metrics.peak_velocity <= 0.5 * (1 + 1e-9)
+    asked = Problem(ModePlant(HZ, ZETA), displacement=0.3, limits=WITH_JERK, final_state=end, horizon_s=5.0)
+    with pytest.raises(InvalidParameter, match="no tail after its end"):
+        synthesize(FAMILIES["time_optimal"], asked, TimeOptimalOptions())
 
 
 def _ruckig_s(d: float, v0: float, vf: float, limits: Limits) -> float:
