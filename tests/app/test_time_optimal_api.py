@@ -24,8 +24,10 @@ def test_known_answer_over_http(client) -> None:
     assert design["lower_bound_s"] <= design["duration_s"]
     assert [a["kind"] for a in design["arcs"]] == ["bang"] * 4
     assert body.metrics.settling_time_s == pytest.approx(design["duration_s"], rel=1e-9)  # no residual to wait for
-    # A bisection runs at least two LPs (its upper guess and one step shorter); the report counts them all.
-    assert body.limits_met and body.solver is not None and body.solver.solves >= 2
+    # Newton on Singh and Vadali's structure, certified by its switching function: no LP, and the lower bound is
+    # the duration itself (less the certificate's 1e-9)
+    assert body.limits_met and body.solver is not None and body.solver.solves == 0
+    assert design["lower_bound_s"] == pytest.approx(design["duration_s"], rel=2e-9)
     assert body.metrics.peak_velocity <= 5.0 and body.metrics.peak_acceleration <= 10.0 * (1 + 1e-9)
 
 

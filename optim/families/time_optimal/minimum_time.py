@@ -32,7 +32,8 @@ from models.errors import SolverFailed, SolverTimedOut
 from models.rigid_motion import RigidMove
 from models.shapers import ImpulseSequence, convolve
 from optim.families.time_optimal.arcs import arcs_of, merged, structure
-from optim.families.time_optimal.refine import refine
+from optim.families.time_optimal.certify import Certificate, certificate
+from optim.families.time_optimal.refine import newton, refine
 from optim.families.time_optimal.search import GridSearch, clip, project
 from optim.families.time_optimal.shaped import as_start, band_shapers, nominal_shaper, rigid_of, shaped_arcs
 from optim.families.time_optimal.types import Arc, GridSolution, Solution, Spec
@@ -45,6 +46,7 @@ PROBES = 3
 PROBE_FINER = 4  # the probe's grid is this much finer than the search's
 MAX_ARCS = 24  # a start with more arcs is not refined (a chattering grid vertex: another start is tried)
 GUESS_MARGIN = 0.05  # the grid search starts this much above the shaped rigid optimum's duration
+CERTIFIED_GAP = 1e-9  # a certified answer's lower bound: its duration less this (the switching times' precision)
 SHORTER = 1e-12  # a candidate replaces the best only if shorter by more than this (relative)
 REVERSALS = (1 / 6, 1 / 4)  # the three-switch start's reversal pulses, in damped periods
 
@@ -66,6 +68,7 @@ class _Best:
     def __init__(self, spec: Spec, search: GridSearch, check_limits: LimitCheck | None) -> None:
         self.spec, self.search, self.check_limits = spec, search, check_limits
         self.found: Found | None = None
+        self.proof: Certificate | None = None  # the found command is proven the minimum-time one: search no more
 
     def accepts(self, arcs: tuple[Arc, ...]) -> bool:
         return (self.check_limits is None or self.check_limits(arcs)) and self.search.verified(arcs)
@@ -77,12 +80,17 @@ class _Best:
         if total > self.spec.max_duration_s or not self.accepts(arcs):
             return False
         self.found = Found(merged(arcs), method, note)
+        self.proof = certificate(self.spec, self.found.arcs)
         return True
 
     def refine_from(self, start: Start, note: str = "") -> bool:
         if len(start[0]) > MAX_ARCS:
             return False
         result = refine(self.spec, *start, self.search.cuts)
+        return result is not None and self.offer(result.arcs, "refined", result.status + note)
+
+    def newton_from(self, start: Start, note: str) -> bool:
+        result = newton(self.spec, start[0], start[1])
         return result is not None and self.offer(result.arcs, "refined", result.status + note)
 
     def refine_grid(self, values: Array, step_s: float, note: str = "") -> bool:
@@ -164,16 +172,21 @@ def _refined(best: _Best, search: GridSearch, grid: GridSolution | None, rigid: 
             late = search.late_vertex(grid.steps, grid.step_s)
             if late is not None:
                 best.refine_grid(clip(spec, late), grid.step_s)
+    if best.proof is not None:
+        return
     if shaped is not None:
         best.refine_from(as_start(spec, shaped.arcs), " (from the shaped rigid optimum)")
     for start in three_switch_starts(spec, rigid):
-        best.refine_from(start, " (from the symmetric three-switch structure)")
-    for _ in range(PROBES if grid is not None and best.found is not None else 0):
+        if best.proof is None:
+            best.refine_from(start, " (from the symmetric three-switch structure)")
+    for _ in range(PROBES if grid is not None and best.found is not None and best.proof is None else 0):
         assert best.found is not None and grid is not None
         steps = PROBE_FINER * grid.steps
         dt = best.found.duration_s / steps
         probe = search.late_vertex(steps, dt)
         if probe is None or not best.refine_grid(np.clip(probe, -1, 1), dt, " (from a finer grid's vertex)"):
+            break
+        if best.proof is not None:
             break
 
 
@@ -221,15 +234,23 @@ def solve(spec: Spec, check_limits: LimitCheck | None = None, bound_spec: Spec |
     best = _Best(spec, search, check_limits)
     rigid = rigid_of(spec)
     shaped = shaped_rigid(best)
-    grid = _grid(search, shaped)
     exact = spec.torque is None and not spec.bands  # a torque limit or a band: the grid optimum (or the shaped one)
-    if exact:
+    for start in three_switch_starts(spec, rigid) if exact else []:  # no LP where a known structure is proven
+        if best.proof is None:
+            best.newton_from(start, " from the symmetric three-switch structure")
+    grid = None if best.proof is not None else _grid(search, shaped)
+    if exact and best.proof is None:
         _refined(best, search, grid, rigid)
-    if grid is not None:
+    if grid is not None and best.proof is None:
         grid = _grid_answer(best, search, grid)
     found = best.found
     assert found is not None  # the shaped rigid optimum, or the grid's
-    bound, method = search.lower_bound(found.duration_s, bound_spec)
+    if best.proof is not None and (bound_spec is None or bound_spec == spec):
+        found = Found(found.arcs, found.method, f"{found.note}; {best.proof.describe()}")
+        bound = found.duration_s * (1 - CERTIFIED_GAP)
+        method = "the switching function's certificate (Pontryagin, optim.families.time_optimal.certify)"
+    else:
+        bound, method = search.lower_bound(found.duration_s, bound_spec)
     return Solution(
         arcs=found.arcs,
         order=spec.order,

@@ -29,6 +29,7 @@ Array = NDArray[np.float64]
 MAX_ITERATIONS = 80  # SLSQP's cap: a structure that needs more is not the optimum's (the grid's is kept)
 ITERATION_CAP = 9  # scipy's SLSQP status when it stops at MAX_ITERATIONS
 TINY_ARC = 1e-6  # of the duration: a shorter refined arc is tried without
+NEWTON_ITERATIONS = 12  # a start near the structure's solution converges quadratically well within this
 ACTIVE = 1e-7  # a scaled inequality within this of its bound is held as an equality by the polish
 
 
@@ -241,15 +242,28 @@ def refine(
         dropped = _polish(model, trial)
         if dropped is not None and np.sum(dropped[: model.count]) <= np.sum(z[: model.count]) * (1 + 1e-9):
             z = dropped
+    arcs = _arcs(spec, model, z)
+    how = f"converged in {result.nit} iterations" if result.success else f"stopped at its cap of {MAX_ITERATIONS}"
+    return Refined(arcs, f"SLSQP {how}; Newton polish on the active constraints")
+
+
+def newton(spec: Spec, durations: list[float], levels: list[float]) -> Refined | None:
+    """The command of a structure with fixed levels whose durations solve the end conditions and the active
+    bounds, by Newton from ``durations`` (no minimisation: a square system where the structure is the optimum's,
+    whose certificate the caller checks); None if it does not converge."""
+    model = _Model(spec, durations, levels, [False] * len(levels), [])
+    z = _polish(model, model.z0.copy(), NEWTON_ITERATIONS)
+    return None if z is None else Refined(_arcs(spec, model, z), "Newton on the switching times")
+
+
+def _arcs(spec: Spec, model: _Model, z: Array) -> tuple[Arc, ...]:
     start, end, lv = model.unpack(z)
     keep = end - start > 0.0
-    arcs = tuple(
+    return tuple(
         Arc(float(s), float(e - s), float(level * spec.scale))
         for s, e, level, k in zip(start, end, lv, keep, strict=True)
         if k
     )
-    how = f"converged in {result.nit} iterations" if result.success else f"stopped at its cap of {MAX_ITERATIONS}"
-    return Refined(arcs, f"SLSQP {how}; Newton polish on the active constraints")
 
 
 def _polish(model: _Model, z: Array, iterations: int = 20) -> Array | None:

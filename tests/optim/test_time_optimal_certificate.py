@@ -1,0 +1,129 @@
+"""The switching-function certificate of a held-acceleration answer (optim.families.time_optimal.certify), checked
+against what it claims: its multipliers' weak-duality bound, integrated here by QUADPACK (scipy.integrate.quad),
+equals the move at the answer's duration and falls short of it at any shorter one; the known answer
+(tests/time_optimal_oracle.py, Singh and Vadali's structure with its own maximum-principle check) is found with no
+LP at all; a feasible command that is not the optimum is not certified."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import quad
+
+from models.plants import ModePlant
+from optim.families.time_optimal.certify import _basis, certificate
+from optim.families.time_optimal.family import limits_met, selected_modes, spec_of
+from optim.families.time_optimal.options import TimeOptimalOptions
+from optim.families.time_optimal.refine import newton
+from optim.families.time_optimal.types import Arc, Spec
+from optim.problem import Limits, Problem
+from optim.registry import FAMILIES
+from optim.synthesis import synthesize
+from tests.time_optimal_oracle import minimum_time
+
+
+def _spec(problem: Problem) -> Spec:
+    options = TimeOptimalOptions()
+    return spec_of(problem, options, selected_modes(problem, options)[0])
+
+
+def _answer(problem: Problem) -> tuple[Spec, tuple[Arc, ...], float]:
+    result = synthesize(FAMILIES["time_optimal"], problem, TimeOptimalOptions())
+    return _spec(problem), result.summary.arcs, result.summary.lower_bound_s
+
+
+def _bound(spec: Spec, arcs: tuple[Arc, ...], total: float) -> float:
+    """V |mu| + A int_0^T |sigma(s)| ds with the certificate's multipliers kept in T - s and every coast's measure
+    shifted with the end (the docstring's argument for a shorter duration ``total``): an upper bound on the distance
+    any command of that duration reaches."""
+    proof = certificate(spec, arcs)
+    assert proof is not None
+    theta, unit = proof.theta, spec.scale
+    durations = np.array([a.duration_s for a in arcs])
+    ends = np.cumsum(durations)
+    answer = float(ends[-1])
+
+    def phi(tau: float) -> float:
+        return float(tau - _basis(spec, np.array([tau]))[0][0] @ theta)
+
+    coasts = [(answer - (e - d), answer - e) for a, d, e in zip(arcs, durations, ends, strict=True) if a.level == 0]
+    # mu([s, T]) in tau = T - s: phi(tau_exit) .. phi(tau_entry) across a coast, constant between, 0 after the last
+    taus = sorted({tau for c in coasts for tau in c})
+
+    def mass(tau: float) -> float:
+        later = [c for c in coasts if c[1] <= tau]  # coasts whose exit is nearer the end than tau
+        inside = [c for c in coasts if c[1] <= tau <= c[0]]
+        if inside:
+            return phi(tau)
+        return phi(max(later, key=lambda c: c[0])[0]) if later else 0.0
+
+    def sigma_abs(tau: float) -> float:
+        return abs(phi(tau) - mass(tau))
+
+    measure = sum(abs(phi(entry) - phi(exit)) for entry, exit in coasts)
+    velocity = spec.max_velocity or 0.0
+    switches = [answer - e for e in ends[:-1]]
+    points = [t for t in (*switches, *taus) if 0.0 < t < total]
+    integral = quad(sigma_abs, 0.0, total, points=points or None, limit=500, epsabs=1e-14, epsrel=1e-12)[0]
+    return velocity * measure + unit * integral
+
+
+KNOWN = Problem(ModePlant(40.0), displacement=0.12, limits=Limits(5.0, 10.0))  # the README's 219.7077 ms
+COAST = Problem(ModePlant(3.0, 0.1), displacement=1.0, limits=Limits(1.0, 5.0))  # +a, coast at V, -a, +a, -a
+
+
+def test_the_known_answer_is_certified_with_no_lp() -> None:
+    # Singh and Vadali's three switches, from the oracle's own scan and maximum-principle check: Newton on that
+    # structure converges, the certificate proves it, and the grid search (its LPs) never runs.
+    result = synthesize(FAMILIES["time_optimal"], KNOWN, TimeOptimalOptions())
+    summary = result.summary
+    exact = minimum_time(2 * math.pi * 40.0, 10.0, 5.0, 0.12)
+    assert summary.duration_s == pytest.approx(exact, rel=1e-12)  # both solve the same equations to round-off
+    assert summary.search.lp_solves == 0
+    assert summary.lower_bound_s == pytest.approx(summary.duration_s, rel=2e-9)  # proven, to its 1e-9
+    assert "certifies" in summary.refinement
+
+
+@pytest.mark.parametrize("problem", [KNOWN, COAST], ids=["bang-bang", "coast"])
+def test_the_multipliers_bound_the_distance_at_the_duration_and_fall_short_below_it(problem: Problem) -> None:
+    spec, arcs, _ = _answer(problem)
+    total = sum(a.duration_s for a in arcs)
+    # At T the bound is reached: the command goes as far as any command of its duration can. QUADPACK's error
+    # (epsrel 1e-12) and the switching times' precision (1e-6 of T, second order in the distance) are far below
+    # the 1e-8 allowed.
+    assert _bound(spec, arcs, total) == pytest.approx(spec.move, rel=1e-8)
+    # 0.1 % shorter: strictly less than the move, so no command of that duration exists.
+    assert _bound(spec, arcs, 0.999 * total) < spec.move * (1 - 1e-5)
+
+
+def test_a_feasible_command_that_is_not_the_optimum_is_not_certified() -> None:
+    # Seven switches where three suffice (the optimum's first and last arcs split by a reversal of 5 % of them):
+    # Newton puts them on the end conditions (a feasible command of the same limits, 4.5 % longer than the
+    # optimum), but no multipliers vanish at all seven switches.
+    spec = _spec(KNOWN)
+    d = [a.duration_s for a in _answer(KNOWN)[1]]
+    optimum, reversal = sum(d), 0.05 * d[0]
+    start = [d[0] / 2, reversal, d[0] / 2 + reversal, d[1], d[2], d[3] / 2 + reversal, reversal, d[3] / 2]
+    levels = [1.0, -1.0, 1.0, -1.0, 1.0, -1.0, 1.0, -1.0]
+    command = newton(spec, start, levels)
+    assert command is not None and limits_met(KNOWN, spec, command.arcs)
+    assert sum(a.duration_s for a in command.arcs) > optimum * (1 + 1e-6)
+    assert certificate(spec, command.arcs) is None
+
+
+def test_a_coast_below_the_velocity_limit_is_not_certified() -> None:
+    # A split bang-bang (pulses half a period apart cancel the undamped mode) rests between its pulses: a singular
+    # arc no constraint explains, which an optimum never has.
+    spec = _spec(Problem(ModePlant(40.0), displacement=0.12, limits=Limits(None, 10.0)))
+    period = 1 / 40.0
+    pulse = 0.2 * period
+    durations = [pulse, period / 2 - pulse, pulse, 0.0, pulse, period / 2 - pulse, pulse]
+    levels = [10.0, 0.0, 10.0, 0.0, -10.0, 0.0, -10.0]
+    arcs, t = [], 0.0
+    for d, lv in zip(durations, levels, strict=True):
+        if d > 0:
+            arcs.append(Arc(t, d, lv))
+            t += d
+    assert certificate(spec, tuple(arcs)) is None
