@@ -72,6 +72,13 @@ def _bound(spec: Spec, arcs: tuple[Arc, ...], total: float) -> float:
 
 KNOWN = Problem(ModePlant(40.0), displacement=0.12, limits=Limits(5.0, 10.0))  # the README's 219.7077 ms
 COAST = Problem(ModePlant(3.0, 0.1), displacement=1.0, limits=Limits(1.0, 5.0))  # +a, coast at V, -a, +a, -a
+# Damped modes many periods shorter than the move: the grid search alone refined a fractional last level (a local
+# optimum its 96 steps cannot resolve); the predicted reversal near the end is the certified optimum.
+PREDICTED = [
+    Problem(ModePlant(200.0, 0.18), displacement=0.5, limits=Limits(None, 10.0)),
+    Problem(ModePlant(60.0, 0.1), displacement=0.3, limits=Limits(None, 8.0)),
+    Problem(ModePlant(120.0, 0.15), displacement=0.4, limits=Limits(1.0, 5.0)),
+]
 
 
 def test_the_known_answer_is_certified_with_no_lp() -> None:
@@ -86,7 +93,9 @@ def test_the_known_answer_is_certified_with_no_lp() -> None:
     assert "certifies" in summary.refinement
 
 
-@pytest.mark.parametrize("problem", [KNOWN, COAST], ids=["bang-bang", "coast"])
+@pytest.mark.parametrize(
+    "problem", [KNOWN, COAST, *PREDICTED], ids=["bang-bang", "coast", "damped", "damped-2", "damped-coast"]
+)
 def test_the_multipliers_bound_the_distance_at_the_duration_and_fall_short_below_it(problem: Problem) -> None:
     spec, arcs, _ = _answer(problem)
     total = sum(a.duration_s for a in arcs)
@@ -127,3 +136,19 @@ def test_a_coast_below_the_velocity_limit_is_not_certified() -> None:
             arcs.append(Arc(t, d, lv))
             t += d
     assert certificate(spec, tuple(arcs)) is None
+
+
+@pytest.mark.parametrize("problem", PREDICTED, ids=["200-hz", "60-hz", "120-hz-coast"])
+def test_a_predicted_structure_beats_the_search_alone_with_no_lp(
+    problem: Problem, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Measured: 0.13 %, 0.04 % and 0.15 % shorter than the search without the predicted structures, which ran 10
+    # LPs each and answered +a, -a, then a fractional level (or a rest): not certifiable.
+    import optim.families.time_optimal.minimum_time as minimum_time
+
+    predicted = synthesize(FAMILIES["time_optimal"], problem, TimeOptimalOptions()).summary
+    monkeypatch.setattr(minimum_time, "reversal_starts", lambda *_: [])
+    searched = synthesize(FAMILIES["time_optimal"], problem, TimeOptimalOptions()).summary
+    assert predicted.search.lp_solves == 0 and "certifies" in predicted.refinement
+    assert predicted.duration_s < searched.duration_s * (1 - 1e-4)
+    assert "certifies" not in searched.refinement

@@ -36,6 +36,7 @@ from optim.families.time_optimal.certify import Certificate, certificate
 from optim.families.time_optimal.refine import newton, refine
 from optim.families.time_optimal.search import GridSearch, clip, project
 from optim.families.time_optimal.shaped import as_start, band_shapers, nominal_shaper, rigid_of, shaped_arcs
+from optim.families.time_optimal.structures import reversal_starts
 from optim.families.time_optimal.types import Arc, GridSolution, Solution, Spec
 
 Array = NDArray[np.float64]
@@ -89,9 +90,18 @@ class _Best:
         result = refine(self.spec, *start, self.search.cuts)
         return result is not None and self.offer(result.arcs, "refined", result.status + note)
 
-    def newton_from(self, start: Start, note: str) -> bool:
-        result = newton(self.spec, start[0], start[1])
-        return result is not None and self.offer(result.arcs, "refined", result.status + note)
+    def predicted(self, starts: list[Start], note: str) -> list[tuple[Arc, ...]]:
+        """Newton on each predicted structure (optim.families.time_optimal.structures) until one is certified
+        (offered: the answer); the others' commands, to offer after the search (as the search did without them)."""
+        held: list[tuple[Arc, ...]] = []
+        for durations, levels, _ in starts:
+            result = newton(self.spec, durations, levels)
+            if result is None:
+                continue
+            if certificate(self.spec, merged(result.arcs)) is not None and self.offer(result.arcs, "refined", note):
+                return []
+            held.append(result.arcs)
+        return held
 
     def refine_grid(self, values: Array, step_s: float, note: str = "") -> bool:
         return self.refine_from(structure(values, step_s), note)
@@ -235,14 +245,18 @@ def solve(spec: Spec, check_limits: LimitCheck | None = None, bound_spec: Spec |
     rigid = rigid_of(spec)
     shaped = shaped_rigid(best)
     exact = spec.torque is None and not spec.bands  # a torque limit or a band: the grid optimum (or the shaped one)
-    for start in three_switch_starts(spec, rigid) if exact else []:  # no LP where a known structure is proven
-        if best.proof is None:
-            best.newton_from(start, " from the symmetric three-switch structure")
+    note = "Newton on the switching times of the rigid optimum with reversal pulses"
+    held = best.predicted(reversal_starts(spec, rigid), note) if exact else []  # no LP where one is proven
     grid = None if best.proof is not None else _grid(search, shaped)
     if exact and best.proof is None:
         _refined(best, search, grid, rigid)
     if grid is not None and best.proof is None:
         grid = _grid_answer(best, search, grid)
+    for arcs in held if best.proof is None else []:
+        best.offer(arcs, "refined", note)
+    if held and best.proof is None:  # SLSQP from the shortest: its structure's optimum is often the certified one
+        shortest = min(held, key=lambda arcs: sum(a.duration_s for a in arcs))
+        best.refine_from(as_start(spec, shortest), " (from a predicted structure)")
     found = best.found
     assert found is not None  # the shaped rigid optimum, or the grid's
     if best.proof is not None and (bound_spec is None or bound_spec == spec):

@@ -1,0 +1,79 @@
+"""Predicted arc structures of a held-acceleration answer, tried by Newton before any LP.
+
+The minimum-time command of a rest-to-rest move with modes to cancel is the rigid optimum (bang-bang, or
+bang-coast-bang at max_velocity) with reversal pulses added: Singh and Vadali's (1993) symmetric three switches
+around a bang-bang's switch, or a bang arc split by a short pulse the other way (the answers measured on
+bench/time_optimal_random.py's moves are mostly these: +a, coast, -a, +a, -a; +a, -a, +a, -a; and with two modes
+one reversal each). Each start here is such a structure with a reversal of REVERSALS damped periods per mode; the
+caller solves its switching times by Newton (optim.families.time_optimal.refine.newton) and keeps it only if its
+certificate proves it (optim.families.time_optimal.certify).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+
+from models.rigid_motion import RigidMove
+from optim.families.time_optimal.types import Spec
+
+Start = tuple[list[float], list[float], list[bool]]  # durations, levels in the unit, which levels are free
+REVERSALS = (1 / 6, 1 / 4)  # a reversal pulse, in damped periods of its mode
+MAX_STARTS = 16  # Newton runs at most this many predicted structures (a few ms each)
+MAX_SHARE = 0.45  # a reversal takes at most this share of the arc it enters
+
+
+def _insertions(durations: list[float], levels: list[float], width: float) -> list[tuple[list[float], list[float]]]:
+    """Every way to add one reversal of ``width`` (s): inside a bang arc (at its end, its start or its middle: the
+    arc's velocity change kept), or at a switch between opposite bangs (Singh and Vadali's +1, -1, +1, -1 around
+    it). Near the end comes first: where the mode is damped, only the last switches' residual is left to cancel."""
+    out: list[tuple[list[float], list[float]]] = []
+    for k, (d, level) in enumerate(zip(durations, levels, strict=True)):
+        if level == 0.0:
+            continue
+        r = min(width, MAX_SHARE * d)
+        head, tail = durations[:k], durations[k + 1 :]
+        split = [*levels[:k], level, -level, level, *levels[k + 1 :]]
+        for first, last in ((d, r), (r, d), ((d + r) / 2, (d + r) / 2)):  # level (first + last) - level r = level d
+            out.append(([*head, first, r, last, *tail], split))
+        if k + 1 < len(levels) and levels[k + 1] == -level:
+            p = min(width, MAX_SHARE * d, MAX_SHARE * durations[k + 1])
+            out.append(
+                (
+                    [*head, d - p, p, p, durations[k + 1] - p, *durations[k + 2 :]],
+                    [*levels[:k], level, -level, level, -level, *levels[k + 2 :]],
+                )
+            )
+    out.sort(key=lambda shape: -_reversal_time(*shape))
+    return out
+
+
+def _reversal_time(durations: list[float], levels: list[float]) -> float:
+    """When the last reversal of a shape starts (its latest arc against the rigid move's direction there)."""
+    starts = np.concatenate(([0.0], np.cumsum(durations)[:-1]))
+    late = [t for t, a, b in zip(starts[1:], levels[1:], levels[:-1], strict=True) if a * b < 0]
+    return max(late, default=0.0)
+
+
+def reversal_starts(spec: Spec, rigid: RigidMove | None) -> list[Start]:
+    """The rigid optimum with one reversal per zero-residual pole (its derivative order 0), shortest reversal first;
+    none where the structure is not predicted (a held jerk, a band, a torque limit, a move in motion)."""
+    if rigid is None or rigid.order != 2 or spec.order != 2 or spec.derivative_order != 0:
+        return []
+    if spec.bands or spec.torque is not None or spec.in_motion or not spec.rest_to_rest or not spec.zero_poles:
+        return []
+    durations = np.diff(rigid.edges_s).tolist()
+    unit = rigid.levels / spec.scale
+    if np.any(np.abs(unit - np.round(unit)) > 1e-6):
+        return []  # not a bang-coast-bang (none seen from Ruckig at rest-to-rest: a safeguard)
+    levels = np.round(unit).tolist()
+    starts: list[Start] = []
+    for fraction in REVERSALS:
+        shapes = [(durations, levels)]
+        for pole in spec.zero_poles:
+            width = fraction * 2 * math.pi / abs(pole.imag)
+            shapes = list(itertools.chain.from_iterable(_insertions(d, lv, width) for d, lv in shapes))
+        starts += [(d, lv, [False] * len(lv)) for d, lv in shapes]
+    return starts[:MAX_STARTS]
