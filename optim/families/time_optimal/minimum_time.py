@@ -74,14 +74,15 @@ class _Best:
     def accepts(self, arcs: tuple[Arc, ...]) -> bool:
         return (self.check_limits is None or self.check_limits(arcs)) and self.search.verified(arcs)
 
-    def offer(self, arcs: tuple[Arc, ...], method: str, note: str) -> bool:
+    def offer(self, arcs: tuple[Arc, ...], method: str, note: str, proof: Certificate | None = None) -> bool:
+        """Keep ``arcs`` if shorter and they check out; ``proof``: their certificate, if already found."""
         total = sum(a.duration_s for a in arcs)
         if self.found is not None and total >= self.found.duration_s * (1 - SHORTER):
             return False
         if total > self.spec.max_duration_s or not self.accepts(arcs):
             return False
         self.found = Found(merged(arcs), method, note)
-        self.proof = certificate(self.spec, self.found.arcs)
+        self.proof = proof or certificate(self.spec, self.found.arcs)
         return True
 
     def refine_from(self, start: Start, note: str = "") -> bool:
@@ -98,7 +99,8 @@ class _Best:
             result = newton(self.spec, durations, levels)
             if result is None:
                 continue
-            if certificate(self.spec, merged(result.arcs)) is not None and self.offer(result.arcs, "refined", note):
+            proof = certificate(self.spec, merged(result.arcs))
+            if proof is not None and self.offer(result.arcs, "refined", note, proof):
                 return []
             held.append(result.arcs)
         return held

@@ -30,6 +30,7 @@ MAX_ITERATIONS = 80  # SLSQP's cap: a structure that needs more is not the optim
 ITERATION_CAP = 9  # scipy's SLSQP status when it stops at MAX_ITERATIONS
 TINY_ARC = 1e-6  # of the duration: a shorter refined arc is tried without
 NEWTON_ITERATIONS = 12  # a start near the structure's solution converges quadratically well within this
+STALL_AFTER = 4  # Newton iterations after which a residual that no longer halves ends the polish (None)
 ACTIVE = 1e-7  # a scaled inequality within this of its bound is held as an equality by the polish
 
 
@@ -78,10 +79,12 @@ def _terms(
     return value, jac_d, diff
 
 
-def _end_moments(poles: NDArray[np.complex128], n: int, d: Array, lv: Array, jac: bool) -> tuple[Any, Any, Any]:
+def _end_moments(
+    poles: NDArray[np.complex128], n: int, d: Array, lv: Array, jac: bool, ends: tuple[Array, Array] | None = None
+) -> tuple[Any, Any, Any]:
     """F_n at the end for every pole (rows): sum_j lv_j (G_n(T - s_j) - G_n(T - e_j)), its Jacobian in d and
-    the per-arc differences (the Jacobian in lv)."""
-    c1, c2 = (c[0] for c in _coefficients(np.ones((1, d.size))))  # d(T - s_j)/d d_i, [j, i]
+    the per-arc differences (the Jacobian in lv). ``ends``: _coefficients of the end, if already computed."""
+    c1, c2 = (c[0] for c in (ends or _coefficients(np.ones((1, d.size)))))  # d(T - s_j)/d d_i, [j, i]
     tau1, tau2 = c1 @ d, c2 @ d
     lam = poles[:, None]
 
@@ -117,6 +120,7 @@ class _Model:
         q, u = spec.order, spec.scale
         self.eq_scale = [spec.position_scale(self.t0)] + [u * self.t0 ** (q - m) for m in range(1, q)]
         self.ends = _coefficients(np.ones((1, self.count)))
+        self.poles = np.asarray(spec.zero_poles)
         self.moment_scales: dict[int, Array] = {}  # fixed at the first evaluation (z0)
         arc_ends = np.tril(np.ones((self.count, self.count)))[:-1]  # e_b = sum_{i <= b} d_i, b < last
         mid = np.tril(np.ones((self.count, self.count)), -1) + 0.5 * np.eye(self.count)
@@ -157,7 +161,7 @@ class _Model:
             for n in range(spec.derivative_order + 1):
                 if not spec.zero_poles:
                     break
-                v, jd, diff = _end_moments(np.asarray(spec.zero_poles), n, d, lv, want_jac)
+                v, jd, diff = _end_moments(self.poles, n, d, lv, want_jac, self.ends)
                 scale = self.moment_scales.setdefault(n, np.sum(np.abs(diff), axis=1) + 1e-300)
                 values += [v.real / scale, v.imag / scale]
                 if want_jac:
@@ -183,7 +187,7 @@ class _Model:
         if self.cuts:
             poles = np.array([c.pole for c in self.cuts])
             bound = np.array([c.bound for c in self.cuts])
-            v, jd, diff = _end_moments(poles, 0, d, lv, want_jac)
+            v, jd, diff = _end_moments(poles, 0, d, lv, want_jac, self.ends)
             per = u / poles if spec.order == 3 else np.full(poles.size, complex(u))
             f = per * v
             values.append(1.0 - np.abs(f) ** 2 / bound**2)
@@ -280,27 +284,27 @@ def _polish(model: _Model, z: Array, iterations: int = 20) -> Array | None:
     ineq = model.inequalities(z)
     active = np.flatnonzero(np.abs(ineq) < ACTIVE) if ineq.size else np.zeros(0, dtype=int)
 
-    def system(v: Array) -> Array:
-        parts = [model.equalities(v)]
+    def system(v: Array, want_jac: bool = True) -> tuple[Array, Array]:
+        """The equalities and the active inequalities at v, and their Jacobian in the movable variables."""
+        values, jacs = model._parts(v, "eq", want_jac)
         if active.size:
-            parts.append(model.inequalities(v)[active])
-        return np.concatenate(parts)
+            more, more_jac = model._parts(v, "ineq", want_jac)
+            values = np.concatenate([values, more[active]])
+            jacs = np.vstack([jacs, more_jac[active]]) if want_jac else jacs
+        return values, (jacs[:, movable] if want_jac else jacs)
 
-    def jacobian(v: Array) -> Array:
-        parts = [model.equality_jacobian(v)]
-        if active.size:
-            parts.append(model.inequality_jacobian(v)[active])
-        out: Array = np.vstack(parts)[:, movable]
-        return out
-
-    for _ in range(iterations):
-        g = system(z)
-        if np.max(np.abs(g)) < 1e-14:
+    previous = math.inf
+    for k in range(iterations):
+        g, jac = system(z)
+        size = float(np.max(np.abs(g)))
+        if size < 1e-14:
             return z
-        jac = jacobian(z)
+        if k >= STALL_AFTER and size > 0.5 * previous:  # not converging (a start far from the structure's solution)
+            return None
+        previous = size
         step = np.linalg.lstsq(jac, g, rcond=None)[0]
         z[movable] -= step
         if np.any(z[: model.count] < -1e-12):
             return None
         z[: model.count] = np.maximum(z[: model.count], 0.0)
-    return z if np.max(np.abs(system(z))) < 1e-12 else None
+    return z if np.max(np.abs(system(z, False)[0])) < 1e-12 else None

@@ -23,13 +23,17 @@ Start = tuple[list[float], list[float], list[bool]]  # durations, levels in the 
 REVERSALS = (1 / 6, 1 / 4)  # a reversal pulse, in damped periods of its mode
 MAX_STARTS = 16  # Newton runs at most this many predicted structures (a few ms each)
 MAX_SHARE = 0.45  # a reversal takes at most this share of the arc it enters
+DECAYED = 0.01  # a mode whose free vibration falls below this share over the rigid move's duration has decayed
 
 
-def _insertions(durations: list[float], levels: list[float], width: float) -> list[tuple[list[float], list[float]]]:
+Shape = tuple[list[float], list[float], bool]  # durations, levels, whether the reversal is around a switch
+
+
+def _insertions(durations: list[float], levels: list[float], width: float) -> list[Shape]:
     """Every way to add one reversal of ``width`` (s): inside a bang arc (at its end, its start or its middle: the
     arc's velocity change kept), or at a switch between opposite bangs (Singh and Vadali's +1, -1, +1, -1 around
-    it). Near the end comes first: where the mode is damped, only the last switches' residual is left to cancel."""
-    out: list[tuple[list[float], list[float]]] = []
+    it)."""
+    out: list[Shape] = []
     for k, (d, level) in enumerate(zip(durations, levels, strict=True)):
         if level == 0.0:
             continue
@@ -37,16 +41,16 @@ def _insertions(durations: list[float], levels: list[float], width: float) -> li
         head, tail = durations[:k], durations[k + 1 :]
         split = [*levels[:k], level, -level, level, *levels[k + 1 :]]
         for first, last in ((d, r), (r, d), ((d + r) / 2, (d + r) / 2)):  # level (first + last) - level r = level d
-            out.append(([*head, first, r, last, *tail], split))
+            out.append(([*head, first, r, last, *tail], split, False))
         if k + 1 < len(levels) and levels[k + 1] == -level:
             p = min(width, MAX_SHARE * d, MAX_SHARE * durations[k + 1])
             out.append(
                 (
                     [*head, d - p, p, p, durations[k + 1] - p, *durations[k + 2 :]],
                     [*levels[:k], level, -level, level, -level, *levels[k + 2 :]],
+                    True,
                 )
             )
-    out.sort(key=lambda shape: -_reversal_time(*shape))
     return out
 
 
@@ -69,11 +73,15 @@ def reversal_starts(spec: Spec, rigid: RigidMove | None) -> list[Start]:
     if np.any(np.abs(unit - np.round(unit)) > 1e-6):
         return []  # not a bang-coast-bang (none seen from Ruckig at rest-to-rest: a safeguard)
     levels = np.round(unit).tolist()
+    # Where a mode's vibration decays within the move only the last switches' residual is left to cancel: reversals
+    # near the end first; else Singh and Vadali's around a switch first (the undamped optimum).
+    decays = all(math.exp(pole.real * rigid.duration_s) < DECAYED for pole in spec.zero_poles)
     starts: list[Start] = []
     for fraction in REVERSALS:
-        shapes = [(durations, levels)]
+        shapes: list[Shape] = [(durations, levels, False)]
         for pole in spec.zero_poles:
             width = fraction * 2 * math.pi / abs(pole.imag)
-            shapes = list(itertools.chain.from_iterable(_insertions(d, lv, width) for d, lv in shapes))
-        starts += [(d, lv, [False] * len(lv)) for d, lv in shapes]
+            shapes = list(itertools.chain.from_iterable(_insertions(d, lv, width) for d, lv, _ in shapes))
+        shapes.sort(key=lambda shape: (decays or not shape[2], -_reversal_time(shape[0], shape[1])))
+        starts += [(d, lv, [False] * len(lv)) for d, lv, _ in shapes]
     return starts[:MAX_STARTS]
