@@ -256,7 +256,7 @@ def newton(spec: Spec, durations: list[float], levels: list[float]) -> Refined |
     bounds, by Newton from ``durations`` (no minimisation: a square system where the structure is the optimum's,
     whose certificate the caller checks); None if it does not converge."""
     model = _Model(spec, durations, levels, [False] * len(levels), [])
-    z = _polish(model, model.z0.copy(), NEWTON_ITERATIONS)
+    z = _polish(model, model.z0.copy(), NEWTON_ITERATIONS, stall=True)
     return None if z is None else Refined(_arcs(spec, model, z), "Newton on the switching times")
 
 
@@ -270,8 +270,9 @@ def _arcs(spec: Spec, model: _Model, z: Array) -> tuple[Arc, ...]:
     )
 
 
-def _polish(model: _Model, z: Array, iterations: int = 20) -> Array | None:
-    """Newton (minimal-norm steps) on the equalities and the active inequalities, from SLSQP's point."""
+def _polish(model: _Model, z: Array, iterations: int = 20, stall: bool = False) -> Array | None:
+    """Newton (minimal-norm steps) on the equalities and the active inequalities, from SLSQP's point (or a predicted
+    start: with ``stall``, it gives up once its residual no longer halves)."""
     z = z.copy()
     z[: model.count] = np.where(z[: model.count] < 1e-8, 0.0, z[: model.count])
     levels = z[model.count :]
@@ -299,7 +300,7 @@ def _polish(model: _Model, z: Array, iterations: int = 20) -> Array | None:
         size = float(np.max(np.abs(g)))
         if size < 1e-14:
             return z
-        if k >= STALL_AFTER and size > 0.5 * previous:  # not converging (a start far from the structure's solution)
+        if stall and k >= STALL_AFTER and size > 0.5 * previous:  # a predicted start far from its structure's solution
             return None
         previous = size
         step = np.linalg.lstsq(jac, g, rcond=None)[0]

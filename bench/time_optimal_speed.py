@@ -1,0 +1,125 @@
+"""Benchmark: the time-optimal family's in-process speed, this checkout against a reference commit in one run.
+
+``python bench/time_optimal_speed.py REF [rounds]`` checks REF out in a temporary git worktree and alternates
+between the two trees, ``rounds`` times (default 3): each round runs one subprocess per tree that designs every
+case through ``vibfree.synthesize`` (a warm-up call first, then each move once) and prints its seconds per design.
+The table gives the p50 over the rounds and moves of each case, the ratio REF / this, and how many answers differ
+in duration by more than 1e-9 (they should not be longer: the script reports any that are).
+
+Cases (the issue's speed targets): 20 seeded single-mode moves of bench/time_optimal_random.py without a jerk limit,
+20 with one; the README's move (nominal), its robust +-10 % design, bench/time_optimal.py's two- and three-mode
+transfer functions.
+"""
+
+from __future__ import annotations
+
+import json
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from bench.time_optimal import product_of_modes  # noqa: E402
+from bench.time_optimal_random import random_move  # noqa: E402
+
+README = {
+    "plant": {"kind": "mode", "natural_frequency_hz": 40},
+    "displacement": 0.12,
+    "limits": {"max_velocity": 5, "max_acceleration": 10},
+}
+LIMITS = {"max_velocity": 1.0, "max_acceleration": 5.0}
+TWO = {"plant": product_of_modes([(5.0, 0.02), (13.0, 0.05)]), "displacement": 0.3, "limits": LIMITS, "modes": [0, 1]}
+THREE = {
+    "plant": product_of_modes([(5.0, 0.02), (13.0, 0.05), (31.0, 0.03)]),
+    "displacement": 0.3,
+    "limits": LIMITS,
+    "modes": [0, 1, 2],
+}
+
+
+def cases() -> dict[str, list[dict[str, Any]]]:
+    import numpy as np
+
+    rng = np.random.default_rng(25)
+    plain: list[dict[str, Any]] = []
+    jerk: list[dict[str, Any]] = []
+    while len(plain) < 20 or len(jerk) < 20:
+        request, modes, torque = random_move(rng)
+        if torque or len(modes) > 1:
+            continue
+        target = jerk if "max_jerk" in request["limits"] else plain
+        if len(target) < 20:
+            target.append(request)
+    return {
+        "one mode, held acceleration (20 random moves)": plain,
+        "one mode, held jerk (20 random moves)": jerk,
+        "the README's move": [README],
+        "the README's move, robust +-10 %": [{**README, "robustness": {"frequency_ratio_range": [0.9, 1.1]}}],
+        "two-mode transfer function (bench/time_optimal.py)": [TWO],
+        "three-mode transfer function": [THREE],
+    }
+
+
+MEASURE = """
+import json, sys, time
+sys.path.insert(0, '.')
+from vibfree import synthesize
+cases = json.loads(sys.stdin.read())
+out = {}
+for name, requests in cases.items():
+    synthesize('time-optimal', requests[0])
+    rows = []
+    for request in requests:
+        start = time.perf_counter()
+        answer = synthesize('time-optimal', request).answer['design']
+        rows.append((time.perf_counter() - start, answer['duration_s']))
+    out[name] = rows
+print(json.dumps(out))
+"""
+
+
+def run(tree: Path, payload: str) -> dict[str, list[list[float]]]:
+    python = ROOT / ".venv" / "bin" / "python"
+    done = subprocess.run(
+        [str(python), "-c", MEASURE], cwd=tree, input=payload, capture_output=True, text=True, check=True
+    )
+    result: dict[str, list[list[float]]] = json.loads(done.stdout.strip().splitlines()[-1])
+    return result
+
+
+def main(reference: str, rounds: int = 3) -> int:
+    chosen = cases()
+    payload = json.dumps(chosen)
+    with tempfile.TemporaryDirectory() as tmp:
+        ref_tree = Path(tmp) / "ref"
+        subprocess.run(["git", "worktree", "add", "-q", "--detach", str(ref_tree), reference], cwd=ROOT, check=True)
+        try:
+            seconds: dict[str, dict[str, list[float]]] = {"ref": {}, "this": {}}
+            durations: dict[str, dict[str, list[float]]] = {"ref": {}, "this": {}}
+            for _ in range(rounds):
+                for label, tree in (("ref", ref_tree), ("this", ROOT)):
+                    for name, rows in run(tree, payload).items():
+                        seconds[label].setdefault(name, []).extend(r[0] for r in rows)
+                        durations[label][name] = [r[1] for r in rows]
+        finally:
+            subprocess.run(["git", "worktree", "remove", "--force", str(ref_tree)], cwd=ROOT, check=False)
+    print(f"| case | {reference} p50 | this p50 | ratio | answers shorter / longer (> 1e-9) |")
+    print("|---|---|---|---|---|")
+    longer = 0
+    for name in chosen:
+        ref_s, this_s = statistics.median(seconds["ref"][name]), statistics.median(seconds["this"][name])
+        pairs = list(zip(durations["ref"][name], durations["this"][name], strict=True))
+        shorter = sum(t < r * (1 - 1e-9) for r, t in pairs)
+        more = sum(t > r * (1 + 1e-9) for r, t in pairs)
+        longer += more
+        print(f"| {name} | {ref_s * 1e3:.1f} ms | {this_s * 1e3:.1f} ms | {ref_s / this_s:.1f}x | {shorter} / {more} |")
+    return 1 if longer else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1], *(int(a) for a in sys.argv[2:3])))
