@@ -250,7 +250,11 @@ def _sweep(args: argparse.Namespace) -> int:
 
     request = _read(args.request)
     lines: list[dict[str, Any]] = []
-    with tqdm(total=_points(request), unit="point", file=sys.stderr, disable=args.no_progress, leave=False) as bar:
+    # mininterval 0: every row redraws the bar (a handful a second at most), so its last state (100 %) is drawn even
+    # when the last rows arrive within tqdm's default 0.1 s of each other (fast designs: certified ones take ms)
+    with tqdm(
+        total=_points(request), unit="point", file=sys.stderr, disable=args.no_progress, leave=False, mininterval=0
+    ) as bar:
 
         def seen(line: dict[str, Any]) -> None:
             lines.append(line)

@@ -304,7 +304,8 @@ class TimeOptimalFamily(BaseFamily):
                 "at their length: a duration may exceed its search grid's optimum",
             )
         # design.method (optim.families.time_optimal.minimum_time): "refined", exact switching times, the shortest
-        # command found (no proof of global optimality: see design.lower_bound_s); "shaped_rigid", the shaped rigid
+        # command found (proven the minimum where its switching function certifies it, lower_bound_method says so;
+        # else see design.lower_bound_s); "shaped_rigid", the shaped rigid
         # optimum; "grid", the search grid's optimum. Counts cover every solve, rows too.
         report = SolverSummary.of_tally(solution.method, counts)
         block = design_report(problem, spec, options, solution, arcs, chosen)

@@ -261,7 +261,7 @@ def solve(spec: Spec, check_limits: LimitCheck | None = None, bound_spec: Spec |
         best.refine_from(as_start(spec, shortest), " (from a predicted structure)")
     found = best.found
     assert found is not None  # the shaped rigid optimum, or the grid's
-    if best.proof is not None and (bound_spec is None or bound_spec == spec):
+    if best.proof is not None and (bound_spec is None or bound_spec is spec):
         found = Found(found.arcs, found.method, f"{found.note}; {best.proof.describe()}")
         bound = found.duration_s * (1 - CERTIFIED_GAP)
         method = "the switching function's certificate (Pontryagin, optim.families.time_optimal.certify)"
