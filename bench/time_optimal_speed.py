@@ -24,14 +24,11 @@ from typing import Any
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from app.examples.time_optimal import EXAMPLES  # noqa: E402
 from bench.time_optimal import product_of_modes  # noqa: E402
 from bench.time_optimal_random import random_move  # noqa: E402
 
-README = {
-    "plant": {"kind": "mode", "natural_frequency_hz": 40},
-    "displacement": 0.12,
-    "limits": {"max_velocity": 5, "max_acceleration": 10},
-}
+README = EXAMPLES["known_answer"]["value"]  # the README's move, as the OpenAPI example states it
 LIMITS = {"max_velocity": 1.0, "max_acceleration": 5.0}
 TWO = {"plant": product_of_modes([(5.0, 0.02), (13.0, 0.05)]), "displacement": 0.3, "limits": LIMITS, "modes": [0, 1]}
 THREE = {

@@ -110,18 +110,14 @@ def _conditions(spec: Spec, ends: Array, total: float, levels: Array) -> tuple[A
         later = [j for j in range(k + 1, levels.size) if levels[j] == 0.0]
         entry = None if not later else total - ends[later[0] - 1]
         pairs.append((total - ends[k], entry))
-    rows, rhs = [], []
-    for tau1, tau2 in pairs:
-        b1, _ = _basis(spec, np.array([tau1]))
-        if tau2 is None:
-            rows.append(b1[0])
-            rhs.append(tau1)
-        else:
-            b2, _ = _basis(spec, np.array([tau2]))
-            rows.append(b1[0] - b2[0])
-            rhs.append(tau1 - tau2)
     width = 1 + 2 * len(spec.zero_poles) * (spec.derivative_order + 1)
-    return np.array(rows).reshape(-1, width), np.array(rhs)
+    if not pairs:
+        return np.zeros((0, width)), np.zeros(0)
+    tau1 = np.array([a for a, _ in pairs])
+    tau2 = np.array([0.0 if b is None else b for _, b in pairs])  # 0 where unpaired: masked out below
+    paired = np.array([b is not None for _, b in pairs])
+    rows = _basis(spec, tau1)[0] - paired[:, None] * _basis(spec, tau2)[0]
+    return rows, tau1 - np.where(paired, tau2, 0.0)
 
 
 def _with_minima(values: Array, arc: NDArray[np.intp]) -> Array:

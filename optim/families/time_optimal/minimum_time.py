@@ -20,7 +20,6 @@ optimum where it is shorter.
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -36,11 +35,10 @@ from optim.families.time_optimal.certify import Certificate, certificate
 from optim.families.time_optimal.refine import newton, refine
 from optim.families.time_optimal.search import GridSearch, clip, project
 from optim.families.time_optimal.shaped import as_start, band_shapers, nominal_shaper, rigid_of, shaped_arcs
-from optim.families.time_optimal.structures import reversal_starts
+from optim.families.time_optimal.structures import Start, reversal_starts, three_switch_starts
 from optim.families.time_optimal.types import Arc, GridSolution, Solution, Spec
 
 Array = NDArray[np.float64]
-Start = tuple[list[float], list[float], list[bool]]  # durations, levels in the unit, which levels are free
 LimitCheck = Callable[[tuple[Arc, ...]], bool]
 FALLBACK_FINER = 4  # without an exact candidate, the grid optimum is sought again on steps this much shorter
 PROBES = 3
@@ -49,7 +47,6 @@ MAX_ARCS = 24  # a start with more arcs is not refined (a chattering grid vertex
 GUESS_MARGIN = 0.05  # the grid search starts this much above the shaped rigid optimum's duration
 CERTIFIED_GAP = 1e-9  # a certified answer's lower bound: its duration less this (the switching times' precision)
 SHORTER = 1e-12  # a candidate replaces the best only if shorter by more than this (relative)
-REVERSALS = (1 / 6, 1 / 4)  # the three-switch start's reversal pulses, in damped periods
 
 
 @dataclass(frozen=True)
@@ -138,22 +135,6 @@ def shaped_rigid(best: _Best) -> Found | None:
         if best.offer(arcs, "shaped_rigid", note):
             return best.found
     return None
-
-
-def three_switch_starts(spec: Spec, rigid: RigidMove | None) -> list[Start]:
-    """Singh and Vadali's symmetric three-switch structure (+1, -1, +1, -1) around a bang-bang rigid move, with a
-    reversal pulse of REVERSALS damped periods of each zero-residual pole: a start the grid may not show."""
-    if rigid is None or rigid.order != 2 or rigid.levels.size != 2:
-        return []
-    if spec.bands or spec.in_motion or not spec.rest_to_rest:
-        return []
-    half = rigid.duration_s / 2
-    starts: list[Start] = []
-    for pole in spec.zero_poles:
-        for fraction in REVERSALS:
-            pulse = min(fraction * 2 * math.pi / pole.imag, 0.45 * half)
-            starts.append(([half - pulse, pulse, pulse, half - pulse], [1.0, -1.0, 1.0, -1.0], [False] * 4))
-    return starts
 
 
 def _grid(search: GridSearch, shaped: Found | None) -> GridSolution | None:

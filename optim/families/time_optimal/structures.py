@@ -26,6 +26,22 @@ MAX_SHARE = 0.45  # a reversal takes at most this share of the arc it enters
 DECAYED = 0.01  # a mode whose free vibration falls below this share over the rigid move's duration has decayed
 
 
+def three_switch_starts(spec: Spec, rigid: RigidMove | None) -> list[Start]:
+    """Singh and Vadali's symmetric three-switch structure (+1, -1, +1, -1) around a bang-bang rigid move, with a
+    reversal pulse of REVERSALS damped periods of each zero-residual pole: a start the grid may not show."""
+    if rigid is None or rigid.order != 2 or rigid.levels.size != 2:
+        return []
+    if spec.bands or spec.in_motion or not spec.rest_to_rest:
+        return []
+    half = rigid.duration_s / 2
+    starts: list[Start] = []
+    for pole in spec.zero_poles:
+        for fraction in REVERSALS:
+            pulse = min(fraction * 2 * math.pi / pole.imag, MAX_SHARE * half)
+            starts.append(([half - pulse, pulse, pulse, half - pulse], [1.0, -1.0, 1.0, -1.0], [False] * 4))
+    return starts
+
+
 Shape = tuple[list[float], list[float], bool]  # durations, levels, whether the reversal is around a switch
 
 
