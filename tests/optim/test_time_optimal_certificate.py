@@ -7,12 +7,14 @@ LP at all; a feasible command that is not the optimum is not certified."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 from scipy.integrate import quad
 
 from models.plants import ModePlant
+from optim.families.time_optimal import command_of
 from optim.families.time_optimal.certify import _basis, certificate
 from optim.families.time_optimal.family import limits_met, selected_modes, spec_of
 from optim.families.time_optimal.options import TimeOptimalOptions
@@ -46,7 +48,7 @@ def _bound(spec: Spec, arcs: tuple[Arc, ...], total: float) -> float:
     answer = float(ends[-1])
 
     def phi(tau: float) -> float:
-        return float(tau - _basis(spec, np.array([tau]))[0][0] @ theta)
+        return float(tau - _basis(spec, np.array([tau]))[0] @ theta)
 
     coasts = [(answer - (e - d), answer - e) for a, d, e in zip(arcs, durations, ends, strict=True) if a.level == 0]
     # mu([s, T]) in tau = T - s: phi(tau_exit) .. phi(tau_entry) across a coast, constant between, 0 after the last
@@ -152,3 +154,99 @@ def test_a_predicted_structure_beats_the_search_alone_with_no_lp(
     assert predicted.search.lp_solves == 0 and "certifies" in predicted.refinement
     assert predicted.duration_s < searched.duration_s * (1 - 1e-4)
     assert "certifies" not in searched.refinement
+
+
+# Held jerk (the certificate's second-order state constraint: a coast at max_velocity). Random moves of
+# bench/time_optimal_speed.py, rounded: arcs at +-max_acceleration (J1, J4), five bangs (J2), a coast (J3).
+JERK = {
+    "a-arcs": Problem(ModePlant(179.0, 0.16), displacement=0.58, limits=Limits(3.9, 36.0, 640.0)),
+    "bangs": Problem(ModePlant(6.0, 0.13), displacement=0.0168, limits=Limits(None, 2.6, 28.0)),
+    "coast": Problem(ModePlant(1370.0, 0.18), displacement=0.058, limits=Limits(0.69, 38.0, 470.0)),
+    "a-arcs-long": Problem(ModePlant(75.0, 0.13), displacement=1.7, limits=Limits(None, 4.3, 66.0)),
+}
+
+
+def _jerk_bound(spec: Spec, arcs: tuple[Arc, ...], window: float) -> tuple[float, float]:
+    """(bound, worst |sigma| on a constrained arc): J int |sigma| + A |mu| + V |nu| over the last ``window`` seconds
+    of the answer (the multipliers shifted: the bound for that duration), rebuilt here from the certificate's theta
+    and atoms by the definitions (sigma = phi(T - s) - mu([s, T]) - int_[s, T] (t - s) dnu; nu's density phi'' on a
+    coast, mu's density phi' - nu([s, T]) on an arc at +-A), by trapezoids: 4001 points an arc and 1600 a period."""
+    proof = certificate(spec, arcs)
+    assert proof is not None
+    (pole,) = spec.zero_poles
+    theta = proof.theta  # on 1, tau, Re e^(p tau), Im e^(p tau)
+
+    def phi(tau: np.ndarray, r: int) -> np.ndarray:
+        wave = pole**r * np.exp(pole * tau)
+        poly = [tau**2 / 2, tau, np.ones_like(tau)][r] - theta[0] * (r == 0) - theta[1] * [tau, 1.0, 0.0][r]
+        return poly - theta[2] * wave.real - theta[3] * wave.imag
+
+    total = sum(a.duration_s for a in arcs)
+    command = command_of(arcs, 3, True, (0.0, 0.0, 0.0))
+    s_parts, kinds = [], []
+    for a in arcs:
+        points = max(4001, int(1600 * a.duration_s * abs(pole.imag) / (2 * math.pi)))
+        s_parts.append(np.linspace(a.start_s, a.start_s + a.duration_s, points))
+        acc = float(command.evaluate(2, [a.start_s + a.duration_s / 2])[0])
+        on_a = a.level == 0 and abs(abs(acc) - spec.max_acceleration) < 1e-6 * spec.max_acceleration
+        kinds.append("bang" if a.level else ("first" if on_a else "coast"))
+    s = np.concatenate(s_parts)
+    tau = total - s
+    kind = np.repeat(kinds, [part.size for part in s_parts])
+    n = np.where(kind == "coast", phi(tau, 2), 0.0)  # nu's density
+    atoms = proof.atoms
+
+    def from_end(f: np.ndarray) -> np.ndarray:  # int_s^T f, on the concatenated grid (arcs joined at equal s)
+        steps = np.diff(s) * (f[1:] + f[:-1]) / 2
+        return np.concatenate((np.cumsum(steps[::-1])[::-1], [0.0]))
+
+    n1 = from_end(n) + np.array([sum(m for t, m in atoms if t >= x) for x in s])  # nu([s, T])
+    nu_moment = from_end(n1)  # int_[s, T] (t - s) dnu = int_s^T nu([r, T]) dr
+    m = np.where(kind == "first", phi(tau, 1) - n1, 0.0)  # mu's density
+    sigma = phi(tau, 0) - from_end(m) - nu_moment
+    inside = s >= total - window
+    constrained = float(np.max(np.abs(sigma[kind != "bang"]), initial=0.0))
+    j, a_max, v_max = spec.scale, spec.max_acceleration or 0.0, spec.max_velocity or 0.0
+    sigma_part = np.sum(np.diff(s[inside]) * (np.abs(sigma[inside][1:]) + np.abs(sigma[inside][:-1])) / 2)
+    mu_part = np.sum(np.diff(s[inside]) * (np.abs(m[inside][1:]) + np.abs(m[inside][:-1])) / 2)
+    nu_part = np.sum(np.diff(s[inside]) * (np.abs(n[inside][1:]) + np.abs(n[inside][:-1])) / 2)
+    nu_part += sum(abs(mass) for t, mass in atoms if t >= total - window)
+    return j * sigma_part + a_max * mu_part + v_max * nu_part, constrained
+
+
+@pytest.mark.parametrize("name", list(JERK))
+def test_a_held_jerk_answer_is_certified_and_its_multipliers_bound_the_distance(name: str) -> None:
+    spec, arcs, lower = _answer(JERK[name])
+    total = sum(a.duration_s for a in arcs)
+    assert lower == pytest.approx(total, rel=2e-9)  # certified: the search ended there, its bound the duration
+    bound, constrained = _jerk_bound(spec, arcs, total)
+    # sigma vanishes on the constrained arcs (to the trapezoids' error, ~1e-8 of sigma's scale T^2 / 2) ...
+    assert constrained < 1e-6 * total**2 / 2
+    # ... at T the bound is the move (the same error) ...
+    assert bound == pytest.approx(spec.move, rel=1e-6)
+    # ... and 0.1 % shorter it falls short: no command of that duration reaches the move.
+    assert _jerk_bound(spec, arcs, 0.999 * total)[0] < spec.move * (1 - 1e-5)
+
+
+def test_ruckigs_rigid_optimum_is_certified_and_a_longer_command_is_not() -> None:
+    # With no mode to cancel the minimum-time command is Ruckig's: bangs, arcs at +-A and a coast at V all appear
+    # among these four moves, and every one is certified. Five bangs where three suffice (the first split by a
+    # reversal, Newton on the end state) meet the same limits but no multipliers vanish at all four switches.
+    from optim.families.time_optimal.arcs import merged
+    from optim.families.time_optimal.shaped import rigid_of
+
+    for problem in JERK.values():
+        spec = replace(_spec(problem), zero_poles=())
+        rigid = rigid_of(spec)
+        assert rigid is not None
+        edges, levels = rigid.edges_s, rigid.levels
+        arcs = merged(tuple(Arc(a, b - a, lv) for a, b, lv in zip(edges[:-1], edges[1:], levels, strict=True)))
+        assert certificate(spec, arcs) is not None
+    spec = replace(_spec(JERK["bangs"]), zero_poles=())
+    rigid = rigid_of(spec)
+    assert rigid is not None and rigid.levels.size == 3
+    d = np.diff(rigid.edges_s)
+    longer = newton(spec, [d[0] / 2, 0.05 * d[0], d[0] / 2 + 0.05 * d[0], d[1], d[2]], [1.0, -1.0, 1.0, -1.0, 1.0])
+    assert longer is not None and limits_met(JERK["bangs"], spec, longer.arcs)
+    assert sum(a.duration_s for a in longer.arcs) > rigid.duration_s * (1 + 1e-6)
+    assert certificate(spec, longer.arcs) is None

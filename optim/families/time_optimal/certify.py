@@ -1,24 +1,32 @@
-"""A proof that a held-acceleration command is the minimum-time one: Pontryagin's switching function, written as
-weak duality of the move's linear programme in function space (Dhanda, Vaughan and Singhose 2009 give its grid
-form).
+"""A proof that a command is the minimum-time one: Pontryagin's switching function, written as weak duality of the
+move's linear programme in function space (Dhanda, Vaughan and Singhose 2009 give its grid form).
 
-For a rest-to-rest move from rest with u = a / A in [-1, 1], the position reached at T is
-D(u) = A int (T - s) u(s) ds, subject to the end velocity A int u = 0, the residual moments
-A int (T - s)^n e^(p (T - s)) u(s) ds = 0 (every zero-residual pole p, n <= derivative order) and |v(t)| <= V. For any
-multipliers theta and any signed measure mu on the velocity constraint (mu >= 0 where v = +V, <= 0 where v = -V),
+With the held derivative u = x^(q) / U in [-1, 1] (q = 2: the acceleration, U = max_acceleration; q = 3: the jerk,
+U = max_jerk), a rest-to-rest move from rest reaches D(u) = U int k(T - s) u(s) ds, k(tau) = tau^(q-1) / (q-1)!,
+subject to the end state (U int tau^j u = 0, j < q - 1) and the residual moments (U int tau^n e^(p tau) u = 0 for
+every zero-residual pole p and n <= derivative order: the same conditions as the residual of the moved load once the
+end state holds), and to the limits on the derivatives below q. The limit one order below q (the velocity when
+q = 2, the acceleration when q = 3) is a first-order state constraint: its measure mu enters as mu([s, T]); the
+velocity when q = 3 is a second-order one: its measure nu enters as int_[s, T] (t - s) dnu(t). For any multipliers
+theta and any signed measures (of the active bound's sign where the bound is active),
 
-    D(u) <= V |mu|([0, T]) + A int_0^T |sigma(s)| ds,  sigma(s) = phi(T - s) - mu([s, T]),
-    phi(tau) = tau - theta_0 - sum_i theta_i R_i(tau)   (R_i: the real and imaginary parts of tau^n e^(p tau)).
+    D(u) <= L1 |mu| + L2 |nu| + U int_0^T |sigma(s)| ds,
+    sigma(s) = phi(T - s) - mu([s, T]) - int_[s, T] (t - s) dnu(t),
+    phi(tau) = k(tau) - theta . (tau^j, Re and Im of tau^n e^(p tau)).
 
-A command with u = sign(sigma) on its bang arcs, sigma = 0 on its coasts at +-V (there mu has the density
-phi'(T - s), of the coast's sign) and mu nowhere else reaches that bound: no command of the same duration goes
-further. The kernels depend on T - s only, so the same multipliers, shifted with the end, bound every shorter
-duration strictly below D: the command is the minimum-time one (and the reachable distance only grows with the
-duration, since a rest prefix keeps every end condition).
+A command with u = sign(sigma) on its bang arcs, sigma = 0 on its constrained arcs (u = 0 there: a first-order arc
+at +-L1, or a coast at +-max_velocity with zero acceleration when q = 3) and the measures supported on them with the
+right signs reaches the bound: no command of its duration goes further. Between constrained arcs sigma is phi less an
+affine function of s (a constant for mu, a line for nu); sigma = 0 along a constrained arc fixes the measure's
+density there (mu: phi'(T - s) plus the line's slope; nu: phi''(T - s)), and a coast's ends may carry atoms of nu
+(they bend sigma without a jump: the one at the entry is an unknown of the junction system, the one at the exit
+follows). The kernels depend on T - s only, so the same multipliers, shifted with the end, bound every shorter
+duration strictly below D (a rest prefix is feasible and loses |sigma| on the first arc): the command is the
+minimum-time one.
 
-``certificate`` finds theta from the junctions (sigma = 0 at every switch and every coast's exit; a coast's
-entry holds by construction) and checks the signs on CHECK_PER_PERIOD points per period of the fastest mode on
-every arc. A command it does not certify may still be optimal (the caller's search decides then).
+``certificate`` finds theta and the entry atoms from the junctions (sigma = 0 at every switch and every constrained
+arc's exit, by least squares) and checks the signs on CHECK_PER_PERIOD points per period of the fastest mode on every
+arc. A command it does not certify may still be optimal (the caller's search decides then).
 """
 
 from __future__ import annotations
@@ -37,18 +45,22 @@ CHECK_PER_PERIOD = 64  # sign checks per period of the fastest zero-residual mod
 MIN_CHECKS = 16  # per arc, at least
 MAX_CHECKS = 200_000  # a command needing more checks is not certified here (its search answers)
 LEVEL_TOLERANCE = 1e-9  # of the unit: a level this close to -1, 0 or 1 is that level
-JUNCTION_TOLERANCE = 1e-6  # of the duration: the junction conditions' residual for a consistent theta (a refined
+STATE_TOLERANCE = 1e-7  # of a limit: a derivative this close to it (or to 0) is on it (the arcs sum to it)
+JUNCTION_TOLERANCE = 1e-6  # of k(T): the junction conditions' residual for a consistent theta (a refined
 # structure's switching times are exact to about this: its duration is flat in them at the optimum)
-SIGN_TOLERANCE = 1e-6  # of max |sigma|: wrong-signed values next to a switch, from switching times exact to about
-# JUNCTION_TOLERANCE (they shift sigma's zero by that much: the distance lost is second order, below 1e-12)
+SIGN_TOLERANCE = 1e-6  # of max |sigma| (or of the density's scale): wrong-signed values next to a switch, from
+# switching times exact to about JUNCTION_TOLERANCE (they shift sigma's zero by that much: second order in distance)
+BANG, FIRST, SECOND = 0, 1, 2  # an arc's kind: a bang, a first-order constrained arc, a coast (second order)
 
 
 @dataclass(frozen=True)
 class Certificate:
-    """The multipliers that prove the command optimal, and how many points checked their signs."""
+    """The multipliers that prove the command optimal (theta, in ``_basis``'s columns; the coasts' atoms of nu, at
+    (time, mass)), and how many points checked their signs."""
 
     theta: Array
     checked_points: int
+    atoms: tuple[tuple[float, float], ...] = ()
 
     def describe(self) -> str:
         return (
@@ -57,24 +69,34 @@ class Certificate:
         )
 
 
-def _basis(spec: Spec, tau: Array) -> tuple[Array, Array]:
-    """The columns of phi's unknown part at ``tau`` (1, then Re and Im of tau^n e^(p tau) for every pole and n), and
-    their derivatives in tau."""
-    columns = [np.ones_like(tau)]
-    slopes = [np.zeros_like(tau)]
+def kernel(q: int, tau: Array, derivative: int = 0) -> Array:
+    """k(tau) = tau^(q-1) / (q-1)! (the distance's kernel) or its ``derivative``-th derivative."""
+    power = q - 1 - derivative
+    if power < 0:
+        return np.zeros_like(tau)
+    return tau**power / math.factorial(power)
+
+
+def _basis(spec: Spec, tau: Array, derivative: int = 0) -> Array:
+    """The columns of phi's unknown part at ``tau`` (tau^j for j < q - 1, then Re and Im of tau^n e^(p tau) for
+    every pole and n), or their ``derivative``-th derivative in tau (0, 1 or 2)."""
+    columns = []
+    for j in range(spec.order - 1):
+        columns.append(math.perm(j, derivative) * tau ** max(j - derivative, 0) if j >= derivative else 0 * tau)
     for pole in spec.zero_poles:
         wave = np.exp(pole * tau)
         for n in range(spec.derivative_order + 1):
-            power = tau**n
-            value = power * wave
-            slope = (n * tau ** (n - 1) if n else 0.0) * wave + pole * value
-            columns += [value.real, value.imag]
-            slopes += [slope.real, slope.imag]
-    return np.column_stack(columns), np.column_stack(slopes)
+            # d^r/dtau^r (tau^n e^(p tau)) = sum_i C(r, i) n!/(n-i)! tau^(n-i) p^(r-i) e^(p tau)
+            value = sum(
+                math.comb(derivative, i) * math.perm(n, i) * tau ** (n - i) * pole ** (derivative - i)
+                for i in range(min(n, derivative) + 1)
+            )
+            columns += [(value * wave).real, (value * wave).imag]
+    return np.column_stack([np.broadcast_to(c, tau.shape) for c in columns])
 
 
 def _applies(spec: Spec) -> bool:
-    return spec.order == 2 and spec.rest_to_rest and not spec.in_motion and not spec.bands and spec.torque is None
+    return spec.rest_to_rest and not spec.in_motion and not spec.bands and spec.torque is None
 
 
 def _levels(spec: Spec, arcs: tuple[Arc, ...]) -> Array | None:
@@ -86,38 +108,86 @@ def _levels(spec: Spec, arcs: tuple[Arc, ...]) -> Array | None:
     return snapped
 
 
-def _coast_signs(spec: Spec, arcs: tuple[Arc, ...], levels: Array) -> Array | None:
-    """+-1 on every coast (level 0) at +-max_velocity, 0 on the bang arcs; None if a coast is below the limit (a
-    singular arc no velocity constraint explains: not certifiable)."""
-    durations = np.array([a.duration_s for a in arcs])
-    velocity = spec.scale * np.concatenate(([0.0], np.cumsum(levels * durations)[:-1]))  # at each arc's start
-    signs = np.zeros(levels.size)
+def _near(value: float, target: float, limit: float) -> bool:
+    return abs(value - target) <= STATE_TOLERANCE * limit
+
+
+def _kinds(spec: Spec, durations: Array, levels: Array) -> tuple[Array, Array] | None:
+    """(kind, sign) of every arc: BANG with its level, FIRST at +-the limit one order below q, SECOND (q = 3) a coast
+    at +-max_velocity; None if a rest is on no limit (a singular arc no constraint explains: not certifiable)."""
+    q, unit = spec.order, spec.scale
+    states = [np.zeros(levels.size) for _ in range(q - 1)]  # derivatives q-1 .. 1 at each arc's start
+    rates = levels * unit
+    for m in range(q - 1):  # the (q-1-m)-th derivative: integrate the one above over each arc
+        above = rates if m == 0 else states[m - 1]
+        if m == 0:
+            states[0] = np.concatenate(([0.0], np.cumsum(above * durations)[:-1]))
+        else:  # a polynomial arc: v(end) = v(start) + a(start) d + rate d^2 / 2
+            grow = states[0] * durations + rates * durations**2 / 2
+            states[1] = np.concatenate(([0.0], np.cumsum(grow)[:-1]))
+    first = spec.max_velocity if q == 2 else spec.max_acceleration
+    kind = np.full(levels.size, BANG)
+    sign = levels.copy()
     for k in np.flatnonzero(levels == 0.0):
-        limit = spec.max_velocity
-        if limit is None or abs(abs(velocity[k]) - limit) > 1e-9 * limit:
+        below = states[0][k]
+        if first is not None and _near(abs(below), first, first):
+            kind[k], sign[k] = FIRST, math.copysign(1.0, below)
+        elif q == 3 and spec.max_velocity is not None and _near(below, 0.0, spec.max_acceleration or unit):
+            velocity = states[1][k]
+            if not _near(abs(velocity), spec.max_velocity, spec.max_velocity):
+                return None
+            kind[k], sign[k] = SECOND, math.copysign(1.0, velocity)
+        else:
             return None
-        signs[k] = math.copysign(1.0, velocity[k])
-    return signs
+    return kind, sign
 
 
-def _conditions(spec: Spec, ends: Array, total: float, levels: Array) -> tuple[Array, Array]:
-    """Rows A theta = b: sigma = 0 at every junction but a coast's entry. Before a coast sigma is phi(T - s) less
-    phi at that coast's entry (mu's mass from there on), after the last coast phi(T - s) itself."""
-    pairs: list[tuple[float, float | None]] = []  # phi(tau1) = phi(tau2) (or 0 when tau2 is None)
-    for k in range(levels.size - 1):
-        if levels[k + 1] == 0.0:
-            continue  # entering a coast: sigma = 0 there by mu's construction
-        later = [j for j in range(k + 1, levels.size) if levels[j] == 0.0]
-        entry = None if not later else total - ends[later[0] - 1]
-        pairs.append((total - ends[k], entry))
-    width = 1 + 2 * len(spec.zero_poles) * (spec.derivative_order + 1)
-    if not pairs:
-        return np.zeros((0, width)), np.zeros(0)
-    tau1 = np.array([a for a, _ in pairs])
-    tau2 = np.array([0.0 if b is None else b for _, b in pairs])  # 0 where unpaired: masked out below
-    paired = np.array([b is not None for _, b in pairs])
-    rows = _basis(spec, tau1)[0] - paired[:, None] * _basis(spec, tau2)[0]
-    return rows, tau1 - np.where(paired, tau2, 0.0)
+Linear = tuple[Array, float]  # coefficients over the unknowns (theta, then the coasts' entry atoms), constant
+
+
+def _phi(spec: Spec, width: int, tau: float, derivative: int = 0) -> Linear:
+    """phi^(derivative)(tau) as a linear function of the unknowns."""
+    row = np.zeros(width)
+    basis = _basis(spec, np.array([tau]), derivative)[0]
+    row[: basis.size] = -basis
+    return row, float(kernel(spec.order, np.array([tau]), derivative)[0])
+
+
+def _sweep(
+    spec: Spec, starts: Array, ends: Array, kind: Array
+) -> tuple[list[tuple[Linear, Linear]], list[Linear], list[tuple[float, Linear]]]:
+    """From the end back: each arc's line (alpha + beta s) that sigma = phi(T - s) less it on a bang arc (on a
+    constrained arc: the line after it), the junction conditions (linear functions that must vanish) and the coasts'
+    atoms (time, mass)."""
+    total = float(ends[-1])
+    width = _basis(spec, np.zeros(1)).shape[1] + int(np.sum(kind == SECOND))
+    zero: Linear = (np.zeros(width), 0.0)
+    alpha, beta = zero, zero
+    lines: list[tuple[Linear, Linear]] = [(zero, zero)] * kind.size
+    conditions: list[Linear] = []
+    atoms: list[tuple[float, Linear]] = []
+    column = width - int(np.sum(kind == SECOND))
+    for k in range(kind.size - 1, -1, -1):
+        s1, s2 = float(starts[k]), float(ends[k])
+        lines[k] = (alpha, beta)
+        if kind[k] == BANG:
+            if k > 0:  # sigma = 0 where this arc begins: a switch, or the exit of the constrained arc before it
+                phi = _phi(spec, width, total - s1)
+                conditions.append((phi[0] - alpha[0] - s1 * beta[0], phi[1] - alpha[1] - s1 * beta[1]))
+            continue
+        if kind[k] == SECOND:  # nu's exit atom: phi'(T - s2) + beta after; the entry's, an unknown
+            slope = _phi(spec, width, total - s2, 1)
+            atoms.append((s2, (slope[0] + beta[0], slope[1] + beta[1])))
+            entry = _phi(spec, width, total - s1, 1)
+            unknown = np.zeros(width)
+            unknown[column] = 1.0
+            column += 1
+            atoms.append((s1, (unknown, 0.0)))
+            beta = (-entry[0] - unknown, -entry[1])
+        # the line before the arc meets phi at its entry (sigma = 0 there), with the slope just found
+        phi = _phi(spec, width, total - s1)
+        alpha = (phi[0] - s1 * beta[0], phi[1] - s1 * beta[1])
+    return lines, conditions, atoms
 
 
 def _with_minima(values: Array, arc: NDArray[np.intp]) -> Array:
@@ -134,6 +204,20 @@ def _with_minima(values: Array, arc: NDArray[np.intp]) -> Array:
     return np.concatenate([values, vertex])
 
 
+def _samples(spec: Spec, durations: Array, starts: Array, ends: Array) -> tuple[Array, NDArray[np.intp]] | None:
+    fastest = max(abs(p.imag) for p in spec.zero_poles) if spec.zero_poles else 0.0
+    spacing = 2 * math.pi / fastest / CHECK_PER_PERIOD if fastest > 0 else float(ends[-1])
+    counts = np.maximum(MIN_CHECKS, np.ceil(durations / spacing)).astype(int)
+    if int(np.sum(counts)) > MAX_CHECKS:
+        return None
+    s = np.concatenate([np.linspace(a, b, n) for a, b, n in zip(starts, ends, counts, strict=True)])
+    return s, np.repeat(np.arange(durations.size), counts)
+
+
+def _wrong_signed(values: Array, scale: float) -> bool:
+    return bool(np.any(values < -SIGN_TOLERANCE * (scale or 1.0)))
+
+
 def certificate(spec: Spec, arcs: tuple[Arc, ...]) -> Certificate | None:
     """The proof that ``arcs`` (merged, meeting the end conditions and the limits: the caller checks) are the
     minimum-time command of ``spec``, or None where this check does not apply or does not prove it."""
@@ -142,46 +226,48 @@ def certificate(spec: Spec, arcs: tuple[Arc, ...]) -> Certificate | None:
     levels = _levels(spec, arcs)
     if levels is None:
         return None
-    signs = _coast_signs(spec, arcs, levels)
-    if signs is None:
-        return None
     durations = np.array([a.duration_s for a in arcs])
+    kinds = _kinds(spec, durations, levels)
+    if kinds is None:
+        return None
+    kind, sign = kinds
     ends = np.cumsum(durations)
-    total = float(ends[-1])
     starts = ends - durations
-    fastest = max(abs(p.imag) for p in spec.zero_poles) if spec.zero_poles else 0.0
-    spacing = 2 * math.pi / fastest / CHECK_PER_PERIOD if fastest > 0 else total
-    counts = np.maximum(MIN_CHECKS, np.ceil(durations / spacing)).astype(int)
-    if int(np.sum(counts)) > MAX_CHECKS:
+    total = float(ends[-1])
+    sampled = _samples(spec, durations, starts, ends)
+    lines, conditions, atoms = _sweep(spec, starts, ends, kind)
+    if sampled is None or not conditions:
         return None
-    rows, rhs = _conditions(spec, ends, total, levels)
-    if rows.shape[0] == 0:
-        return None
+    rows = np.array([c[0] for c in conditions])
+    rhs = -np.array([c[1] for c in conditions])
     scale = np.max(np.abs(rows), axis=0) + 1e-300
-    theta = np.linalg.lstsq(rows / scale, rhs, rcond=None)[0] / scale
-    if np.max(np.abs(rows @ theta - rhs)) > JUNCTION_TOLERANCE * total:
+    z = np.linalg.lstsq(rows / scale, rhs, rcond=None)[0] / scale
+    if np.max(np.abs(rows @ z - rhs)) > JUNCTION_TOLERANCE * float(kernel(spec.order, np.array([total]))[0]):
         return None
-    # sigma on every arc's check points: phi(T - s) less mu's mass from s on
-    s = np.concatenate([np.linspace(a, b, n) for a, b, n in zip(starts, ends, counts, strict=True)])
-    arc = np.repeat(np.arange(levels.size), counts)
+    s, arc = sampled
     tau = total - s
-    basis, slopes = _basis(spec, tau)
-    phi = tau - basis @ theta
-    entries = np.full(levels.size, np.nan)  # phi at the next coast's entry, for each arc before it
-    following = math.nan
-    for k in range(levels.size - 1, -1, -1):
-        if levels[k] == 0.0:
-            following = float(total - starts[k] - _basis(spec, np.array([total - starts[k]]))[0][0] @ theta)
-        entries[k] = following
-    mass = np.where(np.isnan(entries[arc]), 0.0, entries[arc])
-    sigma = phi - mass
-    bang = levels[arc] != 0.0
-    size = float(np.max(np.abs(sigma[bang]), initial=0.0)) or 1.0
-    signed = np.where(bang, levels[arc] * sigma, np.inf)
-    if float(np.min(_with_minima(signed, arc))) < -SIGN_TOLERANCE * size:
+    theta = z[: _basis(spec, np.zeros(1)).shape[1]]
+    phi = kernel(spec.order, tau) - _basis(spec, tau) @ theta
+    slope = kernel(spec.order, tau, 1) - _basis(spec, tau, 1) @ theta
+    alpha = np.array([line[0][0] @ z + line[0][1] for line in lines])
+    beta = np.array([line[1][0] @ z + line[1][1] for line in lines])
+    sigma = phi - alpha[arc] - beta[arc] * s
+    bang = kind[arc] == BANG
+    size = float(np.max(np.abs(sigma[bang]), initial=0.0))
+    if _wrong_signed(_with_minima(np.where(bang, levels[arc] * sigma, np.inf), arc), size):
         return None
-    density = 1.0 - slopes @ theta  # phi'(T - s): mu's density on a coast, of the coast's sign
-    coast = ~bang
-    if np.any(signs[arc][coast] * density[coast] < -SIGN_TOLERANCE * (float(np.max(np.abs(density))) or 1.0)):
+    first = kind[arc] == FIRST  # mu's density: phi'(T - s) + beta, of the arc's sign
+    density = slope + beta[arc]
+    if _wrong_signed(sign[arc][first] * density[first], float(np.max(np.abs(slope)))):
         return None
-    return Certificate(theta, int(s.size))
+    second = kind[arc] == SECOND  # nu's density phi''(T - s) and its atoms, of the coast's sign
+    if np.any(second):
+        curvature = kernel(spec.order, tau, 2) - _basis(spec, tau, 2) @ theta
+        if _wrong_signed(sign[arc][second] * curvature[second], float(np.max(np.abs(curvature)))):
+            return None
+    masses = tuple((t, float(m[0] @ z + m[1])) for t, m in atoms)
+    coast_sign = {float(ends[k]): sign[k] for k in np.flatnonzero(kind == SECOND)}
+    coast_sign |= {float(starts[k]): sign[k] for k in np.flatnonzero(kind == SECOND)}
+    if _wrong_signed(np.array([coast_sign[t] * m for t, m in masses]), float(np.max(np.abs(slope)))):
+        return None
+    return Certificate(theta, int(s.size), masses)

@@ -1,10 +1,11 @@
-"""Predicted arc structures of a held-acceleration answer, tried by Newton before any LP.
+"""Predicted arc structures of a minimum-time answer, tried by Newton before any LP.
 
 The minimum-time command of a rest-to-rest move with modes to cancel is the rigid optimum (bang-bang, or
-bang-coast-bang at max_velocity) with reversal pulses added: Singh and Vadali's (1993) symmetric three switches
-around a bang-bang's switch, or a bang arc split by a short pulse the other way (the answers measured on
-bench/time_optimal_random.py's moves are mostly these: +a, coast, -a, +a, -a; +a, -a, +a, -a; and with two modes
-one reversal each). Each start here is such a structure with a reversal of REVERSALS damped periods per mode; the
+bang-coast-bang at max_velocity; with a held jerk Ruckig's seven phases) with reversal pulses added: Singh and
+Vadali's (1993) symmetric three switches around a bang-bang's switch, or a bang arc split by a short pulse the other
+way (the answers measured on bench/time_optimal_random.py's moves are mostly these: +a, coast, -a, +a, -a;
++a, -a, +a, -a; and with two modes one reversal each), and with a held jerk a notch (-j, +j) in an arc held at
+max_acceleration. Each start here is such a structure with a reversal of REVERSALS damped periods per mode; the
 caller solves its switching times by Newton (optim.families.time_optimal.refine.newton) and keeps it only if its
 certificate proves it (optim.families.time_optimal.certify).
 """
@@ -45,16 +46,32 @@ def three_switch_starts(spec: Spec, rigid: RigidMove | None) -> list[Start]:
 Shape = tuple[list[float], list[float], bool]  # durations, levels, whether the reversal is around a switch
 
 
-def _insertions(durations: list[float], levels: list[float], width: float) -> list[Shape]:
+def _held(durations: list[float], levels: list[float], ramp_s: float | None) -> list[float]:
+    """+-1 on a held jerk's arcs at +-max_acceleration (reached after ``ramp_s`` = max_acceleration / max_jerk of
+    full jerk), 0 elsewhere."""
+    if ramp_s is None:
+        return [0.0] * len(levels)
+    reached = np.concatenate(([0.0], np.cumsum(np.multiply(levels, durations))[:-1])) / ramp_s
+    on_limit = (np.asarray(levels) == 0.0) & (np.abs(np.abs(reached) - 1.0) < 1e-6)
+    held: list[float] = np.where(on_limit, np.sign(reached), 0.0).tolist()
+    return held
+
+
+def _insertions(durations: list[float], levels: list[float], width: float, ramp_s: float | None) -> list[Shape]:
     """Every way to add one reversal of ``width`` (s): inside a bang arc (at its end, its start or its middle: the
-    arc's velocity change kept), or at a switch between opposite bangs (Singh and Vadali's +1, -1, +1, -1 around
-    it)."""
+    arc's change kept), at a switch between opposite bangs (Singh and Vadali's +1, -1, +1, -1 around it), or with a
+    held jerk a notch in an arc at +-max_acceleration."""
+    held = _held(durations, levels, ramp_s)
     out: list[Shape] = []
     for k, (d, level) in enumerate(zip(durations, levels, strict=True)):
-        if level == 0.0:
-            continue
         r = min(width, MAX_SHARE * d)
         head, tail = durations[:k], durations[k + 1 :]
+        if level == 0.0:
+            if held[k] != 0.0:  # a held jerk's arc at +-max_acceleration: a notch towards 0 (its middle or end)
+                notch = [*levels[:k], 0.0, -held[k], held[k], 0.0, *levels[k + 1 :]]
+                for first in ((d - 2 * r) / 2, d - 2 * r):
+                    out.append(([*head, first, r, r, d - 2 * r - first, *tail], notch, False))
+            continue
         split = [*levels[:k], level, -level, level, *levels[k + 1 :]]
         for first, last in ((d, r), (r, d), ((d + r) / 2, (d + r) / 2)):  # level (first + last) - level r = level d
             out.append(([*head, first, r, last, *tail], split, False))
@@ -79,16 +96,20 @@ def _reversal_time(durations: list[float], levels: list[float]) -> float:
 
 def reversal_starts(spec: Spec, rigid: RigidMove | None) -> list[Start]:
     """The rigid optimum with one reversal per zero-residual pole (its derivative order 0), shortest reversal first;
-    none where the structure is not predicted (a held jerk, a band, a torque limit, a move in motion)."""
-    if rigid is None or rigid.order != 2 or spec.order != 2 or spec.derivative_order != 0:
+    none where the structure is not predicted (a band, a torque limit, a move in motion, a derivative order)."""
+    if rigid is None or rigid.order != spec.order or spec.derivative_order != 0:
         return []
     if spec.bands or spec.torque is not None or spec.in_motion or not spec.rest_to_rest or not spec.zero_poles:
         return []
-    durations = np.diff(rigid.edges_s).tolist()
-    unit = rigid.levels / spec.scale
+    kept = np.diff(rigid.edges_s) > 0.0  # Ruckig's phases of zero duration dropped, equal neighbours merged
+    widths, unit = np.diff(rigid.edges_s)[kept], rigid.levels[kept] / spec.scale
+    joined = np.concatenate(([True], np.abs(np.diff(unit)) > 1e-12))
+    durations = np.add.reduceat(widths, np.flatnonzero(joined)).tolist()
+    unit = unit[joined]
     if np.any(np.abs(unit - np.round(unit)) > 1e-6):
         return []  # not a bang-coast-bang (none seen from Ruckig at rest-to-rest: a safeguard)
     levels = np.round(unit).tolist()
+    ramp_s = spec.max_acceleration / spec.scale if spec.order == 3 and spec.max_acceleration is not None else None
     # Where a mode's vibration decays within the move only the last switches' residual is left to cancel: reversals
     # near the end first; else Singh and Vadali's around a switch first (the undamped optimum).
     decays = all(math.exp(pole.real * rigid.duration_s) < DECAYED for pole in spec.zero_poles)
@@ -97,7 +118,7 @@ def reversal_starts(spec: Spec, rigid: RigidMove | None) -> list[Start]:
         shapes: list[Shape] = [(durations, levels, False)]
         for pole in spec.zero_poles:
             width = fraction * 2 * math.pi / abs(pole.imag)
-            shapes = list(itertools.chain.from_iterable(_insertions(d, lv, width) for d, lv, _ in shapes))
+            shapes = list(itertools.chain.from_iterable(_insertions(d, lv, width, ramp_s) for d, lv, _ in shapes))
         shapes.sort(key=lambda shape: (decays or not shape[2], -_reversal_time(shape[0], shape[1])))
         starts += [(d, lv, [False] * len(lv)) for d, lv, _ in shapes]
     return starts[:MAX_STARTS]
