@@ -218,9 +218,27 @@ def _wrong_signed(values: Array, scale: float) -> bool:
     return bool(np.any(values < -SIGN_TOLERANCE * (scale or 1.0)))
 
 
-def certificate(spec: Spec, arcs: tuple[Arc, ...]) -> Certificate | None:
-    """The proof that ``arcs`` (merged, meeting the end conditions and the limits: the caller checks) are the
-    minimum-time command of ``spec``, or None where this check does not apply or does not prove it."""
+@dataclass(frozen=True)
+class _Switching:
+    """The switching function of a command whose junction conditions are consistent: sigma on the sample points
+    ``s`` (arc index ``arc``), the unknowns z (theta, the entry atoms) and what the sign checks need."""
+
+    s: Array
+    arc: NDArray[np.intp]
+    sigma: Array
+    levels: Array
+    kind: Array
+    sign: Array
+    z: Array
+    beta: Array
+    atoms: list[tuple[float, Linear]]
+    starts: Array
+    ends: Array
+
+
+def _switching(spec: Spec, arcs: tuple[Arc, ...]) -> _Switching | None:
+    """sigma of ``arcs`` with the multipliers from their junctions, or None where the check does not apply or no
+    multipliers satisfy the junctions."""
     if not _applies(spec) or not arcs:
         return None
     levels = _levels(spec, arcs)
@@ -245,19 +263,31 @@ def certificate(spec: Spec, arcs: tuple[Arc, ...]) -> Certificate | None:
     if np.max(np.abs(rows @ z - rhs)) > JUNCTION_TOLERANCE * float(kernel(spec.order, np.array([total]))[0]):
         return None
     s, arc = sampled
-    tau = total - s
     theta = z[: _basis(spec, np.zeros(1)).shape[1]]
+    tau = total - s
     phi = kernel(spec.order, tau) - _basis(spec, tau) @ theta
-    slope = kernel(spec.order, tau, 1) - _basis(spec, tau, 1) @ theta
     alpha = np.array([line[0][0] @ z + line[0][1] for line in lines])
     beta = np.array([line[1][0] @ z + line[1][1] for line in lines])
     sigma = phi - alpha[arc] - beta[arc] * s
-    bang = kind[arc] == BANG
-    size = float(np.max(np.abs(sigma[bang]), initial=0.0))
-    if _wrong_signed(_with_minima(np.where(bang, levels[arc] * sigma, np.inf), arc), size):
+    return _Switching(s, arc, sigma, levels, kind, sign, z, beta, atoms, starts, ends)
+
+
+def certificate(spec: Spec, arcs: tuple[Arc, ...]) -> Certificate | None:
+    """The proof that ``arcs`` (merged, meeting the end conditions and the limits: the caller checks) are the
+    minimum-time command of ``spec``, or None where this check does not apply or does not prove it."""
+    sw = _switching(spec, arcs)
+    if sw is None:
         return None
+    s, arc, levels, kind, sign = sw.s, sw.arc, sw.levels, sw.kind, sw.sign
+    bang = kind[arc] == BANG
+    size = float(np.max(np.abs(sw.sigma[bang]), initial=0.0))
+    if _wrong_signed(_with_minima(np.where(bang, levels[arc] * sw.sigma, np.inf), arc), size):
+        return None
+    tau = float(sw.ends[-1]) - s
+    theta = sw.z[: _basis(spec, np.zeros(1)).shape[1]]
+    slope = kernel(spec.order, tau, 1) - _basis(spec, tau, 1) @ theta
     first = kind[arc] == FIRST  # mu's density: phi'(T - s) + beta, of the arc's sign
-    density = slope + beta[arc]
+    density = slope + sw.beta[arc]
     if _wrong_signed(sign[arc][first] * density[first], float(np.max(np.abs(slope)))):
         return None
     second = kind[arc] == SECOND  # nu's density phi''(T - s) and its atoms, of the coast's sign
@@ -265,9 +295,9 @@ def certificate(spec: Spec, arcs: tuple[Arc, ...]) -> Certificate | None:
         curvature = kernel(spec.order, tau, 2) - _basis(spec, tau, 2) @ theta
         if _wrong_signed(sign[arc][second] * curvature[second], float(np.max(np.abs(curvature)))):
             return None
-    masses = tuple((t, float(m[0] @ z + m[1])) for t, m in atoms)
-    coast_sign = {float(ends[k]): sign[k] for k in np.flatnonzero(kind == SECOND)}
-    coast_sign |= {float(starts[k]): sign[k] for k in np.flatnonzero(kind == SECOND)}
+    masses = tuple((t, float(m[0] @ sw.z + m[1])) for t, m in sw.atoms)
+    coast_sign = {float(sw.ends[k]): sign[k] for k in np.flatnonzero(kind == SECOND)}
+    coast_sign |= {float(sw.starts[k]): sign[k] for k in np.flatnonzero(kind == SECOND)}
     if _wrong_signed(np.array([coast_sign[t] * m for t, m in masses]), float(np.max(np.abs(slope)))):
         return None
     return Certificate(theta, int(s.size), masses)

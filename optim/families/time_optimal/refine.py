@@ -31,6 +31,8 @@ ITERATION_CAP = 9  # scipy's SLSQP status when it stops at MAX_ITERATIONS
 TINY_ARC = 1e-6  # of the duration: a shorter refined arc is tried without
 NEWTON_ITERATIONS = 12  # a start near the structure's solution converges quadratically well within this
 STALL_AFTER = 4  # Newton iterations after which a residual that no longer halves ends the polish (None)
+DAMPING_HALVINGS = 6  # a predicted start's Newton step is halved at most this often before it gives up
+CONVERGED = 1e-12  # the scaled residual of a solved structure (round-off: 1e-16 to 1e-13)
 ACTIVE = 1e-7  # a scaled inequality within this of its bound is held as an equality by the polish
 
 
@@ -301,11 +303,22 @@ def _polish(model: _Model, z: Array, iterations: int = 20, stall: bool = False) 
         if size < 1e-14:
             return z
         if stall and k >= STALL_AFTER and size > 0.5 * previous:  # a predicted start far from its structure's solution
-            return None
+            return z if size < CONVERGED else None  # (or at round-off: the active bounds' is above 1e-14)
         previous = size
         step = np.linalg.lstsq(jac, g, rcond=None)[0]
-        z[movable] -= step
-        if np.any(z[: model.count] < -1e-12):
-            return None
+        if stall:  # a predicted start: damped (the step halved until the residual falls and no duration is < 0)
+            for _ in range(DAMPING_HALVINGS):
+                trial = z.copy()
+                trial[movable] -= step
+                if np.all(trial[: model.count] >= -1e-12) and np.max(np.abs(system(trial, False)[0])) < size:
+                    break
+                step = 0.5 * step
+            else:
+                return None
+            z = trial
+        else:
+            z[movable] -= step
+            if np.any(z[: model.count] < -1e-12):
+                return None
         z[: model.count] = np.maximum(z[: model.count], 0.0)
-    return z if np.max(np.abs(system(z, False)[0])) < 1e-12 else None
+    return z if np.max(np.abs(system(z, False)[0])) < CONVERGED else None

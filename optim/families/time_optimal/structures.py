@@ -47,8 +47,8 @@ Shape = tuple[list[float], list[float], bool]  # durations, levels, whether the 
 
 
 def _held(durations: list[float], levels: list[float], ramp_s: float | None) -> list[float]:
-    """+-1 on a held jerk's arcs at +-max_acceleration (reached after ``ramp_s`` = max_acceleration / max_jerk of
-    full jerk), 0 elsewhere."""
+    """+-1 on the arcs at +-the limit one order below the held derivative (a coast at max_velocity, or with a held
+    jerk an arc at max_acceleration: reached after ``ramp_s`` of the full held level), 0 elsewhere."""
     if ramp_s is None:
         return [0.0] * len(levels)
     reached = np.concatenate(([0.0], np.cumsum(np.multiply(levels, durations))[:-1])) / ramp_s
@@ -59,15 +59,15 @@ def _held(durations: list[float], levels: list[float], ramp_s: float | None) -> 
 
 def _insertions(durations: list[float], levels: list[float], width: float, ramp_s: float | None) -> list[Shape]:
     """Every way to add one reversal of ``width`` (s): inside a bang arc (at its end, its start or its middle: the
-    arc's change kept), at a switch between opposite bangs (Singh and Vadali's +1, -1, +1, -1 around it), or with a
-    held jerk a notch in an arc at +-max_acceleration."""
+    arc's change kept), at a switch between opposite bangs (Singh and Vadali's +1, -1, +1, -1 around it), or a notch
+    in an arc at the limit one order below (a dip in a coast; with a held jerk, in an arc at +-max_acceleration)."""
     held = _held(durations, levels, ramp_s)
     out: list[Shape] = []
     for k, (d, level) in enumerate(zip(durations, levels, strict=True)):
         r = min(width, MAX_SHARE * d)
         head, tail = durations[:k], durations[k + 1 :]
         if level == 0.0:
-            if held[k] != 0.0:  # a held jerk's arc at +-max_acceleration: a notch towards 0 (its middle or end)
+            if held[k] != 0.0:  # an arc at the limit one order below (a coast, or +-A with a held jerk): a notch
                 notch = [*levels[:k], 0.0, -held[k], held[k], 0.0, *levels[k + 1 :]]
                 for first in ((d - 2 * r) / 2, d - 2 * r):
                     out.append(([*head, first, r, r, d - 2 * r - first, *tail], notch, False))
@@ -109,7 +109,8 @@ def reversal_starts(spec: Spec, rigid: RigidMove | None) -> list[Start]:
     if np.any(np.abs(unit - np.round(unit)) > 1e-6):
         return []  # not a bang-coast-bang (none seen from Ruckig at rest-to-rest: a safeguard)
     levels = np.round(unit).tolist()
-    ramp_s = spec.max_acceleration / spec.scale if spec.order == 3 and spec.max_acceleration is not None else None
+    below = spec.max_acceleration if spec.order == 3 else spec.max_velocity  # the limit one order below the held
+    ramp_s = None if below is None else below / spec.scale
     # Where a mode's vibration decays within the move only the last switches' residual is left to cancel: reversals
     # near the end first; else Singh and Vadali's around a switch first (the undamped optimum).
     decays = all(math.exp(pole.real * rigid.duration_s) < DECAYED for pole in spec.zero_poles)
