@@ -297,8 +297,8 @@ def _polish(model: _Model, z: Array, iterations: int = 20, stall: bool = False) 
         return values, (jacs[:, movable] if want_jac else jacs)
 
     previous = math.inf
+    g, jac = system(z)
     for k in range(iterations):
-        g, jac = system(z)
         size = float(np.max(np.abs(g)))
         if size < 1e-14:
             return z
@@ -310,15 +310,18 @@ def _polish(model: _Model, z: Array, iterations: int = 20, stall: bool = False) 
             for _ in range(DAMPING_HALVINGS):
                 trial = z.copy()
                 trial[movable] -= step
-                if np.all(trial[: model.count] >= -1e-12) and np.max(np.abs(system(trial, False)[0])) < size:
-                    break
+                if np.all(trial[: model.count] >= -1e-12):
+                    g, jac = system(trial)
+                    if np.max(np.abs(g)) < size:
+                        break
                 step = 0.5 * step
             else:
-                return None
+                return z if size < CONVERGED else None  # no step improves on round-off
             z = trial
         else:
             z[movable] -= step
             if np.any(z[: model.count] < -1e-12):
                 return None
+            g, jac = system(z)
         z[: model.count] = np.maximum(z[: model.count], 0.0)
-    return z if np.max(np.abs(system(z, False)[0])) < CONVERGED else None
+    return z if float(np.max(np.abs(g))) < CONVERGED else None
