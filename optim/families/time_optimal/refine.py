@@ -31,7 +31,7 @@ ITERATION_CAP = 9  # scipy's SLSQP status when it stops at MAX_ITERATIONS
 TINY_ARC = 1e-6  # of the duration: a shorter refined arc is tried without
 NEWTON_ITERATIONS = 12  # a start near the structure's solution converges quadratically well within this
 STALL_AFTER = 4  # Newton iterations after which a residual that no longer halves ends the polish (None)
-DAMPING_HALVINGS = 6  # a predicted start's Newton step is halved at most this often before it gives up
+DAMPING_HALVINGS = 3  # a predicted start's Newton step is halved at most this often before it gives up
 CONVERGED = 1e-12  # the scaled residual of a solved structure (round-off: 1e-16 to 1e-13)
 ACTIVE = 1e-7  # a scaled inequality within this of its bound is held as an equality by the polish
 
