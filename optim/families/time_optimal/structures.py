@@ -23,6 +23,7 @@ from optim.families.time_optimal.types import Spec
 Start = tuple[list[float], list[float], list[bool]]  # durations, levels in the unit, which levels are free
 REVERSALS = (1 / 6, 1 / 4)  # a reversal pulse, in damped periods of its mode
 MAX_STARTS = 16  # Newton runs at most this many predicted structures (a few ms each)
+BEAM = 64  # shapes kept after each mode's reversals (one or two modes never reach it; three gave ~3,300 to sort)
 MAX_SHARE = 0.45  # a reversal takes at most this share of the arc it enters
 DECAYED = 0.01  # a mode whose free vibration falls below this share over the rigid move's duration has decayed
 
@@ -51,10 +52,11 @@ def _held(durations: list[float], levels: list[float], ramp_s: float | None) -> 
     jerk an arc at max_acceleration: reached after ``ramp_s`` of the full held level), 0 elsewhere."""
     if ramp_s is None:
         return [0.0] * len(levels)
-    reached = np.concatenate(([0.0], np.cumsum(np.multiply(levels, durations))[:-1])) / ramp_s
-    on_limit = (np.asarray(levels) == 0.0) & (np.abs(np.abs(reached) - 1.0) < 1e-6)
-    held: list[float] = np.where(on_limit, np.sign(reached), 0.0).tolist()
-    return held
+    reached = [0.0, *itertools.accumulate(lv * d / ramp_s for lv, d in zip(levels[:-1], durations[:-1], strict=True))]
+    return [
+        math.copysign(1.0, a) if lv == 0.0 and abs(abs(a) - 1.0) < 1e-6 else 0.0
+        for a, lv in zip(reached, levels, strict=True)
+    ]
 
 
 def _insertions(durations: list[float], levels: list[float], width: float, ramp_s: float | None) -> list[Shape]:
@@ -89,8 +91,8 @@ def _insertions(durations: list[float], levels: list[float], width: float, ramp_
 
 def _reversal_time(durations: list[float], levels: list[float]) -> float:
     """When the last reversal of a shape starts (its latest arc against the rigid move's direction there)."""
-    starts = np.concatenate(([0.0], np.cumsum(durations)[:-1]))
-    late = [t for t, a, b in zip(starts[1:], levels[1:], levels[:-1], strict=True) if a * b < 0]
+    starts = itertools.accumulate(durations[:-1])
+    late = [t for t, a, b in zip(starts, levels[1:], levels[:-1], strict=True) if a * b < 0]
     return max(late, default=0.0)
 
 
@@ -114,12 +116,18 @@ def reversal_starts(spec: Spec, rigid: RigidMove | None) -> list[Start]:
     # Where a mode's vibration decays within the move only the last switches' residual is left to cancel: reversals
     # near the end first; else Singh and Vadali's around a switch first (the undamped optimum).
     decays = all(math.exp(pole.real * rigid.duration_s) < DECAYED for pole in spec.zero_poles)
+
+    def rank(shape: Shape) -> tuple[bool, float]:
+        return decays or not shape[2], -_reversal_time(shape[0], shape[1])
+
     starts: list[Start] = []
     for fraction in REVERSALS:
         shapes: list[Shape] = [(durations, levels, False)]
         for pole in spec.zero_poles:
+            if len(shapes) > BEAM:  # with three or more modes only the BEAM most promising are expanded further
+                shapes = sorted(shapes, key=rank)[:BEAM]
             width = fraction * 2 * math.pi / abs(pole.imag)
             shapes = list(itertools.chain.from_iterable(_insertions(d, lv, width, ramp_s) for d, lv, _ in shapes))
-        shapes.sort(key=lambda shape: (decays or not shape[2], -_reversal_time(shape[0], shape[1])))
+        shapes.sort(key=rank)
         starts += [(d, lv, [False] * len(lv)) for d, lv, _ in shapes]
     return starts[:MAX_STARTS]
