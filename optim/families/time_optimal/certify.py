@@ -116,27 +116,20 @@ def _kinds(spec: Spec, durations: Array, levels: Array) -> tuple[Array, Array] |
     """(kind, sign) of every arc: BANG with its level, FIRST at +-the limit one order below q, SECOND (q = 3) a coast
     at +-max_velocity; None if a rest is on no limit (a singular arc no constraint explains: not certifiable)."""
     q, unit = spec.order, spec.scale
-    states = [np.zeros(levels.size) for _ in range(q - 1)]  # derivatives q-1 .. 1 at each arc's start
     rates = levels * unit
-    for m in range(q - 1):  # the (q-1-m)-th derivative: integrate the one above over each arc
-        above = rates if m == 0 else states[m - 1]
-        if m == 0:
-            states[0] = np.concatenate(([0.0], np.cumsum(above * durations)[:-1]))
-        else:  # a polynomial arc: v(end) = v(start) + a(start) d + rate d^2 / 2
-            grow = states[0] * durations + rates * durations**2 / 2
-            states[1] = np.concatenate(([0.0], np.cumsum(grow)[:-1]))
+    below = np.concatenate(([0.0], np.cumsum(rates * durations)[:-1]))  # one order below q, at each arc's start
+    grow = below * durations + rates * durations**2 / 2  # q = 3: each arc's velocity change
+    velocity = np.concatenate(([0.0], np.cumsum(grow)[:-1]))
     first = spec.max_velocity if q == 2 else spec.max_acceleration
     kind = np.full(levels.size, BANG)
     sign = levels.copy()
     for k in np.flatnonzero(levels == 0.0):
-        below = states[0][k]
-        if first is not None and _near(abs(below), first, first):
-            kind[k], sign[k] = FIRST, math.copysign(1.0, below)
-        elif q == 3 and spec.max_velocity is not None and _near(below, 0.0, spec.max_acceleration or unit):
-            velocity = states[1][k]
-            if not _near(abs(velocity), spec.max_velocity, spec.max_velocity):
+        if first is not None and _near(abs(below[k]), first, first):
+            kind[k], sign[k] = FIRST, math.copysign(1.0, below[k])
+        elif q == 3 and spec.max_velocity is not None and _near(below[k], 0.0, spec.max_acceleration or unit):
+            if not _near(abs(velocity[k]), spec.max_velocity, spec.max_velocity):
                 return None
-            kind[k], sign[k] = SECOND, math.copysign(1.0, velocity)
+            kind[k], sign[k] = SECOND, math.copysign(1.0, velocity[k])
         else:
             return None
     return kind, sign

@@ -311,6 +311,7 @@ def _polish(model: _Model, z: Array, iterations: int = 20, stall: bool = False) 
                 trial = z.copy()
                 trial[movable] -= step
                 if np.all(trial[: model.count] >= -1e-12):
+                    trial[: model.count] = np.maximum(trial[: model.count], 0.0)
                     g, jac = system(trial)
                     if np.max(np.abs(g)) < size:
                         break
@@ -322,6 +323,6 @@ def _polish(model: _Model, z: Array, iterations: int = 20, stall: bool = False) 
             z[movable] -= step
             if np.any(z[: model.count] < -1e-12):
                 return None
+            z[: model.count] = np.maximum(z[: model.count], 0.0)
             g, jac = system(z)
-        z[: model.count] = np.maximum(z[: model.count], 0.0)
     return z if float(np.max(np.abs(g))) < CONVERGED else None

@@ -4,10 +4,11 @@ The minimum-time command of a rest-to-rest move with modes to cancel is the rigi
 bang-coast-bang at max_velocity; with a held jerk Ruckig's seven phases) with reversal pulses added: Singh and
 Vadali's (1993) symmetric three switches around a bang-bang's switch, or a bang arc split by a short pulse the other
 way (the answers measured on bench/time_optimal_random.py's moves are mostly these: +a, coast, -a, +a, -a;
-+a, -a, +a, -a; and with two modes one reversal each), and with a held jerk a notch (-j, +j) in an arc held at
-max_acceleration. Each start here is such a structure with a reversal of REVERSALS damped periods per mode; the
-caller solves its switching times by Newton (optim.families.time_optimal.refine.newton) and keeps it only if its
-certificate proves it (optim.families.time_optimal.certify).
++a, -a, +a, -a; and with two modes one reversal each), or a notch in an arc at the limit one order below the held
+derivative (a dip in a coast at max_velocity; with a held jerk, in an arc at max_acceleration). Each start here is
+such a structure with a reversal of REVERSALS damped periods per mode; the caller solves its switching times by
+damped Newton (optim.families.time_optimal.refine.newton) and keeps it only if its certificate proves it
+(optim.families.time_optimal.certify).
 """
 
 from __future__ import annotations
