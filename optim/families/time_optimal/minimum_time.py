@@ -3,6 +3,9 @@
 Candidates, each refined to exact switching times (optim.families.time_optimal.refine) and kept only if it meets
 the limits exactly (the caller's check) and the bands on the dense check (optim.families.time_optimal.check):
 
+- first the predicted structures (optim.families.time_optimal.structures), by damped Newton: one that its
+  certificate proves minimum-time (optim.families.time_optimal.certify) is the answer, with nothing else computed
+  (a proven minimum is never longer than the shaped rigid optimum); the others are offered after the search;
 - the shaped rigid optimum (optim.families.time_optimal.shaped), as it is and refined: the recipe's answer,
   feasible by construction, so that no answer is longer and no move it shows feasible is refused;
 - the grid optimum's structure (optim.families.time_optimal.search), or its early-acting vertex's;
@@ -226,10 +229,10 @@ def solve(spec: Spec, check_limits: LimitCheck | None = None, bound_spec: Spec |
     search = GridSearch(spec)
     best = _Best(spec, search, check_limits)
     rigid = rigid_of(spec)
-    shaped = shaped_rigid(best)
     exact = spec.torque is None and not spec.bands  # a torque limit or a band: the grid optimum (or the shaped one)
     note = "Newton on the switching times of the rigid optimum with reversal pulses"
     held = best.predicted(reversal_starts(spec, rigid), note) if exact else []  # no LP where one is proven
+    shaped = None if best.proof is not None else shaped_rigid(best)  # a proven answer is never longer than it
     grid = None if best.proof is not None else _grid(search, shaped)
     if exact and best.proof is None:
         _refined(best, search, grid, rigid)
