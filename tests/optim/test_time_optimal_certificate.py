@@ -1,8 +1,8 @@
-"""The switching-function certificate of a held-acceleration answer (optim.families.time_optimal.certify), checked
-against what it claims: its multipliers' weak-duality bound, integrated here by QUADPACK (scipy.integrate.quad),
-equals the move at the answer's duration and falls short of it at any shorter one; the known answer
-(tests/time_optimal_oracle.py, Singh and Vadali's structure with its own maximum-principle check) is found with no
-LP at all; a feasible command that is not the optimum is not certified."""
+"""The switching-function certificate of a held-acceleration or held-jerk answer (optim.families.time_optimal.certify),
+checked against what it claims: its multipliers' weak-duality bound, integrated here by QUADPACK (scipy.integrate.quad;
+trapezoids for a held jerk), equals the move at the answer's duration and falls short of it at any shorter one; the
+known answer (tests/time_optimal_oracle.py, Singh and Vadali's structure with its own maximum-principle check) is
+found with no LP at all; a feasible command that is not the optimum is not certified."""
 
 from __future__ import annotations
 
@@ -219,6 +219,8 @@ def test_a_held_jerk_answer_is_certified_and_its_multipliers_bound_the_distance(
     spec, arcs, lower = _answer(JERK[name])
     total = sum(a.duration_s for a in arcs)
     assert lower == pytest.approx(total, rel=2e-9)  # certified: the search ended there, its bound the duration
+    proof = certificate(spec, arcs)
+    assert proof is not None and (name != "coast" or proof.atoms)  # the coast's case does hold a coast (nu's atoms)
     bound, constrained = _jerk_bound(spec, arcs, total)
     # sigma vanishes on the constrained arcs (to the trapezoids' error, ~1e-8 of sigma's scale T^2 / 2) ...
     assert constrained < 1e-6 * total**2 / 2
