@@ -148,17 +148,17 @@ def _phi(spec: Spec, width: int, tau: float, derivative: int = 0) -> Linear:
 
 def _sweep(
     spec: Spec, starts: Array, ends: Array, kind: Array
-) -> tuple[list[tuple[Linear, Linear]], list[Linear], list[tuple[float, Linear]]]:
+) -> tuple[list[tuple[Linear, Linear]], list[Linear], list[tuple[int, float, Linear]]]:
     """From the end back: each arc's line (alpha + beta s) that sigma = phi(T - s) less it on a bang arc (on a
     constrained arc: the line after it), the junction conditions (linear functions that must vanish) and the coasts'
-    atoms (time, mass)."""
+    atoms (coast, time, mass)."""
     total = float(ends[-1])
     width = _basis(spec, np.zeros(1)).shape[1] + int(np.sum(kind == SECOND))
     zero: Linear = (np.zeros(width), 0.0)
     alpha, beta = zero, zero
     lines: list[tuple[Linear, Linear]] = [(zero, zero)] * kind.size
     conditions: list[Linear] = []
-    atoms: list[tuple[float, Linear]] = []
+    atoms: list[tuple[int, float, Linear]] = []
     column = width - int(np.sum(kind == SECOND))
     for k in range(kind.size - 1, -1, -1):
         s1, s2 = float(starts[k]), float(ends[k])
@@ -170,12 +170,12 @@ def _sweep(
             continue
         if kind[k] == SECOND:  # nu's exit atom: phi'(T - s2) + beta after; the entry's, an unknown
             slope = _phi(spec, width, total - s2, 1)
-            atoms.append((s2, (slope[0] + beta[0], slope[1] + beta[1])))
+            atoms.append((k, s2, (slope[0] + beta[0], slope[1] + beta[1])))
             entry = _phi(spec, width, total - s1, 1)
             unknown = np.zeros(width)
             unknown[column] = 1.0
             column += 1
-            atoms.append((s1, (unknown, 0.0)))
+            atoms.append((k, s1, (unknown, 0.0)))
             beta = (-entry[0] - unknown, -entry[1])
         # the line before the arc meets phi at its entry (sigma = 0 there), with the slope just found
         phi = _phi(spec, width, total - s1)
@@ -211,27 +211,19 @@ def _wrong_signed(values: Array, scale: float) -> bool:
     return bool(np.any(values < -SIGN_TOLERANCE * (scale or 1.0)))
 
 
-@dataclass(frozen=True)
-class _Switching:
-    """The switching function of a command whose junction conditions are consistent: sigma on the sample points
-    ``s`` (arc index ``arc``), the unknowns z (theta, the entry atoms) and what the sign checks need."""
-
-    s: Array
-    arc: NDArray[np.intp]
-    sigma: Array
-    levels: Array
-    kind: Array
-    sign: Array
-    z: Array
-    beta: Array
-    atoms: list[tuple[float, Linear]]
-    starts: Array
-    ends: Array
+def _unknowns(conditions: list[Linear], total: float, q: int) -> Array | None:
+    """The unknowns (theta, the entry atoms) that make every junction condition vanish, by least squares with
+    scaled columns; None if the residual exceeds JUNCTION_TOLERANCE of k(T) (no multipliers fit the junctions)."""
+    rows = np.array([c[0] for c in conditions])
+    rhs = -np.array([c[1] for c in conditions])
+    scale = np.max(np.abs(rows), axis=0) + 1e-300
+    z: Array = np.linalg.lstsq(rows / scale, rhs, rcond=None)[0] / scale
+    return None if np.max(np.abs(rows @ z - rhs)) > JUNCTION_TOLERANCE * float(kernel(q, np.array([total]))[0]) else z
 
 
-def _switching(spec: Spec, arcs: tuple[Arc, ...]) -> _Switching | None:
-    """sigma of ``arcs`` with the multipliers from their junctions, or None where the check does not apply or no
-    multipliers satisfy the junctions."""
+def certificate(spec: Spec, arcs: tuple[Arc, ...]) -> Certificate | None:
+    """The proof that ``arcs`` (merged, meeting the end conditions and the limits: the caller checks) are the
+    minimum-time command of ``spec``, or None where this check does not apply or does not prove it."""
     if not _applies(spec) or not arcs:
         return None
     levels = _levels(spec, arcs)
@@ -247,50 +239,29 @@ def _switching(spec: Spec, arcs: tuple[Arc, ...]) -> _Switching | None:
     total = float(ends[-1])
     sampled = _samples(spec, durations, starts, ends)
     lines, conditions, atoms = _sweep(spec, starts, ends, kind)
-    if sampled is None or not conditions:
-        return None
-    rows = np.array([c[0] for c in conditions])
-    rhs = -np.array([c[1] for c in conditions])
-    scale = np.max(np.abs(rows), axis=0) + 1e-300
-    z = np.linalg.lstsq(rows / scale, rhs, rcond=None)[0] / scale
-    if np.max(np.abs(rows @ z - rhs)) > JUNCTION_TOLERANCE * float(kernel(spec.order, np.array([total]))[0]):
+    z = None if sampled is None or not conditions else _unknowns(conditions, total, spec.order)
+    if sampled is None or z is None:
         return None
     s, arc = sampled
-    theta = z[: _basis(spec, np.zeros(1)).shape[1]]
     tau = total - s
-    phi = kernel(spec.order, tau) - _basis(spec, tau) @ theta
+    theta = z[: _basis(spec, np.zeros(1)).shape[1]]
     alpha = np.array([line[0][0] @ z + line[0][1] for line in lines])
     beta = np.array([line[1][0] @ z + line[1][1] for line in lines])
-    sigma = phi - alpha[arc] - beta[arc] * s
-    return _Switching(s, arc, sigma, levels, kind, sign, z, beta, atoms, starts, ends)
-
-
-def certificate(spec: Spec, arcs: tuple[Arc, ...]) -> Certificate | None:
-    """The proof that ``arcs`` (merged, meeting the end conditions and the limits: the caller checks) are the
-    minimum-time command of ``spec``, or None where this check does not apply or does not prove it."""
-    sw = _switching(spec, arcs)
-    if sw is None:
-        return None
-    s, arc, levels, kind, sign = sw.s, sw.arc, sw.levels, sw.kind, sw.sign
+    sigma = kernel(spec.order, tau) - _basis(spec, tau) @ theta - alpha[arc] - beta[arc] * s
     bang = kind[arc] == BANG
-    size = float(np.max(np.abs(sw.sigma[bang]), initial=0.0))
-    if _wrong_signed(_with_minima(np.where(bang, levels[arc] * sw.sigma, np.inf), arc), size):
+    size = float(np.max(np.abs(sigma[bang]), initial=0.0))
+    if _wrong_signed(_with_minima(np.where(bang, levels[arc] * sigma, np.inf), arc), size):
         return None
-    tau = float(sw.ends[-1]) - s
-    theta = sw.z[: _basis(spec, np.zeros(1)).shape[1]]
     slope = kernel(spec.order, tau, 1) - _basis(spec, tau, 1) @ theta
     first = kind[arc] == FIRST  # mu's density: phi'(T - s) + beta, of the arc's sign
-    density = slope + sw.beta[arc]
-    if _wrong_signed(sign[arc][first] * density[first], float(np.max(np.abs(slope)))):
+    if _wrong_signed(sign[arc][first] * (slope + beta[arc])[first], float(np.max(np.abs(slope)))):
         return None
     second = kind[arc] == SECOND  # nu's density phi''(T - s) and its atoms, of the coast's sign
     if np.any(second):
         curvature = kernel(spec.order, tau, 2) - _basis(spec, tau, 2) @ theta
         if _wrong_signed(sign[arc][second] * curvature[second], float(np.max(np.abs(curvature)))):
             return None
-    masses = tuple((t, float(m[0] @ sw.z + m[1])) for t, m in sw.atoms)
-    coast_sign = {float(sw.ends[k]): sign[k] for k in np.flatnonzero(kind == SECOND)}
-    coast_sign |= {float(sw.starts[k]): sign[k] for k in np.flatnonzero(kind == SECOND)}
-    if _wrong_signed(np.array([coast_sign[t] * m for t, m in masses]), float(np.max(np.abs(slope)))):
+    masses = [(k, t, float(m[0] @ z + m[1])) for k, t, m in atoms]
+    if _wrong_signed(np.array([sign[k] * m for k, _, m in masses]), float(np.max(np.abs(slope)))):
         return None
-    return Certificate(theta, int(s.size), masses)
+    return Certificate(theta, int(s.size), tuple((t, m) for _, t, m in masses))
