@@ -200,7 +200,7 @@ def _jerk_bound(spec: Spec, arcs: tuple[Arc, ...], window: float) -> tuple[float
         steps = np.diff(s) * (f[1:] + f[:-1]) / 2
         return np.concatenate((np.cumsum(steps[::-1])[::-1], [0.0]))
 
-    n1 = from_end(n) + np.array([sum(m for t, m in atoms if t >= x) for x in s])  # nu([s, T])
+    n1 = from_end(n) + sum((m * (s <= t) for t, m in atoms), np.zeros_like(s))  # nu([s, T])
     nu_moment = from_end(n1)  # int_[s, T] (t - s) dnu = int_s^T nu([r, T]) dr
     m = np.where(kind == "first", phi(tau, 1) - n1, 0.0)  # mu's density
     sigma = phi(tau, 0) - from_end(m) - nu_moment
@@ -268,3 +268,35 @@ def test_damped_newton_reaches_a_certified_structure_the_full_steps_miss(monkeyp
     assert damped.search.lp_solves == 0 and "certifies" in damped.refinement
     assert full.search.lp_solves > 0 and "certifies" not in full.refinement
     assert damped.duration_s < full.duration_s * (1 - 1e-6)
+
+
+def test_an_arc_at_the_acceleration_limit_whose_measure_changes_sign_is_not_certified() -> None:
+    # bench/time_optimal_speed.py's held-jerk move 10 (1856 Hz, zeta 0.0079), rounded. Its answer, +j, +A, -j, -A,
+    # +j, -j, +j, has the levels and the arcs at +-A a certificate needs and its junction conditions are met, but mu's
+    # density on the arcs at +-A (phi'(T - s) plus the line's slope) swings with the mode to the wrong sign: no
+    # measure of the limit's sign exists, so nothing is proven (with that check removed, this answer was certified
+    # with no LP; the search, 14 LPs, finds nothing shorter).
+    problem = Problem(ModePlant(1856.0, 0.0079), displacement=0.892, limits=Limits(None, 4.67, 142.0))
+    spec, arcs, lower = _answer(problem)
+    levels = [round(a.level / spec.scale, 9) for a in arcs]
+    assert levels == [1.0, 0.0, -1.0, 0.0, 1.0, -1.0, 1.0]
+    command = command_of(arcs, 3, True, (0.0, 0.0, 0.0))
+    held = [float(command.evaluate(2, [a.start_s + a.duration_s / 2])[0]) for a in arcs if a.level == 0.0]
+    assert held == pytest.approx([4.67, -4.67], rel=1e-9)  # the rests are on the acceleration limit
+    assert certificate(spec, arcs) is None
+    total = sum(a.duration_s for a in arcs)
+    assert lower < total * (1 - 1e-6)  # the relaxed LP's bound, not a proof
+
+
+def test_a_bang_arc_where_sigma_has_the_wrong_sign_is_not_certified() -> None:
+    # Singh and Vadali's structure (+a, -a, +a, -a) has more than one solution: Newton from a reversal of 0.6 periods
+    # converges to a symmetric one of 225.42 ms (pulses 18.75 ms) that meets the same limits, 2.6 % longer than the
+    # known answer (219.71 ms). Its three junction conditions fix theta exactly (three unknowns: the end velocity's
+    # and the mode's two), so only sigma's sign can refuse it: it is wrong on part of a bang arc.
+    spec = _spec(KNOWN)
+    half, width = math.sqrt(0.12 / 10.0), 0.6 / 40.0
+    command = newton(spec, [half - width, width, width, half - width], [1.0, -1.0, 1.0, -1.0])
+    assert command is not None and limits_met(KNOWN, spec, command.arcs)
+    total = sum(a.duration_s for a in command.arcs)
+    assert total > minimum_time(2 * math.pi * 40.0, 10.0, 5.0, 0.12) * 1.02
+    assert certificate(spec, command.arcs) is None
