@@ -91,7 +91,7 @@ def spec_of(problem: Problem, options: TimeOptimalOptions, chosen: tuple[int, ..
         rigid = max(rigid, floor)
     periods = sum((0.5 + 0.5 * order) * modes[i].damped_period_s for i in chosen)
     slowest = max(modes[i].natural_period_s for i in chosen)
-    periods += sum(min(2 * math.pi / b.low_rad_s, 2 * slowest) for b in bands)  # the search doubles it if short
+    periods += slowest * len(bands)  # the same grids for every band width: a narrower band is never longer
     upper = max(rigid, closed) + periods  # GridSearch.grid_optimum starts at least 1 % above the floor
     cap = options.max_duration_s or min(MAX_DURATION_S, 4.0 * max(rigid, closed, floor) + SEARCH_PERIODS * slowest)
     if cap <= floor and options.max_duration_s is not None:
