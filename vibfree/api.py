@@ -66,6 +66,9 @@ class VibfreeError(Exception):
         self.status = int(problem.get("status", 500))
         super().__init__(f"{problem.get('title', 'error')}: {problem.get('detail', '')}")
 
+    def __reduce__(self) -> tuple[Any, ...]:  # from a batch's worker process: rebuilt from its problem
+        return (type(self), (self.problem,))
+
 
 @dataclass(frozen=True)
 class Synthesis:
@@ -98,20 +101,39 @@ def synthesize(family: str, request: Mapping[str, Any] | str | bytes, *, setting
 
 
 def synthesize_many(
-    family: str, requests: Iterable[Mapping[str, Any] | str | bytes], *, settings: Settings | None = None
+    family: str,
+    requests: Iterable[Mapping[str, Any] | str | bytes],
+    *,
+    settings: Settings | None = None,
+    processes: int = 1,
 ) -> list[Synthesis | VibfreeError]:
-    """Design ``family``'s command for each request, in order, on one event loop: a batch of moves (a machine
-    planning its cycle). A request the service would refuse gives its ``VibfreeError`` in its place, so one bad
-    move does not lose the others."""
-    name, model = _family(family)
+    """Design ``family``'s command for each request, in order: a batch of moves (a machine planning its cycle). A
+    request the service would refuse gives its ``VibfreeError`` in its place, so one bad move does not lose the
+    others. ``processes``: 1 designs them here, one after the other, on one event loop; more spread chunks of
+    consecutive moves over that many worker processes (vibfree.batch), with the same answers."""
+    name, _ = _family(family)
     chosen = settings or get_settings()
+    if isinstance(processes, bool) or not isinstance(processes, int) or processes < 1:
+        raise VibfreeError(_problem("invalid-input", f"must be an integer >= 1, got {processes!r}", "processes"))
+    if processes == 1:
+        return _designs(name, requests, chosen)
+    from vibfree.batch import in_processes
+
+    return in_processes(_designs, name, list(requests), chosen, processes)
+
+
+def _designs(
+    name: str, requests: Iterable[Mapping[str, Any] | str | bytes], settings: Settings
+) -> list[Synthesis | VibfreeError]:
+    """The serial batch (each process of a parallel one runs it on its chunk)."""
+    model = REQUEST_SCHEMAS[name]
 
     async def each() -> list[Synthesis | VibfreeError]:
         out: list[Synthesis | VibfreeError] = []
         for request in requests:
             try:
                 body = _validate(model, request)
-                answer, result = await profiles.design(registry.FAMILIES[name], body, chosen, InlineExecutor())
+                answer, result = await profiles.design(registry.FAMILIES[name], body, settings, InlineExecutor())
             except VibfreeError as exc:
                 out.append(exc)
             except DomainError as exc:

@@ -47,6 +47,35 @@ def test_synthesize_many_answers_each_move_in_order_and_keeps_a_refusal_in_its_p
     assert isinstance(designs[1], vibfree.VibfreeError) and designs[1].problem == refused.value.problem
 
 
+def _without_times(value):
+    if isinstance(value, dict):
+        return {k: _without_times(v) for k, v in value.items() if k != "solve_time_s"}
+    return [_without_times(v) for v in value] if isinstance(value, list | tuple) else value
+
+
+def test_a_batch_on_two_processes_gives_the_serial_answers_in_order():
+    # Chunks of consecutive moves on worker processes (vibfree.batch; one move a chunk here, 3 moves on 2
+    # processes): each answer is the serial batch's, less its wall times, a refusal in its place. The time-optimal
+    # moves' solve_time_s differ from run to run, so they are compared without them.
+    mode = {"kind": "mode", "natural_frequency_hz": 40.0}
+    moves = [
+        {"plant": mode, "displacement": d, "limits": {"max_velocity": 5.0, "max_acceleration": 10.0}}
+        for d in (0.12, 0.3)
+    ]
+    batch = [moves[0], dict(moves[0], displacement=0.0), moves[1]]
+    serial = vibfree.synthesize_many("time-optimal", batch, settings=TEST_SETTINGS)
+    parallel = vibfree.synthesize_many("time-optimal", batch, settings=TEST_SETTINGS, processes=2)
+    assert [type(d).__name__ for d in parallel] == ["Synthesis", "VibfreeError", "Synthesis"]
+    assert parallel[1].problem == serial[1].problem and parallel[1].status == 422
+    for one, two in zip((serial[0], serial[2]), (parallel[0], parallel[2]), strict=True):
+        dumped = [orjson.dumps(_without_times(d.answer), option=orjson.OPT_SERIALIZE_NUMPY) for d in (one, two)]
+        assert dumped[0] == dumped[1]
+        assert one.csv() == two.csv()  # the result came back whole: the cam table too
+    with pytest.raises(vibfree.VibfreeError) as refused:
+        vibfree.synthesize_many("time-optimal", batch, processes=0)
+    assert refused.value.problem["field"] == "processes"
+
+
 def test_synthesize_gives_the_endpoints_answer_and_csv_byte_for_byte(client):
     # The same schemas, service layer and CSV writer: in-process and over HTTP agree exactly.
     design = vibfree.synthesize("stap", STAP, settings=TEST_SETTINGS)
