@@ -95,7 +95,7 @@ def _basis(spec: Spec, tau: Array, derivative: int = 0) -> Array:
     return np.column_stack([np.broadcast_to(c, tau.shape) for c in columns])
 
 
-def _applies(spec: Spec) -> bool:
+def certificate_applies(spec: Spec) -> bool:
     return spec.rest_to_rest and not spec.in_motion and not spec.bands and spec.torque is None
 
 
@@ -115,24 +115,47 @@ def _near(value: float, target: float, limit: float) -> bool:
 def _kinds(spec: Spec, durations: Array, levels: Array) -> tuple[Array, Array] | None:
     """(kind, sign) of every arc: BANG with its level, FIRST at +-the limit one order below q, SECOND (q = 3) a coast
     at +-max_velocity; None if a rest is on no limit (a singular arc no constraint explains: not certifiable)."""
-    q, unit = spec.order, spec.scale
-    rates = levels * unit
-    below = np.concatenate(([0.0], np.cumsum(rates * durations)[:-1]))  # one order below q, at each arc's start
-    grow = below * durations + rates * durations**2 / 2  # q = 3: each arc's velocity change
-    velocity = np.concatenate(([0.0], np.cumsum(grow)[:-1]))
-    first = spec.max_velocity if q == 2 else spec.max_acceleration
+    below, velocity = arc_states(spec, durations, levels)
     kind = np.full(levels.size, BANG)
     sign = levels.copy()
     for k in np.flatnonzero(levels == 0.0):
-        if first is not None and _near(abs(below[k]), first, first):
-            kind[k], sign[k] = FIRST, math.copysign(1.0, below[k])
-        elif q == 3 and spec.max_velocity is not None and _near(below[k], 0.0, spec.max_acceleration or unit):
-            if not _near(abs(velocity[k]), spec.max_velocity, spec.max_velocity):
-                return None
-            kind[k], sign[k] = SECOND, math.copysign(1.0, velocity[k])
-        else:
+        constrained = _constrained(spec, float(below[k]), float(velocity[k]))
+        if constrained is None:
             return None
+        kind[k], sign[k] = constrained
     return kind, sign
+
+
+def arc_states(spec: Spec, durations: Array, levels: Array) -> tuple[Array, Array]:
+    """At each arc's start, from rest: the derivative one order below q, and (q = 3) the velocity."""
+    rates = levels * spec.scale
+    below = np.concatenate(([0.0], np.cumsum(rates * durations)[:-1]))
+    grow = below * durations + rates * durations**2 / 2  # q = 3: each arc's velocity change
+    return below, np.concatenate(([0.0], np.cumsum(grow)[:-1]))
+
+
+def _constrained(spec: Spec, below: float, velocity: float) -> tuple[int, float] | None:
+    """(kind, sign) of a rest (level 0) that starts with ``below`` (one order below q) and ``velocity``: FIRST at
+    +-that limit, SECOND (q = 3) a coast at +-max_velocity with zero acceleration; None if it is on no limit."""
+    first = spec.max_velocity if spec.order == 2 else spec.max_acceleration
+    if first is not None and _near(abs(below), first, first):
+        return FIRST, math.copysign(1.0, below)
+    coasting = spec.order == 3 and spec.max_velocity is not None
+    if coasting and _near(below, 0.0, spec.max_acceleration or spec.scale):
+        assert spec.max_velocity is not None
+        if _near(abs(velocity), spec.max_velocity, spec.max_velocity):
+            return SECOND, math.copysign(1.0, velocity)
+    return None
+
+
+def on_a_limit(spec: Spec, durations: Array, levels: Array) -> NDArray[np.bool_]:
+    """Per arc (``levels`` in the unit): whether it is a rest on a limit (a constrained arc of ``_kinds``); bang and
+    fractional arcs are not."""
+    below, velocity = arc_states(spec, durations, levels)
+    out: NDArray[np.bool_] = np.abs(levels) <= LEVEL_TOLERANCE
+    for k in np.flatnonzero(out):
+        out[k] = _constrained(spec, float(below[k]), float(velocity[k])) is not None
+    return out
 
 
 Linear = tuple[Array, float]  # coefficients over the unknowns (theta, then the coasts' entry atoms), constant
@@ -224,7 +247,7 @@ def _unknowns(conditions: list[Linear], total: float, q: int) -> Array | None:
 def certificate(spec: Spec, arcs: tuple[Arc, ...]) -> Certificate | None:
     """The proof that ``arcs`` (merged, meeting the end conditions and the limits: the caller checks) are the
     minimum-time command of ``spec``, or None where this check does not apply or does not prove it."""
-    if not _applies(spec) or not arcs:
+    if not certificate_applies(spec) or not arcs:
         return None
     levels = _levels(spec, arcs)
     if levels is None:

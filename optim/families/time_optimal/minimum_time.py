@@ -34,8 +34,9 @@ from models.errors import SolverFailed, SolverTimedOut
 from models.rigid_motion import RigidMove
 from models.shapers import ImpulseSequence, convolve
 from optim.families.time_optimal.arcs import arcs_of, merged, structure
-from optim.families.time_optimal.certify import Certificate, certificate
+from optim.families.time_optimal.certify import Certificate, certificate, certificate_applies
 from optim.families.time_optimal.refine import newton, refine
+from optim.families.time_optimal.repair import bang_start
 from optim.families.time_optimal.search import GridSearch, clip, project
 from optim.families.time_optimal.shaped import as_start, band_shapers, nominal_shaper, rigid_of, shaped_arcs
 from optim.families.time_optimal.structures import Start, reversal_starts, three_switch_starts
@@ -50,6 +51,7 @@ MAX_ARCS = 24  # a start with more arcs is not refined (a chattering grid vertex
 GUESS_MARGIN = 0.05  # the grid search starts this much above the shaped rigid optimum's duration
 CERTIFIED_GAP = 1e-9  # a certified answer's lower bound: its duration less this (the switching times' precision)
 SHORTER = 1e-12  # a candidate replaces the best only if shorter by more than this (relative)
+REPAIRS = 4  # off-limit arcs made bang at most this often a design (each an SLSQP run of a few milliseconds)
 
 
 @dataclass(frozen=True)
@@ -70,6 +72,8 @@ class _Best:
         self.spec, self.search, self.check_limits = spec, search, check_limits
         self.found: Found | None = None
         self.proof: Certificate | None = None  # the found command is proven the minimum-time one: search no more
+        self.repairs = 0
+        self.repaired: list[tuple[tuple[Arc, ...], str]] = []  # repaired commands not proven: offered at the end
 
     def accepts(self, arcs: tuple[Arc, ...]) -> bool:
         return (self.check_limits is None or self.check_limits(arcs)) and self.search.verified(arcs)
@@ -83,7 +87,33 @@ class _Best:
             return False
         self.found = Found(merged(arcs), method, note)
         self.proof = proof or certificate(self.spec, self.found.arcs)
+        if self.proof is None:
+            self.repair(self.found.arcs)
         return True
+
+    def repair(self, arcs: tuple[Arc, ...]) -> None:
+        """``arcs`` with their off-limit arcs made bang (optim.families.time_optimal.repair), refined with every level
+        fixed: offered at once where the certificate proves it (the search ends), else kept for the end (offered
+        then, so that it does not steer the search: a shorter best earlier stopped the probes that found shorter)."""
+        if self.repairs >= REPAIRS or not certificate_applies(self.spec):  # (no structure it could prove)
+            return
+        start = bang_start(self.spec, [a.duration_s for a in arcs], [a.level / self.spec.scale for a in arcs])
+        if start is None or len(start[0]) > MAX_ARCS:
+            return
+        self.repairs += 1
+        result = refine(self.spec, *start, self.search.cuts)
+        if result is None:
+            return
+        note = result.status + " (its off-limit arcs made bang)"
+        proof = certificate(self.spec, merged(result.arcs))
+        if proof is None or not self.offer(result.arcs, "refined", note, proof):
+            self.repaired.append((result.arcs, note))
+
+    def offer_repaired(self) -> None:
+        """The repaired commands kept for the end (each offered may be repaired again, within REPAIRS)."""
+        while self.repaired and self.proof is None:
+            arcs, note = self.repaired.pop(0)
+            self.offer(arcs, "refined", note)
 
     def refine_from(self, start: Start, note: str = "") -> bool:
         if len(start[0]) > MAX_ARCS:
@@ -243,6 +273,7 @@ def solve(spec: Spec, check_limits: LimitCheck | None = None, bound_spec: Spec |
     if held and best.proof is None:  # SLSQP from the shortest: its structure's optimum is often the certified one
         shortest = min(held, key=lambda arcs: sum(a.duration_s for a in arcs))
         best.refine_from(as_start(spec, shortest), " (from a predicted structure)")
+    best.offer_repaired()
     found = best.found
     assert found is not None  # the shaped rigid optimum, or the grid's
     if best.proof is not None and (bound_spec is None or bound_spec is spec):

@@ -1,0 +1,65 @@
+"""A refined command's off-limit arcs made bang: the start of a structure the certificate can prove.
+
+A minimum-time command holds its derivative at +-its limit except on arcs where a lower derivative rides its own
+limit (optim.families.time_optimal.certify). A local optimum refined with free levels often keeps arcs that are
+neither: a fractional level, or a rest below every limit. Each becomes the bang arcs of the same change one order
+below (the velocity for a held acceleration, the acceleration for a held jerk):
+
+- between two neighbours on different levels (bang or constrained, the latter counted as level 0) and within them:
+  the switch inside it, split in proportion (a grid step's switch);
+- otherwise a notch in the nearest bang level B: B, then -B for d (B - level) / (2 B), then B, centred.
+
+The LP optimum of a two-mode move (bench/time_optimal.py's, 3,200 steps) has exactly such notches where SLSQP's
+local optimum held fractional levels; refined again with every level fixed, its structure is the certified one.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from optim.families.time_optimal.certify import LEVEL_TOLERANCE, on_a_limit
+from optim.families.time_optimal.structures import Start
+from optim.families.time_optimal.types import Spec
+
+
+def bang_start(spec: Spec, durations: Sequence[float], levels: Sequence[float]) -> Start | None:
+    """The arcs (``levels`` in the unit) with every off-limit arc made bang (see the module), all levels fixed; None
+    if there is none."""
+    length = np.asarray(durations, dtype=float)
+    level = np.asarray(levels, dtype=float)
+    bang = np.abs(np.abs(level) - 1.0) <= LEVEL_TOLERANCE
+    kept = bang | on_a_limit(spec, length, level)
+    if np.all(kept):
+        return None
+    held = [float(np.sign(v)) if b else 0.0 for v, b in zip(level, bang, strict=True)]  # kept arcs' levels
+    out_durations: list[float] = []
+    out_levels: list[float] = []
+    for k, duration in enumerate(length.tolist()):
+        if kept[k]:
+            pieces = [(duration, held[k])]
+        else:
+            left = held[k - 1] if k > 0 and kept[k - 1] else None
+            right = held[k + 1] if k + 1 < level.size and kept[k + 1] else None
+            pieces = _switch(duration, float(level[k]), left, right) or _notch(duration, float(level[k]), left, right)
+        out_durations += [d for d, _ in pieces]
+        out_levels += [v for _, v in pieces]
+    return out_durations, out_levels, [False] * len(out_levels)
+
+
+def _switch(duration: float, level: float, left: float | None, right: float | None) -> list[tuple[float, float]]:
+    """The switch from ``left`` to ``right`` inside the arc, if its level lies between them; [] otherwise."""
+    if left is None or right is None or left == right or not min(left, right) <= level <= max(left, right):
+        return []
+    share = (level - right) / (left - right)
+    return [(share * duration, left), ((1.0 - share) * duration, right)]
+
+
+def _notch(duration: float, level: float, left: float | None, right: float | None) -> list[tuple[float, float]]:
+    """B, -B, B with the arc's change one order below: B the nearest bang neighbour's level (or the arc's sign)."""
+    bangs = [b for b in (left, right) if b is not None and b != 0.0]
+    sign = bangs[0] if bangs else (1.0 if level >= 0.0 else -1.0)
+    width = duration * (sign - level) / (2.0 * sign)
+    side = 0.5 * (duration - width)
+    return [(side, sign), (width, -sign), (side, sign)]

@@ -1,0 +1,80 @@
+"""A refined command's off-limit arcs made bang (optim.families.time_optimal.repair, issue 25): the structure the
+certificate proves where SLSQP's local optimum kept fractional levels."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from bench.lp_reference import GridMove
+from bench.time_optimal import product_of_modes
+from models.plants import ModePlant, TransferFunctionPlant
+from optim.families.time_optimal.family import selected_modes, spec_of
+from optim.families.time_optimal.options import TimeOptimalOptions
+from optim.families.time_optimal.repair import bang_start
+from optim.families.time_optimal.types import Spec
+from optim.problem import Limits, Problem
+from optim.registry import FAMILIES
+from optim.synthesis import synthesize
+
+LIMITS = Limits(max_velocity=1.0, max_acceleration=5.0)
+
+
+def _spec() -> Spec:
+    problem = Problem(ModePlant(40.0, 0.0), displacement=0.3, limits=LIMITS)
+    options = TimeOptimalOptions()
+    return spec_of(problem, options, selected_modes(problem, options)[0])
+
+
+def _change(durations: list[float], levels: list[float]) -> float:
+    """The velocity the arcs add (levels in the unit of the acceleration limit)."""
+    return float(np.dot(durations, levels))
+
+
+def test_a_fractional_arc_between_opposite_levels_becomes_the_switch_inside_it() -> None:
+    # +1 for 0.1 s, 0.2 for 0.01 s, -1 for 0.1 s: the switch 0.6 of the way in (0.2 = 0.6 - 0.4), as structure()
+    # splits a grid step's switch; the velocity added is the same.
+    durations, levels, free = bang_start(_spec(), [0.1, 0.01, 0.1], [1.0, 0.2, -1.0]) or ([], [], [])
+    assert levels == [1.0, 1.0, -1.0, -1.0] and not any(free)
+    assert durations == pytest.approx([0.1, 0.006, 0.004, 0.1], rel=1e-12)
+    assert _change(durations, levels) == pytest.approx(_change([0.1, 0.01, 0.1], [1.0, 0.2, -1.0]), rel=1e-12)
+
+
+def test_a_fractional_arc_inside_a_bang_becomes_a_centred_notch_of_the_same_change() -> None:
+    # 0.4 for 0.01 s inside +1: +1, -1 for 0.01 (1 - 0.4) / 2 = 3 ms, +1, the sides equal.
+    durations, levels, _ = bang_start(_spec(), [0.1, 0.01, 0.05], [1.0, 0.4, 1.0]) or ([], [], [])
+    assert levels == [1.0, 1.0, -1.0, 1.0, 1.0]
+    assert durations == pytest.approx([0.1, 0.0035, 0.003, 0.0035, 0.05], rel=1e-12)
+    assert _change(durations, levels) == pytest.approx(0.1 + 0.004 + 0.05, rel=1e-12)
+
+
+def test_a_coast_at_the_velocity_limit_is_kept_and_a_rest_below_it_is_notched() -> None:
+    spec = _spec()  # 5 m/s^2 for 0.2 s reaches the 1 m/s limit: a rest there is a coast (a constrained arc)
+    assert bang_start(spec, [0.2, 0.1, 0.2], [1.0, 0.0, -1.0]) is None  # nothing to repair
+    durations, levels, _ = bang_start(spec, [0.1, 0.05, 0.1], [1.0, 0.0, 1.0]) or ([], [], [])  # at 0.5 m/s
+    assert levels == [1.0, 1.0, -1.0, 1.0, 1.0]
+    assert durations == pytest.approx([0.1, 0.0125, 0.025, 0.0125, 0.1], rel=1e-12)
+
+
+def test_the_two_mode_move_is_certified_and_no_longer_than_an_independent_lp() -> None:
+    # bench/time_optimal.py's two-mode transfer function (5 Hz, zeta 0.02; 13 Hz, zeta 0.05), 0.3 m within 1 m/s and
+    # 5 m/s^2: SLSQP's local optimum kept a fractional level and a rest below the limit (504.1736 ms, not certified);
+    # made bang and refined with fixed levels, the certificate proves it (504.1711 ms). The independent LP of
+    # bench/lp_reference.py (held acceleration on 1,600 steps: a restriction of every command, exact at its nodes)
+    # finds a command at 504.1720 ms, and none 1e-6 below the certified duration.
+    modes = [(5.0, 0.02), (13.0, 0.05)]
+    tf = product_of_modes(modes)
+    plant = TransferFunctionPlant(tuple(tf["numerator"]), tuple(tf["denominator"]))
+    problem = Problem(plant, displacement=0.3, limits=LIMITS)
+    result = synthesize(FAMILIES["time_optimal"], problem, TimeOptimalOptions(modes=(0, 1)))
+    summary = result.summary
+    assert "made bang" in summary.refinement and "certifies" in summary.refinement
+    assert summary.lower_bound_s == pytest.approx(summary.duration_s, rel=2e-9)
+    assert summary.duration_s < 0.5041736 * (1 - 1e-6)  # the local optimum before
+    poles = tuple(complex(-z * 2 * math.pi * f, 2 * math.pi * f * math.sqrt(1 - z * z)) for f, z in modes)
+    reference = GridMove(0.3, poles, 1.0, 5.0, None)
+    assert reference.feasible(0.504172, 1600) and summary.duration_s <= 0.504172
+    assert not reference.feasible(summary.duration_s * (1 - 1e-6), 1600)
+    assert result.metrics.residual_amplitude < 1e-9 * 0.3
