@@ -23,6 +23,7 @@ optimum where it is shorter.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -36,7 +37,7 @@ from models.shapers import ImpulseSequence, convolve
 from optim.families.time_optimal.arcs import arcs_of, merged, structure
 from optim.families.time_optimal.certify import Certificate, certificate, certificate_applies
 from optim.families.time_optimal.refine import newton, refine
-from optim.families.time_optimal.repair import bang_start
+from optim.families.time_optimal.repair import bang_start, coast_dips
 from optim.families.time_optimal.search import GridSearch, clip, project
 from optim.families.time_optimal.shaped import as_start, band_shapers, nominal_shaper, rigid_of, shaped_arcs
 from optim.families.time_optimal.structures import Start, reversal_starts, three_switch_starts
@@ -51,6 +52,8 @@ MAX_ARCS = 24  # a start with more arcs is not refined (a chattering grid vertex
 GUESS_MARGIN = 0.05  # the grid search starts this much above the shaped rigid optimum's duration
 CERTIFIED_GAP = 1e-9  # a certified answer's lower bound: its duration less this (the switching times' precision)
 SHORTER = 1e-12  # a candidate replaces the best only if shorter by more than this (relative)
+MAX_DIPS = 4  # coast_dips tried with 1 to this many dips (each an SLSQP run of 10-40 ms) where nothing is proven
+DIP_PASSES = 2  # from the command found, then from the shorter one the dips gave
 REPAIRS = 4  # off-limit arcs made bang at most this often a design (each an SLSQP run of a few milliseconds)
 
 
@@ -108,6 +111,29 @@ class _Best:
         proof = certificate(self.spec, merged(result.arcs))
         if proof is None or not self.offer(result.arcs, "refined", note, proof):
             self.repaired.append((result.arcs, note))
+
+    def with_dips(self) -> None:
+        """With one cancelled mode and a held acceleration: the found command with 1 to MAX_DIPS dips at its coast's
+        end (optim.families.time_optimal.repair.coast_dips), each refined with fixed levels and offered; again from
+        the shorter command found, DIP_PASSES times at most (a train grows from the dips already there)."""
+        if len(self.spec.zero_poles) != 1 or not certificate_applies(self.spec):
+            return
+        pole = self.spec.zero_poles[0]
+        if pole.imag == 0.0:
+            return
+        period_s = 2.0 * math.pi / abs(pole.imag)
+        for _ in range(DIP_PASSES):
+            assert self.found is not None
+            arcs = self.found.arcs
+            durations, levels = [a.duration_s for a in arcs], [a.level / self.spec.scale for a in arcs]
+            shorter = False
+            for count in range(1, MAX_DIPS + 1):
+                start = coast_dips(self.spec, durations, levels, period_s, count)
+                if start is None or self.proof is not None:
+                    return
+                shorter |= self.refine_from(start, f" ({count} dips at its coast's end)")
+            if not shorter:
+                return
 
     def offer_repaired(self) -> None:
         """The repaired commands kept for the end (each offered may be repaired again, within REPAIRS)."""
@@ -274,6 +300,8 @@ def solve(spec: Spec, check_limits: LimitCheck | None = None, bound_spec: Spec |
         shortest = min(held, key=lambda arcs: sum(a.duration_s for a in arcs))
         best.refine_from(as_start(spec, shortest), " (from a predicted structure)")
     best.offer_repaired()
+    if best.proof is None:
+        best.with_dips()
     found = best.found
     assert found is not None  # the shaped rigid optimum, or the grid's
     if best.proof is not None and (bound_spec is None or bound_spec is spec):

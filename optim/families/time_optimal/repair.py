@@ -11,6 +11,11 @@ below (the velocity for a held acceleration, the acceleration for a held jerk):
 
 The LP optimum of a two-mode move (bench/time_optimal.py's, 3,200 steps) has exactly such notches where SLSQP's
 local optimum held fractional levels; refined again with every level fixed, its structure is the certified one.
+
+``coast_dips``: a held acceleration whose move lasts many periods of its mode and rides the velocity limit ends its
+coast, in the LP's optimum, with a train of dips (-A, +A), one a damped period, growing towards the deceleration
+(bench/time_optimal_random.py's move 150: 11 dips on 3,200 steps); a local optimum holds one or none. The coast's
+last periods are given n such dips for SLSQP to size.
 """
 
 from __future__ import annotations
@@ -19,7 +24,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from optim.families.time_optimal.certify import LEVEL_TOLERANCE, on_a_limit
+from optim.families.time_optimal.certify import LEVEL_TOLERANCE, arc_states, on_a_limit
 from optim.families.time_optimal.structures import Start
 from optim.families.time_optimal.types import Spec
 
@@ -63,3 +68,30 @@ def _notch(duration: float, level: float, left: float | None, right: float | Non
     width = duration * (sign - level) / (2.0 * sign)
     side = 0.5 * (duration - width)
     return [(side, sign), (width, -sign), (side, sign)]
+
+
+DIP_WIDTH = 0.08  # of a period: each dip's -A and +A arcs start this long (SLSQP sizes them)
+
+
+def coast_dips(
+    spec: Spec, durations: Sequence[float], levels: Sequence[float], period_s: float, count: int
+) -> Start | None:
+    """The command (``levels`` in the unit, held acceleration) with ``count`` dips (-s, +s and a coast, one
+    ``period_s`` each) in the last ``count`` periods of its longest coast at the velocity limit; None if it has no
+    such coast that long."""
+    length = np.asarray(durations, dtype=float)
+    level = np.asarray(levels, dtype=float)
+    coasts = np.flatnonzero(on_a_limit(spec, length, level))
+    if spec.order != 2 or coasts.size == 0:
+        return None
+    k = int(coasts[np.argmax(length[coasts])])
+    if length[k] <= count * period_s:
+        return None
+    below, _ = arc_states(spec, length, level)
+    sign = float(np.sign(below[k]))  # the coast's velocity: a dip is -sign, +sign
+    width = DIP_WIDTH * period_s
+    dips_d = [width, width, period_s - 2.0 * width] * count
+    dips_l = [-sign, sign, 0.0] * count
+    out_d = [*length[:k].tolist(), float(length[k] - count * period_s), *dips_d, *length[k + 1 :].tolist()]
+    out_l = [*level[:k].tolist(), 0.0, *dips_l, *level[k + 1 :].tolist()]
+    return out_d, out_l, [False] * len(out_l)
