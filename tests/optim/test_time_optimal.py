@@ -12,6 +12,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -167,7 +168,7 @@ def test_a_narrower_band_is_never_longer_than_a_wider_one(problem: Problem) -> N
         _design(problem, TimeOptimalOptions(Robustness(frequency_ratio_range=(1 - w, 1 + w)))).summary.duration_s
         for w in widths
     ]
-    assert all(a <= b * (1 + 1e-12) for a, b in zip(durations, durations[1:])), durations
+    assert all(a <= b * (1 + 1e-12) for a, b in itertools.pairwise(durations)), durations
     assert durations[0] < durations[-1]  # the band costs time: the check is not between equal answers only
 
 
