@@ -52,6 +52,7 @@ bench: $(VENV)/.installed-test  ## run the benchmarks whose figures are in docs/
 	$(BIN)/python bench/time_optimal.py  # the benchmark moves against the exact minimum and the shaped commands
 	$(BIN)/python bench/time_optimal_random.py  # 200 seeded random moves against ZV-shaped Ruckig and an 800-step LP
 	$(BIN)/python bench/time_optimal_speed.py cad35ac  # in-process speed against cad35ac (before the certified fast path)
+	$(BIN)/python bench/time_optimal_batch.py  # 1,000 nominal moves through vibfree.synthesize_many, one process and two
 	$(BIN)/python bench/csv_export.py  # the CSV table beside the JSON answer
 	$(BIN)/python bench/health_under_load.py  # /healthz and /readyz while slow solves saturate the pool
 	$(BIN)/python bench/determinism.py  # the same answers idle and with 8 clients sending slow solves
