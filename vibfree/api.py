@@ -109,12 +109,15 @@ def synthesize_many(
 ) -> list[Synthesis | VibfreeError]:
     """Design ``family``'s command for each request, in order: a batch of moves (a machine planning its cycle). A
     request the service would refuse gives its ``VibfreeError`` in its place, so one bad move does not lose the
-    others. ``processes``: 1 designs them here, one after the other, on one event loop; more spread chunks of
-    consecutive moves over that many worker processes (vibfree.batch), with the same answers."""
+    others. ``processes``: 1 designs them here, one after the other, on one event loop; more (up to the cores this
+    process may use: more would only compete for them) spread chunks of consecutive moves over that many worker
+    processes (vibfree.batch), with the same answers."""
     name, _ = _family(family)
     chosen = settings or get_settings()
-    if isinstance(processes, bool) or not isinstance(processes, int) or processes < 1:
-        raise VibfreeError(_problem("invalid-input", f"must be an integer >= 1, got {processes!r}", "processes"))
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    if isinstance(processes, bool) or not isinstance(processes, int) or not 1 <= processes <= cores:
+        detail = f"must be an integer from 1 to the {cores} cores this process may use, got {processes!r}"
+        raise VibfreeError(_problem("invalid-input", detail, "processes"))
     if processes == 1:
         return _designs(name, requests, chosen)
     from vibfree.batch import in_processes

@@ -71,9 +71,10 @@ def test_a_batch_on_two_processes_gives_the_serial_answers_in_order():
         dumped = [orjson.dumps(_without_times(d.answer), option=orjson.OPT_SERIALIZE_NUMPY) for d in (one, two)]
         assert dumped[0] == dumped[1]
         assert one.csv() == two.csv()  # the result came back whole: the cam table too
-    with pytest.raises(vibfree.VibfreeError) as refused:
-        vibfree.synthesize_many("time-optimal", batch, processes=0)
-    assert refused.value.problem["field"] == "processes"
+    for processes in (0, (os.cpu_count() or 1) + 1):  # none, or more than the cores: refused, naming the field
+        with pytest.raises(vibfree.VibfreeError) as refused:
+            vibfree.synthesize_many("time-optimal", batch, processes=processes)
+        assert refused.value.problem["field"] == "processes" and refused.value.status == 422
 
 
 def test_synthesize_gives_the_endpoints_answer_and_csv_byte_for_byte(client):
