@@ -13,7 +13,7 @@ from bench.time_optimal import product_of_modes
 from models.plants import ModePlant, TransferFunctionPlant
 from optim.families.time_optimal.family import selected_modes, spec_of
 from optim.families.time_optimal.options import TimeOptimalOptions
-from optim.families.time_optimal.repair import bang_start, coast_dips
+from optim.families.time_optimal.repair import bang_start, coast_dips, notched
 from optim.families.time_optimal.types import Spec
 from optim.problem import Limits, Problem
 from optim.registry import FAMILIES
@@ -68,6 +68,14 @@ def test_coast_dips_fill_the_coasts_last_periods_and_keep_the_duration() -> None
     assert coast_dips(_spec(), [0.1, 0.1], [1.0, -1.0], 0.025, 1) is None  # no coast
 
 
+def test_a_notch_goes_where_sigma_contradicts_the_arc() -> None:
+    # The run [0.32, 0.34] s in a -1 arc of 0.1 s starting at 0.3 s: a +1 notch of 2 ms (a tenth of the run) centred
+    # on 0.33 s; the other arcs unchanged.
+    durations, levels, _ = notched([0.3, 0.1, 0.05], [1.0, -1.0, 1.0], 1, 0.32, 0.34)
+    assert levels == [1.0, -1.0, 1.0, -1.0, 1.0]
+    assert durations == pytest.approx([0.3, 0.029, 0.002, 0.069, 0.05], rel=1e-12)
+
+
 def test_the_two_mode_move_is_certified_and_no_longer_than_an_independent_lp() -> None:
     # bench/time_optimal.py's two-mode transfer function (5 Hz, zeta 0.02; 13 Hz, zeta 0.05), 0.3 m within 1 m/s and
     # 5 m/s^2: SLSQP's local optimum kept a fractional level and a rest below the limit (504.1736 ms, not certified);
@@ -110,3 +118,22 @@ def test_dips_at_the_coasts_end_bring_a_many_period_move_within_the_lp_reference
     without = synthesize(FAMILIES["time_optimal"], problem, TimeOptimalOptions()).summary
     assert reference.feasible(without.duration_s / 1.0005, 800)  # the test can fail: without them it is over
     assert with_dips.duration_s < without.duration_s
+
+
+def test_the_three_mode_move_is_certified_once_notched_where_sigma_says() -> None:
+    # bench/time_optimal.py's three-mode transfer function (5 Hz, zeta 0.02; 13 Hz, 0.05; 31 Hz, 0.03), 0.3 m within 1
+    # m/s and 5 m/s^2. The search and its repairs end at 504.3788 ms: every arc bang or on a limit, junctions fitted,
+    # but sigma > 0 on 13.6 ms of the long -A arc (certify.wrong_sign). A +A notch there, refined, is certified at
+    # 504.3678 ms. The independent LP of bench/lp_reference.py on 1,600 steps finds a command at 504.3682 ms and none
+    # 1e-6 below the certified duration.
+    modes = [(5.0, 0.02), (13.0, 0.05), (31.0, 0.03)]
+    tf = product_of_modes(modes)
+    plant = TransferFunctionPlant(tuple(tf["numerator"]), tuple(tf["denominator"]))
+    problem = Problem(plant, displacement=0.3, limits=LIMITS)
+    summary = synthesize(FAMILIES["time_optimal"], problem, TimeOptimalOptions(modes=(0, 1, 2))).summary
+    assert "notched where sigma says" in summary.refinement and "certifies" in summary.refinement
+    assert summary.lower_bound_s == pytest.approx(summary.duration_s, rel=2e-9)
+    poles = tuple(complex(-z * 2 * math.pi * f, 2 * math.pi * f * math.sqrt(1 - z * z)) for f, z in modes)
+    reference = GridMove(0.3, poles, 1.0, 5.0, None)
+    assert reference.feasible(0.5043682, 1600) and summary.duration_s <= 0.5043682
+    assert not reference.feasible(summary.duration_s * (1 - 1e-6), 1600)

@@ -244,9 +244,26 @@ def _unknowns(conditions: list[Linear], total: float, q: int) -> Array | None:
     return None if np.max(np.abs(rows @ z - rhs)) > JUNCTION_TOLERANCE * float(kernel(q, np.array([total]))[0]) else z
 
 
-def certificate(spec: Spec, arcs: tuple[Arc, ...]) -> Certificate | None:
-    """The proof that ``arcs`` (merged, meeting the end conditions and the limits: the caller checks) are the
-    minimum-time command of ``spec``, or None where this check does not apply or does not prove it."""
+@dataclass(frozen=True)
+class _Switching:
+    """sigma on the check points of a command whose junctions some multipliers fit (``_switching``)."""
+
+    levels: Array  # each arc's level in the unit
+    kind: Array
+    sign: Array
+    s: Array  # the check points (s, time from the start) and the arc of each
+    arc: NDArray[np.intp]
+    z: Array  # theta, then the entry atoms
+    theta: Array
+    beta: Array  # each arc's line's slope
+    sigma: Array
+    atoms: list[tuple[int, float, Linear]]
+    total: float
+
+
+def _switching(spec: Spec, arcs: tuple[Arc, ...]) -> _Switching | None:
+    """sigma of ``arcs`` with the multipliers that fit its junctions; None where the certificate does not apply, a
+    level or a rest is off every limit, or no multipliers fit."""
     if not certificate_applies(spec) or not arcs:
         return None
     levels = _levels(spec, arcs)
@@ -266,11 +283,23 @@ def certificate(spec: Spec, arcs: tuple[Arc, ...]) -> Certificate | None:
     if sampled is None or z is None:
         return None
     s, arc = sampled
-    tau = total - s
     theta = z[: _basis(spec, np.zeros(1)).shape[1]]
     alpha = np.array([line[0][0] @ z + line[0][1] for line in lines])
     beta = np.array([line[1][0] @ z + line[1][1] for line in lines])
-    sigma = kernel(spec.order, tau) - _basis(spec, tau) @ theta - alpha[arc] - beta[arc] * s
+    sigma = kernel(spec.order, total - s) - _basis(spec, total - s) @ theta - alpha[arc] - beta[arc] * s
+    return _Switching(levels, kind, sign, s, arc, z, theta, beta, sigma, atoms, total)
+
+
+def certificate(spec: Spec, arcs: tuple[Arc, ...]) -> Certificate | None:
+    """The proof that ``arcs`` (merged, meeting the end conditions and the limits: the caller checks) are the
+    minimum-time command of ``spec``, or None where this check does not apply or does not prove it."""
+    w = _switching(spec, arcs)
+    if w is None:
+        return None
+    levels, kind, sign, s, arc, z, theta, beta, sigma = (
+        w.levels, w.kind, w.sign, w.s, w.arc, w.z, w.theta, w.beta, w.sigma
+    )  # fmt: skip
+    tau = w.total - s
     bang = kind[arc] == BANG
     size = float(np.max(np.abs(sigma[bang]), initial=0.0))
     if _wrong_signed(_with_minima(np.where(bang, levels[arc] * sigma, np.inf), arc), size):
@@ -284,7 +313,28 @@ def certificate(spec: Spec, arcs: tuple[Arc, ...]) -> Certificate | None:
         curvature = kernel(spec.order, tau, 2) - _basis(spec, tau, 2) @ theta
         if _wrong_signed(sign[arc][second] * curvature[second], float(np.max(np.abs(curvature)))):
             return None
-    masses = [(k, t, float(m[0] @ z + m[1])) for k, t, m in atoms]
+    masses = [(k, t, float(m[0] @ z + m[1])) for k, t, m in w.atoms]
     if _wrong_signed(np.array([sign[k] * m for k, _, m in masses]), float(np.max(np.abs(slope)))):
         return None
     return Certificate(theta, int(s.size), tuple((t, m) for _, t, m in masses))
+
+
+def wrong_sign(spec: Spec, arcs: tuple[Arc, ...]) -> tuple[int, float, float] | None:
+    """Where sigma most contradicts a bang arc of a command whose junctions fit: (the arc, the first and the last
+    check point of its wrong-signed run there), the place a notch of the other level would shorten it; None if
+    sigma agrees with every bang arc or no multipliers fit."""
+    w = _switching(spec, arcs)
+    if w is None:
+        return None
+    bang = w.kind[w.arc] == BANG
+    agreement = np.where(bang, w.levels[w.arc] * w.sigma, np.inf)
+    size = float(np.max(np.abs(w.sigma[bang]), initial=0.0))
+    if not _wrong_signed(agreement, size):
+        return None
+    worst = int(np.argmin(agreement))
+    k = int(w.arc[worst])
+    right = (w.arc != k) | (agreement >= -SIGN_TOLERANCE * (size or 1.0))  # not wrong on arc k
+    before, after = np.flatnonzero(right[:worst]), np.flatnonzero(right[worst:])
+    lo = int(before[-1]) + 1 if before.size else 0  # the run of wrong points around the worst
+    hi = worst + int(after[0]) - 1 if after.size else right.size - 1
+    return k, float(w.s[lo]), float(w.s[hi])

@@ -35,9 +35,9 @@ from models.errors import SolverFailed, SolverTimedOut
 from models.rigid_motion import RigidMove
 from models.shapers import ImpulseSequence, convolve
 from optim.families.time_optimal.arcs import arcs_of, merged, structure
-from optim.families.time_optimal.certify import Certificate, certificate, certificate_applies
+from optim.families.time_optimal.certify import Certificate, certificate, certificate_applies, wrong_sign
 from optim.families.time_optimal.refine import newton, refine
-from optim.families.time_optimal.repair import bang_start, coast_dips
+from optim.families.time_optimal.repair import bang_start, coast_dips, notched
 from optim.families.time_optimal.search import GridSearch, clip, project
 from optim.families.time_optimal.shaped import as_start, band_shapers, nominal_shaper, rigid_of, shaped_arcs
 from optim.families.time_optimal.structures import Start, reversal_starts, three_switch_starts
@@ -76,6 +76,7 @@ class _Best:
         self.found: Found | None = None
         self.proof: Certificate | None = None  # the found command is proven the minimum-time one: search no more
         self.repairs = 0
+        self.notching = False  # repairs also notch where sigma contradicts a bang arc (last_repairs)
         self.repaired: list[tuple[tuple[Arc, ...], str]] = []  # repaired commands not proven: offered at the end
 
     def accepts(self, arcs: tuple[Arc, ...]) -> bool:
@@ -95,19 +96,24 @@ class _Best:
         return True
 
     def repair(self, arcs: tuple[Arc, ...]) -> None:
-        """``arcs`` with their off-limit arcs made bang (optim.families.time_optimal.repair), refined with every level
-        fixed: offered at once where the certificate proves it (the search ends), else kept for the end (offered
-        then, so that it does not steer the search: a shorter best earlier stopped the probes that found shorter)."""
+        """``arcs`` with their off-limit arcs made bang, or else a notch where sigma contradicts a bang arc
+        (optim.families.time_optimal.repair), refined with every level fixed: offered at once where the certificate
+        proves it (the search ends), else kept for the end (offered then, so that it does not steer the search: a
+        shorter best earlier stopped the probes that found shorter)."""
         if self.repairs >= REPAIRS or not certificate_applies(self.spec):  # (no structure it could prove)
             return
-        start = bang_start(self.spec, [a.duration_s for a in arcs], [a.level / self.spec.scale for a in arcs])
+        durations, levels = [a.duration_s for a in arcs], [a.level / self.spec.scale for a in arcs]
+        start, how = bang_start(self.spec, durations, levels), " (its off-limit arcs made bang)"
+        if start is None and self.notching:  # every arc bang or on a limit: a notch where sigma has the other sign
+            where = wrong_sign(self.spec, arcs)
+            start, how = (None if where is None else notched(durations, levels, *where)), " (notched where sigma says)"
         if start is None or len(start[0]) > MAX_ARCS:
             return
         self.repairs += 1
         result = refine(self.spec, *start, self.search.cuts)
         if result is None:
             return
-        note = result.status + " (its off-limit arcs made bang)"
+        note = result.status + how
         proof = certificate(self.spec, merged(result.arcs))
         if proof is None or not self.offer(result.arcs, "refined", note, proof):
             self.repaired.append((result.arcs, note))
@@ -140,6 +146,16 @@ class _Best:
         while self.repaired and self.proof is None:
             arcs, note = self.repaired.pop(0)
             self.offer(arcs, "refined", note)
+
+    def last_repairs(self) -> None:
+        """The best found repaired in a chain of REPAIRS more, now also notched where sigma contradicts a bang arc
+        (the search's early, longer candidates spent the first REPAIRS; notches only here, so that the search and
+        the dips run as before them)."""
+        if self.found is None or self.proof is not None:
+            return
+        self.repairs, self.notching = 0, True
+        self.repair(self.found.arcs)
+        self.offer_repaired()
 
     def refine_from(self, start: Start, note: str = "") -> bool:
         if len(start[0]) > MAX_ARCS:
@@ -302,6 +318,7 @@ def solve(spec: Spec, check_limits: LimitCheck | None = None, bound_spec: Spec |
     best.offer_repaired()
     if best.proof is None:
         best.with_dips()
+    best.last_repairs()
     found = best.found
     assert found is not None  # the shaped rigid optimum, or the grid's
     if best.proof is not None and (bound_spec is None or bound_spec is spec):

@@ -12,6 +12,11 @@ below (the velocity for a held acceleration, the acceleration for a held jerk):
 The LP optimum of a two-mode move (bench/time_optimal.py's, 3,200 steps) has exactly such notches where SLSQP's
 local optimum held fractional levels; refined again with every level fixed, its structure is the certified one.
 
+``notched``: a command with no off-limit arc whose junctions some multipliers fit, but whose switching function
+has the other sign than a bang arc somewhere on it (certify.wrong_sign), gets a notch of the other level there:
+where sigma says the command should switch (bench/time_optimal.py's three-mode move: sigma > 0 on 13.6 ms of its
+long -A arc; with a +A notch there, refined, it is certified 0.002 % shorter).
+
 ``coast_dips``: a held acceleration whose move lasts many periods of its mode and rides the velocity limit ends its
 coast, in the LP's optimum, with a train of dips (-A, +A), one a damped period, growing towards the deceleration
 (bench/time_optimal_random.py's move 150: 11 dips on 3,200 steps); a local optimum holds one or none. The coast's
@@ -95,3 +100,20 @@ def coast_dips(
     out_d = [*length[:k].tolist(), float(length[k] - count * period_s), *dips_d, *length[k + 1 :].tolist()]
     out_l = [*level[:k].tolist(), 0.0, *dips_l, *level[k + 1 :].tolist()]
     return out_d, out_l, [False] * len(out_l)
+
+
+NOTCH_SHARE = 0.1  # of the wrong-signed run: the notch's starting width (SLSQP sizes it)
+
+
+def notched(durations: Sequence[float], levels: Sequence[float], arc: int, first_s: float, last_s: float) -> Start:
+    """The command (``levels`` in the unit) with a notch of the other level in ``arc``, centred on the run
+    [first_s, last_s] (times from the command's start) where sigma contradicts it, NOTCH_SHARE of that run wide (at
+    least 1e-3 of the arc)."""
+    start = float(np.sum(durations[:arc]))
+    length = float(durations[arc])
+    width = min(0.5 * length, max(NOTCH_SHARE * (last_s - first_s), 1e-3 * length))
+    left = min(max(0.5 * (first_s + last_s) - start - 0.5 * width, 0.0), length - width)
+    level = float(levels[arc])
+    out_d = [*durations[:arc], left, width, length - left - width, *durations[arc + 1 :]]
+    out_l = [*levels[:arc], level, -level, level, *levels[arc + 1 :]]
+    return [float(d) for d in out_d], [float(v) for v in out_l], [False] * len(out_l)
