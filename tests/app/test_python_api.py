@@ -15,6 +15,7 @@ import pandas as pd
 import pytest
 
 import vibfree
+from bench.time_optimal_batch import without_times
 from tests import aio
 from tests.app.conftest import TEST_SETTINGS
 from vibfree import cli, summaries
@@ -47,12 +48,6 @@ def test_synthesize_many_answers_each_move_in_order_and_keeps_a_refusal_in_its_p
     assert isinstance(designs[1], vibfree.VibfreeError) and designs[1].problem == refused.value.problem
 
 
-def _without_times(value):
-    if isinstance(value, dict):
-        return {k: _without_times(v) for k, v in value.items() if k != "solve_time_s"}
-    return [_without_times(v) for v in value] if isinstance(value, list | tuple) else value
-
-
 def test_a_batch_on_two_processes_gives_the_serial_answers_in_order():
     # Chunks of consecutive moves on worker processes (vibfree.batch; one move a chunk here, 3 moves on 2
     # processes): each answer is the serial batch's, less its wall times, a refusal in its place. The time-optimal
@@ -68,7 +63,7 @@ def test_a_batch_on_two_processes_gives_the_serial_answers_in_order():
     assert [type(d).__name__ for d in parallel] == ["Synthesis", "VibfreeError", "Synthesis"]
     assert parallel[1].problem == serial[1].problem and parallel[1].status == 422
     for one, two in zip((serial[0], serial[2]), (parallel[0], parallel[2]), strict=True):
-        dumped = [orjson.dumps(_without_times(d.answer), option=orjson.OPT_SERIALIZE_NUMPY) for d in (one, two)]
+        dumped = [orjson.dumps(without_times(d.answer), option=orjson.OPT_SERIALIZE_NUMPY) for d in (one, two)]
         assert dumped[0] == dumped[1]
         assert one.csv() == two.csv()  # the result came back whole: the cam table too
     for processes in (0, (os.cpu_count() or 1) + 1):  # none, or more than the cores: refused, naming the field

@@ -260,6 +260,13 @@ class _Switching:
     atoms: list[tuple[int, float, Linear]]
     total: float
 
+    def agreement(self) -> tuple[Array, float]:
+        """level x sigma at each check point (+inf off the bang arcs: >= 0 where they agree) and max |sigma| on them
+        (the scale of a wrong sign)."""
+        bang = self.kind[self.arc] == BANG
+        size = float(np.max(np.abs(self.sigma[bang]), initial=0.0))
+        return np.where(bang, self.levels[self.arc] * self.sigma, np.inf), size
+
 
 def _switching(spec: Spec, arcs: tuple[Arc, ...]) -> _Switching | None:
     """sigma of ``arcs`` with the multipliers that fit its junctions; None where the certificate does not apply, a
@@ -296,13 +303,10 @@ def certificate(spec: Spec, arcs: tuple[Arc, ...]) -> Certificate | None:
     w = _switching(spec, arcs)
     if w is None:
         return None
-    levels, kind, sign, s, arc, z, theta, beta, sigma = (
-        w.levels, w.kind, w.sign, w.s, w.arc, w.z, w.theta, w.beta, w.sigma
-    )  # fmt: skip
+    kind, sign, s, arc, theta, beta = w.kind, w.sign, w.s, w.arc, w.theta, w.beta
     tau = w.total - s
-    bang = kind[arc] == BANG
-    size = float(np.max(np.abs(sigma[bang]), initial=0.0))
-    if _wrong_signed(_with_minima(np.where(bang, levels[arc] * sigma, np.inf), arc), size):
+    agreement, size = w.agreement()
+    if _wrong_signed(_with_minima(agreement, arc), size):
         return None
     slope = kernel(spec.order, tau, 1) - _basis(spec, tau, 1) @ theta
     first = kind[arc] == FIRST  # mu's density: phi'(T - s) + beta, of the arc's sign
@@ -313,7 +317,7 @@ def certificate(spec: Spec, arcs: tuple[Arc, ...]) -> Certificate | None:
         curvature = kernel(spec.order, tau, 2) - _basis(spec, tau, 2) @ theta
         if _wrong_signed(sign[arc][second] * curvature[second], float(np.max(np.abs(curvature)))):
             return None
-    masses = [(k, t, float(m[0] @ z + m[1])) for k, t, m in w.atoms]
+    masses = [(k, t, float(m[0] @ w.z + m[1])) for k, t, m in w.atoms]
     if _wrong_signed(np.array([sign[k] * m for k, _, m in masses]), float(np.max(np.abs(slope)))):
         return None
     return Certificate(theta, int(s.size), tuple((t, m) for _, t, m in masses))
@@ -326,9 +330,7 @@ def wrong_sign(spec: Spec, arcs: tuple[Arc, ...]) -> tuple[int, float, float] | 
     w = _switching(spec, arcs)
     if w is None:
         return None
-    bang = w.kind[w.arc] == BANG
-    agreement = np.where(bang, w.levels[w.arc] * w.sigma, np.inf)
-    size = float(np.max(np.abs(w.sigma[bang]), initial=0.0))
+    agreement, size = w.agreement()
     if not _wrong_signed(agreement, size):
         return None
     worst = int(np.argmin(agreement))

@@ -102,7 +102,7 @@ class _Best:
         shorter best earlier stopped the probes that found shorter)."""
         if self.repairs >= REPAIRS or not certificate_applies(self.spec):  # (no structure it could prove)
             return
-        durations, levels = [a.duration_s for a in arcs], [a.level / self.spec.scale for a in arcs]
+        durations, levels, _ = as_start(self.spec, arcs)
         start, how = bang_start(self.spec, durations, levels), " (its off-limit arcs made bang)"
         if start is None and self.notching:  # every arc bang or on a limit: a notch where sigma has the other sign
             where = wrong_sign(self.spec, arcs)
@@ -130,8 +130,7 @@ class _Best:
         period_s = 2.0 * math.pi / abs(pole.imag)
         for _ in range(DIP_PASSES):
             assert self.found is not None
-            arcs = self.found.arcs
-            durations, levels = [a.duration_s for a in arcs], [a.level / self.spec.scale for a in arcs]
+            durations, levels, _ = as_start(self.spec, self.found.arcs)
             shorter = False
             for count in range(1, MAX_DIPS + 1):
                 start = coast_dips(self.spec, durations, levels, period_s, count)

@@ -33,6 +33,9 @@ from optim.families.time_optimal.certify import LEVEL_TOLERANCE, arc_states, on_
 from optim.families.time_optimal.structures import Start
 from optim.families.time_optimal.types import Spec
 
+DIP_WIDTH = 0.08  # of a period: each dip's -A and +A arcs start this long (SLSQP sizes them)
+NOTCH_SHARE = 0.1  # of the wrong-signed run: the notch's starting width (SLSQP sizes it)
+
 
 def bang_start(spec: Spec, durations: Sequence[float], levels: Sequence[float]) -> Start | None:
     """The arcs (``levels`` in the unit) with every off-limit arc made bang (see the module), all levels fixed; None
@@ -75,9 +78,6 @@ def _notch(duration: float, level: float, left: float | None, right: float | Non
     return [(side, sign), (width, -sign), (side, sign)]
 
 
-DIP_WIDTH = 0.08  # of a period: each dip's -A and +A arcs start this long (SLSQP sizes them)
-
-
 def coast_dips(
     spec: Spec, durations: Sequence[float], levels: Sequence[float], period_s: float, count: int
 ) -> Start | None:
@@ -100,9 +100,6 @@ def coast_dips(
     out_d = [*length[:k].tolist(), float(length[k] - count * period_s), *dips_d, *length[k + 1 :].tolist()]
     out_l = [*level[:k].tolist(), 0.0, *dips_l, *level[k + 1 :].tolist()]
     return out_d, out_l, [False] * len(out_l)
-
-
-NOTCH_SHARE = 0.1  # of the wrong-signed run: the notch's starting width (SLSQP sizes it)
 
 
 def notched(durations: Sequence[float], levels: Sequence[float], arc: int, first_s: float, last_s: float) -> Start:
