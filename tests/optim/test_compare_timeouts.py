@@ -3,7 +3,8 @@
 Issue 11, section 4: a solver time-out is never reported as infeasible, in compare either. Issue 23: nor is
 it a family left out of the ranking: a ranking never misses a row that the machine's state (a solve out of
 time, a worker that died, a full pool) removed; compare answers that error instead (504 solve-timeout, 503).
-With a 0.1 ms wall-time cap every IPOPT solve and every time-optimal LP search times out. The wall time is a
+With a 0.1 ms wall-time cap every IPOPT solve and every time-optimal LP search times out (a time-optimal design
+certified before any LP does not: it has no wall-clock check). The wall time is a
 last resort that fails the design (issue 23, deterministic designs): STAP's optimized candidate times out too,
 rather than fall back to its closed form and give a different design under load.
 """
@@ -37,9 +38,17 @@ def test_time_outs_in_compare_are_time_outs_never_infeasible_nor_a_row_left_out(
     problem = CompareIn.model_validate(INCERTI_MOVE).to_problem(TINY_CAP)
     assert problem.solver.max_wall_time_s == 1e-4
     # Each solver family alone: its time-out is raised as a time-out (SolverTimedOut is no Infeasible).
-    for name in ("pseudo_polynomial", "time_optimal", "stap"):
+    for name in ("pseudo_polynomial", "stap"):
         with pytest.raises(SolverTimedOut):
             run_compare(problem, [name])
+    # The time-optimal move is certified from its predicted structures before any LP (the wall clock is checked in
+    # the LP search only): the same design as without the cap. With a jerk limit its search runs, and times out.
+    capped, _ = run_compare(problem, ["time_optimal"])
+    free, _ = run_compare(CompareIn.model_validate(INCERTI_MOVE).to_problem(Settings()), ["time_optimal"])
+    assert capped[0].result.summary.duration_s == free[0].result.summary.duration_s
+    jerk_limited = {**INCERTI_MOVE, "limits": {**INCERTI_MOVE["limits"], "max_jerk": 20000.0}}
+    with pytest.raises(SolverTimedOut):
+        run_compare(CompareIn.model_validate(jerk_limited).to_problem(TINY_CAP), ["time_optimal"])
     # A family that needs no solve still gives its rows under the same cap.
     rows, unavailable = run_compare(problem, ["input_shaped"])
     assert rows and not unavailable

@@ -71,9 +71,19 @@ def test_coast_dips_fill_the_coasts_last_periods_and_keep_the_duration() -> None
 def test_a_notch_goes_where_sigma_contradicts_the_arc() -> None:
     # The run [0.32, 0.34] s in a -1 arc of 0.1 s starting at 0.3 s: a +1 notch of 2 ms (a tenth of the run) centred
     # on 0.33 s; the other arcs unchanged.
-    durations, levels, _ = notched([0.3, 0.1, 0.05], [1.0, -1.0, 1.0], 1, 0.32, 0.34)
+    durations, levels, _ = notched(_spec(), [0.3, 0.1, 0.05], [1.0, -1.0, 1.0], 1, 0.32, 0.34)
     assert levels == [1.0, -1.0, 1.0, -1.0, 1.0]
     assert durations == pytest.approx([0.3, 0.029, 0.002, 0.069, 0.05], rel=1e-12)
+
+
+def test_a_notch_in_an_arc_at_the_limit_below_leaves_the_limit_and_comes_back() -> None:
+    # Held acceleration: +1 for 0.2 s reaches the 1 m/s limit, a coast there for 0.2 s from 0.2 s, then -1. The run
+    # [0.3, 0.32] s: a dip of 2 ms -1 and 2 ms +1 (each a tenth of the run), centred on 0.31 s; the velocity comes
+    # back to the limit (the arcs' change is the same) and the rest is unchanged.
+    durations, levels, _ = notched(_spec(), [0.2, 0.2, 0.2], [1.0, 0.0, -1.0], 1, 0.3, 0.32)
+    assert levels == [1.0, 0.0, -1.0, 1.0, 0.0, -1.0]
+    assert durations == pytest.approx([0.2, 0.108, 0.002, 0.002, 0.088, 0.2], rel=1e-12)
+    assert _change(durations, levels) == pytest.approx(_change([0.2, 0.2, 0.2], [1.0, 0.0, -1.0]), rel=1e-12)
 
 
 def test_the_two_mode_move_is_certified_and_no_longer_than_an_independent_lp() -> None:
@@ -131,7 +141,7 @@ def test_the_three_mode_move_is_certified_once_notched_where_sigma_says() -> Non
     plant = TransferFunctionPlant(tuple(tf["numerator"]), tuple(tf["denominator"]))
     problem = Problem(plant, displacement=0.3, limits=LIMITS)
     summary = synthesize(FAMILIES["time_optimal"], problem, TimeOptimalOptions(modes=(0, 1, 2))).summary
-    assert "notched where sigma says" in summary.refinement and "certifies" in summary.refinement
+    assert "notched where the multipliers say" in summary.refinement and "certifies" in summary.refinement
     assert summary.lower_bound_s == pytest.approx(summary.duration_s, rel=2e-9)
     poles = tuple(complex(-z * 2 * math.pi * f, 2 * math.pi * f * math.sqrt(1 - z * z)) for f, z in modes)
     reference = GridMove(0.3, poles, 1.0, 5.0, None)

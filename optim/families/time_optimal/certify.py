@@ -267,6 +267,14 @@ class _Switching:
         size = float(np.max(np.abs(self.sigma[bang]), initial=0.0))
         return np.where(bang, self.levels[self.arc] * self.sigma, np.inf), size
 
+    def density(self, spec: Spec) -> tuple[Array, float]:
+        """mu's density times the arc's sign at each check point (+inf off the first-order constrained arcs: >= 0
+        where it has the right sign) and max |phi'(T - s)| (its scale)."""
+        slope = kernel(spec.order, self.total - self.s, 1) - _basis(spec, self.total - self.s, 1) @ self.theta
+        first = self.kind[self.arc] == FIRST
+        values = np.where(first, self.sign[self.arc] * (slope + self.beta[self.arc]), np.inf)
+        return values, float(np.max(np.abs(slope)))
+
 
 def _switching(spec: Spec, arcs: tuple[Arc, ...]) -> _Switching | None:
     """sigma of ``arcs`` with the multipliers that fit its junctions; None where the certificate does not apply, a
@@ -303,14 +311,13 @@ def certificate(spec: Spec, arcs: tuple[Arc, ...]) -> Certificate | None:
     w = _switching(spec, arcs)
     if w is None:
         return None
-    kind, sign, s, arc, theta, beta = w.kind, w.sign, w.s, w.arc, w.theta, w.beta
+    kind, sign, s, arc, theta = w.kind, w.sign, w.s, w.arc, w.theta
     tau = w.total - s
     agreement, size = w.agreement()
     if _wrong_signed(_with_minima(agreement, arc), size):
         return None
-    slope = kernel(spec.order, tau, 1) - _basis(spec, tau, 1) @ theta
-    first = kind[arc] == FIRST  # mu's density: phi'(T - s) + beta, of the arc's sign
-    if _wrong_signed(sign[arc][first] * (slope + beta[arc])[first], float(np.max(np.abs(slope)))):
+    density, slope_size = w.density(spec)  # mu's density: phi'(T - s) + beta, of the arc's sign
+    if _wrong_signed(density, slope_size):
         return None
     second = kind[arc] == SECOND  # nu's density phi''(T - s) and its atoms, of the coast's sign
     if np.any(second):
@@ -318,21 +325,25 @@ def certificate(spec: Spec, arcs: tuple[Arc, ...]) -> Certificate | None:
         if _wrong_signed(sign[arc][second] * curvature[second], float(np.max(np.abs(curvature)))):
             return None
     masses = [(k, t, float(m[0] @ w.z + m[1])) for k, t, m in w.atoms]
-    if _wrong_signed(np.array([sign[k] * m for k, _, m in masses]), float(np.max(np.abs(slope)))):
+    if _wrong_signed(np.array([sign[k] * m for k, _, m in masses]), slope_size):
         return None
     return Certificate(theta, int(s.size), tuple((t, m) for _, t, m in masses))
 
 
 def wrong_sign(spec: Spec, arcs: tuple[Arc, ...]) -> tuple[int, float, float] | None:
-    """Where sigma most contradicts a bang arc of a command whose junctions fit: (the arc, the first and the last
-    check point of its wrong-signed run there), the place a notch of the other level would shorten it; None if
-    sigma agrees with every bang arc or no multipliers fit."""
+    """Where the multipliers that fit a command's junctions most contradict it: (the arc, the first and the last
+    check point of its wrong-signed run there), the place a notch would shorten it. A bang arc where sigma has the
+    other sign first (a notch of the other level); else a first-order constrained arc where mu's density has the
+    wrong sign (a notch off the limit: with a held jerk, the acceleration leaves +-max_acceleration there). None if
+    both agree everywhere or no multipliers fit."""
     w = _switching(spec, arcs)
     if w is None:
         return None
     agreement, size = w.agreement()
     if not _wrong_signed(agreement, size):
-        return None
+        agreement, size = w.density(spec)
+        if not _wrong_signed(agreement, size):
+            return None
     worst = int(np.argmin(agreement))
     k = int(w.arc[worst])
     right = (w.arc != k) | (agreement >= -SIGN_TOLERANCE * (size or 1.0))  # not wrong on arc k

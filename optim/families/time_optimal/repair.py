@@ -15,7 +15,10 @@ local optimum held fractional levels; refined again with every level fixed, its 
 ``notched``: a command with no off-limit arc whose junctions some multipliers fit, but whose switching function
 has the other sign than a bang arc somewhere on it (certify.wrong_sign), gets a notch of the other level there:
 where sigma says the command should switch (bench/time_optimal.py's three-mode move: sigma > 0 on 13.6 ms of its
-long -A arc; with a +A notch there, refined, it is certified 0.002 % shorter).
+long -A arc; with a +A notch there, refined, it is certified 0.002 % shorter). Where sigma agrees but the state
+constraint's multiplier has the wrong sign on an arc at the limit one order below (with a held jerk, an arc at
++-max_acceleration), the notch leaves the limit there: 7 of 20 held-jerk moves of bench/time_optimal_speed.py were
+certified only after the grid search; with such notches after the predicted structures, 4 more are at once.
 
 ``coast_dips``: a held acceleration whose move lasts many periods of its mode and rides the velocity limit ends its
 coast, in the LP's optimum, with a train of dips (-A, +A), one a damped period, growing towards the deceleration
@@ -102,15 +105,25 @@ def coast_dips(
     return out_d, out_l, [False] * len(out_l)
 
 
-def notched(durations: Sequence[float], levels: Sequence[float], arc: int, first_s: float, last_s: float) -> Start:
-    """The command (``levels`` in the unit) with a notch of the other level in ``arc``, centred on the run
-    [first_s, last_s] (times from the command's start) where sigma contradicts it, NOTCH_SHARE of that run wide (at
-    least 1e-3 of the arc)."""
+def notched(
+    spec: Spec, durations: Sequence[float], levels: Sequence[float], arc: int, first_s: float, last_s: float
+) -> Start:
+    """The command (``levels`` in the unit) with a notch centred on the run [first_s, last_s] (times from the
+    command's start) where the multipliers contradict ``arc`` (certify.wrong_sign), NOTCH_SHARE of that run wide (at
+    least 1e-3 of the arc): in a bang arc B, -B, B; in an arc on the limit one order below (level 0, at +-L), 0, -s,
+    +s, 0 (the lower derivative leaves the limit and comes back)."""
     start = float(np.sum(durations[:arc]))
     length = float(durations[arc])
-    width = min(0.5 * length, max(NOTCH_SHARE * (last_s - first_s), 1e-3 * length))
-    left = min(max(0.5 * (first_s + last_s) - start - 0.5 * width, 0.0), length - width)
     level = float(levels[arc])
-    out_d = [*durations[:arc], left, width, length - left - width, *durations[arc + 1 :]]
-    out_l = [*levels[:arc], level, -level, level, *levels[arc + 1 :]]
+    run = max(NOTCH_SHARE * (last_s - first_s), 1e-3 * length)
+    if level == 0.0:
+        below, _ = arc_states(spec, np.asarray(durations, dtype=float), np.asarray(levels, dtype=float))
+        sign = float(np.sign(below[arc]))
+        pieces, widths = [0.0, -sign, sign, 0.0], [min(0.25 * length, run)] * 2
+    else:
+        pieces, widths = [level, -level, level], [min(0.5 * length, run)]
+    inner = sum(widths)
+    left = min(max(0.5 * (first_s + last_s) - start - 0.5 * inner, 0.0), length - inner)
+    out_d = [*durations[:arc], left, *widths, length - left - inner, *durations[arc + 1 :]]
+    out_l = [*levels[:arc], *pieces, *levels[arc + 1 :]]
     return [float(d) for d in out_d], [float(v) for v in out_l], [False] * len(out_l)
