@@ -11,6 +11,7 @@ import pytest
 from bench.lp_reference import GridMove
 from bench.time_optimal import product_of_modes
 from models.plants import ModePlant, TransferFunctionPlant
+from optim.families.time_optimal.certify import arc_states
 from optim.families.time_optimal.family import selected_modes, spec_of
 from optim.families.time_optimal.options import TimeOptimalOptions
 from optim.families.time_optimal.repair import bang_start, coast_dips, notched
@@ -84,6 +85,21 @@ def test_a_notch_in_an_arc_at_the_limit_below_leaves_the_limit_and_comes_back() 
     assert levels == [1.0, 0.0, -1.0, 1.0, 0.0, -1.0]
     assert durations == pytest.approx([0.2, 0.108, 0.002, 0.002, 0.088, 0.2], rel=1e-12)
     assert _change(durations, levels) == pytest.approx(_change([0.2, 0.2, 0.2], [1.0, 0.0, -1.0]), rel=1e-12)
+
+
+def test_a_notch_in_a_coast_with_a_held_jerk_dips_the_velocity_and_comes_back() -> None:
+    # Held jerk (100 m/s^3, 5 m/s^2, 0.25 m/s): +1, -1 for 50 ms each reach 0.25 m/s with no acceleration, a coast
+    # there for 0.2 s from 0.1 s, then -1, +1. The run [0.15, 0.19] s: jerk -1, +1, -1 for 2, 4, 2 ms (the first a
+    # twentieth of the run) centred on 0.17 s; after it the acceleration and the velocity are the coast's again.
+    problem = Problem(ModePlant(40.0, 0.0), displacement=0.05, limits=Limits(0.25, 5.0, 100.0))
+    spec = spec_of(problem, TimeOptimalOptions(), selected_modes(problem, TimeOptimalOptions())[0])
+    plain = [0.05, 0.05, 0.2, 0.05, 0.05], [1.0, -1.0, 0.0, -1.0, 1.0]
+    durations, levels, _ = notched(spec, *plain, 2, 0.15, 0.19)
+    assert levels == [1.0, -1.0, 0.0, -1.0, 1.0, -1.0, 0.0, -1.0, 1.0]
+    assert durations == pytest.approx([0.05, 0.05, 0.066, 0.002, 0.004, 0.002, 0.126, 0.05, 0.05], rel=1e-12)
+    acceleration, velocity = arc_states(spec, np.array(durations), np.array(levels))
+    assert acceleration[6] == pytest.approx(0.0, abs=1e-12) and velocity[6] == pytest.approx(0.25, rel=1e-12)
+    assert np.min(velocity[3:7]) < 0.25  # the dip
 
 
 def test_the_two_mode_move_is_certified_and_no_longer_than_an_independent_lp() -> None:

@@ -275,6 +275,13 @@ class _Switching:
         values = np.where(first, self.sign[self.arc] * (slope + self.beta[self.arc]), np.inf)
         return values, float(np.max(np.abs(slope)))
 
+    def curvature(self, spec: Spec) -> tuple[Array, float]:
+        """nu's density phi''(T - s) times the coast's sign at each check point (+inf off the coasts: >= 0 where it
+        has the right sign) and max |phi''(T - s)| (its scale)."""
+        bend = kernel(spec.order, self.total - self.s, 2) - _basis(spec, self.total - self.s, 2) @ self.theta
+        second = self.kind[self.arc] == SECOND
+        return np.where(second, self.sign[self.arc] * bend, np.inf), float(np.max(np.abs(bend)))
+
 
 def _switching(spec: Spec, arcs: tuple[Arc, ...]) -> _Switching | None:
     """sigma of ``arcs`` with the multipliers that fit its junctions; None where the certificate does not apply, a
@@ -311,19 +318,15 @@ def certificate(spec: Spec, arcs: tuple[Arc, ...]) -> Certificate | None:
     w = _switching(spec, arcs)
     if w is None:
         return None
-    kind, sign, s, arc, theta = w.kind, w.sign, w.s, w.arc, w.theta
-    tau = w.total - s
+    sign, s, arc, theta = w.sign, w.s, w.arc, w.theta
     agreement, size = w.agreement()
     if _wrong_signed(_with_minima(agreement, arc), size):
         return None
     density, slope_size = w.density(spec)  # mu's density: phi'(T - s) + beta, of the arc's sign
     if _wrong_signed(density, slope_size):
         return None
-    second = kind[arc] == SECOND  # nu's density phi''(T - s) and its atoms, of the coast's sign
-    if np.any(second):
-        curvature = kernel(spec.order, tau, 2) - _basis(spec, tau, 2) @ theta
-        if _wrong_signed(sign[arc][second] * curvature[second], float(np.max(np.abs(curvature)))):
-            return None
+    if np.any(w.kind == SECOND) and _wrong_signed(*w.curvature(spec)):  # nu's density phi''(T - s), of the coast's
+        return None  # sign (and its atoms, next)
     masses = [(k, t, float(m[0] @ w.z + m[1])) for k, t, m in w.atoms]
     if _wrong_signed(np.array([sign[k] * m for k, _, m in masses]), slope_size):
         return None
@@ -334,16 +337,17 @@ def wrong_sign(spec: Spec, arcs: tuple[Arc, ...]) -> tuple[int, float, float] | 
     """Where the multipliers that fit a command's junctions most contradict it: (the arc, the first and the last
     check point of its wrong-signed run there), the place a notch would shorten it. A bang arc where sigma has the
     other sign first (a notch of the other level); else a first-order constrained arc where mu's density has the
-    wrong sign (a notch off the limit: with a held jerk, the acceleration leaves +-max_acceleration there). None if
-    both agree everywhere or no multipliers fit."""
+    wrong sign (a notch off the limit: with a held jerk, the acceleration leaves +-max_acceleration there); else a
+    coast at +-max_velocity (held jerk) where nu's density has the wrong sign (a dip in the velocity). None if all
+    agree everywhere or no multipliers fit."""
     w = _switching(spec, arcs)
     if w is None:
         return None
-    agreement, size = w.agreement()
-    if not _wrong_signed(agreement, size):
-        agreement, size = w.density(spec)
-        if not _wrong_signed(agreement, size):
-            return None
+    for agreement, size in (w.agreement(), w.density(spec), w.curvature(spec)):
+        if _wrong_signed(agreement, size):
+            break
+    else:
+        return None
     worst = int(np.argmin(agreement))
     k = int(w.arc[worst])
     right = (w.arc != k) | (agreement >= -SIGN_TOLERANCE * (size or 1.0))  # not wrong on arc k

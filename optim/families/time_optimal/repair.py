@@ -18,7 +18,8 @@ where sigma says the command should switch (bench/time_optimal.py's three-mode m
 long -A arc; with a +A notch there, refined, it is certified 0.002 % shorter). Where sigma agrees but the state
 constraint's multiplier has the wrong sign on an arc at the limit one order below (with a held jerk, an arc at
 +-max_acceleration), the notch leaves the limit there: 7 of 20 held-jerk moves of bench/time_optimal_speed.py were
-certified only after the grid search; with such notches after the predicted structures, 4 more are at once.
+certified only after the grid search; with such notches after the predicted structures, 4 more are at once. A coast
+at +-max_velocity with a held jerk where the second-order constraint's multiplier has the wrong sign gets a dip.
 
 ``coast_dips``: a held acceleration whose move lasts many periods of its mode and rides the velocity limit ends its
 coast, in the LP's optimum, with a train of dips (-A, +A), one a damped period, growing towards the deceleration
@@ -111,13 +112,18 @@ def notched(
     """The command (``levels`` in the unit) with a notch centred on the run [first_s, last_s] (times from the
     command's start) where the multipliers contradict ``arc`` (certify.wrong_sign), NOTCH_SHARE of that run wide (at
     least 1e-3 of the arc): in a bang arc B, -B, B; in an arc on the limit one order below (level 0, at +-L), 0, -s,
-    +s, 0 (the lower derivative leaves the limit and comes back)."""
+    +s, 0 (the lower derivative leaves the limit and comes back); in a coast at +-V with a held jerk, 0, -s, +s
+    (twice as long), -s, 0 (the velocity dips and comes back with the acceleration at 0)."""
     start = float(np.sum(durations[:arc]))
     length = float(durations[arc])
     level = float(levels[arc])
     run = max(NOTCH_SHARE * (last_s - first_s), 1e-3 * length)
-    if level == 0.0:
-        below, _ = arc_states(spec, np.asarray(durations, dtype=float), np.asarray(levels, dtype=float))
+    below, velocity = arc_states(spec, np.asarray(durations, dtype=float), np.asarray(levels, dtype=float))
+    if level == 0.0 and spec.order == 3 and abs(below[arc]) < 0.5 * (spec.max_acceleration or spec.scale):
+        sign = float(np.sign(velocity[arc]))  # a coast at +-max_velocity: a dip, the acceleration back to 0
+        width = min(0.125 * length, 0.5 * run)
+        pieces, widths = [0.0, -sign, sign, -sign, 0.0], [width, 2.0 * width, width]
+    elif level == 0.0:
         sign = float(np.sign(below[arc]))
         pieces, widths = [0.0, -sign, sign, 0.0], [min(0.25 * length, run)] * 2
     else:
