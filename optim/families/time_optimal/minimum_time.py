@@ -37,7 +37,7 @@ from models.shapers import ImpulseSequence, convolve
 from optim.families.time_optimal.arcs import arcs_of, merged, structure
 from optim.families.time_optimal.certify import Certificate, certificate, certificate_applies, wrong_sign
 from optim.families.time_optimal.refine import newton, refine
-from optim.families.time_optimal.repair import bang_start, coast_dips, notched
+from optim.families.time_optimal.repair import NOTCH_SHARE, bang_start, coast_dips, notched
 from optim.families.time_optimal.search import GridSearch, clip, project
 from optim.families.time_optimal.shaped import as_start, band_shapers, nominal_shaper, rigid_of, shaped_arcs
 from optim.families.time_optimal.structures import Start, reversal_starts, three_switch_starts
@@ -56,6 +56,7 @@ MAX_DIPS = 4  # coast_dips tried with 1 to this many dips (each an SLSQP run of 
 DIP_PASSES = 2  # from the command found, then from the shorter one the dips gave
 CHAINS = 2  # the shortest predicted commands not certified are repaired in a chain (_Best.chain) ...
 CHAIN_REFINES = 4  # ... of this many refines at most in all (each an SLSQP run of 5-60 ms)
+WIDER = 3.0  # a chain's notch SLSQP fails from is tried again this many times wider
 PROGRESS = 1e-6  # a chain's step that shortens the command by less than this (relative) ends it (no new structure)
 REPAIRS = 4  # off-limit arcs made bang at most this often a design (each an SLSQP run of a few milliseconds)
 
@@ -205,6 +206,10 @@ class _Best:
                 return False
             budget[0] -= 1
             result = refine(self.spec, *start, self.search.cuts)
+            if result is None and where is not None and budget[0] > 0:  # SLSQP failed from a thin notch: once more
+                budget[0] -= 1  # from one WIDER times wider (bench/time_optimal_speed.py's held-jerk move 6)
+                wider = notched(self.spec, durations, levels, *where, share=WIDER * NOTCH_SHARE)
+                result = refine(self.spec, *wider, self.search.cuts)
             if result is None or not self.accepts(result.arcs):
                 return False
             proof = certificate(self.spec, merged(result.arcs))

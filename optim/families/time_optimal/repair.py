@@ -107,17 +107,23 @@ def coast_dips(
 
 
 def notched(
-    spec: Spec, durations: Sequence[float], levels: Sequence[float], arc: int, first_s: float, last_s: float
+    spec: Spec,
+    durations: Sequence[float],
+    levels: Sequence[float],
+    arc: int,
+    first_s: float,
+    last_s: float,
+    share: float = NOTCH_SHARE,
 ) -> Start:
     """The command (``levels`` in the unit) with a notch centred on the run [first_s, last_s] (times from the
-    command's start) where the multipliers contradict ``arc`` (certify.wrong_sign), NOTCH_SHARE of that run wide (at
+    command's start) where the multipliers contradict ``arc`` (certify.wrong_sign), ``share`` of that run wide (at
     least 1e-3 of the arc): in a bang arc B, -B, B; in an arc on the limit one order below (level 0, at +-L), 0, -s,
     +s, 0 (the lower derivative leaves the limit and comes back); in a coast at +-V with a held jerk, 0, -s, +s
     (twice as long), -s, 0 (the velocity dips and comes back with the acceleration at 0)."""
     start = float(np.sum(durations[:arc]))
     length = float(durations[arc])
     level = float(levels[arc])
-    run = max(NOTCH_SHARE * (last_s - first_s), 1e-3 * length)
+    run = max(share * (last_s - first_s), 1e-3 * length)
     below, velocity = arc_states(spec, np.asarray(durations, dtype=float), np.asarray(levels, dtype=float))
     if level == 0.0 and spec.order == 3 and abs(below[arc]) < 0.5 * (spec.max_acceleration or spec.scale):
         sign = float(np.sign(velocity[arc]))  # a coast at +-max_velocity: a dip, the acceleration back to 0
