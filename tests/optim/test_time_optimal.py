@@ -339,10 +339,10 @@ def test_an_lp_stopped_at_its_simplex_cap_is_answered_by_the_interior_point_meth
 def test_an_lp_at_its_iteration_cap_counts_as_not_found_and_says_so(monkeypatch: pytest.MonkeyPatch) -> None:
     # With 12 HiGHS iterations per method, some LPs of a jerk-limited search end at the cap with both methods:
     # they count as "no command found", and the design says so. (A jerk-limited move whose predicted structures
-    # and their repairs are not certified, so that the search runs: bench/time_optimal_speed.py's held-jerk move 6,
+    # and their repairs are not certified, so that the search runs: bench/time_optimal_speed.py's held-jerk move 0,
     # rounded.)
     monkeypatch.setattr(lp, "MAX_LP_ITERATIONS", 12)
-    result = _design(Problem(ModePlant(186.5, 0.058), displacement=0.0353, limits=Limits(0.81, 20.35, 392.4)))
+    result = _design(Problem(ModePlant(558.0, 0.0243), displacement=0.01, limits=Limits(0.0461, 2.333, 23.54)))
     search = result.summary.search
     assert search.max_lp_iterations == 12
     assert search.lps_not_found_at_iteration_cap >= 1
