@@ -195,8 +195,8 @@ class _Best:
         contradict them: optim.families.time_optimal.repair), each refined with fixed levels, until the certificate
         proves one (offered: True) or a step fails, shortens by less than PROGRESS or ``budget[0]`` refines are
         spent; each command found is added to ``held``. Before any LP: a predicted structure one or two reversals
-        short of the optimum's gets them where the switching function says (4 of 20 held-jerk moves of
-        bench/time_optimal_speed.py certified in 30-150 ms instead of after the search)."""
+        short of the optimum's gets them where the switching function says (7 of 20 held-jerk moves of
+        bench/time_optimal_speed.py certified in 30-190 ms instead of after the search)."""
         for _ in range(budget[0]):
             durations, levels, _ = as_start(self.spec, arcs)
             start = bang_start(self.spec, durations, levels)
