@@ -11,6 +11,7 @@ import pytest
 from bench.lp_reference import GridMove
 from bench.time_optimal import product_of_modes
 from models.plants import ModePlant, TransferFunctionPlant
+from optim.families.time_optimal import minimum_time
 from optim.families.time_optimal.certify import arc_states
 from optim.families.time_optimal.family import selected_modes, spec_of
 from optim.families.time_optimal.options import TimeOptimalOptions
@@ -163,3 +164,28 @@ def test_the_three_mode_move_is_certified_once_notched_where_sigma_says() -> Non
     reference = GridMove(0.3, poles, 1.0, 5.0, None)
     assert reference.feasible(0.5043682, 1600) and summary.duration_s <= 0.5043682
     assert not reference.feasible(summary.duration_s * (1 - 1e-6), 1600)
+
+
+@pytest.mark.parametrize(
+    ("plant", "displacement", "limits"),
+    [
+        (ModePlant(36.14, 0.18), 0.0326, Limits(None, 15.52, 352.5)),  # held-jerk move 3, rounded: a reversal more
+        (ModePlant(186.5, 0.058), 0.0353, Limits(0.81, 20.35, 392.4)),  # move 6: a notch SLSQP takes only wider
+    ],
+    ids=["move-3", "move-6"],
+)
+def test_a_chain_certifies_before_any_lp_what_the_search_certifies(
+    monkeypatch: pytest.MonkeyPatch, plant: ModePlant, displacement: float, limits: Limits
+) -> None:
+    # Two held-jerk moves of bench/time_optimal_speed.py whose predicted structures are one repair short of the
+    # optimum's: the chain (minimum_time._Best.chain) repairs them where the multipliers say, and the certificate
+    # proves the result with no LP solved. Without the chain, the grid search and its refinements find and certify
+    # the same command (a second method): the durations agree to 1e-9 (the switching times' precision).
+    problem = Problem(plant, displacement=displacement, limits=limits)
+    chained = synthesize(FAMILIES["time_optimal"], problem, TimeOptimalOptions()).summary
+    assert chained.search.lp_solves == 0 and "then SLSQP" in chained.refinement
+    assert chained.lower_bound_s >= chained.duration_s * (1 - 2e-9)  # certified
+    monkeypatch.setattr(minimum_time, "CHAIN_REFINES", 0)
+    searched = synthesize(FAMILIES["time_optimal"], problem, TimeOptimalOptions()).summary
+    assert searched.search.lp_solves > 0 and searched.lower_bound_s >= searched.duration_s * (1 - 2e-9)
+    assert chained.duration_s == pytest.approx(searched.duration_s, rel=1e-9)
