@@ -213,7 +213,8 @@ class _Best:
             if result is None or not self.accepts(result.arcs):
                 return False
             proof = certificate(self.spec, merged(result.arcs))
-            if proof is not None and self.offer(result.arcs, "refined", f"{note}, then {result.status}", proof):
+            how = f"{note}, repaired where the multipliers say: {result.status}"
+            if proof is not None and self.offer(result.arcs, "refined", how, proof):
                 return True
             if _duration_s(result.arcs) > _duration_s(arcs) * (1 - PROGRESS):
                 return False

@@ -17,9 +17,9 @@ has the other sign than a bang arc somewhere on it (certify.wrong_sign), gets a 
 where sigma says the command should switch (bench/time_optimal.py's three-mode move: sigma > 0 on 13.6 ms of its
 long -A arc; with a +A notch there, refined, it is certified 0.002 % shorter). Where sigma agrees but the state
 constraint's multiplier has the wrong sign on an arc at the limit one order below (with a held jerk, an arc at
-+-max_acceleration), the notch leaves the limit there: 7 of 20 held-jerk moves of bench/time_optimal_speed.py were
-certified only after the grid search; with such notches after the predicted structures, 4 more are at once. A coast
-at +-max_velocity with a held jerk where the second-order constraint's multiplier has the wrong sign gets a dip.
++-max_acceleration), the notch leaves the limit there (held-jerk moves 4, 5, 7 and 17 of bench/time_optimal_speed.py
+are certified so, in minimum_time's chain before any LP). A coast at +-max_velocity with a held jerk where the
+second-order constraint's multiplier has the wrong sign gets a dip.
 
 ``coast_dips``: a held acceleration whose move lasts many periods of its mode and rides the velocity limit ends its
 coast, in the LP's optimum, with a train of dips (-A, +A), one a damped period, growing towards the deceleration
