@@ -57,6 +57,7 @@ DIP_PASSES = 2  # from the command found, then from the shorter one the dips gav
 CHAINS = 2  # the shortest predicted commands not certified are repaired in a chain (_Best.chain) ...
 CHAIN_REFINES = 4  # ... of this many refines at most in all (each an SLSQP run of 5-60 ms)
 WIDER = 3.0  # a chain's notch SLSQP fails from is tried again this many times wider
+CHAIN_AFTER = 4  # the chains start once this many predicted commands converged uncertified (or after all starts)
 PROGRESS = 1e-6  # a chain's step that shortens the command by less than this (relative) ends it (no new structure)
 REPAIRS = 4  # off-limit arcs made bang at most this often a design (each an SLSQP run of a few milliseconds)
 
@@ -173,9 +174,11 @@ class _Best:
 
     def predicted(self, starts: list[Start], note: str) -> list[tuple[Arc, ...]]:
         """Newton on each predicted structure (optim.families.time_optimal.structures) until one is certified
-        (offered: the answer), then the shortest CHAINS of them repaired in chains (``chain``); the commands not
-        certified, to offer after the search (as the search did without them)."""
+        (offered: the answer); once CHAIN_AFTER converged uncertified (or after the last start, if fewer did), the
+        shortest CHAINS of them repaired in chains (``chains``: the remaining starts cost as much as a chain); the
+        commands not certified, to offer after the search (as the search did without them)."""
         held: list[tuple[Arc, ...]] = []
+        budget = [CHAIN_REFINES]
         for durations, levels, _ in starts:
             result = newton(self.spec, durations, levels)
             if result is None:
@@ -184,11 +187,13 @@ class _Best:
             if proof is not None and self.offer(result.arcs, "refined", note, proof):
                 return []
             held.append(result.arcs)
-        budget = [CHAIN_REFINES]
-        for arcs in sorted(held, key=_duration_s)[:CHAINS]:
-            if self.chain(arcs, note, held, budget):
+            if len(held) == CHAIN_AFTER and self.chains(held, note, budget):
                 return []
-        return held
+        return [] if len(held) < CHAIN_AFTER and self.chains(held, note, budget) else held
+
+    def chains(self, held: list[tuple[Arc, ...]], note: str, budget: list[int]) -> bool:
+        """A chain from each of the CHAINS shortest commands ``held`` until one proves its answer (True)."""
+        return any(self.chain(arcs, note, held, budget) for arcs in sorted(held, key=_duration_s)[:CHAINS])
 
     def chain(self, arcs: tuple[Arc, ...], note: str, held: list[tuple[Arc, ...]], budget: list[int]) -> bool:
         """``arcs`` repaired again and again (off-limit arcs made bang, else a notch where the multipliers
