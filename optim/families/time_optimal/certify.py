@@ -148,14 +148,19 @@ def _constrained(spec: Spec, below: float, velocity: float) -> tuple[int, float]
     return None
 
 
-def on_a_limit(spec: Spec, durations: Array, levels: Array) -> NDArray[np.bool_]:
-    """Per arc (``levels`` in the unit): whether it is a rest on a limit (a constrained arc of ``_kinds``); bang and
-    fractional arcs are not."""
+def constraints(spec: Spec, durations: Array, levels: Array) -> list[tuple[int, float] | None]:
+    """Per arc (``levels`` in the unit): (kind, sign) of a rest on a limit (FIRST or SECOND, as ``_kinds``); None for
+    bang and fractional arcs and for a rest on no limit."""
     below, velocity = arc_states(spec, durations, levels)
-    out: NDArray[np.bool_] = np.abs(levels) <= LEVEL_TOLERANCE
-    for k in np.flatnonzero(out):
-        out[k] = _constrained(spec, float(below[k]), float(velocity[k])) is not None
-    return out
+    return [
+        _constrained(spec, float(b), float(v)) if abs(level) <= LEVEL_TOLERANCE else None
+        for b, v, level in zip(below, velocity, levels, strict=True)
+    ]
+
+
+def on_a_limit(spec: Spec, durations: Array, levels: Array) -> NDArray[np.bool_]:
+    """Per arc (``levels`` in the unit): whether it is a rest on a limit (a constrained arc of ``_kinds``)."""
+    return np.array([c is not None for c in constraints(spec, durations, levels)], dtype=bool)
 
 
 Linear = tuple[Array, float]  # coefficients over the unknowns (theta, then the coasts' entry atoms), constant
@@ -343,7 +348,9 @@ def wrong_sign(spec: Spec, arcs: tuple[Arc, ...]) -> tuple[int, float, float] | 
     w = _switching(spec, arcs)
     if w is None:
         return None
-    for agreement, size in (w.agreement(), w.density(spec), w.curvature(spec)):
+    checks = (w.agreement, lambda: w.density(spec), lambda: w.curvature(spec))  # each computed only if needed
+    for check in checks:
+        agreement, size = check()
         if _wrong_signed(agreement, size):
             break
     else:

@@ -45,6 +45,7 @@ from optim.families.time_optimal.types import Arc, GridSolution, Solution, Spec
 
 Array = NDArray[np.float64]
 LimitCheck = Callable[[tuple[Arc, ...]], bool]
+Where = tuple[int, float, float]  # certify.wrong_sign's answer: the arc, the first and the last time of its run
 FALLBACK_FINER = 4  # without an exact candidate, the grid optimum is sought again on steps this much shorter
 PROBES = 3
 PROBE_FINER = 4  # the probe's grid is this much finer than the search's
@@ -66,6 +67,18 @@ def _duration_s(arcs: tuple[Arc, ...]) -> float:
     return sum(a.duration_s for a in arcs)
 
 
+def _next_repair(spec: Spec, arcs: tuple[Arc, ...], notching: bool) -> tuple[Start | None, Where | None]:
+    """The start of the next repair of ``arcs`` (optim.families.time_optimal.repair): their off-limit arcs made bang;
+    else, with ``notching``, a notch where the multipliers contradict them, and that place (certify.wrong_sign:
+    None for the former); (None, None) where neither applies."""
+    durations, levels, _ = as_start(spec, arcs)
+    start = bang_start(spec, durations, levels)
+    if start is not None or not notching:
+        return start, None
+    where = wrong_sign(spec, arcs)
+    return (None if where is None else notched(spec, durations, levels, *where)), where
+
+
 @dataclass(frozen=True)
 class Found:
     arcs: tuple[Arc, ...]
@@ -74,7 +87,7 @@ class Found:
 
     @property
     def duration_s(self) -> float:
-        return sum(a.duration_s for a in self.arcs)
+        return _duration_s(self.arcs)
 
 
 class _Best:
@@ -93,7 +106,7 @@ class _Best:
 
     def offer(self, arcs: tuple[Arc, ...], method: str, note: str, proof: Certificate | None = None) -> bool:
         """Keep ``arcs`` if shorter and they check out; ``proof``: their certificate, if already found."""
-        total = sum(a.duration_s for a in arcs)
+        total = _duration_s(arcs)
         if self.found is not None and total >= self.found.duration_s * (1 - SHORTER):
             return False
         if total > self.spec.max_duration_s or not self.accepts(arcs):
@@ -111,12 +124,8 @@ class _Best:
         shorter best earlier stopped the probes that found shorter)."""
         if self.repairs >= REPAIRS or not certificate_applies(self.spec):  # (no structure it could prove)
             return
-        durations, levels, _ = as_start(self.spec, arcs)
-        start, how = bang_start(self.spec, durations, levels), " (its off-limit arcs made bang)"
-        if start is None and self.notching:  # every arc bang or on a limit: a notch where sigma has the other sign
-            where = wrong_sign(self.spec, arcs)
-            start = None if where is None else notched(self.spec, durations, levels, *where)
-            how = " (notched where the multipliers say)"
+        start, where = _next_repair(self.spec, arcs, self.notching)
+        how = " (its off-limit arcs made bang)" if where is None else " (notched where the multipliers say)"
         if start is None or len(start[0]) > MAX_ARCS:
             return
         self.repairs += 1
@@ -203,16 +212,14 @@ class _Best:
         short of the optimum's gets them where the switching function says (7 of 20 held-jerk moves of
         bench/time_optimal_speed.py certified in 30-190 ms instead of after the search)."""
         for _ in range(budget[0]):
-            durations, levels, _ = as_start(self.spec, arcs)
-            start = bang_start(self.spec, durations, levels)
-            where = wrong_sign(self.spec, arcs) if start is None else None
-            start = start if where is None else notched(self.spec, durations, levels, *where)
+            start, where = _next_repair(self.spec, arcs, notching=True)
             if start is None or len(start[0]) > MAX_ARCS:
                 return False
             budget[0] -= 1
             result = refine(self.spec, *start, self.search.cuts)
             if result is None and where is not None and budget[0] > 0:  # SLSQP failed from a thin notch: once more
                 budget[0] -= 1  # from one WIDER times wider (bench/time_optimal_speed.py's held-jerk move 6)
+                durations, levels, _ = as_start(self.spec, arcs)
                 wider = notched(self.spec, durations, levels, *where, share=WIDER * NOTCH_SHARE)
                 result = refine(self.spec, *wider, self.search.cuts)
             if result is None or not self.accepts(result.arcs):
@@ -363,7 +370,7 @@ def solve(spec: Spec, check_limits: LimitCheck | None = None, bound_spec: Spec |
     for arcs in held if best.proof is None else []:
         best.offer(arcs, "refined", note)
     if held and best.proof is None:  # SLSQP from the shortest: its structure's optimum is often the certified one
-        shortest = min(held, key=lambda arcs: sum(a.duration_s for a in arcs))
+        shortest = min(held, key=_duration_s)
         best.refine_from(as_start(spec, shortest), " (from a predicted structure)")
     best.offer_repaired()
     if best.proof is None:

@@ -33,7 +33,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from optim.families.time_optimal.certify import LEVEL_TOLERANCE, arc_states, on_a_limit
+from optim.families.time_optimal.certify import LEVEL_TOLERANCE, SECOND, arc_states, constraints, on_a_limit
 from optim.families.time_optimal.structures import Start
 from optim.families.time_optimal.types import Spec
 
@@ -124,13 +124,13 @@ def notched(
     length = float(durations[arc])
     level = float(levels[arc])
     run = max(share * (last_s - first_s), 1e-3 * length)
-    below, velocity = arc_states(spec, np.asarray(durations, dtype=float), np.asarray(levels, dtype=float))
-    if level == 0.0 and spec.order == 3 and abs(below[arc]) < 0.5 * (spec.max_acceleration or spec.scale):
-        sign = float(np.sign(velocity[arc]))  # a coast at +-max_velocity: a dip, the acceleration back to 0
+    on_limit = constraints(spec, np.asarray(durations, dtype=float), np.asarray(levels, dtype=float))[arc]
+    if on_limit is not None and on_limit[0] == SECOND:  # a coast at +-max_velocity: a dip, the acceleration back to 0
+        sign = on_limit[1]
         width = min(0.125 * length, 0.5 * run)
         pieces, widths = [0.0, -sign, sign, -sign, 0.0], [width, 2.0 * width, width]
-    elif level == 0.0:
-        sign = float(np.sign(below[arc]))
+    elif on_limit is not None:  # at +-the limit one order below: off it and back
+        sign = on_limit[1]
         pieces, widths = [0.0, -sign, sign, 0.0], [min(0.25 * length, run)] * 2
     else:
         pieces, widths = [level, -level, level], [min(0.5 * length, run)]
