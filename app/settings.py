@@ -72,15 +72,16 @@ class Settings(BaseSettings):
         description="Most solves waiting for a worker in each process (503 beyond); default 4 per server worker.",
     )
     worker_memory_mb: int = Field(
-        1024,
+        1536,
         ge=0,
         le=1_048_576,
         description="Address space (RLIMIT_AS, virtual memory) each solver worker may map, in MiB; a job past it is "
         "a 422 and the worker serves on; 0: no limit. Measured (bench/worker_memory.py, single-threaded BLAS as "
-        "vibfree serve, the Makefile and the Dockerfile run them): a warm worker maps 609 MiB for 240 MiB resident, "
-        "654-674 MiB after 200 distinct plants (RSS 288-305 MiB); the mappings beyond the resident set stay ~370 "
-        "MiB, so 1024 lets a worker's RSS reach ~650 MiB, above the documented 400 MiB bound. OpenBLAS's own "
-        "threads add ~100 MiB of mappings each (825 MiB warm with 2): raise it where BLAS runs threads.",
+        "vibfree serve, the Makefile and the Dockerfile run them): a warm worker mapped 609 MiB for 240 MiB "
+        "resident before the time-optimal family's compiled kernels, which map ~400 MiB more (numba and LLVM) for "
+        "~100 MiB resident (345-350 MiB warm, at most 438 MiB after 200 distinct plants, within the documented "
+        "450 MiB bound); 1536 keeps the ~500 MiB of room above a warm worker that 1024 gave before. OpenBLAS's own "
+        "threads add ~100 MiB of mappings each: raise it where BLAS runs threads.",
     )
     worker_niceness: int = Field(
         5, ge=0, le=19, description="Niceness added to the solver workers, so the HTTP process stays responsive."

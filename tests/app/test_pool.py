@@ -279,8 +279,8 @@ def test_a_compare_the_pool_has_no_room_for_is_refused_at_once_and_none_of_it_ru
 
 
 def test_a_solve_past_the_worker_memory_limit_is_a_422_and_the_pool_serves_on(client):
-    # Every worker caps its address space at VIBFREE_WORKER_MEMORY_MB (1024 MiB by default; a warm worker maps
-    # 609): a job asking for 2 GiB more gets MemoryError inside the worker, never the HTTP process, and its
+    # Every worker caps its address space at VIBFREE_WORKER_MEMORY_MB (1536 MiB by default; a warm worker maps
+    # ~1000): a job asking for 2 GiB more gets MemoryError inside the worker, never the HTTP process, and its
     # request a 422 naming the body as too large; the pool is not restarted and answers the next solve.
     wait_all_warm(client)
     restarts = pool_of(client).stats()["restarts"]

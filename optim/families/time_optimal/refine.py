@@ -14,7 +14,6 @@ iteration cap: often a shorter command than its start). The caller keeps the res
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -27,6 +26,7 @@ from optim.families.time_optimal.types import Arc, Spec
 
 Array = NDArray[np.float64]
 MAX_ITERATIONS = 80  # SLSQP's cap: a structure that needs more is not the optimum's (the grid's is kept)
+RESTARTS = 1  # SLSQP stopped at its cap is run again from its last point (a fresh quasi-Newton model)
 ITERATION_CAP = 9  # scipy's SLSQP status when it stops at MAX_ITERATIONS
 TINY_ARC = 1e-6  # of the duration: a shorter refined arc is tried without
 NEWTON_ITERATIONS = 12  # a start near the structure's solution converges quadratically well within this
@@ -42,76 +42,15 @@ class Refined:
     status: str
 
 
-def _poly(r: int) -> tuple[Callable[[Array], Array], Callable[[Array], Array]]:
-    """phi(tau) = tau_+^r / r! and its derivative."""
-
-    def phi(t: Array) -> Array:
-        out: Array = np.maximum(t, 0.0) ** r / math.factorial(r)
-        return out
-
-    def dphi(t: Array) -> Array:
-        out: Array = np.maximum(t, 0.0) ** (r - 1) / math.factorial(r - 1) if r > 1 else (t > 0.0).astype(float)
-        return out
-
-    return phi, dphi
-
-
-def _coefficients(points: Array) -> tuple[Array, Array]:
-    """d tau1[p, j] / d d_i and d tau2[p, j] / d d_i for tau1 = t_p - s_j, tau2 = t_p - e_j."""
-    count = points.shape[1]
-    lower = np.tril(np.ones((count, count)), -1)
-    return points[:, None, :] - lower[None, :, :], points[:, None, :] - (lower + np.eye(count))[None, :, :]
-
-
-def _terms(
-    phi: Any, dphi: Any, coefficients: tuple[Array, Array], d: Array, lv: Array, jac: bool = True
-) -> tuple[Any, Any, Any]:
-    """sum_j lv_j (phi(tau1) - phi(tau2)) at each point p, tau1 = t_p - s_j, tau2 = t_p - e_j, with the times
-    linear in the durations (t_p = points[p] . d, s_j = L_j . d, e_j = (L + I)_j . d; ``coefficients`` from
-    _coefficients), and its Jacobians in d and in lv."""
-    c1, c2 = coefficients
-    tau1, tau2 = c1 @ d, c2 @ d
-    diff = phi(tau1) - phi(tau2)
-    value = diff @ lv
-    if not jac:
-        return value, None, diff
-    jac_d = np.einsum("pj,pji->pi", lv[None, :] * dphi(tau1), c1) - np.einsum(
-        "pj,pji->pi", lv[None, :] * dphi(tau2), c2
-    )
-    return value, jac_d, diff
-
-
-def _end_moments(
-    poles: NDArray[np.complex128], n: int, d: Array, lv: Array, jac: bool, ends: tuple[Array, Array] | None = None
-) -> tuple[Any, Any, Any]:
-    """F_n at the end for every pole (rows): sum_j lv_j (G_n(T - s_j) - G_n(T - e_j)), its Jacobian in d and
-    the per-arc differences (the Jacobian in lv). ``ends``: _coefficients of the end, if already computed."""
-    c1, c2 = (c[0] for c in (ends or _coefficients(np.ones((1, d.size)))))  # d(T - s_j)/d d_i, [j, i]
-    tau1, tau2 = c1 @ d, c2 @ d
-    lam = poles[:, None]
-
-    def g_big(t: Array) -> NDArray[np.complex128]:
-        acc = sum(
-            (-1) ** k * math.factorial(n) / math.factorial(n - k) * t ** (n - k) / lam ** (k + 1) for k in range(n + 1)
-        )
-        out: NDArray[np.complex128] = np.exp(lam * t) * acc
-        return out
-
-    diff = g_big(tau1[None, :]) - g_big(tau2[None, :])
-    value = diff @ lv
-    if not jac:
-        return value, None, diff
-    g1 = tau1[None, :] ** n * np.exp(lam * tau1[None, :])
-    g2 = tau2[None, :] ** n * np.exp(lam * tau2[None, :])
-    jac_d = (lv[None, :] * g1) @ c1 - (lv[None, :] * g2) @ c2
-    return value, jac_d, diff
-
-
 class _Model:
     """The constraint functions of one arc structure and their Jacobians, in scaled variables
     z = (d / T0, free levels)."""
 
     def __init__(self, spec: Spec, durations: list[float], levels: list[float], free: list[bool], cuts: list[Cut]):
+        # numba (~60 MiB) is imported by the first refinement, not by every process that imports the families
+        from optim.families.time_optimal.kernels import bound_system, end_system, moment_terms
+
+        self.end_system, self.bound_system, self.moment_terms = end_system, bound_system, moment_terms
         self.spec = spec
         self.t0 = sum(durations)
         self.levels = np.asarray(levels, dtype=float)
@@ -120,16 +59,28 @@ class _Model:
         self.cuts = cuts
         self.z0 = np.concatenate([np.asarray(durations) / self.t0, self.levels[self.free]])
         q, u = spec.order, spec.scale
-        self.eq_scale = [spec.position_scale(self.t0)] + [u * self.t0 ** (q - m) for m in range(1, q)]
-        self.ends = _coefficients(np.ones((1, self.count)))
-        self.poles = np.asarray(spec.zero_poles)
-        self.moment_scales: dict[int, Array] = {}  # fixed at the first evaluation (z0)
+        self.free_at = self.free.astype(np.int64)
+        self.state = np.asarray(spec.start_state(), dtype=float)
+        targets = spec.end_targets()
+        self.orders = np.fromiter(targets, dtype=np.int64)
+        eq_scale = [spec.position_scale(self.t0)] + [u * self.t0 ** (q - m) for m in range(1, q)]
+        self.targets = np.array([targets[m] for m in self.orders])
+        self.eq_scale = np.array([eq_scale[m] for m in self.orders])
+        self.poles = np.asarray(spec.zero_poles, dtype=complex)
+        self.derivative_order = spec.derivative_order if self.poles.size else -1
+        durations_s = np.asarray(durations, dtype=float)
+        self.moment_scales = np.ones((self.derivative_order + 1, self.poles.size))  # sum |diff| at z0, fixed
+        for n in range(self.derivative_order + 1):
+            diff = moment_terms(self.poles, n, durations_s, self.levels, False)[2]
+            self.moment_scales[n] = np.sum(np.abs(diff), axis=1) + 1e-300
         arc_ends = np.tril(np.ones((self.count, self.count)))[:-1]  # e_b = sum_{i <= b} d_i, b < last
+        limits = [(1, spec.max_velocity)] + ([(2, spec.max_acceleration)] if q == 3 else [])
         mid = np.tril(np.ones((self.count, self.count)), -1) + 0.5 * np.eye(self.count)
-        self.arc_end_times = arc_ends  # the points' times are these rows . d
-        self.arc_end_mid_times = np.vstack([arc_ends, mid])
-        self.arc_ends = _coefficients(self.arc_end_times)
-        self.arc_ends_mid = _coefficients(self.arc_end_mid_times)
+        self.bounds = [  # (derivative, limit, the check points' times: rows . d): arc ends, and mid-arc with a jerk
+            (m, float(limit), np.vstack([arc_ends, mid]) if m == 1 and q == 3 else arc_ends)
+            for m, limit in limits
+            if limit is not None and self.count >= 2
+        ]
 
     def unpack(self, z: Array) -> tuple[Array, Array, Array]:
         d = np.maximum(z[: self.count], 0.0) * self.t0
@@ -145,60 +96,49 @@ class _Model:
         return np.hstack([jac_d * self.t0, diff[:, self.free]]) / np.asarray(scale).reshape(-1, 1)
 
     def _parts(self, z: Array, kind: str, want_jac: bool = True) -> tuple[Array, Array]:
-        spec, q, u = self.spec, self.spec.order, self.spec.scale
-        d = np.maximum(z[: self.count], 0.0) * self.t0
-        lv = self.levels.copy()
-        lv[self.free] = z[self.count :]
-        values: list[Array] = []
-        jacs: list[Array] = []
+        """The equalities (``kind`` "eq") or the inequalities (>= 0 when met), scaled, and their Jacobian in z
+        (optim.families.time_optimal.kernels)."""
+        spec, u = self.spec, self.spec.scale
         if kind == "eq":
-            total = np.array([float(np.sum(d))])
-            for m, target in spec.end_targets().items():
-                phi, dphi = _poly(q - m)
-                v, jd, diff = _terms(phi, dphi, self.ends, d, lv, want_jac)
-                values.append((u * v + spec.free_motion(m, total) - target) / self.eq_scale[m])
-                if want_jac:  # the start's share depends on T = sum d: d/dd_i = its (m + 1)-th derivative's share
-                    drift = np.ones((1, d.size)) * spec.free_motion(m + 1, total)[0] if m + 1 < q else 0.0
-                    jacs.append(self._jac(u * jd + drift, u * diff, self.eq_scale[m]))
-            for n in range(spec.derivative_order + 1):
-                if not spec.zero_poles:
-                    break
-                v, jd, diff = _end_moments(self.poles, n, d, lv, want_jac, self.ends)
-                scale = self.moment_scales.setdefault(n, np.sum(np.abs(diff), axis=1) + 1e-300)
-                values += [v.real / scale, v.imag / scale]
-                if want_jac:
-                    jac = self._jac(jd, diff, scale)
-                    jacs += [jac.real, jac.imag]
-            return np.concatenate(values), (np.vstack(jacs) if want_jac else np.zeros(0))
-        bounds = [(1, spec.max_velocity)] + ([(2, spec.max_acceleration)] if q == 3 else [])
-        for m, limit in bounds:
-            if limit is None or self.count < 2:
-                continue
-            mid = m == 1 and q == 3
-            points = self.arc_ends_mid if mid else self.arc_ends
-            phi, dphi = _poly(q - m)
-            v, jd, diff = _terms(phi, dphi, points, d, lv, want_jac)
-            at = self.arc_end_mid_times if mid else self.arc_end_times  # the points' times: at . d
-            times = at @ d
-            v = u * v + spec.free_motion(m, times)
-            values += [1.0 - v / limit, 1.0 + v / limit]
-            if want_jac:
-                drift = spec.free_motion(m + 1, times)[:, None] * at if m + 1 < q else 0.0
-                jac = self._jac(u * jd + drift, u * diff, limit)
-                jacs += [-jac, jac]
+            values, jac = self.end_system(
+                z,
+                self.count,
+                self.t0,
+                self.levels,
+                self.free_at,
+                u,
+                self.orders,
+                self.targets,
+                self.eq_scale,
+                self.state,
+                self.poles,
+                self.derivative_order,
+                self.moment_scales,
+                want_jac,
+            )
+            return values, (jac if want_jac else np.zeros(0))
+        parts = [
+            self.bound_system(z, self.count, self.t0, self.levels, self.free_at, u, self.state, m, bound, at, want_jac)
+            for m, bound, at in self.bounds
+        ]
+        values_list = [part[0] for part in parts]
+        jacs = [part[1] for part in parts]
         if self.cuts:
+            d = np.maximum(z[: self.count], 0.0) * self.t0
+            lv = self.levels.copy()
+            lv[self.free] = z[self.count :]
             poles = np.array([c.pole for c in self.cuts])
             bound = np.array([c.bound for c in self.cuts])
-            v, jd, diff = _end_moments(poles, 0, d, lv, want_jac, self.ends)
+            v, jd, diff = self.moment_terms(poles, 0, d, lv, want_jac)
             per = u / poles if spec.order == 3 else np.full(poles.size, complex(u))
             f = per * v
-            values.append(1.0 - np.abs(f) ** 2 / bound**2)
+            values_list.append(1.0 - np.abs(f) ** 2 / bound**2)
             if want_jac:
                 jac = self._jac(per[:, None] * jd, per[:, None] * diff, 1.0)
                 jacs.append(-2.0 * np.real(np.conj(f)[:, None] * jac) / bound[:, None] ** 2)
-        if not values:
+        if not values_list:
             return np.zeros(0), np.zeros((0, z.size))
-        return np.concatenate(values), (np.vstack(jacs) if want_jac else np.zeros(0))
+        return np.concatenate(values_list), (np.vstack(jacs) if want_jac else np.zeros(0))
 
     def equalities(self, z: Array) -> Array:
         return self._parts(z, "eq", False)[0]
@@ -225,15 +165,21 @@ def refine(
     if model.inequalities(model.z0).size:
         constraints.append({"type": "ineq", "fun": model.inequalities, "jac": model.inequality_jacobian})
     cost = np.concatenate([np.ones(model.count), np.zeros(n - model.count)])
-    result = minimize(
-        lambda z: float(cost @ z),
-        model.z0,
-        jac=lambda z: cost,
-        method="SLSQP",
-        bounds=bounds,
-        constraints=constraints,
-        options={"maxiter": MAX_ITERATIONS, "ftol": 1e-10},
-    )
+
+    def run(start: Array) -> Any:
+        return minimize(
+            lambda z: float(cost @ z),
+            start,
+            jac=lambda z: cost,
+            method="SLSQP",
+            bounds=bounds,
+            constraints=constraints,
+            options={"maxiter": MAX_ITERATIONS, "ftol": 1e-10},
+        )
+
+    result = run(model.z0)
+    for _ in range(RESTARTS if result.status == ITERATION_CAP else 0):
+        result = run(np.asarray(result.x, dtype=float))
     # SLSQP's status 9: its iteration cap. Its last point is often a shorter command than the start, short of
     # converged: the polish brings it onto the equalities or drops it, and the caller checks every limit exactly.
     if not result.success and result.status != ITERATION_CAP:

@@ -1,0 +1,137 @@
+"""The refinement's compiled constraint kernels (optim.families.time_optimal.kernels) against independent
+computations: the motor's state by integrating each arc's polynomial exactly (numpy.polynomial), the residual
+moments by quadrature (scipy.integrate.quad), and every Jacobian by central differences."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from numpy.polynomial import Polynomial
+from scipy.integrate import quad
+
+from optim.families.time_optimal.kernels import bound_system, end_system, moment_terms, state_terms
+
+RNG = np.random.default_rng(20261204)
+# Central differences on O(1) functions of O(1) arguments with h = 1e-6: truncation ~h^2 x f''' ~ 1e-12, round-off
+# ~1e-16 / h ~ 1e-10; the Jacobians agree to 1e-7 (relative to their largest entry) with margin.
+STEP = 1e-6
+JACOBIAN_TOLERANCE = 1e-7
+
+
+def _arcs(count: int) -> tuple[np.ndarray, np.ndarray]:
+    return RNG.uniform(0.05, 0.4, count), RNG.choice([-1.0, 0.0, 1.0, 0.37, -0.6], count)
+
+
+def _state_by_polynomials(t: float, d: np.ndarray, lv: np.ndarray, r: int) -> float:
+    """The r-th integral of the piecewise-constant levels from rest at t, by integrating each arc's polynomial and
+    carrying its derivatives across the arc ends: an independent form of sum_j lv_j (R(t - s_j) - R(t - e_j))."""
+    state = np.zeros(r)  # the value and its derivatives below the level's, at the current arc's start
+    edges = np.concatenate(([0.0], np.cumsum(d)))
+    for j, level in enumerate(lv):
+        span = min(t, edges[j + 1]) - edges[j]
+        if span <= 0.0:
+            break
+        poly = Polynomial([*(state[k] / math.factorial(k) for k in range(r)), level / math.factorial(r)])
+        state = np.array([poly.deriv(k)(span) for k in range(r)])
+    return float(state[0])
+
+
+def _central(fn, x: np.ndarray) -> np.ndarray:
+    columns = []
+    for i in range(x.size):
+        e = np.zeros_like(x)
+        e[i] = STEP
+        columns.append((fn(x + e) - fn(x - e)) / (2 * STEP))
+    return np.stack(columns, axis=-1)
+
+
+def _close(a: np.ndarray, b: np.ndarray) -> None:
+    assert np.max(np.abs(a - b)) <= JACOBIAN_TOLERANCE * max(1.0, float(np.max(np.abs(b))))
+
+
+@pytest.mark.parametrize("r", [1, 2, 3])
+def test_state_terms_are_the_arcs_integrated_exactly(r: int) -> None:
+    d, lv = _arcs(7)
+    times = np.vstack([np.tril(np.ones((7, 7)))[:-1], np.tril(np.ones((7, 7)), -1) + 0.5 * np.eye(7)])
+    value, jac_d, diff = state_terms(times, d, lv, r, True)
+    for p, row in enumerate(times):
+        expected = _state_by_polynomials(float(row @ d), d, lv, r)
+        assert value[p] == pytest.approx(expected, rel=1e-12, abs=1e-14)  # round-off of a few terms of O(1)
+    assert diff @ lv == pytest.approx(value, rel=1e-12, abs=1e-14)  # the Jacobian in the levels
+    _close(jac_d, _central(lambda x: state_terms(times, x, lv, r, False)[0], d))
+
+
+@pytest.mark.parametrize("n", [0, 1, 2])
+def test_moment_terms_are_the_residual_integrals(n: int) -> None:
+    d, lv = _arcs(6)
+    poles = np.array([complex(-0.3, 9.0), complex(-2.0, 25.0)])
+    value, jac_d, diff = moment_terms(poles, n, d, lv, True)
+    total, ends = float(np.sum(d)), np.cumsum(d)
+    for row, pole in enumerate(poles):
+        # F_n = sum_j lv_j int_{T - e_j}^{T - s_j} tau^n e^(lambda tau) dtau, arc by arc by adaptive quadrature
+        expected = 0.0j
+        for j in range(d.size):
+            lo, hi = total - ends[j], total - ends[j] + d[j]
+            re = quad(lambda t, p=pole: (t**n * np.exp(p * t)).real, lo, hi, epsabs=1e-14, epsrel=1e-13)[0]
+            im = quad(lambda t, p=pole: (t**n * np.exp(p * t)).imag, lo, hi, epsabs=1e-14, epsrel=1e-13)[0]
+            expected += lv[j] * complex(re, im)
+        assert abs(value[row] - expected) <= 1e-11 * max(1.0, abs(expected))
+    assert np.allclose(diff @ lv, value, rtol=1e-12, atol=1e-14)
+    for part in (np.real, np.imag):
+        _close(part(jac_d), _central(lambda x, part=part: part(moment_terms(poles, n, x, lv, False)[0]), d))
+
+
+@pytest.mark.parametrize("order", [2, 3])
+def test_end_system_is_the_end_state_and_the_moments_with_their_jacobian(order: int) -> None:
+    count, t0 = 6, 1.3
+    d, lv = _arcs(count)
+    free = np.array([1, 4], dtype=np.int64)
+    z = np.concatenate([d / t0, lv[free]])
+    state = np.array([0.0, 0.2, -0.5][:order])  # a start in motion: its drift enters every end derivative
+    orders = np.arange(order, dtype=np.int64)
+    targets = RNG.uniform(-1, 1, order)
+    scales = RNG.uniform(0.5, 2.0, order)
+    poles = np.array([complex(-0.5, 12.0)])
+    moment_scales = np.array([[1.7], [0.4]])
+    unit = 3.0
+    values, jac = end_system(
+        z, count, t0, lv, free, unit, orders, targets, scales, state, poles, 1, moment_scales, True
+    )
+    for row, m in enumerate(orders):  # unit x the m-th derivative of the command's share, plus the start's drift
+        r = order - m
+        own = _state_by_polynomials(float(np.sum(d)), d, lv, r)
+        drift = sum(state[k] * np.sum(d) ** (k - m) / math.factorial(k - m) for k in range(m, order))
+        assert values[row] == pytest.approx((unit * own + drift - targets[row]) / scales[row], rel=1e-12, abs=1e-13)
+    for n in (0, 1):
+        f = moment_terms(poles, n, d, lv, False)[0][0]
+        row = order + 2 * n
+        assert values[row] == pytest.approx(f.real / moment_scales[n, 0], rel=1e-12, abs=1e-13)
+        assert values[row + 1] == pytest.approx(f.imag / moment_scales[n, 0], rel=1e-12, abs=1e-13)
+
+    def again(x: np.ndarray) -> np.ndarray:
+        return end_system(x, count, t0, lv, free, unit, orders, targets, scales, state, poles, 1, moment_scales, False)[
+            0
+        ]
+
+    _close(jac, _central(again, z))
+
+
+def test_bound_system_is_the_derivative_within_its_limit_at_the_points() -> None:
+    count, t0, unit, limit = 5, 0.8, 2.0, 0.9
+    d, lv = _arcs(count)
+    free = np.array([2], dtype=np.int64)
+    z = np.concatenate([d / t0, lv[free]])
+    state = np.array([0.0, 0.3, 0.1])  # held jerk, starting in motion
+    times = np.vstack(
+        [np.tril(np.ones((count, count)))[:-1], np.tril(np.ones((count, count)), -1) + 0.5 * np.eye(count)]
+    )
+    values, jac = bound_system(z, count, t0, lv, free, unit, state, 1, limit, times, True)
+    points = times.shape[0]
+    for p, row in enumerate(times):
+        t = float(row @ d)
+        velocity = unit * _state_by_polynomials(t, d, lv, 2) + state[1] + state[2] * t
+        assert values[p] == pytest.approx(1.0 - velocity / limit, rel=1e-12, abs=1e-13)
+        assert values[points + p] == pytest.approx(1.0 + velocity / limit, rel=1e-12, abs=1e-13)
+    _close(jac, _central(lambda x: bound_system(x, count, t0, lv, free, unit, state, 1, limit, times, False)[0], z))
