@@ -141,22 +141,23 @@ def test_a_coast_below_the_velocity_limit_is_not_certified() -> None:
 
 
 @pytest.mark.parametrize("problem", PREDICTED, ids=["200-hz", "60-hz", "120-hz-coast"])
-def test_a_predicted_structure_beats_the_search_alone_with_no_lp(
+def test_a_predicted_structure_is_certified_with_no_lp_and_the_search_alone_is_no_shorter(
     problem: Problem, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    # Measured: 0.13 %, 0.04 % and 0.15 % shorter than the search without the predicted structures, which ran 10
-    # LPs each and answered +a, -a, then a fractional level (or a rest): not certifiable.
+    # The predicted structure is certified with no LP. The search without the predicted structures and the repairs of
+    # its answers (optim.families.time_optimal.repair) runs its LPs and is never shorter than the certified command
+    # (weak duality: nothing shorter exists); measured before the grid's fractional levels were also made bang
+    # (minimum_time._Best.refine_grid, 2026-12-04) it was 0.13 %, 0.04 % and 0.15 % longer, uncertified; now the 60 Hz
+    # search reaches the same command.
     import optim.families.time_optimal.minimum_time as minimum_time
 
-    # The search's answers made bang (optim.families.time_optimal.repair) now reach the certified answer of the 200 Hz
-    # move too, after the LPs: the search alone here is the one before that repair.
     predicted = synthesize(FAMILIES["time_optimal"], problem, TimeOptimalOptions()).summary
     monkeypatch.setattr(minimum_time, "reversal_starts", lambda *_: [])
     monkeypatch.setattr(minimum_time, "REPAIRS", 0)
     searched = synthesize(FAMILIES["time_optimal"], problem, TimeOptimalOptions()).summary
     assert predicted.search.lp_solves == 0 and "certifies" in predicted.refinement
-    assert predicted.duration_s < searched.duration_s * (1 - 1e-4)
-    assert "certifies" not in searched.refinement
+    assert searched.search.lp_solves > 0
+    assert predicted.duration_s <= searched.duration_s * (1 + 1e-9)  # the switching times' precision
 
 
 # Held jerk (the certificate's second-order state constraint: a coast at max_velocity). Random moves of
@@ -260,9 +261,9 @@ def test_ruckigs_rigid_optimum_is_certified_and_a_longer_command_is_not() -> Non
 def test_damped_newton_reaches_a_certified_structure_the_full_steps_miss(monkeypatch: pytest.MonkeyPatch) -> None:
     # bench/time_optimal_speed.py's held-jerk move 15, rounded. Damped Newton (the step halved until the residual
     # falls) solves a predicted structure that is certified: no LP. With the full step only (one try), no
-    # predicted structure converges, and the search (10 LPs) ends 5e-6 longer, uncertified: measured 118.19170
-    # against 118.19229 ms.
-    # (The search's answers made bang now reach the certified answer too, after its LPs: not made bang here.)
+    # predicted structure converges and the search runs its LPs; its answer is never shorter than the certified one
+    # (measured: 118.19229 ms, uncertified, before the grid's fractional levels were also made bang; now 118.19170,
+    # the certified duration to 1e-9).
     import optim.families.time_optimal.minimum_time as minimum_time
     import optim.families.time_optimal.refine as refine
 
@@ -272,8 +273,8 @@ def test_damped_newton_reaches_a_certified_structure_the_full_steps_miss(monkeyp
     monkeypatch.setattr(minimum_time, "REPAIRS", 0)
     full = synthesize(FAMILIES["time_optimal"], problem, TimeOptimalOptions()).summary
     assert damped.search.lp_solves == 0 and "certifies" in damped.refinement
-    assert full.search.lp_solves > 0 and "certifies" not in full.refinement
-    assert damped.duration_s < full.duration_s * (1 - 1e-6)
+    assert full.search.lp_solves > 0
+    assert damped.duration_s <= full.duration_s * (1 + 1e-9)
 
 
 def test_an_arc_at_the_acceleration_limit_whose_measure_changes_sign_is_not_certified() -> None:

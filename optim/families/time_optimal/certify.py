@@ -166,12 +166,13 @@ def on_a_limit(spec: Spec, durations: Array, levels: Array) -> NDArray[np.bool_]
 Linear = tuple[Array, float]  # coefficients over the unknowns (theta, then the coasts' entry atoms), constant
 
 
-def _phi(spec: Spec, width: int, tau: float, derivative: int = 0) -> Linear:
-    """phi^(derivative)(tau) as a linear function of the unknowns."""
-    row = np.zeros(width)
-    basis = _basis(spec, np.array([tau]), derivative)[0]
-    row[: basis.size] = -basis
-    return row, float(kernel(spec.order, np.array([tau]), derivative)[0])
+def _phis(spec: Spec, width: int, tau: Array, derivative: int = 0) -> list[Linear]:
+    """phi^(derivative)(tau) at each of ``tau`` as linear functions of the unknowns (one _basis call for all)."""
+    rows = np.zeros((tau.size, width))
+    basis = _basis(spec, tau, derivative)
+    rows[:, : basis.shape[1]] = -basis
+    constants = kernel(spec.order, tau, derivative)
+    return [(rows[i], float(constants[i])) for i in range(tau.size)]
 
 
 def _sweep(
@@ -182,6 +183,8 @@ def _sweep(
     atoms (coast, time, mass)."""
     total = float(ends[-1])
     width = _basis(spec, np.zeros(1)).shape[1] + int(np.sum(kind == SECOND))
+    at_starts = _phis(spec, width, total - starts)  # phi(T - s1) of every arc
+    slopes = _phis(spec, width, total - np.concatenate([starts, ends]), 1)  # phi'(T - s1), then phi'(T - s2)
     zero: Linear = (np.zeros(width), 0.0)
     alpha, beta = zero, zero
     lines: list[tuple[Linear, Linear]] = [(zero, zero)] * kind.size
@@ -191,22 +194,21 @@ def _sweep(
     for k in range(kind.size - 1, -1, -1):
         s1, s2 = float(starts[k]), float(ends[k])
         lines[k] = (alpha, beta)
+        phi = at_starts[k]
         if kind[k] == BANG:
             if k > 0:  # sigma = 0 where this arc begins: a switch, or the exit of the constrained arc before it
-                phi = _phi(spec, width, total - s1)
                 conditions.append((phi[0] - alpha[0] - s1 * beta[0], phi[1] - alpha[1] - s1 * beta[1]))
             continue
         if kind[k] == SECOND:  # nu's exit atom: phi'(T - s2) + beta after; the entry's, an unknown
-            slope = _phi(spec, width, total - s2, 1)
+            slope = slopes[kind.size + k]
             atoms.append((k, s2, (slope[0] + beta[0], slope[1] + beta[1])))
-            entry = _phi(spec, width, total - s1, 1)
+            entry = slopes[k]
             unknown = np.zeros(width)
             unknown[column] = 1.0
             column += 1
             atoms.append((k, s1, (unknown, 0.0)))
             beta = (-entry[0] - unknown, -entry[1])
         # the line before the arc meets phi at its entry (sigma = 0 there), with the slope just found
-        phi = _phi(spec, width, total - s1)
         alpha = (phi[0] - s1 * beta[0], phi[1] - s1 * beta[1])
     return lines, conditions, atoms
 

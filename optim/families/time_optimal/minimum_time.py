@@ -195,6 +195,8 @@ class _Best:
             proof = certificate(self.spec, merged(result.arcs))
             if proof is not None and self.offer(result.arcs, "refined", note, proof):
                 return []
+            if proof is None and not self.accepts(result.arcs):
+                continue  # it breaks a limit: no chain from it (its repairs keep the breach), nothing to offer
             held.append(result.arcs)
             if len(held) == CHAIN_AFTER and self.chains(held, note, budget):
                 return []
@@ -217,8 +219,9 @@ class _Best:
                 return False
             budget[0] -= 1
             result = refine(self.spec, *start, self.search.cuts)
-            if result is None and where is not None and budget[0] > 0:  # SLSQP failed from a thin notch: once more
-                budget[0] -= 1  # from one WIDER times wider (bench/time_optimal_speed.py's held-jerk move 6)
+            stuck = result is None or _duration_s(result.arcs) > _duration_s(arcs) * (1 - PROGRESS)
+            if stuck and where is not None and budget[0] > 0:  # SLSQP failed from a thin notch, or came back no
+                budget[0] -= 1  # shorter: once more from one WIDER times wider (bench/time_optimal_speed.py's move 6)
                 durations, levels, _ = as_start(self.spec, arcs)
                 wider = notched(self.spec, durations, levels, *where, share=WIDER * NOTCH_SHARE)
                 result = refine(self.spec, *wider, self.search.cuts)
@@ -235,7 +238,16 @@ class _Best:
         return False
 
     def refine_grid(self, values: Array, step_s: float, note: str = "") -> bool:
-        return self.refine_from(structure(values, step_s), note)
+        """The grid command's structure refined (its fractional levels free), then with them made bang (repair's
+        rules, every level fixed: another local optimum than SLSQP's on the free levels, which often stops at its
+        cap); True if either is kept."""
+        durations, levels, free = structure(values, step_s)
+        kept = self.refine_from((durations, levels, free), note)
+        if self.proof is None and any(free):
+            bang = bang_start(self.spec, durations, levels)
+            if bang is not None:
+                kept |= self.refine_from(bang, f"{note} (its fractional levels made bang)")
+        return kept
 
 
 def shapers(spec: Spec) -> list[ImpulseSequence]:
