@@ -11,7 +11,9 @@ In-process (``vibfree.synthesize``), side by side on each move:
   acceleration against each mode, a fraction of the move: must be below 1e-6;
 - refusals: a non-200 answer where the ZV-shaped Ruckig move exists is a defect;
 - on every LP_EVERY-th move without a torque limit, the minimum of an independent 800-step LP
-  (bench/lp_reference.py, bisection to 1e-6): ``duration / LP`` (the issue's target: at most 1.0005).
+  (bench/lp_reference.py, bisection to 1e-6): ``duration / LP`` (the issue's target: at most 1.0005);
+- on every move without a torque limit, that LP at LP_SLACK below the answer's duration: a command found there
+  (the answer more than 0.05 % longer than the LP's minimum) is a defect (one LP a move, 0.1-4 s).
 
 Moves: modes from near-rigid (2 kHz) to 5 Hz (log-uniform), damping 0 to 0.2, displacement 0.01 to 2, with
 and without velocity and jerk limits; one mode (70 %), two modes (a transfer function, 15 %), a two-inertia
@@ -40,6 +42,7 @@ from vibfree import VibfreeError, synthesize  # noqa: E402
 RESIDUAL_BOUND = 1e-6  # of the move
 LP_EVERY = 5
 LP_STEPS = 800
+LP_SLACK = 5e-4  # the tolerance against the 800-step LP
 
 
 def _log_uniform(rng: np.random.Generator, low: float, high: float) -> float:
@@ -142,15 +145,18 @@ def main(count: int = 200, seed: int = 25) -> int:
                 defects.append(f"#{k} longer than ZV-shaped Ruckig ({duration} > {zv_s}): {request}")
         if design["lower_bound_s"] < rigid_s * (1 - 1e-9) and not torque:
             defects.append(f"#{k} lower_bound_s {design['lower_bound_s']} below the rigid minimum {rigid_s}")
-        if not torque and k % LP_EVERY == 0:
+        if not torque:
             poles = tuple(complex(-z * w, w * math.sqrt(1 - z * z)) for w, z in modes)
             lim = request["limits"]
             grid_move = GridMove(
                 request["displacement"], poles, lim.get("max_velocity"), lim["max_acceleration"], lim.get("max_jerk")
             )
-            lp_s = grid_move.minimum_s(rigid_s, duration * 1.001, LP_STEPS)
-            if lp_s is not None:
-                over_lp.append((duration / lp_s, k))
+            if grid_move.feasible(duration * (1 - LP_SLACK), LP_STEPS):
+                defects.append(f"#{k} more than {LP_SLACK:.2%} longer than the {LP_STEPS}-step LP: {request}")
+            if k % LP_EVERY == 0:
+                lp_s = grid_move.minimum_s(rigid_s, duration * 1.001, LP_STEPS)
+                if lp_s is not None:
+                    over_lp.append((duration / lp_s, k))
         residual = residual_fraction(design, modes, request["displacement"])
         if residual > RESIDUAL_BOUND:
             defects.append(f"#{k} residual {residual:.3g} of the move: {request}")
