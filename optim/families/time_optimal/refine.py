@@ -5,10 +5,11 @@ The grid solution fixes the arc structure (bang, coast, switch inside a step). W
 small smooth problem: minimise sum d_j subject to the end state and the residual moments (equalities),
 the node bounds and the band points (|F_0|^2 <= c^2, true circles). It has a few to a few dozen
 unknowns and closed-form constraints, so scipy's SLSQP solves it in milliseconds with no build cost
-(a CasADi problem would have to be built for each structure); a Newton polish on the active
+(a CasADi problem would have to be built for each structure; the constraints and their Jacobians are compiled
+once for all structures: optim.families.time_optimal.kernels); a Newton polish on the active
 constraints then brings the equalities to round-off (from SLSQP's last point also where it stopped at its
-iteration cap: often a shorter command than its start). The caller keeps the result only if it checks out
-(limits, dense band) and is shorter than the best so far.
+iteration cap, after one more run from there: often a shorter command than its start). The caller keeps the
+result only if it checks out (limits, dense band) and is shorter than the best so far.
 """
 
 from __future__ import annotations
