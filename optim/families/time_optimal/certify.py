@@ -80,9 +80,10 @@ def kernel(q: int, tau: Array, derivative: int = 0) -> Array:
 def _basis(spec: Spec, tau: Array, derivative: int = 0) -> Array:
     """The columns of phi's unknown part at ``tau`` (tau^j for j < q - 1, then Re and Im of tau^n e^(p tau) for
     every pole and n), or their ``derivative``-th derivative in tau (0, 1 or 2)."""
-    columns = []
-    for j in range(spec.order - 1):
-        columns.append(math.perm(j, derivative) * tau ** max(j - derivative, 0) if j >= derivative else 0 * tau)
+    out = np.zeros((tau.size, _width(spec)))
+    for j in range(derivative, spec.order - 1):
+        out[:, j] = math.perm(j, derivative) * tau ** (j - derivative)
+    column = spec.order - 1
     for pole in spec.zero_poles:
         wave = np.exp(pole * tau)
         for n in range(spec.derivative_order + 1):
@@ -91,8 +92,14 @@ def _basis(spec: Spec, tau: Array, derivative: int = 0) -> Array:
                 math.comb(derivative, i) * math.perm(n, i) * tau ** (n - i) * pole ** (derivative - i)
                 for i in range(min(n, derivative) + 1)
             )
-            columns += [(value * wave).real, (value * wave).imag]
-    return np.column_stack([np.broadcast_to(c, tau.shape) for c in columns])
+            out[:, column], out[:, column + 1] = (value * wave).real, (value * wave).imag
+            column += 2
+    return out
+
+
+def _width(spec: Spec) -> int:
+    """theta's size: the end state's q - 1 conditions, then Re and Im of each pole's moments up to the order."""
+    return spec.order - 1 + 2 * len(spec.zero_poles) * (spec.derivative_order + 1)
 
 
 def certificate_applies(spec: Spec) -> bool:
@@ -182,7 +189,7 @@ def _sweep(
     constrained arc: the line after it), the junction conditions (linear functions that must vanish) and the coasts'
     atoms (coast, time, mass)."""
     total = float(ends[-1])
-    width = _basis(spec, np.zeros(1)).shape[1] + int(np.sum(kind == SECOND))
+    width = _width(spec) + int(np.sum(kind == SECOND))
     at_starts = _phis(spec, width, total - starts)  # phi(T - s1) of every arc
     slopes = _phis(spec, width, total - np.concatenate([starts, ends]), 1)  # phi'(T - s1), then phi'(T - s2)
     zero: Linear = (np.zeros(width), 0.0)
@@ -312,7 +319,7 @@ def _switching(spec: Spec, arcs: tuple[Arc, ...]) -> _Switching | None:
     if sampled is None or z is None:
         return None
     s, arc = sampled
-    theta = z[: _basis(spec, np.zeros(1)).shape[1]]
+    theta = z[: _width(spec)]
     alpha = np.array([line[0][0] @ z + line[0][1] for line in lines])
     beta = np.array([line[1][0] @ z + line[1][1] for line in lines])
     sigma = kernel(spec.order, total - s) - _basis(spec, total - s) @ theta - alpha[arc] - beta[arc] * s
