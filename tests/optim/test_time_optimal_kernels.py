@@ -13,15 +13,20 @@ from scipy.integrate import quad
 
 from optim.families.time_optimal.kernels import bound_system, end_system, moment_terms, state_terms
 
-RNG = np.random.default_rng(20261204)
+SEED = 20261204  # each test draws its arcs from its own generator (the same numbers on any xdist worker)
 # Central differences on O(1) functions of O(1) arguments with h = 1e-6: truncation ~h^2 x f''' ~ 1e-12, round-off
 # ~1e-16 / h ~ 1e-10; the Jacobians agree to 1e-7 (relative to their largest entry) with margin.
 STEP = 1e-6
 JACOBIAN_TOLERANCE = 1e-7
 
 
-def _arcs(count: int) -> tuple[np.ndarray, np.ndarray]:
-    return RNG.uniform(0.05, 0.4, count), RNG.choice([-1.0, 0.0, 1.0, 0.37, -0.6], count)
+@pytest.fixture
+def rng() -> np.random.Generator:
+    return np.random.default_rng(SEED)
+
+
+def _arcs(rng: np.random.Generator, count: int) -> tuple[np.ndarray, np.ndarray]:
+    return rng.uniform(0.05, 0.4, count), rng.choice([-1.0, 0.0, 1.0, 0.37, -0.6], count)
 
 
 def _state_by_polynomials(t: float, d: np.ndarray, lv: np.ndarray, r: int) -> float:
@@ -52,8 +57,8 @@ def _close(a: np.ndarray, b: np.ndarray) -> None:
 
 
 @pytest.mark.parametrize("r", [1, 2, 3])
-def test_state_terms_are_the_arcs_integrated_exactly(r: int) -> None:
-    d, lv = _arcs(7)
+def test_state_terms_are_the_arcs_integrated_exactly(rng: np.random.Generator, r: int) -> None:
+    d, lv = _arcs(rng, 7)
     times = np.vstack([np.tril(np.ones((7, 7)))[:-1], np.tril(np.ones((7, 7)), -1) + 0.5 * np.eye(7)])
     value, jac_d, diff = state_terms(times, d, lv, r, True)
     for p, row in enumerate(times):
@@ -64,8 +69,8 @@ def test_state_terms_are_the_arcs_integrated_exactly(r: int) -> None:
 
 
 @pytest.mark.parametrize("n", [0, 1, 2])
-def test_moment_terms_are_the_residual_integrals(n: int) -> None:
-    d, lv = _arcs(6)
+def test_moment_terms_are_the_residual_integrals(rng: np.random.Generator, n: int) -> None:
+    d, lv = _arcs(rng, 6)
     poles = np.array([complex(-0.3, 9.0), complex(-2.0, 25.0)])
     value, jac_d, diff = moment_terms(poles, n, d, lv, True)
     total, ends = float(np.sum(d)), np.cumsum(d)
@@ -84,15 +89,15 @@ def test_moment_terms_are_the_residual_integrals(n: int) -> None:
 
 
 @pytest.mark.parametrize("order", [2, 3])
-def test_end_system_is_the_end_state_and_the_moments_with_their_jacobian(order: int) -> None:
+def test_end_system_is_the_end_state_and_the_moments_with_their_jacobian(rng: np.random.Generator, order: int) -> None:
     count, t0 = 6, 1.3
-    d, lv = _arcs(count)
+    d, lv = _arcs(rng, count)
     free = np.array([1, 4], dtype=np.int64)
     z = np.concatenate([d / t0, lv[free]])
     state = np.array([0.0, 0.2, -0.5][:order])  # a start in motion: its drift enters every end derivative
     orders = np.arange(order, dtype=np.int64)
-    targets = RNG.uniform(-1, 1, order)
-    scales = RNG.uniform(0.5, 2.0, order)
+    targets = rng.uniform(-1, 1, order)
+    scales = rng.uniform(0.5, 2.0, order)
     poles = np.array([complex(-0.5, 12.0)])
     moment_scales = np.array([[1.7], [0.4]])
     unit = 3.0
@@ -118,9 +123,9 @@ def test_end_system_is_the_end_state_and_the_moments_with_their_jacobian(order: 
     _close(jac, _central(again, z))
 
 
-def test_bound_system_is_the_derivative_within_its_limit_at_the_points() -> None:
+def test_bound_system_is_the_derivative_within_its_limit_at_the_points(rng: np.random.Generator) -> None:
     count, t0, unit, limit = 5, 0.8, 2.0, 0.9
-    d, lv = _arcs(count)
+    d, lv = _arcs(rng, count)
     free = np.array([2], dtype=np.int64)
     z = np.concatenate([d / t0, lv[free]])
     state = np.array([0.0, 0.3, 0.1])  # held jerk, starting in motion
