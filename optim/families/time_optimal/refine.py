@@ -83,10 +83,15 @@ class _Model:
             if limit is not None and self.count >= 2
         ]
 
-    def unpack(self, z: Array) -> tuple[Array, Array, Array]:
+    def durations_and_levels(self, z: Array) -> tuple[Array, Array]:
+        """The durations (negatives as 0) and the levels, the free ones from z (as kernels._unpack)."""
         d = np.maximum(z[: self.count], 0.0) * self.t0
         lv = self.levels.copy()
         lv[self.free] = z[self.count :]
+        return d, lv
+
+    def unpack(self, z: Array) -> tuple[Array, Array, Array]:
+        d, lv = self.durations_and_levels(z)
         start = np.concatenate(([0.0], np.cumsum(d)[:-1]))
         return start, start + d, lv
 
@@ -125,9 +130,7 @@ class _Model:
         values_list = [part[0] for part in parts]
         jacs = [part[1] for part in parts]
         if self.cuts:
-            d = np.maximum(z[: self.count], 0.0) * self.t0
-            lv = self.levels.copy()
-            lv[self.free] = z[self.count :]
+            d, lv = self.durations_and_levels(z)
             poles = np.array([c.pole for c in self.cuts])
             bound = np.array([c.bound for c in self.cuts])
             v, jd, diff = self.moment_terms(poles, 0, d, lv, want_jac)
@@ -179,7 +182,9 @@ def refine(
         )
 
     result = run(model.z0)
-    for _ in range(RESTARTS if result.status == ITERATION_CAP else 0):
+    for _ in range(RESTARTS):
+        if result.status != ITERATION_CAP:
+            break
         result = run(np.asarray(result.x, dtype=float))
     # SLSQP's status 9: its iteration cap. Its last point is often a shorter command than the start, short of
     # converged: the polish brings it onto the equalities or drops it, and the caller checks every limit exactly.
