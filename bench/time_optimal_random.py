@@ -23,14 +23,20 @@ plant under a torque limit (15 %). ``python bench/time_optimal_random.py [count]
 from __future__ import annotations
 
 import math
+import os
 import statistics
 import sys
 import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-from scipy.integrate import quad
+# One BLAS thread, as the service's workers run (docs/deployment.md), unless the environment sets it: OpenBLAS's
+# threads made SLSQP's small solves 2-30 times slower whenever another process ran beside them.
+for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_name, "1")
+
+import numpy as np  # noqa: E402
+from scipy.integrate import quad  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))

@@ -2,7 +2,8 @@
 
 ``python bench/time_optimal_speed.py REF [rounds]`` checks REF out in a temporary git worktree and alternates
 between the two trees, ``rounds`` times (default 3): each round runs one subprocess per tree that designs every
-case through ``vibfree.synthesize`` (a warm-up call first, then each move once) and prints its seconds per design.
+case through ``vibfree.synthesize`` (a warm-up call first, then each move once; one BLAS thread, as the service's
+workers) and prints its seconds per design.
 The table gives the p50 over the rounds and moves of each case, the ratio REF / this, the share of designs under
 FAST_S (a certified design takes milliseconds, a searched one hundreds: the p50 of a mix says little), and how many
 answers differ in duration by more than 1e-9 (they should not be longer: the script reports any that are).
@@ -15,6 +16,7 @@ transfer functions.
 from __future__ import annotations
 
 import json
+import os
 import statistics
 import subprocess
 import sys
@@ -28,6 +30,7 @@ sys.path.insert(0, str(ROOT))
 from app.examples.time_optimal import EXAMPLES  # noqa: E402
 from bench.time_optimal import product_of_modes  # noqa: E402
 from bench.time_optimal_random import random_move  # noqa: E402
+from vibfree.cli import SINGLE_THREADED_BLAS  # noqa: E402
 
 FAST_S = 0.05  # the table also gives the share of designs faster than this (a p50 between two clusters says little)
 README = EXAMPLES["known_answer"]["value"]  # the README's move, as the OpenAPI example states it
@@ -83,9 +86,13 @@ print(json.dumps(out))
 
 
 def run(tree: Path, payload: str) -> dict[str, list[list[float]]]:
+    """One tree's seconds per design, in a subprocess with one BLAS thread (as the service's workers run:
+    docs/deployment.md; with OpenBLAS's threads SLSQP's small solves took 2-30 times longer whenever another
+    process ran beside them) unless the environment sets the thread counts."""
     python = ROOT / ".venv" / "bin" / "python"
+    env = {**dict.fromkeys(SINGLE_THREADED_BLAS, "1"), **os.environ}
     done = subprocess.run(
-        [str(python), "-c", MEASURE], cwd=tree, input=payload, capture_output=True, text=True, check=True
+        [str(python), "-c", MEASURE], cwd=tree, input=payload, capture_output=True, text=True, check=True, env=env
     )
     result: dict[str, list[list[float]]] = json.loads(done.stdout.strip().splitlines()[-1])
     return result

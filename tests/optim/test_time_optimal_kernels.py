@@ -140,3 +140,58 @@ def test_bound_system_is_the_derivative_within_its_limit_at_the_points(rng: np.r
         assert values[p] == pytest.approx(1.0 - velocity / limit, rel=1e-12, abs=1e-13)
         assert values[points + p] == pytest.approx(1.0 + velocity / limit, rel=1e-12, abs=1e-13)
     _close(jac, _central(lambda x: bound_system(x, count, t0, lv, free, unit, state, 1, limit, times, False)[0], z))
+
+
+def _spec_of(problem):  # type: ignore[no-untyped-def]
+    from optim.families.time_optimal.family import selected_modes, spec_of
+    from optim.families.time_optimal.options import TimeOptimalOptions
+
+    options = TimeOptimalOptions()
+    return spec_of(problem, options, selected_modes(problem, options)[0])
+
+
+def test_compiled_newton_finds_singh_and_vadalis_switching_times() -> None:
+    # The README's move (40 Hz undamped, 0.12 m at 10 m/s^2, the velocity limit not reached): the optimum is Singh
+    # and Vadali's +a t1, -a t2, +a t2, -a t1, whose t2 the oracle finds by brentq on its closed-form residual
+    # equation. Newton (kernels.polish) from switching times 5 % off reaches them to 1e-9 of the duration
+    # (its own residual is round-off: the scaled equalities below 1e-12).
+    from models.plants import ModePlant
+    from optim.families.time_optimal.refine import newton
+    from optim.problem import Limits, Problem
+    from tests.time_optimal_oracle import four_arc
+
+    spec = _spec_of(Problem(ModePlant(40.0), displacement=0.12, limits=Limits(5.0, 10.0)))
+    exact = four_arc(2 * math.pi * 40.0, 10.0, 0.12)
+    start = [d * f for d, f in zip(exact.durations_s, (1.05, 0.95, 1.05, 0.95), strict=True)]
+    command = newton(spec, start, [1.0, -1.0, 1.0, -1.0])
+    assert command is not None
+    found = [a.duration_s for a in command.arcs]
+    assert found == pytest.approx(exact.durations_s, abs=1e-9 * exact.duration_s)
+
+
+def test_compiled_polish_takes_the_numpy_steps() -> None:
+    # Every predicted structure of a held-jerk move with velocity and acceleration limits (bounds active at the
+    # solution: the Newton system holds them as equalities), solved by the compiled Newton and by its numpy form
+    # (refine._polish_numpy, used where band cuts are present): the same converged ones, the same switching times
+    # to 1e-12 (both take minimal-norm least-squares steps by LAPACK's gelsd; only round-off differs).
+    from models.plants import ModePlant
+    from optim.families.time_optimal import refine
+    from optim.families.time_optimal.shaped import rigid_of
+    from optim.families.time_optimal.structures import reversal_starts
+    from optim.problem import Limits, Problem
+
+    spec = _spec_of(Problem(ModePlant(25.0, 0.02), displacement=0.3, limits=Limits(0.5, 10.0, 2000.0)))
+    starts = reversal_starts(spec, rigid_of(spec))
+    converged = 0
+    for durations, levels, free in starts:
+        model = refine._Model(spec, durations, levels, free, [])
+        compiled = refine._polish(model, model.z0, refine.NEWTON_ITERATIONS, stall=True)
+        ineq = model.inequalities(model.z0)
+        active = np.flatnonzero(np.abs(ineq) < refine.ACTIVE)
+        movable = np.arange(model.count)
+        reference = refine._polish_numpy(model, model.z0.copy(), movable, active, refine.NEWTON_ITERATIONS, True)
+        assert (compiled is None) == (reference is None)
+        if compiled is not None and reference is not None:
+            converged += 1
+            assert np.max(np.abs(compiled - reference)) <= 1e-12
+    assert 0 < converged < len(starts)  # both outcomes compared

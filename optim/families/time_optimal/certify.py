@@ -40,6 +40,7 @@ from numpy.typing import NDArray
 from optim.families.time_optimal.types import Arc, Spec
 
 Array = NDArray[np.float64]
+CArray = NDArray[np.complex128]
 CHECK_PER_PERIOD = 64  # sign checks per period of the fastest zero-residual mode, on every arc (and at each local
 # minimum of level * sigma between them, by its parabola: sigma is smooth at that scale)
 MIN_CHECKS = 16  # per arc, at least
@@ -77,15 +78,16 @@ def kernel(q: int, tau: Array, derivative: int = 0) -> Array:
     return tau**power / math.factorial(power)
 
 
-def _basis(spec: Spec, tau: Array, derivative: int = 0) -> Array:
+def _basis(spec: Spec, tau: Array, derivative: int = 0, waves: list[CArray] | None = None) -> Array:
     """The columns of phi's unknown part at ``tau`` (tau^j for j < q - 1, then Re and Im of tau^n e^(p tau) for
-    every pole and n), or their ``derivative``-th derivative in tau (0, 1 or 2)."""
+    every pole and n), or their ``derivative``-th derivative in tau (0, 1 or 2); ``waves``: e^(p tau) of every
+    pole at ``tau``, if already computed (``_waves``)."""
     out = np.zeros((tau.size, _width(spec)))
     for j in range(derivative, spec.order - 1):
         out[:, j] = math.perm(j, derivative) * tau ** (j - derivative)
     column = spec.order - 1
-    for pole in spec.zero_poles:
-        wave = np.exp(pole * tau)
+    for k, pole in enumerate(spec.zero_poles):
+        wave = np.exp(pole * tau) if waves is None else waves[k]
         for n in range(spec.derivative_order + 1):
             # d^r/dtau^r (tau^n e^(p tau)) = sum_i C(r, i) n!/(n-i)! tau^(n-i) p^(r-i) e^(p tau)
             value = sum(
@@ -95,6 +97,11 @@ def _basis(spec: Spec, tau: Array, derivative: int = 0) -> Array:
             out[:, column], out[:, column + 1] = (value * wave).real, (value * wave).imag
             column += 2
     return out
+
+
+def _waves(spec: Spec, tau: Array) -> list[CArray]:
+    """e^(p tau) at ``tau`` for every zero-residual pole (shared by _basis's derivatives at the same points)."""
+    return [np.exp(pole * tau) for pole in spec.zero_poles]
 
 
 def _width(spec: Spec) -> int:
@@ -273,6 +280,7 @@ class _Switching:
     sigma: Array
     atoms: list[tuple[int, float, Linear]]
     total: float
+    waves: list[CArray]  # e^(p (T - s)) at the check points, every pole
 
     def agreement(self) -> tuple[Array, float]:
         """level x sigma at each check point (+inf off the bang arcs: >= 0 where they agree) and max |sigma| on them
@@ -284,7 +292,8 @@ class _Switching:
     def density(self, spec: Spec) -> tuple[Array, float]:
         """mu's density times the arc's sign at each check point (+inf off the first-order constrained arcs: >= 0
         where it has the right sign) and max |phi'(T - s)| (its scale)."""
-        slope = kernel(spec.order, self.total - self.s, 1) - _basis(spec, self.total - self.s, 1) @ self.theta
+        tau = self.total - self.s
+        slope = kernel(spec.order, tau, 1) - _basis(spec, tau, 1, self.waves) @ self.theta
         first = self.kind[self.arc] == FIRST
         values = np.where(first, self.sign[self.arc] * (slope + self.beta[self.arc]), np.inf)
         return values, float(np.max(np.abs(slope)))
@@ -292,12 +301,28 @@ class _Switching:
     def curvature(self, spec: Spec) -> tuple[Array, float]:
         """nu's density phi''(T - s) times the coast's sign at each check point (+inf off the coasts: >= 0 where it
         has the right sign) and max |phi''(T - s)| (its scale)."""
-        bend = kernel(spec.order, self.total - self.s, 2) - _basis(spec, self.total - self.s, 2) @ self.theta
+        tau = self.total - self.s
+        bend = kernel(spec.order, tau, 2) - _basis(spec, tau, 2, self.waves) @ self.theta
         second = self.kind[self.arc] == SECOND
         return np.where(second, self.sign[self.arc] * bend, np.inf), float(np.max(np.abs(bend)))
 
 
+_last: tuple[Spec, tuple[Arc, ...], _Switching | None] | None = None  # _switching's latest answer
+
+
 def _switching(spec: Spec, arcs: tuple[Arc, ...]) -> _Switching | None:
+    """_switching_of, remembered for the latest (spec, arcs): a chain asks wrong_sign where certificate has just
+    failed, on the same command."""
+    global _last
+    last = _last
+    if last is not None and last[0] is spec and last[1] == arcs:
+        return last[2]
+    found = _switching_of(spec, arcs)
+    _last = (spec, arcs, found)
+    return found
+
+
+def _switching_of(spec: Spec, arcs: tuple[Arc, ...]) -> _Switching | None:
     """sigma of ``arcs`` with the multipliers that fit its junctions; None where the certificate does not apply, a
     level or a rest is off every limit, or no multipliers fit."""
     if not certificate_applies(spec) or not arcs:
@@ -322,8 +347,9 @@ def _switching(spec: Spec, arcs: tuple[Arc, ...]) -> _Switching | None:
     theta = z[: _width(spec)]
     alpha = np.array([line[0][0] @ z + line[0][1] for line in lines])
     beta = np.array([line[1][0] @ z + line[1][1] for line in lines])
-    sigma = kernel(spec.order, total - s) - _basis(spec, total - s) @ theta - alpha[arc] - beta[arc] * s
-    return _Switching(levels, kind, sign, s, arc, z, theta, beta, sigma, atoms, total)
+    waves = _waves(spec, total - s)
+    sigma = kernel(spec.order, total - s) - _basis(spec, total - s, 0, waves) @ theta - alpha[arc] - beta[arc] * s
+    return _Switching(levels, kind, sign, s, arc, z, theta, beta, sigma, atoms, total, waves)
 
 
 def certificate(spec: Spec, arcs: tuple[Arc, ...]) -> Certificate | None:

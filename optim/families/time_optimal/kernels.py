@@ -5,10 +5,13 @@ the motor's state, tau_+^r / r! (the r-th integral of a unit step), and the resi
 G_n(tau) = int_0^tau s^n e^(lambda s) ds. Newton and SLSQP evaluate them, with their Jacobians, a few hundred
 times a design on a dozen arcs: as numpy expressions each evaluation cost 20-40 numpy calls (60-90 us, mostly call
 overhead); compiled, one call (a few us). Their Jacobians use the arcs' prefix sums, O(points x arcs) instead of
-the dense (points, arcs, arcs) tensors of the numpy form.
+the dense (points, arcs, arcs) tensors of the numpy form. ``polish`` runs the refinement's whole Newton (the
+predicted structures' damped one, and the polish after SLSQP) in one call: in Python each step cost a few kernel
+calls and a least-squares solve (0.3-1.3 ms a predicted structure; compiled, 0.05-0.3 ms).
 
-Both kernels are checked against the numpy form of their definitions (tests/optim/test_time_optimal_kernels.py).
-Compiled at first use and cached on disk (numba's ``cache=True``: __pycache__, or NUMBA_CACHE_DIR).
+The kernels are checked against the numpy form of their definitions, and ``polish`` against the numpy Newton it
+replaces and Singh and Vadali's switching times (tests/optim/test_time_optimal_kernels.py). Compiled at first use
+and cached on disk (numba's ``cache=True``: __pycache__, or NUMBA_CACHE_DIR).
 """
 
 from __future__ import annotations
@@ -28,7 +31,11 @@ def _ramp(t: float, r: int) -> float:
     """tau_+^r / r! (the r-th integral of a unit step at 0); 1 for tau > 0 and 0 else when r = 0."""
     if t <= 0.0:
         return 0.0
-    return t**r / math.gamma(r + 1.0)
+    power, factorial = 1.0, 1.0
+    for i in range(1, r + 1):  # products, not gamma (a third of a bound system's time): for r <= 3 the same bits as
+        power *= t  # the t**r / gamma(r + 1) this replaced (numba's integer power multiplies; r! is exact)
+        factorial *= i
+    return power / factorial
 
 
 @njit(cache=True)
@@ -234,3 +241,120 @@ def bound_system(
                 out[p, count + f] = -g
                 out[points + p, count + f] = g
     return values, out
+
+
+@njit(cache=True)
+def _square_system(
+    v: Array,
+    count: int,
+    t0: float,
+    levels: Array,
+    free: NDArray[np.int64],
+    unit: float,
+    orders: NDArray[np.int64],
+    targets: Array,
+    scales: Array,
+    state: Array,
+    poles: CArray,
+    derivative_order: int,
+    moment_scales: Array,
+    bound_m: NDArray[np.int64],
+    bound_limit: Array,
+    times_a: Array,
+    times_b: Array,
+    active: NDArray[np.bool_],
+    movable: NDArray[np.int64],
+) -> tuple[Array, Array]:
+    """end_system's rows and bound_system's ``active`` rows (over the bounds in turn) at v, their Jacobian in the
+    ``movable`` columns of z."""
+    values, jac = end_system(
+        v, count, t0, levels, free, unit, orders, targets, scales, state, poles, derivative_order, moment_scales, True
+    )
+    rows = values.size + int(np.sum(active))
+    out_v = np.zeros(rows)
+    out_j = np.zeros((rows, movable.size))
+    out_v[: values.size] = values
+    for c in range(movable.size):
+        out_j[: values.size, c] = jac[:, movable[c]]
+    row, seen = values.size, 0
+    for b in range(bound_m.size):
+        times = times_a if b == 0 else times_b
+        more, more_jac = bound_system(v, count, t0, levels, free, unit, state, bound_m[b], bound_limit[b], times, True)
+        for i in range(more.size):
+            if active[seen + i]:
+                out_v[row] = more[i]
+                for c in range(movable.size):
+                    out_j[row, c] = more_jac[i, movable[c]]
+                row += 1
+        seen += more.size
+    return out_v, out_j
+
+
+@njit(cache=True)
+def polish(
+    z: Array,
+    count: int,
+    t0: float,
+    levels: Array,
+    free: NDArray[np.int64],
+    unit: float,
+    orders: NDArray[np.int64],
+    targets: Array,
+    scales: Array,
+    state: Array,
+    poles: CArray,
+    derivative_order: int,
+    moment_scales: Array,
+    bound_m: NDArray[np.int64],
+    bound_limit: Array,
+    times_a: Array,
+    times_b: Array,
+    active: NDArray[np.bool_],
+    movable: NDArray[np.int64],
+    iterations: int,
+    stall: bool,
+    stall_after: int,
+    halvings: int,
+    converged: float,
+) -> tuple[Array, bool]:
+    """Newton with minimal-norm steps (least squares, LAPACK's gelsd as numpy's) on the equalities and the ``active``
+    inequalities in the ``movable`` variables of z (optim.families.time_optimal.refine._polish, whose rules it
+    follows step for step): (z, True) once the residual is below ``converged``, else (z, False)."""
+    args = (count, t0, levels, free, unit, orders, targets, scales, state, poles, derivative_order, moment_scales)
+    z = z.copy()
+    g, jac = _square_system(z, *args, bound_m, bound_limit, times_a, times_b, active, movable)
+    rcond = np.finfo(np.float64).eps * max(jac.shape[0], jac.shape[1])
+    previous = np.inf
+    for k in range(iterations):
+        size = np.max(np.abs(g))
+        if size < 1e-14:
+            return z, True
+        if stall and k >= stall_after and size > 0.5 * previous:
+            return z, size < converged
+        previous = size
+        step = np.linalg.lstsq(jac, g, rcond=rcond)[0]
+        if stall:  # damped: the step halved until the residual falls and no duration is < 0
+            improved = False
+            trial = z.copy()
+            for _ in range(halvings):
+                trial = z.copy()
+                for c in range(movable.size):
+                    trial[movable[c]] -= step[c]
+                if np.all(trial[:count] >= -1e-12):
+                    trial[:count] = np.maximum(trial[:count], 0.0)
+                    g, jac = _square_system(trial, *args, bound_m, bound_limit, times_a, times_b, active, movable)
+                    if np.max(np.abs(g)) < size:
+                        improved = True
+                        break
+                step = 0.5 * step
+            if not improved:
+                return z, size < converged
+            z = trial
+        else:
+            for c in range(movable.size):
+                z[movable[c]] -= step[c]
+            if np.any(z[:count] < -1e-12):
+                return z, False
+            z[:count] = np.maximum(z[:count], 0.0)
+            g, jac = _square_system(z, *args, bound_m, bound_limit, times_a, times_b, active, movable)
+    return z, np.max(np.abs(g)) < converged

@@ -100,9 +100,16 @@ class _Best:
         self.repairs = 0
         self.notching = False  # repairs also notch where sigma contradicts a bang arc (last_repairs)
         self.repaired: list[tuple[tuple[Arc, ...], str]] = []  # repaired commands not proven: offered at the end
+        self.accepted: dict[tuple[Arc, ...], bool] = {}  # accepts' answers
 
     def accepts(self, arcs: tuple[Arc, ...]) -> bool:
-        return (self.check_limits is None or self.check_limits(arcs)) and self.search.verified(arcs)
+        """``arcs`` meet every limit exactly and the bands on the dense check (remembered: a chain's command is
+        checked before its certificate, and again when offered)."""
+        known = self.accepted.get(arcs)
+        if known is None:
+            known = (self.check_limits is None or self.check_limits(arcs)) and self.search.verified(arcs)
+            self.accepted[arcs] = known
+        return known
 
     def offer(self, arcs: tuple[Arc, ...], method: str, note: str, proof: Certificate | None = None) -> bool:
         """Keep ``arcs`` if shorter and they check out; ``proof``: their certificate, if already found."""
@@ -130,6 +137,12 @@ class _Best:
             return
         self.repairs += 1
         result = refine(self.spec, *start, self.search.cuts)
+        stuck = result is None or _duration_s(result.arcs) > _duration_s(arcs) * (1 - PROGRESS)
+        if stuck and where is not None and self.repairs < REPAIRS:  # a notch SLSQP fails from or comes back no
+            self.repairs += 1  # shorter from: once more WIDER times wider (as a chain's: _Best.chain)
+            durations, levels, _ = as_start(self.spec, arcs)
+            wider = notched(self.spec, durations, levels, *where, share=WIDER * NOTCH_SHARE)
+            result = refine(self.spec, *wider, self.search.cuts) or result
         if result is None:
             return
         note = result.status + how

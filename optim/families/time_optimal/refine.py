@@ -5,8 +5,8 @@ The grid solution fixes the arc structure (bang, coast, switch inside a step). W
 small smooth problem: minimise sum d_j subject to the end state and the residual moments (equalities),
 the node bounds and the band points (|F_0|^2 <= c^2, true circles). It has a few to a few dozen
 unknowns and closed-form constraints, so scipy's SLSQP solves it in milliseconds with no build cost
-(a CasADi problem would have to be built for each structure; the constraints and their Jacobians are compiled
-once for all structures: optim.families.time_optimal.kernels); a Newton polish on the active
+(a CasADi problem would have to be built for each structure; the constraints, their Jacobians and the Newton are
+compiled once for all structures: optim.families.time_optimal.kernels); a Newton polish on the active
 constraints then brings the equalities to round-off (from SLSQP's last point also where it stopped at its
 iteration cap, after one more run from there: often a shorter command than its start). The caller keeps the
 result only if it checks out (limits, dense band) and is shorter than the best so far.
@@ -14,6 +14,7 @@ result only if it checks out (limits, dense band) and is shorter than the best s
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -43,15 +44,29 @@ class Refined:
     status: str
 
 
+@functools.lru_cache(maxsize=64)
+def _check_times(count: int, mid_arc: bool) -> Array:
+    """The check points' times as rows . d over ``count`` arcs: every arc's end but the last (e_b = sum_(i <= b)
+    d_i), then with ``mid_arc`` every arc's middle (shared by every structure of that size: never written; not
+    flagged read-only, which numba would compile a second time for)."""
+    arc_ends = np.tril(np.ones((count, count)))[:-1]
+    mid = np.tril(np.ones((count, count)), -1) + 0.5 * np.eye(count)
+    out = np.vstack([arc_ends, mid]) if mid_arc else arc_ends
+    return out
+
+
 class _Model:
     """The constraint functions of one arc structure and their Jacobians, in scaled variables
     z = (d / T0, free levels)."""
 
     def __init__(self, spec: Spec, durations: list[float], levels: list[float], free: list[bool], cuts: list[Cut]):
         # numba (~60 MiB) is imported by the first refinement, not by every process that imports the families
-        from optim.families.time_optimal.kernels import bound_system, end_system, moment_terms
+        from optim.families.time_optimal.kernels import bound_system, end_system, moment_terms, polish
 
-        self.end_system, self.bound_system, self.moment_terms = end_system, bound_system, moment_terms
+        self.end_system: Any = end_system  # (numba's Dispatcher: typed by its arguments at run time)
+        self.bound_system: Any = bound_system
+        self.moment_terms: Any = moment_terms
+        self.polish_kernel: Any = polish
         self.spec = spec
         self.t0 = sum(durations)
         self.levels = np.asarray(levels, dtype=float)
@@ -74,14 +89,17 @@ class _Model:
         for n in range(self.derivative_order + 1):
             diff = moment_terms(self.poles, n, durations_s, self.levels, False)[2]
             self.moment_scales[n] = np.sum(np.abs(diff), axis=1) + 1e-300
-        arc_ends = np.tril(np.ones((self.count, self.count)))[:-1]  # e_b = sum_{i <= b} d_i, b < last
         limits = [(1, spec.max_velocity)] + ([(2, spec.max_acceleration)] if q == 3 else [])
-        mid = np.tril(np.ones((self.count, self.count)), -1) + 0.5 * np.eye(self.count)
         self.bounds = [  # (derivative, limit, the check points' times: rows . d): arc ends, and mid-arc with a jerk
-            (m, float(limit), np.vstack([arc_ends, mid]) if m == 1 and q == 3 else arc_ends)
+            (m, float(limit), _check_times(self.count, m == 1 and q == 3))
             for m, limit in limits
             if limit is not None and self.count >= 2
         ]
+        self._last: dict[str, tuple[bytes, Array, Array]] = {}  # _remembered's
+        self.bound_m = np.array([m for m, _, _ in self.bounds], dtype=np.int64)  # the same, for kernels.polish
+        self.bound_limit = np.array([limit for _, limit, _ in self.bounds], dtype=float)
+        none = np.zeros((0, self.count))
+        self.bound_times = [at for _, _, at in self.bounds] + [none] * (2 - len(self.bounds))
 
     def durations_and_levels(self, z: Array) -> tuple[Array, Array]:
         """The durations (negatives as 0) and the levels, the free ones from z (as kernels._unpack)."""
@@ -95,6 +113,24 @@ class _Model:
         start = np.concatenate(([0.0], np.cumsum(d)[:-1]))
         return start, start + d, lv
 
+    def kernel_args(self, z: Array) -> tuple[Any, ...]:
+        """z and the structure's data, as kernels.end_system (and kernels.polish) take them."""
+        return (
+            z,
+            self.count,
+            self.t0,
+            self.levels,
+            self.free_at,
+            self.spec.scale,
+            self.orders,
+            self.targets,
+            self.eq_scale,
+            self.state,
+            self.poles,
+            self.derivative_order,
+            self.moment_scales,
+        )
+
     def _jac(self, jac_d: Any, diff: Any, scale: Any) -> Any:
         """d/dz of value / scale: d = z T0 (durations) and the free levels."""
         if jac_d is None:
@@ -106,22 +142,7 @@ class _Model:
         (optim.families.time_optimal.kernels)."""
         spec, u = self.spec, self.spec.scale
         if kind == "eq":
-            values, jac = self.end_system(
-                z,
-                self.count,
-                self.t0,
-                self.levels,
-                self.free_at,
-                u,
-                self.orders,
-                self.targets,
-                self.eq_scale,
-                self.state,
-                self.poles,
-                self.derivative_order,
-                self.moment_scales,
-                want_jac,
-            )
+            values, jac = self.end_system(*self.kernel_args(z), want_jac)
             return values, (jac if want_jac else np.zeros(0))
         parts = [
             self.bound_system(z, self.count, self.t0, self.levels, self.free_at, u, self.state, m, bound, at, want_jac)
@@ -144,18 +165,28 @@ class _Model:
             return np.zeros(0), np.zeros((0, z.size))
         return np.concatenate(values_list), (np.vstack(jacs) if want_jac else np.zeros(0))
 
+    def _remembered(self, z: Array, kind: str) -> tuple[Array, Array]:
+        """_parts with the Jacobian, remembered for the latest z of each kind: SLSQP asks the values, then the
+        Jacobian, at the same point (66 evaluations at 18 points on a held-jerk chain's refine)."""
+        key = z.tobytes()
+        last = self._last.get(kind)
+        if last is None or last[0] != key:
+            last = (key, *self._parts(z, kind))
+            self._last[kind] = last
+        return last[1].copy(), last[2].copy()  # (the caller may write to them)
+
     def equalities(self, z: Array) -> Array:
-        return self._parts(z, "eq", False)[0]
+        return self._remembered(z, "eq")[0]
 
     def equality_jacobian(self, z: Array) -> Array:
-        return self._parts(z, "eq")[1]
+        return self._remembered(z, "eq")[1]
 
     def inequalities(self, z: Array) -> Array:
         """>= 0 when met (scaled)."""
-        return self._parts(z, "ineq", False)[0]
+        return self._remembered(z, "ineq")[0]
 
     def inequality_jacobian(self, z: Array) -> Array:
-        return self._parts(z, "ineq")[1]
+        return self._remembered(z, "ineq")[1]
 
 
 def refine(
@@ -226,7 +257,8 @@ def _arcs(spec: Spec, model: _Model, z: Array) -> tuple[Arc, ...]:
 
 def _polish(model: _Model, z: Array, iterations: int = 20, stall: bool = False) -> Array | None:
     """Newton (minimal-norm steps) on the equalities and the active inequalities, from SLSQP's point (or a predicted
-    start: with ``stall``, it gives up once its residual no longer halves)."""
+    start: with ``stall``, it gives up once its residual no longer halves); None if it does not converge. Compiled
+    (kernels.polish) where the model has no band cuts, else ``_polish_numpy``: the same steps."""
     z = z.copy()
     z[: model.count] = np.where(z[: model.count] < 1e-8, 0.0, z[: model.count])
     levels = z[model.count :]
@@ -237,7 +269,29 @@ def _polish(model: _Model, z: Array, iterations: int = 20, stall: bool = False) 
         on_level |= near
     movable = np.flatnonzero(np.concatenate([z[: model.count] > 0.0, ~on_level]))
     ineq = model.inequalities(z)
-    active = np.flatnonzero(np.abs(ineq) < ACTIVE) if ineq.size else np.zeros(0, dtype=int)
+    active = np.abs(ineq) < ACTIVE
+    if model.cuts or not movable.size:
+        return _polish_numpy(model, z, movable, np.flatnonzero(active), iterations, stall)
+    z, ok = model.polish_kernel(
+        *model.kernel_args(z),
+        model.bound_m,
+        model.bound_limit,
+        *model.bound_times,
+        active,
+        movable.astype(np.int64),
+        iterations,
+        stall,
+        STALL_AFTER,
+        DAMPING_HALVINGS,
+        CONVERGED,
+    )
+    return z if ok else None
+
+
+def _polish_numpy(
+    model: _Model, z: Array, movable: NDArray[np.intp], active: NDArray[np.intp], iterations: int, stall: bool
+) -> Array | None:
+    """_polish's Newton in numpy, on the ``active`` inequalities (indices) and the ``movable`` variables."""
 
     def system(v: Array, want_jac: bool = True) -> tuple[Array, Array]:
         """The equalities and the active inequalities at v, and their Jacobian in the movable variables."""
