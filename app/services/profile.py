@@ -61,7 +61,7 @@ async def design(
 ) -> tuple[dict[str, Any], Result]:
     """The answer of a family endpoint and the pipeline's ``Result`` it was made from (for the CSV table)."""
     try:
-        problem = await anyio.to_thread.run_sync(body.to_problem, settings)
+        problem = await _problem_of(body, settings, pool)
         reason = family.not_applicable(problem)
         if reason is not None:  # before the options, whose defaults may need what is missing (a mode)
             raise NotApplicable(reason)
@@ -71,6 +71,15 @@ async def design(
     answer = answer_body(result)
     answer["warnings"] = [*body.deprecations, *answer["warnings"]]
     return answer, result
+
+
+async def _problem_of(body: ProfileRequest, settings: Settings, pool: Executor) -> Problem:
+    """The request's ``Problem``: in a server off the event loop (a plant's modal form can take milliseconds);
+    where the design runs in the calling process (``InlineExecutor``: the Python API, the CLI, whose loop runs this
+    design and nothing else) here, without the thread hop (0.4 ms, a tenth of a nominal design)."""
+    if isinstance(pool, InlineExecutor):
+        return body.to_problem(settings)
+    return await anyio.to_thread.run_sync(body.to_problem, settings)
 
 
 def as_sent(exc: DomainError, body: ProfileRequest) -> DomainError:
