@@ -10,12 +10,14 @@ answers differ in duration by more than 1e-9 (they should not be longer: the scr
 
 Cases (the issue's speed targets): 20 seeded single-mode moves of bench/time_optimal_random.py without a jerk limit,
 20 with one; the README's move (nominal), its robust +-10 % design, bench/time_optimal.py's two- and three-mode
-transfer functions.
+transfer functions (one hard move each), and 20 seeded moves of the random bench's distribution on two and on three
+modes (a transfer function, every mode cancelled).
 """
 
 from __future__ import annotations
 
 import json
+import math
 import os
 import statistics
 import subprocess
@@ -44,6 +46,23 @@ THREE = {
 }
 
 
+def _modes_moves(rng: Any, count: int, modes: int) -> list[dict[str, Any]]:
+    """``count`` moves of bench/time_optimal_random.py's distribution (displacement, limits, the slowest mode)
+    on ``modes`` modes, each next one 1.5-4 times faster than the one before, all cancelled."""
+    out: list[dict[str, Any]] = []
+    while len(out) < count:
+        request, found, torque = random_move(rng)
+        if torque:
+            continue
+        hz, zeta = found[0][0] / (2 * math.pi), found[0][1]
+        chain = [(hz, zeta)]
+        for _ in range(modes - 1):
+            chain.append((chain[-1][0] * float(rng.uniform(1.5, 4.0)), float(rng.uniform(0.0, 0.2))))
+        plant = product_of_modes(chain)
+        out.append({**request, "plant": plant, "modes": list(range(modes))})
+    return out
+
+
 def cases() -> dict[str, list[dict[str, Any]]]:
     import numpy as np
 
@@ -57,6 +76,7 @@ def cases() -> dict[str, list[dict[str, Any]]]:
         target = jerk if "max_jerk" in request["limits"] else plain
         if len(target) < 20:
             target.append(request)
+    several = np.random.default_rng(26)  # (a stream of its own: the cases above stay the same moves)
     return {
         "one mode, held acceleration (20 random moves)": plain,
         "one mode, held jerk (20 random moves)": jerk,
@@ -64,6 +84,8 @@ def cases() -> dict[str, list[dict[str, Any]]]:
         "the README's move, robust +-10 %": [{**README, "robustness": {"frequency_ratio_range": [0.9, 1.1]}}],
         "two-mode transfer function (bench/time_optimal.py)": [TWO],
         "three-mode transfer function": [THREE],
+        "two modes (20 random moves)": _modes_moves(several, 20, 2),
+        "three modes (20 random moves)": _modes_moves(several, 20, 3),
     }
 
 
