@@ -17,6 +17,7 @@ and cached on disk (numba's ``cache=True``: __pycache__, or NUMBA_CACHE_DIR).
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -243,36 +244,26 @@ def bound_system(
     return values, out
 
 
+# A structure's data after z, as end_system takes them: (count, t0, levels, free, unit, orders, targets, scales,
+# state, poles, derivative_order, moment_scales); and the rows polish holds: (bound_m, bound_limit, times_a, times_b,
+# active, movable): the derivative, limit and check points of each bound (at most two), which of their rows are
+# active, and which entries of z move.
+Structure = tuple[Any, ...]
+Rows = tuple[NDArray[np.int64], Array, Array, Array, NDArray[np.bool_], NDArray[np.int64]]
+
+
 @njit(cache=True)
-def _square_system(
-    v: Array,
-    count: int,
-    t0: float,
-    levels: Array,
-    free: NDArray[np.int64],
-    unit: float,
-    orders: NDArray[np.int64],
-    targets: Array,
-    scales: Array,
-    state: Array,
-    poles: CArray,
-    derivative_order: int,
-    moment_scales: Array,
-    bound_m: NDArray[np.int64],
-    bound_limit: Array,
-    times_a: Array,
-    times_b: Array,
-    active: NDArray[np.bool_],
-    movable: NDArray[np.int64],
-) -> tuple[Array, Array]:
-    """end_system's rows and bound_system's ``active`` rows (over the bounds in turn) at v, their Jacobian in the
-    ``movable`` columns of z."""
+def _square_system(v: Array, structure: Structure, rows: Rows) -> tuple[Array, Array]:
+    """end_system's rows and bound_system's active rows (over the bounds in turn) at v, their Jacobian in the
+    movable columns of z."""
+    count, t0, levels, free, unit, orders, targets, scales, state, poles, derivative_order, moment_scales = structure
+    bound_m, bound_limit, times_a, times_b, active, movable = rows
     values, jac = end_system(
         v, count, t0, levels, free, unit, orders, targets, scales, state, poles, derivative_order, moment_scales, True
     )
-    rows = values.size + int(np.sum(active))
-    out_v = np.zeros(rows)
-    out_j = np.zeros((rows, movable.size))
+    height = values.size + int(np.sum(active))
+    out_v = np.zeros(height)
+    out_j = np.zeros((height, movable.size))
     out_v[: values.size] = values
     for c in range(movable.size):
         out_j[: values.size, c] = jac[:, movable[c]]
@@ -293,36 +284,20 @@ def _square_system(
 @njit(cache=True)
 def polish(
     z: Array,
-    count: int,
-    t0: float,
-    levels: Array,
-    free: NDArray[np.int64],
-    unit: float,
-    orders: NDArray[np.int64],
-    targets: Array,
-    scales: Array,
-    state: Array,
-    poles: CArray,
-    derivative_order: int,
-    moment_scales: Array,
-    bound_m: NDArray[np.int64],
-    bound_limit: Array,
-    times_a: Array,
-    times_b: Array,
-    active: NDArray[np.bool_],
-    movable: NDArray[np.int64],
+    structure: Structure,
+    rows: Rows,
     iterations: int,
     stall: bool,
     stall_after: int,
     halvings: int,
     converged: float,
 ) -> tuple[Array, bool]:
-    """Newton with minimal-norm steps (least squares, LAPACK's gelsd as numpy's) on the equalities and the ``active``
-    inequalities in the ``movable`` variables of z (optim.families.time_optimal.refine._polish, whose rules it
+    """Newton with minimal-norm steps (least squares, LAPACK's gelsd as numpy's) on the equalities and the active
+    inequalities in the movable variables of z (``rows``; optim.families.time_optimal.refine._polish, whose rules it
     follows step for step): (z, True) once the residual is below ``converged``, else (z, False)."""
-    args = (count, t0, levels, free, unit, orders, targets, scales, state, poles, derivative_order, moment_scales)
+    count, movable = structure[0], rows[5]
     z = z.copy()
-    g, jac = _square_system(z, *args, bound_m, bound_limit, times_a, times_b, active, movable)
+    g, jac = _square_system(z, structure, rows)
     rcond = np.finfo(np.float64).eps * max(jac.shape[0], jac.shape[1])
     previous = np.inf
     for k in range(iterations):
@@ -342,7 +317,7 @@ def polish(
                     trial[movable[c]] -= step[c]
                 if np.all(trial[:count] >= -1e-12):
                     trial[:count] = np.maximum(trial[:count], 0.0)
-                    g, jac = _square_system(trial, *args, bound_m, bound_limit, times_a, times_b, active, movable)
+                    g, jac = _square_system(trial, structure, rows)
                     if np.max(np.abs(g)) < size:
                         improved = True
                         break
@@ -356,5 +331,5 @@ def polish(
             if np.any(z[:count] < -1e-12):
                 return z, False
             z[:count] = np.maximum(z[:count], 0.0)
-            g, jac = _square_system(z, *args, bound_m, bound_limit, times_a, times_b, active, movable)
+            g, jac = _square_system(z, structure, rows)
     return z, np.max(np.abs(g)) < converged

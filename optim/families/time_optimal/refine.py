@@ -95,6 +95,20 @@ class _Model:
             for m, limit in limits
             if limit is not None and self.count >= 2
         ]
+        self.structure = (  # (kernels.Structure)
+            self.count,
+            self.t0,
+            self.levels,
+            self.free_at,
+            spec.scale,
+            self.orders,
+            self.targets,
+            self.eq_scale,
+            self.state,
+            self.poles,
+            self.derivative_order,
+            self.moment_scales,
+        )
         self._last: dict[str, tuple[bytes, Array, Array]] = {}  # _remembered's
         self.bound_m = np.array([m for m, _, _ in self.bounds], dtype=np.int64)  # the same, for kernels.polish
         self.bound_limit = np.array([limit for _, limit, _ in self.bounds], dtype=float)
@@ -114,22 +128,8 @@ class _Model:
         return start, start + d, lv
 
     def kernel_args(self, z: Array) -> tuple[Any, ...]:
-        """z and the structure's data, as kernels.end_system (and kernels.polish) take them."""
-        return (
-            z,
-            self.count,
-            self.t0,
-            self.levels,
-            self.free_at,
-            self.spec.scale,
-            self.orders,
-            self.targets,
-            self.eq_scale,
-            self.state,
-            self.poles,
-            self.derivative_order,
-            self.moment_scales,
-        )
+        """z and the structure's data, as kernels.end_system takes them."""
+        return (z, *self.structure)
 
     def _jac(self, jac_d: Any, diff: Any, scale: Any) -> Any:
         """d/dz of value / scale: d = z T0 (durations) and the free levels."""
@@ -272,19 +272,8 @@ def _polish(model: _Model, z: Array, iterations: int = 20, stall: bool = False) 
     active = np.abs(ineq) < ACTIVE
     if model.cuts or not movable.size:
         return _polish_numpy(model, z, movable, np.flatnonzero(active), iterations, stall)
-    z, ok = model.polish_kernel(
-        *model.kernel_args(z),
-        model.bound_m,
-        model.bound_limit,
-        *model.bound_times,
-        active,
-        movable.astype(np.int64),
-        iterations,
-        stall,
-        STALL_AFTER,
-        DAMPING_HALVINGS,
-        CONVERGED,
-    )
+    rows = (model.bound_m, model.bound_limit, *model.bound_times, active, movable.astype(np.int64))
+    z, ok = model.polish_kernel(z, model.structure, rows, iterations, stall, STALL_AFTER, DAMPING_HALVINGS, CONVERGED)
     return z if ok else None
 
 

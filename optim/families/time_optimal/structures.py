@@ -132,6 +132,6 @@ def reversal_starts(spec: Spec, rigid: RigidMove | None) -> list[Start]:
                 shapes = heapq.nsmallest(BEAM, shapes, key=rank)  # (as sorted(...)[:BEAM], in 1/10 of the time)
             width = fraction * 2 * math.pi / abs(pole.imag)
             shapes = list(itertools.chain.from_iterable(_insertions(d, lv, width, ramp_s) for d, lv, _ in shapes))
-        kept = heapq.nsmallest(MAX_STARTS - len(starts), shapes, key=rank)
-        starts += [(d, lv, [False] * len(lv)) for d, lv, _ in kept]
+        best = heapq.nsmallest(MAX_STARTS - len(starts), shapes, key=rank)
+        starts += [(d, lv, [False] * len(lv)) for d, lv, _ in best]
     return starts
