@@ -195,3 +195,37 @@ def test_compiled_polish_takes_the_numpy_steps() -> None:
             converged += 1
             assert np.max(np.abs(compiled - reference)) <= 1e-12
     assert 0 < converged < len(starts)  # both outcomes compared
+
+
+@pytest.mark.parametrize("q", [2, 3])
+@pytest.mark.parametrize("derivative_order", [0, 1])
+def test_phi_values_are_the_certificates_basis_times_theta(
+    rng: np.random.Generator, q: int, derivative_order: int
+) -> None:
+    # The switching function phi(tau) = k(tau) - theta . basis(tau) and its first two derivatives, point by point
+    # (kernels.phi_values), against certify's own matrix form (kernel - _basis @ theta, numpy) to round-off of terms
+    # of O(1) (1e-12 of the largest), and each derivative against central differences of the one below it
+    # (h = 1e-6 on O(1) values: truncation h^2 ~ 1e-12, round-off 1e-10; 1e-6 of the largest with margin).
+    from dataclasses import replace
+
+    from models.plants import ModePlant
+    from optim.families.time_optimal.certify import _basis, _width, kernel
+    from optim.families.time_optimal.kernels import phi_values
+    from optim.problem import Limits, Problem
+
+    jerk = 2000.0 if q == 3 else None
+    spec = _spec_of(Problem(ModePlant(7.0, 0.05), displacement=0.3, limits=Limits(None, 10.0, jerk)))
+    spec = replace(spec, zero_poles=(complex(-0.4, 6.0), complex(-1.5, 11.0)), derivative_order=derivative_order)
+    theta = rng.normal(size=_width(spec))
+    tau = np.linspace(0.0, 1.3, 57)
+    poles = np.asarray(spec.zero_poles, dtype=complex)
+    values = [phi_values(tau, theta, q, poles, derivative_order, d) for d in range(3)]
+    for d in range(3):
+        expected = kernel(q, tau, d) - _basis(spec, tau, d) @ theta
+        assert np.max(np.abs(values[d] - expected)) <= 1e-12 * max(1.0, float(np.max(np.abs(expected))))
+    for d in (1, 2):
+        slope = (
+            phi_values(tau + STEP, theta, q, poles, derivative_order, d - 1)
+            - phi_values(tau - STEP, theta, q, poles, derivative_order, d - 1)
+        ) / (2 * STEP)
+        assert np.max(np.abs(values[d] - slope)) <= 1e-6 * max(1.0, float(np.max(np.abs(values[d]))))

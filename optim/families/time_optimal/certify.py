@@ -40,7 +40,6 @@ from numpy.typing import NDArray
 from optim.families.time_optimal.types import Arc, Spec
 
 Array = NDArray[np.float64]
-CArray = NDArray[np.complex128]
 CHECK_PER_PERIOD = 64  # sign checks per period of the fastest zero-residual mode, on every arc (and at each local
 # minimum of level * sigma between them, by its parabola: sigma is smooth at that scale)
 MIN_CHECKS = 16  # per arc, at least
@@ -78,16 +77,15 @@ def kernel(q: int, tau: Array, derivative: int = 0) -> Array:
     return tau**power / math.factorial(power)
 
 
-def _basis(spec: Spec, tau: Array, derivative: int = 0, waves: list[CArray] | None = None) -> Array:
+def _basis(spec: Spec, tau: Array, derivative: int = 0) -> Array:
     """The columns of phi's unknown part at ``tau`` (tau^j for j < q - 1, then Re and Im of tau^n e^(p tau) for
-    every pole and n), or their ``derivative``-th derivative in tau (0, 1 or 2); ``waves``: e^(p tau) of every
-    pole at ``tau``, if already computed (``_waves``)."""
+    every pole and n), or their ``derivative``-th derivative in tau (0, 1 or 2)."""
     out = np.zeros((tau.size, _width(spec)))
     for j in range(derivative, spec.order - 1):
         out[:, j] = math.perm(j, derivative) * tau ** (j - derivative)
     column = spec.order - 1
-    for k, pole in enumerate(spec.zero_poles):
-        wave = np.exp(pole * tau) if waves is None else waves[k]
+    for pole in spec.zero_poles:
+        wave = np.exp(pole * tau)
         for n in range(spec.derivative_order + 1):
             # d^r/dtau^r (tau^n e^(p tau)) = sum_i C(r, i) n!/(n-i)! tau^(n-i) p^(r-i) e^(p tau)
             value = sum(
@@ -99,9 +97,15 @@ def _basis(spec: Spec, tau: Array, derivative: int = 0, waves: list[CArray] | No
     return out
 
 
-def _waves(spec: Spec, tau: Array) -> list[CArray]:
-    """e^(p tau) at ``tau`` for every zero-residual pole (shared by _basis's derivatives at the same points)."""
-    return [np.exp(pole * tau) for pole in spec.zero_poles]
+def _phi(spec: Spec, tau: Array, theta: Array, derivative: int = 0) -> Array:
+    """phi^(derivative)(tau) = kernel - _basis . theta, compiled point by point (kernels.phi_values: the check
+    points' sigma and densities without the basis matrix, a third of a certificate's time; the same values to
+    round-off, tests/optim/test_time_optimal_kernels.py)."""
+    from optim.families.time_optimal.kernels import phi_values  # (numba: in the process that refines)
+
+    poles = np.asarray(spec.zero_poles, dtype=complex)
+    values: Array = phi_values(np.ascontiguousarray(tau), theta, spec.order, poles, spec.derivative_order, derivative)
+    return values
 
 
 def _width(spec: Spec) -> int:
@@ -280,7 +284,6 @@ class _Switching:
     sigma: Array
     atoms: list[tuple[int, float, Linear]]
     total: float
-    waves: list[CArray]  # e^(p (T - s)) at the check points, every pole
 
     def agreement(self) -> tuple[Array, float]:
         """level x sigma at each check point (+inf off the bang arcs: >= 0 where they agree) and max |sigma| on them
@@ -292,8 +295,7 @@ class _Switching:
     def density(self, spec: Spec) -> tuple[Array, float]:
         """mu's density times the arc's sign at each check point (+inf off the first-order constrained arcs: >= 0
         where it has the right sign) and max |phi'(T - s)| (its scale)."""
-        tau = self.total - self.s
-        slope = kernel(spec.order, tau, 1) - _basis(spec, tau, 1, self.waves) @ self.theta
+        slope = _phi(spec, self.total - self.s, self.theta, 1)
         first = self.kind[self.arc] == FIRST
         values = np.where(first, self.sign[self.arc] * (slope + self.beta[self.arc]), np.inf)
         return values, float(np.max(np.abs(slope)))
@@ -301,8 +303,7 @@ class _Switching:
     def curvature(self, spec: Spec) -> tuple[Array, float]:
         """nu's density phi''(T - s) times the coast's sign at each check point (+inf off the coasts: >= 0 where it
         has the right sign) and max |phi''(T - s)| (its scale)."""
-        tau = self.total - self.s
-        bend = kernel(spec.order, tau, 2) - _basis(spec, tau, 2, self.waves) @ self.theta
+        bend = _phi(spec, self.total - self.s, self.theta, 2)
         second = self.kind[self.arc] == SECOND
         return np.where(second, self.sign[self.arc] * bend, np.inf), float(np.max(np.abs(bend)))
 
@@ -347,9 +348,8 @@ def _switching_of(spec: Spec, arcs: tuple[Arc, ...]) -> _Switching | None:
     theta = z[: _width(spec)]
     alpha = np.array([line[0][0] @ z + line[0][1] for line in lines])
     beta = np.array([line[1][0] @ z + line[1][1] for line in lines])
-    waves = _waves(spec, total - s)
-    sigma = kernel(spec.order, total - s) - _basis(spec, total - s, 0, waves) @ theta - alpha[arc] - beta[arc] * s
-    return _Switching(levels, kind, sign, s, arc, z, theta, beta, sigma, atoms, total, waves)
+    sigma = _phi(spec, total - s, theta) - alpha[arc] - beta[arc] * s
+    return _Switching(levels, kind, sign, s, arc, z, theta, beta, sigma, atoms, total)
 
 
 def certificate(spec: Spec, arcs: tuple[Arc, ...]) -> Certificate | None:
