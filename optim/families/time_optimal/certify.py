@@ -251,8 +251,12 @@ def _samples(spec: Spec, durations: Array, starts: Array, ends: Array) -> tuple[
     counts = np.maximum(MIN_CHECKS, np.ceil(durations / spacing)).astype(int)
     if int(np.sum(counts)) > MAX_CHECKS:
         return None
-    s = np.concatenate([np.linspace(a, b, n) for a, b, n in zip(starts, ends, counts, strict=True)])
-    return s, np.repeat(np.arange(durations.size), counts)
+    arc = np.repeat(np.arange(durations.size), counts)
+    last = np.cumsum(counts) - 1
+    index = np.arange(arc.size) - np.repeat(last - counts + 1, counts)  # each point's place in its arc
+    s = index * ((ends - starts) / (counts - 1))[arc] + starts[arc]  # np.linspace's own arithmetic, all arcs at once
+    s[last] = ends  # (as linspace: the last point is the arc's end exactly)
+    return s, arc
 
 
 def _wrong_signed(values: Array, scale: float) -> bool:
