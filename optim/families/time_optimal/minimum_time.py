@@ -36,7 +36,7 @@ from models.rigid_motion import RigidMove
 from models.shapers import ImpulseSequence, convolve
 from optim.families.time_optimal.arcs import arcs_of, merged, structure
 from optim.families.time_optimal.certify import Certificate, certificate, certificate_applies, wrong_sign
-from optim.families.time_optimal.refine import newton, refine
+from optim.families.time_optimal.refine import Refined, newton, refine
 from optim.families.time_optimal.repair import NOTCH_SHARE, bang_start, coast_dips, notched
 from optim.families.time_optimal.search import GridSearch, clip, project
 from optim.families.time_optimal.shaped import as_start, band_shapers, nominal_shaper, rigid_of, shaped_arcs
@@ -77,6 +77,11 @@ def _next_repair(spec: Spec, arcs: tuple[Arc, ...], notching: bool) -> tuple[Sta
         return start, None
     where = wrong_sign(spec, arcs)
     return (None if where is None else notched(spec, durations, levels, *where)), where
+
+
+def _stuck(result: Refined | None, arcs: tuple[Arc, ...]) -> bool:
+    """A repair of ``arcs`` that SLSQP failed from, or brought back shorter by less than PROGRESS."""
+    return result is None or _duration_s(result.arcs) > _duration_s(arcs) * (1 - PROGRESS)
 
 
 @dataclass(frozen=True)
@@ -137,12 +142,9 @@ class _Best:
             return
         self.repairs += 1
         result = refine(self.spec, *start, self.search.cuts)
-        stuck = result is None or _duration_s(result.arcs) > _duration_s(arcs) * (1 - PROGRESS)
-        if stuck and where is not None and self.repairs < REPAIRS:  # a notch SLSQP fails from or comes back no
-            self.repairs += 1  # shorter from: once more WIDER times wider (as a chain's: _Best.chain)
-            durations, levels, _ = as_start(self.spec, arcs)
-            wider = notched(self.spec, durations, levels, *where, share=WIDER * NOTCH_SHARE)
-            result = refine(self.spec, *wider, self.search.cuts) or result
+        if _stuck(result, arcs) and where is not None and self.repairs < REPAIRS:  # (as a chain's notch)
+            self.repairs += 1
+            result = self.wider_notch(arcs, where) or result
         if result is None:
             return
         note = result.status + how
@@ -232,23 +234,27 @@ class _Best:
                 return False
             budget[0] -= 1
             result = refine(self.spec, *start, self.search.cuts)
-            stuck = result is None or _duration_s(result.arcs) > _duration_s(arcs) * (1 - PROGRESS)
-            if stuck and where is not None and budget[0] > 0:  # SLSQP failed from a thin notch, or came back no
-                budget[0] -= 1  # shorter: once more from one WIDER times wider (bench/time_optimal_speed.py's move 6)
-                durations, levels, _ = as_start(self.spec, arcs)
-                wider = notched(self.spec, durations, levels, *where, share=WIDER * NOTCH_SHARE)
-                result = refine(self.spec, *wider, self.search.cuts)
+            if _stuck(result, arcs) and where is not None and budget[0] > 0:  # (bench/time_optimal_speed.py's
+                budget[0] -= 1  # held-jerk move 6)
+                result = self.wider_notch(arcs, where)
             if result is None or not self.accepts(result.arcs):
                 return False
             proof = certificate(self.spec, merged(result.arcs))
             how = f"{note}, repaired where the multipliers say: {result.status}"
             if proof is not None and self.offer(result.arcs, "refined", how, proof):
                 return True
-            if _duration_s(result.arcs) > _duration_s(arcs) * (1 - PROGRESS):
+            if _stuck(result, arcs):
                 return False
             held.append(result.arcs)
             arcs = merged(result.arcs)
         return False
+
+    def wider_notch(self, arcs: tuple[Arc, ...], where: Where) -> Refined | None:
+        """The notch at ``where`` in ``arcs`` WIDER times wider than repair's, refined: where SLSQP failed from the
+        thin one or brought it back no shorter (``_stuck``)."""
+        durations, levels, _ = as_start(self.spec, arcs)
+        wider = notched(self.spec, durations, levels, *where, share=WIDER * NOTCH_SHARE)
+        return refine(self.spec, *wider, self.search.cuts)
 
     def refine_grid(self, values: Array, step_s: float, note: str = "") -> bool:
         """The grid command's structure refined (its fractional levels free), then with them made bang (repair's
