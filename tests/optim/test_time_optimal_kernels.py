@@ -101,9 +101,8 @@ def test_end_system_is_the_end_state_and_the_moments_with_their_jacobian(rng: np
     poles = np.array([complex(-0.5, 12.0)])
     moment_scales = np.array([[1.7], [0.4]])
     unit = 3.0
-    values, jac = end_system(
-        z, count, t0, lv, free, unit, orders, targets, scales, state, poles, 1, moment_scales, True
-    )
+    structure = (count, t0, lv, free, unit, orders, targets, scales, state, poles, 1, moment_scales)
+    values, jac = end_system(z, structure, True)
     for row, m in enumerate(orders):  # unit x the m-th derivative of the command's share, plus the start's drift
         r = order - m
         own = _state_by_polynomials(float(np.sum(d)), d, lv, r)
@@ -116,9 +115,7 @@ def test_end_system_is_the_end_state_and_the_moments_with_their_jacobian(rng: np
         assert values[row + 1] == pytest.approx(f.imag / moment_scales[n, 0], rel=1e-12, abs=1e-13)
 
     def again(x: np.ndarray) -> np.ndarray:
-        return end_system(x, count, t0, lv, free, unit, orders, targets, scales, state, poles, 1, moment_scales, False)[
-            0
-        ]
+        return end_system(x, structure, False)[0]
 
     _close(jac, _central(again, z))
 
@@ -132,14 +129,17 @@ def test_bound_system_is_the_derivative_within_its_limit_at_the_points(rng: np.r
     times = np.vstack(
         [np.tril(np.ones((count, count)))[:-1], np.tril(np.ones((count, count)), -1) + 0.5 * np.eye(count)]
     )
-    values, jac = bound_system(z, count, t0, lv, free, unit, state, 1, limit, times, True)
+    nothing = np.zeros(0)  # (the end conditions' and the moments' data: bound_system does not read them)
+    orders, poles = np.zeros(0, dtype=np.int64), np.zeros(0, dtype=complex)
+    structure = (count, t0, lv, free, unit, orders, nothing, nothing, state, poles, -1, np.ones((0, 0)))
+    values, jac = bound_system(z, structure, 1, limit, times, True)
     points = times.shape[0]
     for p, row in enumerate(times):
         t = float(row @ d)
         velocity = unit * _state_by_polynomials(t, d, lv, 2) + state[1] + state[2] * t
         assert values[p] == pytest.approx(1.0 - velocity / limit, rel=1e-12, abs=1e-13)
         assert values[points + p] == pytest.approx(1.0 + velocity / limit, rel=1e-12, abs=1e-13)
-    _close(jac, _central(lambda x: bound_system(x, count, t0, lv, free, unit, state, 1, limit, times, False)[0], z))
+    _close(jac, _central(lambda x: bound_system(x, structure, 1, limit, times, False)[0], z))
 
 
 def _spec_of(problem):  # type: ignore[no-untyped-def]

@@ -146,26 +146,20 @@ def _unpack(z: Array, count: int, t0: float, levels: Array, free: NDArray[np.int
     return d, lv
 
 
+# A structure's data after z, as end_system, bound_system and polish take them: (count, t0, levels, free, unit,
+# orders, targets, scales, state, poles, derivative_order, moment_scales); and the rows polish holds: (bound_m,
+# bound_limit, times_a, times_b, active, movable): the derivative, limit and check points of each bound (at most
+# two), which of their rows are active, and which entries of z move.
+Structure = tuple[Any, ...]
+Rows = tuple[NDArray[np.int64], Array, Array, Array, NDArray[np.bool_], NDArray[np.int64]]
+
+
 @njit(cache=True)
-def end_system(
-    z: Array,
-    count: int,
-    t0: float,
-    levels: Array,
-    free: NDArray[np.int64],
-    unit: float,
-    orders: NDArray[np.int64],
-    targets: Array,
-    scales: Array,
-    state: Array,
-    poles: CArray,
-    derivative_order: int,
-    moment_scales: Array,
-    jac: bool,
-) -> tuple[Array, Array]:
+def end_system(z: Array, structure: Structure, jac: bool) -> tuple[Array, Array]:
     """The equalities of a structure in z = (d / t0, free levels), scaled, and their Jacobian in z: the end state
     (unit x state_terms + the start's drift - target, over ``scales``, for each derivative in ``orders``), then for
     each n <= derivative_order the real and the imaginary parts of F_n at every pole (over ``moment_scales[n]``)."""
+    count, t0, levels, free, unit, orders, targets, scales, state, poles, derivative_order, moment_scales = structure
     d, lv = _unpack(z, count, t0, levels, free)
     q = state.size
     rows = orders.size + 2 * (derivative_order + 1) * poles.size
@@ -206,21 +200,10 @@ def end_system(
 
 
 @njit(cache=True)
-def bound_system(
-    z: Array,
-    count: int,
-    t0: float,
-    levels: Array,
-    free: NDArray[np.int64],
-    unit: float,
-    state: Array,
-    m: int,
-    limit: float,
-    times: Array,
-    jac: bool,
-) -> tuple[Array, Array]:
+def bound_system(z: Array, structure: Structure, m: int, limit: float, times: Array, jac: bool) -> tuple[Array, Array]:
     """The m-th derivative within +-limit at the points ``times`` . d, as 1 - x / limit >= 0 (every point), then
     1 + x / limit >= 0, and their Jacobian in z."""
+    count, t0, levels, free, unit, _, _, _, state, _, _, _ = structure
     d, lv = _unpack(z, count, t0, levels, free)
     q = state.size
     points = times.shape[0]
@@ -247,23 +230,12 @@ def bound_system(
     return values, out
 
 
-# A structure's data after z, as end_system takes them: (count, t0, levels, free, unit, orders, targets, scales,
-# state, poles, derivative_order, moment_scales); and the rows polish holds: (bound_m, bound_limit, times_a, times_b,
-# active, movable): the derivative, limit and check points of each bound (at most two), which of their rows are
-# active, and which entries of z move.
-Structure = tuple[Any, ...]
-Rows = tuple[NDArray[np.int64], Array, Array, Array, NDArray[np.bool_], NDArray[np.int64]]
-
-
 @njit(cache=True)
 def _square_system(v: Array, structure: Structure, rows: Rows) -> tuple[Array, Array]:
     """end_system's rows and bound_system's active rows (over the bounds in turn) at v, their Jacobian in the
     movable columns of z."""
-    count, t0, levels, free, unit, orders, targets, scales, state, poles, derivative_order, moment_scales = structure
     bound_m, bound_limit, times_a, times_b, active, movable = rows
-    values, jac = end_system(
-        v, count, t0, levels, free, unit, orders, targets, scales, state, poles, derivative_order, moment_scales, True
-    )
+    values, jac = end_system(v, structure, True)
     height = values.size + int(np.sum(active))
     out_v = np.zeros(height)
     out_j = np.zeros((height, movable.size))
@@ -273,7 +245,7 @@ def _square_system(v: Array, structure: Structure, rows: Rows) -> tuple[Array, A
     row, seen = values.size, 0
     for b in range(bound_m.size):
         times = times_a if b == 0 else times_b
-        more, more_jac = bound_system(v, count, t0, levels, free, unit, state, bound_m[b], bound_limit[b], times, True)
+        more, more_jac = bound_system(v, structure, bound_m[b], bound_limit[b], times, True)
         for i in range(more.size):
             if active[seen + i]:
                 out_v[row] = more[i]

@@ -127,10 +127,6 @@ class _Model:
         start = np.concatenate(([0.0], np.cumsum(d)[:-1]))
         return start, start + d, lv
 
-    def kernel_args(self, z: Array) -> tuple[Any, ...]:
-        """z and the structure's data, as kernels.end_system takes them."""
-        return (z, *self.structure)
-
     def _jac(self, jac_d: Any, diff: Any, scale: Any) -> Any:
         """d/dz of value / scale: d = z T0 (durations) and the free levels."""
         if jac_d is None:
@@ -142,12 +138,9 @@ class _Model:
         (optim.families.time_optimal.kernels)."""
         spec, u = self.spec, self.spec.scale
         if kind == "eq":
-            values, jac = self.end_system(*self.kernel_args(z), want_jac)
+            values, jac = self.end_system(z, self.structure, want_jac)
             return values, (jac if want_jac else np.zeros(0))
-        parts = [
-            self.bound_system(z, self.count, self.t0, self.levels, self.free_at, u, self.state, m, bound, at, want_jac)
-            for m, bound, at in self.bounds
-        ]
+        parts = [self.bound_system(z, self.structure, m, bound, at, want_jac) for m, bound, at in self.bounds]
         values_list = [part[0] for part in parts]
         jacs = [part[1] for part in parts]
         if self.cuts:
