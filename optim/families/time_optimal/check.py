@@ -71,7 +71,10 @@ def band_grid(spec: Spec, band: Band, points: int) -> BandGrid:
 def worst_ratios(spec: Spec, grid: BandGrid, start: Array, end: Array, level: Array, total_s: float) -> Array:
     """|F_0| / bound at every point of ``grid`` for the command holding ``level`` on [start, end), computed in
     blocks of points of at most ``MOMENT_BLOCK_ELEMENTS`` moments each: the whole (points x pieces) moment matrix
-    and its temporaries reached 380 MiB in a worker (20,000 band points x 600 pieces, issue 23's fuzz run)."""
+    and its temporaries reached 380 MiB in a worker (20,000 band points x 600 pieces, issue 23's fuzz run). The
+    pieces are merged into ``runs`` first (a grid command of a few hundred steps is a few dozen runs: the check
+    took a quarter of a robust design)."""
+    start, end, level = runs(start, end, level)
     rows = max(1, MOMENT_BLOCK_ELEMENTS // max(1, start.size))
     ratios: Array = np.empty(grid.bound.size)
     for first in range(0, grid.bound.size, rows):  # blocks of >= 1 point: bounded memory, vectorised within
@@ -79,6 +82,16 @@ def worst_ratios(spec: Spec, grid: BandGrid, start: Array, end: Array, level: Ar
         moment = acceleration_moment(spec, grid.poles[block], start, end, total_s, 0)
         ratios[block] = np.abs(moment @ level) / grid.bound[block]
     return ratios
+
+
+def runs(start: Array, end: Array, level: Array) -> tuple[Array, Array, Array]:
+    """The pieces merged into runs of one level, the runs at 0 dropped: the same command (F_0 is linear in the
+    level of each piece and additive over adjacent pieces), in fewer pieces."""
+    joined = np.flatnonzero((level[1:] != level[:-1]) | (start[1:] != end[:-1])) + 1
+    first = np.concatenate(([0], joined))
+    last = np.concatenate((joined, [level.size])) - 1
+    held = level[first] != 0.0
+    return start[first][held], end[last][held], level[first][held]
 
 
 def violations(ratios: Array, rows: int = 1, count: int = 40, near: float = 0.995) -> NDArray[np.intp]:
