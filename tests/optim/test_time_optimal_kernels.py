@@ -219,13 +219,51 @@ def test_phi_values_are_the_certificates_basis_times_theta(
     theta = rng.normal(size=_width(spec))
     tau = np.linspace(0.0, 1.3, 57)
     poles = np.asarray(spec.zero_poles, dtype=complex)
-    values = [phi_values(tau, theta, q, poles, derivative_order, d) for d in range(3)]
+    exact = np.zeros(tau.size)  # (no step: every exponential computed)
+    values = [phi_values(tau, exact, theta, q, poles, derivative_order, d) for d in range(3)]
     for d in range(3):
         expected = kernel(q, tau, d) - _basis(spec, tau, d) @ theta
         assert np.max(np.abs(values[d] - expected)) <= 1e-12 * max(1.0, float(np.max(np.abs(expected))))
     for d in (1, 2):
         slope = (
-            phi_values(tau + STEP, theta, q, poles, derivative_order, d - 1)
-            - phi_values(tau - STEP, theta, q, poles, derivative_order, d - 1)
+            phi_values(tau + STEP, exact, theta, q, poles, derivative_order, d - 1)
+            - phi_values(tau - STEP, exact, theta, q, poles, derivative_order, d - 1)
         ) / (2 * STEP)
         assert np.max(np.abs(values[d] - slope)) <= 1e-6 * max(1.0, float(np.max(np.abs(values[d]))))
+
+
+@pytest.mark.parametrize("q", [2, 3])
+@pytest.mark.parametrize("derivative_order", [0, 1])
+def test_phi_values_on_the_certificates_check_points_take_products_to_round_off(
+    rng: np.random.Generator, q: int, derivative_order: int
+) -> None:
+    # On the check points certify._samples lays (each arc's evenly spaced, 64 per period of the fastest pole, here
+    # 150 Hz over 1.3 s: 12,500 points; tau = T - s descending, a junction's time twice), phi_values takes most
+    # exponentials as products (kernels.EXACT_EVERY): the same values as certify's matrix form to 1e-12 of the
+    # largest term (found: 2e-13, |p| x an ulp of tau, the rounded points against the progression's; the products'
+    # own round-off, ~1e-16 each, stays below it). A step of the wrong sign or size is off by O(1).
+    from dataclasses import replace
+
+    from models.plants import ModePlant
+    from optim.families.time_optimal.certify import _basis, _samples, _width, kernel
+    from optim.families.time_optimal.kernels import phi_values
+    from optim.problem import Limits, Problem
+
+    jerk = 2000.0 if q == 3 else None
+    spec = _spec_of(Problem(ModePlant(7.0, 0.05), displacement=0.3, limits=Limits(None, 10.0, jerk)))
+    spec = replace(spec, zero_poles=(complex(-0.4, 6.0), complex(-30.0, 2 * np.pi * 150.0)))
+    spec = replace(spec, derivative_order=derivative_order)
+    theta = rng.normal(size=_width(spec))
+    edges = np.array([0.0, 0.1237, 0.5, 0.5031, 1.3])
+    sampled = _samples(spec, np.diff(edges), edges[:-1], edges[1:])
+    assert sampled is not None
+    s, _, step = sampled
+    tau = edges[-1] - s
+    assert tau.size > 12_000 and np.count_nonzero(step) == tau.size - 4
+    poles = np.asarray(spec.zero_poles, dtype=complex)
+    for d in range(3):
+        basis = _basis(spec, tau, d)
+        expected = kernel(q, tau, d) - basis @ theta
+        terms = float(np.max(np.abs(kernel(q, tau, d)) + np.abs(basis) @ np.abs(theta)))
+        found = phi_values(tau, step, theta, q, poles, derivative_order, d)
+        assert np.max(np.abs(found - expected)) <= 1e-12 * terms

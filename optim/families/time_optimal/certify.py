@@ -97,14 +97,16 @@ def _basis(spec: Spec, tau: Array, derivative: int = 0) -> Array:
     return out
 
 
-def _phi(spec: Spec, tau: Array, theta: Array, derivative: int = 0) -> Array:
+def _phi(spec: Spec, tau: Array, step: Array, theta: Array, derivative: int = 0) -> Array:
     """phi^(derivative)(tau) = kernel - _basis . theta, compiled point by point (kernels.phi_values: the check
     points' sigma and densities without the basis matrix, a third of a certificate's time; the same values to
-    round-off, tests/optim/test_time_optimal_kernels.py)."""
+    round-off, tests/optim/test_time_optimal_kernels.py). ``step``: tau's even spacing where it has one (_samples),
+    else 0."""
     from optim.families.time_optimal.kernels import phi_values  # (numba: in the process that refines)
 
     poles = np.asarray(spec.zero_poles, dtype=complex)
-    values: Array = phi_values(np.ascontiguousarray(tau), theta, spec.order, poles, spec.derivative_order, derivative)
+    tau = np.ascontiguousarray(tau)
+    values: Array = phi_values(tau, step, theta, spec.order, poles, spec.derivative_order, derivative)
     return values
 
 
@@ -245,7 +247,9 @@ def _with_minima(values: Array, arc: NDArray[np.intp]) -> Array:
     return np.concatenate([values, vertex])
 
 
-def _samples(spec: Spec, durations: Array, starts: Array, ends: Array) -> tuple[Array, NDArray[np.intp]] | None:
+def _samples(spec: Spec, durations: Array, starts: Array, ends: Array) -> tuple[Array, NDArray[np.intp], Array] | None:
+    """The check points s (each arc's evenly spaced, ends included), their arcs, and each point's step in T - s from
+    the point before on its arc (0 for an arc's first point: kernels.phi_values' products); None beyond MAX_CHECKS."""
     fastest = max(abs(p.imag) for p in spec.zero_poles) if spec.zero_poles else 0.0
     spacing = 2 * math.pi / fastest / CHECK_PER_PERIOD if fastest > 0 else float(ends[-1])
     counts = np.maximum(MIN_CHECKS, np.ceil(durations / spacing)).astype(int)
@@ -254,9 +258,10 @@ def _samples(spec: Spec, durations: Array, starts: Array, ends: Array) -> tuple[
     arc = np.repeat(np.arange(durations.size), counts)
     last = np.cumsum(counts) - 1
     index = np.arange(arc.size) - np.repeat(last - counts + 1, counts)  # each point's place in its arc
-    s = index * ((ends - starts) / (counts - 1))[arc] + starts[arc]  # np.linspace's own arithmetic, all arcs at once
+    spacing = ((ends - starts) / (counts - 1))[arc]
+    s = index * spacing + starts[arc]  # np.linspace's own arithmetic, all arcs at once
     s[last] = ends  # (as linspace: the last point is the arc's end exactly)
-    return s, arc
+    return s, arc, np.where(index > 0, -spacing, 0.0)
 
 
 def _wrong_signed(values: Array, scale: float) -> bool:
@@ -282,6 +287,7 @@ class _Switching:
     sign: Array
     s: Array  # the check points (s, time from the start) and the arc of each
     arc: NDArray[np.intp]
+    step: Array  # each point's step in T - s from the one before on its arc (0: its first)
     z: Array  # theta, then the entry atoms
     theta: Array
     beta: Array  # each arc's line's slope
@@ -299,7 +305,7 @@ class _Switching:
     def density(self, spec: Spec) -> tuple[Array, float]:
         """mu's density times the arc's sign at each check point (+inf off the first-order constrained arcs: >= 0
         where it has the right sign) and max |phi'(T - s)| (its scale)."""
-        slope = _phi(spec, self.total - self.s, self.theta, 1)
+        slope = _phi(spec, self.total - self.s, self.step, self.theta, 1)
         first = self.kind[self.arc] == FIRST
         values = np.where(first, self.sign[self.arc] * (slope + self.beta[self.arc]), np.inf)
         return values, float(np.max(np.abs(slope)))
@@ -307,7 +313,7 @@ class _Switching:
     def curvature(self, spec: Spec) -> tuple[Array, float]:
         """nu's density phi''(T - s) times the coast's sign at each check point (+inf off the coasts: >= 0 where it
         has the right sign) and max |phi''(T - s)| (its scale)."""
-        bend = _phi(spec, self.total - self.s, self.theta, 2)
+        bend = _phi(spec, self.total - self.s, self.step, self.theta, 2)
         second = self.kind[self.arc] == SECOND
         return np.where(second, self.sign[self.arc] * bend, np.inf), float(np.max(np.abs(bend)))
 
@@ -348,12 +354,12 @@ def _switching_of(spec: Spec, arcs: tuple[Arc, ...]) -> _Switching | None:
     z = None if sampled is None or not conditions else _unknowns(conditions, total, spec.order)
     if sampled is None or z is None:
         return None
-    s, arc = sampled
+    s, arc, step = sampled
     theta = z[: _width(spec)]
     alpha = np.array([line[0][0] @ z + line[0][1] for line in lines])
     beta = np.array([line[1][0] @ z + line[1][1] for line in lines])
-    sigma = _phi(spec, total - s, theta) - alpha[arc] - beta[arc] * s
-    return _Switching(levels, kind, sign, s, arc, z, theta, beta, sigma, atoms, total)
+    sigma = _phi(spec, total - s, step, theta) - alpha[arc] - beta[arc] * s
+    return _Switching(levels, kind, sign, s, arc, step, z, theta, beta, sigma, atoms, total)
 
 
 def certificate(spec: Spec, arcs: tuple[Arc, ...]) -> Certificate | None:
