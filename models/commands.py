@@ -255,13 +255,24 @@ class PiecewiseCommand:
             out[0, before] = self.derivatives[0, 0]
         return out
 
+    @cached_property
+    def _peak_by_order(self) -> dict[tuple[int, int | None], float | None]:
+        return {}
+
     def peak_abs(self, m: int, until: int | None = None) -> float | None:
         """max |p^(m)| over [t_0, t_{N-1}] (or [t_0, t_until]), including extrema inside the pieces.
 
         None when p^(m) is impulsive, i.e. a lower derivative jumps somewhere (including a start
         from rest with a non-zero value). Exact when p^(m) has degree <= 3 inside a piece (its derivative's
-        roots are found in closed form); otherwise also sampled at 16 interior points per piece.
+        roots are found in closed form); otherwise also sampled at 16 interior points per piece. Computed once
+        per (m, until).
         """
+        cache = self._peak_by_order
+        if (m, until) not in cache:
+            cache[m, until] = self._peak_abs(m, until)
+        return cache[m, until]
+
+    def _peak_abs(self, m: int, until: int | None) -> float | None:
         if m >= 1:
             jumps = np.abs(self.jumps()[:m])
             scale = np.max(np.abs(self.derivatives[:m]), axis=1, keepdims=True)

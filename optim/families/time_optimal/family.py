@@ -11,11 +11,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from functools import partial
+from functools import lru_cache, partial
 from typing import Any, ClassVar
 
 import numpy as np
 
+from models.commands import PiecewiseCommand
 from models.errors import DomainError, Infeasible, InvalidParameter, SolverFailed, SolverTimedOut
 from models.simulation import simulate
 from optim.families.time_optimal import Arc, Solution, Spec, Torque, command_of, solve
@@ -128,9 +129,16 @@ def spec_of(problem: Problem, options: TimeOptimalOptions, chosen: tuple[int, ..
     )
 
 
+@lru_cache(maxsize=8)
+def _exact(arcs: tuple[Arc, ...], order: int, rest_to_rest: bool, initial: tuple[float, ...]) -> PiecewiseCommand:
+    """command_of, remembered for the latest few: limits_met checks the answer, then excess checks it again (peaks
+    only: a level of -0.0 and one of 0.0 are the same key, and give the same peaks)."""
+    return command_of(arcs, order, rest_to_rest, initial)
+
+
 def limits_met(problem: Problem, spec: Spec, arcs: tuple[Arc, ...]) -> bool:
     """The refined command's exact peaks within the limits (the pipeline's own check is 1e-9)."""
-    command = command_of(arcs, spec.order, spec.rest_to_rest, spec.start_state())
+    command = _exact(arcs, spec.order, spec.rest_to_rest, spec.start_state())
     for m, limit in ((1, spec.max_velocity), (2, spec.max_acceleration), (3, spec.max_jerk)):
         peak = command.peak_abs(m)
         if limit is not None and (peak is None or peak > limit * (1 + LIMIT_RTOL)):
@@ -146,7 +154,7 @@ def excess(problem: Problem, spec: Spec, arcs: tuple[Arc, ...]) -> dict[str, flo
     """peak / limit > 1 for every limit a grid command breaks beyond the LP's own check: the velocity of a held
     jerk between nodes, the acceleration (a safety net: the nodes are checked), the torque (simulated on 4000
     points and the corners)."""
-    command = command_of(arcs, spec.order, spec.rest_to_rest, spec.start_state())
+    command = _exact(arcs, spec.order, spec.rest_to_rest, spec.start_state())
     out: dict[str, float] = {}
     peak = command.peak_abs(1)
     if spec.max_velocity is not None and peak is not None and peak > spec.max_velocity * (1 + LIMIT_RTOL):
@@ -287,7 +295,7 @@ class TimeOptimalFamily(BaseFamily):
             solution = solve_within_limits(problem, spec)
             sign = math.copysign(1.0, problem.move)
             arcs = tuple(replace(a, level=sign * a.level) for a in solution.arcs)
-            command = command_of(arcs, spec.order, spec.rest_to_rest, tuple(sign * v for v in spec.start_state()))
+            command = _exact(arcs, spec.order, spec.rest_to_rest, tuple(sign * v for v in spec.start_state()))
             tradeoff, row_capped = None, 0
             if options.tradeoff is not None:
                 tradeoff, row_capped = self._tradeoff(problem, options, chosen)
