@@ -55,6 +55,43 @@ def _check_times(count: int, mid_arc: bool) -> Array:
     return out
 
 
+@dataclass(frozen=True)
+class _Fixed:
+    """What every structure of one spec shares (the end state's orders and targets, the start state, the poles, the
+    limits on check points): computed once per spec, where Newton builds sixteen models a design."""
+
+    state: Array
+    orders: NDArray[np.int64]
+    targets: Array
+    poles: NDArray[np.complex128]
+    derivative_order: int
+    limits: tuple[tuple[int, float], ...]
+
+
+_last_fixed: tuple[Spec, _Fixed] | None = None  # _fixed's latest answer
+
+
+def _fixed(spec: Spec) -> _Fixed:
+    global _last_fixed
+    last = _last_fixed
+    if last is not None and last[0] is spec:
+        return last[1]
+    targets = spec.end_targets()
+    orders = np.fromiter(targets, dtype=np.int64)
+    poles = np.asarray(spec.zero_poles, dtype=complex)
+    below = [(1, spec.max_velocity)] + ([(2, spec.max_acceleration)] if spec.order == 3 else [])
+    fixed = _Fixed(
+        state=np.asarray(spec.start_state(), dtype=float),
+        orders=orders,
+        targets=np.array([targets[m] for m in orders]),
+        poles=poles,
+        derivative_order=spec.derivative_order if poles.size else -1,
+        limits=tuple((m, float(limit)) for m, limit in below if limit is not None),
+    )
+    _last_fixed = (spec, fixed)
+    return fixed
+
+
 class _Model:
     """The constraint functions of one arc structure and their Jacobians, in scaled variables
     z = (d / T0, free levels)."""
@@ -75,25 +112,19 @@ class _Model:
         self.cuts = cuts
         self.z0 = np.concatenate([np.asarray(durations) / self.t0, self.levels[self.free]])
         q, u = spec.order, spec.scale
+        fixed = _fixed(spec)
         self.free_at = self.free.astype(np.int64)
-        self.state = np.asarray(spec.start_state(), dtype=float)
-        targets = spec.end_targets()
-        self.orders = np.fromiter(targets, dtype=np.int64)
+        self.state, self.orders, self.targets = fixed.state, fixed.orders, fixed.targets
         eq_scale = [spec.position_scale(self.t0)] + [u * self.t0 ** (q - m) for m in range(1, q)]
-        self.targets = np.array([targets[m] for m in self.orders])
         self.eq_scale = np.array([eq_scale[m] for m in self.orders])
-        self.poles = np.asarray(spec.zero_poles, dtype=complex)
-        self.derivative_order = spec.derivative_order if self.poles.size else -1
+        self.poles, self.derivative_order = fixed.poles, fixed.derivative_order
         durations_s = np.asarray(durations, dtype=float)
         self.moment_scales = np.ones((self.derivative_order + 1, self.poles.size))  # sum |diff| at z0, fixed
         for n in range(self.derivative_order + 1):
             diff = moment_terms(self.poles, n, durations_s, self.levels, False)[2]
             self.moment_scales[n] = np.sum(np.abs(diff), axis=1) + 1e-300
-        limits = [(1, spec.max_velocity)] + ([(2, spec.max_acceleration)] if q == 3 else [])
         self.bounds = [  # (derivative, limit, the check points' times: rows . d): arc ends, and mid-arc with a jerk
-            (m, float(limit), _check_times(self.count, m == 1 and q == 3))
-            for m, limit in limits
-            if limit is not None and self.count >= 2
+            (m, limit, _check_times(self.count, m == 1 and q == 3)) for m, limit in fixed.limits if self.count >= 2
         ]
         self.structure = (  # (kernels.Structure)
             self.count,
@@ -256,8 +287,8 @@ def _polish(model: _Model, z: Array, iterations: int = 20, stall: bool = False) 
     z[: model.count] = np.where(z[: model.count] < 1e-8, 0.0, z[: model.count])
     levels = z[model.count :]
     on_level = np.zeros(levels.size, dtype=bool)
-    for level in (-1.0, 0.0, 1.0):  # a free level SLSQP brought to a bound or to 0 is that level exactly
-        near = np.abs(levels - level) < 1e-6
+    for level in (-1.0, 0.0, 1.0) if levels.size else ():  # a free level SLSQP brought to a bound or to 0 is that
+        near = np.abs(levels - level) < 1e-6  # level exactly
         levels[near] = level
         on_level |= near
     movable = np.flatnonzero(np.concatenate([z[: model.count] > 0.0, ~on_level]))
