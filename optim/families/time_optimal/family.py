@@ -295,7 +295,7 @@ class TimeOptimalFamily(BaseFamily):
             solution = solve_within_limits(problem, spec)
             sign = math.copysign(1.0, problem.move)
             arcs = tuple(replace(a, level=sign * a.level) for a in solution.arcs)
-            command = _exact(arcs, spec.order, spec.rest_to_rest, tuple(sign * v for v in spec.start_state()))
+            command = command_of(arcs, spec.order, spec.rest_to_rest, tuple(sign * v for v in spec.start_state()))
             tradeoff, row_capped = None, 0
             if options.tradeoff is not None:
                 tradeoff, row_capped = self._tradeoff(problem, options, chosen)

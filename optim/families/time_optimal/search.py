@@ -86,6 +86,7 @@ class GridSearch:
                 self.not_found()
             upper = min(2.0 * upper, spec.max_duration_s)
         coarse = self._narrow(dt, min(math.floor(spec.floor_s / dt), STEPS - 1), STEPS, x)
+        assert coarse is not None  # (x is feasible at STEPS)
         hi = coarse.steps
         if hi < STEPS // 2:  # the guess was far too long: search again on steps that fit the duration found
             fine = self.bisect(hi * dt / STEPS, math.floor(spec.floor_s / (hi * dt / STEPS)), STEPS)
@@ -97,7 +98,12 @@ class GridSearch:
         """The least feasible step count in (lo, hi] on steps of dt (None if none is shown feasible). ``hi`` is
         solved last, only where no shorter count is feasible (its command is the answer only then; a finer grid's
         ``hi`` holds the coarse optimum: feasible, and one LP of four times the size saved where a shorter one is)."""
-        top, lo, best = hi, min(lo, hi - 1), None
+        return self._narrow(dt, min(lo, hi - 1), hi, None)
+
+    def _narrow(self, dt: float, lo: int, hi: int, best: Array | None) -> GridSolution | None:
+        """Bisection between ``lo`` (no command found) and ``hi`` (``best`` feasible, or None: solved only if no
+        shorter count is feasible) on steps of dt."""
+        top = hi
         while hi - lo > 1:
             mid = (lo + hi) // 2
             y = self.feasible(mid, dt)
@@ -108,17 +114,6 @@ class GridSearch:
         if best is None:
             best = self.feasible(top, dt)
         return None if best is None else GridSolution(dt, hi, best, lo)
-
-    def _narrow(self, dt: float, lo: int, hi: int, best: Array) -> GridSolution:
-        """Bisection between ``lo`` (no command found) and ``hi`` (``best`` feasible) on steps of dt."""
-        while hi - lo > 1:
-            mid = (lo + hi) // 2
-            y = self.feasible(mid, dt)
-            if y is None:
-                lo = mid
-            else:
-                hi, best = mid, y
-        return GridSolution(dt, hi, best, lo)
 
     def late_vertex(self, steps: int, dt: float) -> Array | None:
         """The vertex of the weighted-L1 objective sum (0.01 + (k/N)^4) |x_k| on N steps of dt: it acts as early
