@@ -336,32 +336,6 @@ def test_an_lp_stopped_at_its_simplex_cap_is_answered_by_the_interior_point_meth
     assert search.counter.solves == 2 * search.counter.capped_runs  # each capped run retried once, and answered
 
 
-@pytest.mark.parametrize(("least", "asked"), [(7, [8, 6, 7]), (12, [8, 10, 11, 12]), (None, [8, 10, 11, 12])])
-def test_bisection_solves_its_upper_count_only_where_no_shorter_count_is_feasible(
-    least: int | None, asked: list[int]
-) -> None:
-    # GridSearch.bisect on (5, 12] with feasibility from ``least`` steps on (None: nowhere): the bisection's own
-    # counts (8, then 6 and 7, or 10 and 11), and the upper count 12 only where none below it is feasible; the least
-    # feasible count, or None.
-    from optim.families.time_optimal.search import GridSearch
-
-    search = object.__new__(GridSearch)
-    seen: list[int] = []
-
-    def feasible(steps: int, dt: float, weights: object = None) -> np.ndarray | None:
-        seen.append(steps)
-        return None if least is None or steps < least else np.full(steps, 0.5)
-
-    search.feasible = feasible  # type: ignore[method-assign]
-    found = search.bisect(0.01, 5, 12)
-    assert seen == asked
-    if least is None:
-        assert found is None
-    else:
-        assert found is not None
-        assert (found.steps, found.infeasible_steps, found.values.size) == (least, least - 1, least)
-
-
 def test_an_lp_at_its_iteration_cap_counts_as_not_found_and_says_so(monkeypatch: pytest.MonkeyPatch) -> None:
     # With 12 HiGHS iterations per method, some LPs of a jerk-limited search end at the cap with both methods:
     # they count as "no command found", and the design says so. (A jerk-limited move whose predicted structures
@@ -393,37 +367,6 @@ def test_never_slower_than_zv_shaping_of_the_rigid_move(
     assert result.summary.duration_s <= zv_end * (1 + 1e-9)
     assert result.limit_violations == ()
     assert result.metrics.residual_amplitude < 1e-9 * displacement
-
-
-def test_the_band_check_merges_a_grid_command_into_runs_with_the_same_ratios() -> None:
-    """A grid command of 400 steps holding +-1 and 0 on long runs, with a few fractional steps: check.runs leaves 7
-    pieces (the runs that are not at 0), and worst_ratios on them equals the ratios of the moment matrix over every
-    step, computed here directly (F_0 is additive over adjacent pieces; the exponentials differ in the last bits:
-    1e-12 of the largest term's contribution)."""
-    from types import SimpleNamespace
-
-    from optim.families.time_optimal import check
-    from optim.families.time_optimal.lp import acceleration_moment
-    from optim.families.time_optimal.weights import mode_poles
-
-    steps, total_s = 400, 0.4
-    level = np.concatenate([np.ones(90), [0.3], np.zeros(100), [-0.5], -np.ones(90), [0.7], np.ones(17)])
-    level = np.concatenate([level, -np.ones(steps - level.size)])
-    edges = np.linspace(0.0, total_s, steps + 1)
-    start, end, merged = check.runs(edges[:-1], edges[1:], level)
-    assert merged.tolist() == [1.0, 0.3, -0.5, -1.0, 0.7, 1.0, -1.0]
-    assert start[0] == 0.0 and end[0] == edges[90] and start[2] == edges[191] and end[-1] == total_s
-    omega = np.linspace(2 * np.pi * 5.0, 2 * np.pi * 40.0, 300)
-    zeta = np.full(omega.size, 0.05)
-    poles = mode_poles(omega, zeta)
-    grid = check.BandGrid(None, omega, zeta, poles, np.full(omega.size, 1e-3))  # type: ignore[arg-type]
-    for order in (2, 3):
-        spec = SimpleNamespace(order=order)
-        moments = acceleration_moment(spec, poles, edges[:-1], edges[1:], total_s, 0)  # type: ignore[arg-type]
-        direct = np.abs(moments @ level) / grid.bound
-        scale = float(np.max(np.abs(moments) @ np.abs(level) / grid.bound))
-        ratios = check.worst_ratios(spec, grid, edges[:-1], edges[1:], level, total_s)  # type: ignore[arg-type]
-        np.testing.assert_allclose(ratios, direct, rtol=0, atol=1e-12 * scale)
 
 
 def test_the_band_check_is_computed_in_blocks_of_bounded_memory_with_the_same_ratios() -> None:

@@ -197,6 +197,18 @@ def test_compiled_polish_takes_the_numpy_steps() -> None:
     assert 0 < converged < len(starts)  # both outcomes compared
 
 
+def _switching_spec(q: int, derivative_order: int, poles: tuple[complex, ...]):  # type: ignore[no-untyped-def]
+    """A spec of order q (a held jerk for 3) with these zero-residual poles: the certificate's basis for them."""
+    from dataclasses import replace
+
+    from models.plants import ModePlant
+    from optim.problem import Limits, Problem
+
+    jerk = 2000.0 if q == 3 else None
+    spec = _spec_of(Problem(ModePlant(7.0, 0.05), displacement=0.3, limits=Limits(None, 10.0, jerk)))
+    return replace(spec, zero_poles=poles, derivative_order=derivative_order)
+
+
 @pytest.mark.parametrize("q", [2, 3])
 @pytest.mark.parametrize("derivative_order", [0, 1])
 def test_phi_values_are_the_certificates_basis_times_theta(
@@ -206,16 +218,10 @@ def test_phi_values_are_the_certificates_basis_times_theta(
     # (kernels.phi_values), against certify's own matrix form (kernel - _basis @ theta, numpy) to round-off of terms
     # of O(1) (1e-12 of the largest), and each derivative against central differences of the one below it
     # (h = 1e-6 on O(1) values: truncation h^2 ~ 1e-12, round-off 1e-10; 1e-6 of the largest with margin).
-    from dataclasses import replace
-
-    from models.plants import ModePlant
     from optim.families.time_optimal.certify import _basis, _width, kernel
     from optim.families.time_optimal.kernels import phi_values
-    from optim.problem import Limits, Problem
 
-    jerk = 2000.0 if q == 3 else None
-    spec = _spec_of(Problem(ModePlant(7.0, 0.05), displacement=0.3, limits=Limits(None, 10.0, jerk)))
-    spec = replace(spec, zero_poles=(complex(-0.4, 6.0), complex(-1.5, 11.0)), derivative_order=derivative_order)
+    spec = _switching_spec(q, derivative_order, (complex(-0.4, 6.0), complex(-1.5, 11.0)))
     theta = rng.normal(size=_width(spec))
     tau = np.linspace(0.0, 1.3, 57)
     poles = np.asarray(spec.zero_poles, dtype=complex)
@@ -242,17 +248,10 @@ def test_phi_values_on_the_certificates_check_points_take_products_to_round_off(
     # exponentials as products (kernels.EXACT_EVERY): the same values as certify's matrix form to 1e-12 of the
     # largest term (found: 2e-13, |p| x an ulp of tau, the rounded points against the progression's; the products'
     # own round-off, ~1e-16 each, stays below it). A step of the wrong sign or size is off by O(1).
-    from dataclasses import replace
-
-    from models.plants import ModePlant
     from optim.families.time_optimal.certify import _basis, _samples, _width, kernel
     from optim.families.time_optimal.kernels import phi_values
-    from optim.problem import Limits, Problem
 
-    jerk = 2000.0 if q == 3 else None
-    spec = _spec_of(Problem(ModePlant(7.0, 0.05), displacement=0.3, limits=Limits(None, 10.0, jerk)))
-    spec = replace(spec, zero_poles=(complex(-0.4, 6.0), complex(-30.0, 2 * np.pi * 150.0)))
-    spec = replace(spec, derivative_order=derivative_order)
+    spec = _switching_spec(q, derivative_order, (complex(-0.4, 6.0), complex(-30.0, 2 * np.pi * 150.0)))
     theta = rng.normal(size=_width(spec))
     edges = np.array([0.0, 0.1237, 0.5, 0.5031, 1.3])
     sampled = _samples(spec, np.diff(edges), edges[:-1], edges[1:])
