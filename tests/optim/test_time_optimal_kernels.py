@@ -266,3 +266,68 @@ def test_phi_values_on_the_certificates_check_points_take_products_to_round_off(
         terms = float(np.max(np.abs(kernel(q, tau, d)) + np.abs(basis) @ np.abs(theta)))
         found = phi_values(tau, step, theta, q, poles, derivative_order, d)
         assert np.max(np.abs(found - expected)) <= 1e-12 * terms
+
+
+def test_check_points_are_each_arcs_linspace_bit_for_bit(rng: np.random.Generator) -> None:
+    # kernels.check_points (the certificate's check points) against np.linspace on each arc, concatenated: the same
+    # bits (i x step + start, the end exact), on 200 random sets of arcs from 1e-8 s to 10 s; each point's arc, and
+    # its step in T - s from the point before on its arc (minus linspace's step; 0 at an arc's first point).
+    from optim.families.time_optimal.kernels import check_points
+
+    for _ in range(200):
+        durations = rng.uniform(0.0, 1.0, rng.integers(1, 12)) * 10.0 ** rng.uniform(-8.0, 1.0)
+        ends = np.cumsum(durations)
+        starts = ends - durations
+        counts = rng.integers(2, 400, durations.size).astype(np.int64)
+        s, arc, step = check_points(starts, ends, counts)
+        expected = np.concatenate([np.linspace(a, b, n) for a, b, n in zip(starts, ends, counts, strict=True)])
+        assert np.array_equal(s, expected)
+        assert np.array_equal(arc, np.repeat(np.arange(durations.size), counts))
+        spacing = np.repeat((ends - starts) / (counts - 1), counts)
+        first = np.concatenate(([0], np.cumsum(counts)[:-1]))
+        assert np.all(step[first] == 0.0) and np.array_equal(np.delete(step, first), -np.delete(spacing, first))
+
+
+def _agreement_wrong(sigma: np.ndarray, arc: np.ndarray, bang: np.ndarray, levels: np.ndarray, tol: float) -> bool:
+    """The numpy form kernels.bang_disagrees replaced (certify's agreement, its _with_minima and _wrong_signed)."""
+    on = bang[arc]
+    values = np.where(on, levels[arc] * sigma, np.inf)
+    size = float(np.max(np.abs(sigma[on]), initial=0.0))
+    mid, left, right = values[1:-1], values[:-2], values[2:]
+    same = (arc[:-2] == arc[1:-1]) & (arc[1:-1] == arc[2:])
+    dip = same & (mid <= left) & (mid <= right) & np.isfinite(mid)
+    curvature = left[dip] - 2 * mid[dip] + right[dip]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        vertex = mid[dip] - (right[dip] - left[dip]) ** 2 / (8 * curvature)
+    vertex = np.where(curvature > 0, vertex, mid[dip])
+    return bool(np.any(np.concatenate([values, vertex]) < -tol * (size or 1.0)))
+
+
+def test_the_certificates_sign_checks_decide_as_their_numpy_form(rng: np.random.Generator) -> None:
+    # kernels.bang_disagrees and density_disagrees against the numpy forms they replaced (certify's agreement with
+    # the parabola's vertex at each dip, and its density; _wrong_signed), on 3000 random switching functions whose
+    # dips sit within 3x the tolerance of the threshold on either side (parabolas between samples, random arcs,
+    # levels and kinds): the same decision every time, and both decisions taken.
+    from optim.families.time_optimal.kernels import bang_disagrees, density_disagrees
+
+    tol = 1e-6
+    decided = {True: 0, False: 0}
+    for _ in range(3000):
+        counts = rng.integers(3, 40, rng.integers(1, 6))
+        arc = np.repeat(np.arange(counts.size), counts).astype(np.int64)
+        bang = rng.random(counts.size) < 0.7
+        levels = np.where(bang, rng.choice([-1.0, 1.0], counts.size), 0.0)
+        x = rng.random(arc.size).cumsum()
+        dip = rng.uniform(x[0], x[-1])
+        floor = rng.uniform(-3.0, 3.0) * tol
+        shape = rng.uniform(0.1, 2.0) * (x - dip) ** 2 / (x[-1] - x[0]) ** 2 + floor  # min near floor, size ~1
+        sigma = np.where(levels[arc] != 0.0, levels[arc], 1.0) * shape
+        found = bang_disagrees(sigma, arc, bang, levels, tol)
+        assert found == _agreement_wrong(sigma, arc, bang, levels, tol)
+        decided[found] += 1
+        first, sign, beta = ~bang, rng.choice([-1.0, 1.0], counts.size), rng.normal(0.0, 1e-6, counts.size)
+        slope = sign[arc] * shape - beta[arc]
+        expected = np.where(first[arc], sign[arc] * (slope + beta[arc]), np.inf)
+        wrong = bool(np.any(expected < -tol * (float(np.max(np.abs(slope))) or 1.0)))
+        assert density_disagrees(slope, arc, first, sign, beta, tol) == wrong
+    assert min(decided.values()) > 300

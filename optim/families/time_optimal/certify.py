@@ -233,35 +233,18 @@ def _sweep(
     return lines, conditions, atoms
 
 
-def _with_minima(values: Array, arc: NDArray[np.intp]) -> Array:
-    """``values`` and, at each interior local minimum of their samples on one arc, the vertex of the parabola
-    through it and its neighbours (a dip between two samples)."""
-    mid = values[1:-1]
-    same = (arc[:-2] == arc[1:-1]) & (arc[1:-1] == arc[2:])
-    left, right = values[:-2], values[2:]
-    dip = same & (mid <= left) & (mid <= right) & np.isfinite(mid)
-    curvature = left[dip] - 2 * mid[dip] + right[dip]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        vertex = mid[dip] - (right[dip] - left[dip]) ** 2 / (8 * curvature)
-    vertex = np.where(curvature > 0, vertex, mid[dip])
-    return np.concatenate([values, vertex])
-
-
 def _samples(spec: Spec, durations: Array, starts: Array, ends: Array) -> tuple[Array, NDArray[np.intp], Array] | None:
     """The check points s (each arc's evenly spaced, ends included), their arcs, and each point's step in T - s from
     the point before on its arc (0 for an arc's first point: kernels.phi_values' products); None beyond MAX_CHECKS."""
     fastest = max(abs(p.imag) for p in spec.zero_poles) if spec.zero_poles else 0.0
     spacing = 2 * math.pi / fastest / CHECK_PER_PERIOD if fastest > 0 else float(ends[-1])
-    counts = np.maximum(MIN_CHECKS, np.ceil(durations / spacing)).astype(int)
+    counts = np.maximum(MIN_CHECKS, np.ceil(durations / spacing)).astype(np.int64)
     if int(np.sum(counts)) > MAX_CHECKS:
         return None
-    arc = np.repeat(np.arange(durations.size), counts)
-    last = np.cumsum(counts) - 1
-    index = np.arange(arc.size) - np.repeat(last - counts + 1, counts)  # each point's place in its arc
-    spacing = ((ends - starts) / (counts - 1))[arc]
-    s = index * spacing + starts[arc]  # np.linspace's own arithmetic, all arcs at once
-    s[last] = ends  # (as linspace: the last point is the arc's end exactly)
-    return s, arc, np.where(index > 0, -spacing, 0.0)
+    from optim.families.time_optimal.kernels import check_points  # (numba: in the process that refines)
+
+    s, arc, step = check_points(starts, ends, counts)  # np.linspace's own arithmetic, bit for bit
+    return s, arc, step
 
 
 def _wrong_signed(values: Array, scale: float) -> bool:
@@ -365,16 +348,21 @@ def _switching_of(spec: Spec, arcs: tuple[Arc, ...]) -> _Switching | None:
 def certificate(spec: Spec, arcs: tuple[Arc, ...]) -> Certificate | None:
     """The proof that ``arcs`` (merged, meeting the end conditions and the limits: the caller checks) are the
     minimum-time command of ``spec``, or None where this check does not apply or does not prove it."""
+    from optim.families.time_optimal.kernels import bang_disagrees, density_disagrees  # (numba: as _phi)
+
     w = _switching(spec, arcs)
     if w is None:
         return None
-    sign, s, arc, theta = w.sign, w.s, w.arc, w.theta
-    agreement, size = w.agreement()
-    if _wrong_signed(_with_minima(agreement, arc), size):
+    sign, s, theta = w.sign, w.s, w.theta
+    if bang_disagrees(w.sigma, w.arc, w.kind == BANG, w.levels, SIGN_TOLERANCE):  # agreement, with its minima
         return None
-    density, slope_size = w.density(spec)  # mu's density: phi'(T - s) + beta, of the arc's sign
-    if _wrong_signed(density, slope_size):
-        return None
+    first = w.kind == FIRST
+    slope_size = 0.0  # mu's density: phi'(T - s) + beta, of the arc's sign (only where a first-order arc or an
+    if np.any(first) or w.atoms:  # atom needs it)
+        slope = _phi(spec, w.total - s, w.step, theta, 1)
+        if density_disagrees(slope, w.arc, first, sign, w.beta, SIGN_TOLERANCE):
+            return None
+        slope_size = float(np.max(np.abs(slope)))
     if np.any(w.kind == SECOND) and _wrong_signed(*w.curvature(spec)):  # nu's density phi''(T - s), of the coast's
         return None  # sign (and its atoms, next)
     masses = [(k, t, float(m[0] @ w.z + m[1])) for k, t, m in w.atoms]

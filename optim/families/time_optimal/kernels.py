@@ -310,6 +310,79 @@ def polish(
     return z, np.max(np.abs(g)) < converged
 
 
+@njit(cache=True)
+def check_points(starts: Array, ends: Array, counts: NDArray[np.int64]) -> tuple[Array, NDArray[np.int64], Array]:
+    """The certificate's check points (optim.families.time_optimal.certify._samples): ``counts[k]`` evenly spaced on
+    each arc, its ends included, as np.linspace lays them (i x step + start, the last point the end exactly); the arc
+    of each; and each point's step in T - s from the one before on its arc (0 for an arc's first point)."""
+    total = 0
+    for k in range(counts.size):
+        total += counts[k]
+    s = np.empty(total)
+    arc = np.empty(total, dtype=np.int64)
+    step = np.empty(total)
+    p = 0
+    for k in range(counts.size):
+        spacing = (ends[k] - starts[k]) / (counts[k] - 1)
+        for i in range(counts[k]):
+            s[p] = i * spacing + starts[k]
+            arc[p] = k
+            step[p] = -spacing if i > 0 else 0.0
+            p += 1
+        s[p - 1] = ends[k]
+    return s, arc, step
+
+
+@njit(cache=True)
+def bang_disagrees(sigma: Array, arc: NDArray[np.int64], bang: NDArray[np.bool_], levels: Array, tol: float) -> bool:
+    """Whether level x sigma is below -tol x max |sigma| (over the bang arcs; 1 if 0) at a check point of a bang arc,
+    or at the vertex of the parabola through an interior local minimum and its two neighbours on the same arc: the
+    certificate's first sign check in one pass (certify._Switching.agreement and certify._wrong_signed, with each
+    dip's vertex; tests/optim/test_time_optimal_kernels.py keeps the numpy form it replaced). A sigma that is not
+    finite there disagrees (the numpy form let NaN pass)."""
+    size = 0.0
+    for p in range(sigma.size):
+        if bang[arc[p]]:
+            if not np.isfinite(sigma[p]):
+                return True  # (no sign to check: nothing proven)
+            size = max(size, abs(sigma[p]))
+    limit = -tol * (size if size != 0.0 else 1.0)
+    for p in range(sigma.size):
+        if bang[arc[p]] and levels[arc[p]] * sigma[p] < limit:
+            return True
+    for p in range(1, sigma.size - 1):
+        k = arc[p]
+        if not bang[k] or arc[p - 1] != k or arc[p + 1] != k:
+            continue
+        left, mid, right = levels[k] * sigma[p - 1], levels[k] * sigma[p], levels[k] * sigma[p + 1]
+        if mid <= left and mid <= right:
+            curvature = left - 2 * mid + right
+            vertex = mid - (right - left) ** 2 / (8 * curvature) if curvature > 0 else mid
+            if vertex < limit:
+                return True
+    return False
+
+
+@njit(cache=True)
+def density_disagrees(
+    slope: Array, arc: NDArray[np.int64], first: NDArray[np.bool_], sign: Array, beta: Array, tol: float
+) -> bool:
+    """Whether sign x (phi' + beta) is below -tol x max |phi'| (over every point; 1 if 0) at a check point of a
+    first-order constrained arc: the certificate's second sign check (certify._Switching.density and
+    certify._wrong_signed in one pass). A slope that is not finite disagrees."""
+    size = 0.0
+    for p in range(slope.size):
+        if not np.isfinite(slope[p]):
+            return True  # (no sign to check: nothing proven)
+        size = max(size, abs(slope[p]))
+    limit = -tol * (size if size != 0.0 else 1.0)
+    for p in range(slope.size):
+        k = arc[p]
+        if first[k] and sign[k] * (slope[p] + beta[k]) < limit:
+            return True
+    return False
+
+
 # phi_values' exponentials: a point ``step`` after the one before (an arc's evenly spaced checks) takes e^(p tau)
 # from that point's times e^(p step), computed once per step; exactly every EXACT_EVERY points and where step is 0.
 # The step is the progression's own (certify._samples'): the products differ from exp(p tau) of the rounded points
