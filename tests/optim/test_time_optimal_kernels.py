@@ -215,11 +215,11 @@ def test_phi_values_are_the_certificates_basis_times_theta(
     rng: np.random.Generator, q: int, derivative_order: int
 ) -> None:
     # The switching function phi(tau) = k(tau) - theta . basis(tau) and its first two derivatives, point by point
-    # (kernels.phi_values), against certify's own matrix form (kernel - _basis @ theta, numpy) to round-off of terms
-    # of O(1) (1e-12 of the largest), and each derivative against central differences of the one below it
+    # (certify_kernels.phi_values), against certify's own matrix form (kernel - _basis @ theta, numpy) to round-off
+    # of terms of O(1) (1e-12 of the largest), and each derivative against central differences of the one below it
     # (h = 1e-6 on O(1) values: truncation h^2 ~ 1e-12, round-off 1e-10; 1e-6 of the largest with margin).
     from optim.families.time_optimal.certify import _basis, _width, kernel
-    from optim.families.time_optimal.kernels import phi_values
+    from optim.families.time_optimal.certify_kernels import phi_values
 
     spec = _switching_spec(q, derivative_order, (complex(-0.4, 6.0), complex(-1.5, 11.0)))
     theta = rng.normal(size=_width(spec))
@@ -245,11 +245,11 @@ def test_phi_values_on_the_certificates_check_points_take_products_to_round_off(
 ) -> None:
     # On the check points certify._samples lays (each arc's evenly spaced, 64 per period of the fastest pole, here
     # 150 Hz over 1.3 s: 12,500 points; tau = T - s descending, a junction's time twice), phi_values takes most
-    # exponentials as products (kernels.EXACT_EVERY): the same values as certify's matrix form to 1e-12 of the
+    # exponentials as products (certify_kernels.EXACT_EVERY): the same values as certify's matrix form to 1e-12 of the
     # largest term (found: 2e-13, |p| x an ulp of tau, the rounded points against the progression's; the products'
     # own round-off, ~1e-16 each, stays below it). A step of the wrong sign or size is off by O(1).
     from optim.families.time_optimal.certify import _basis, _samples, _width, kernel
-    from optim.families.time_optimal.kernels import phi_values
+    from optim.families.time_optimal.certify_kernels import phi_values
 
     spec = _switching_spec(q, derivative_order, (complex(-0.4, 6.0), complex(-30.0, 2 * np.pi * 150.0)))
     theta = rng.normal(size=_width(spec))
@@ -269,10 +269,10 @@ def test_phi_values_on_the_certificates_check_points_take_products_to_round_off(
 
 
 def test_check_points_are_each_arcs_linspace_bit_for_bit(rng: np.random.Generator) -> None:
-    # kernels.check_points (the certificate's check points) against np.linspace on each arc, concatenated: the same
-    # bits (i x step + start, the end exact), on 200 random sets of arcs from 1e-8 s to 10 s; each point's arc, and
-    # its step in T - s from the point before on its arc (minus linspace's step; 0 at an arc's first point).
-    from optim.families.time_optimal.kernels import check_points
+    # certify_kernels.check_points (the certificate's check points) against np.linspace on each arc, concatenated:
+    # the same bits (i x step + start, the end exact), on 200 random sets of arcs from 1e-8 s to 10 s; each point's
+    # arc, and its step in T - s from the point before on its arc (minus linspace's step; 0 at an arc's first point).
+    from optim.families.time_optimal.certify_kernels import check_points
 
     for _ in range(200):
         durations = rng.uniform(0.0, 1.0, rng.integers(1, 12)) * 10.0 ** rng.uniform(-8.0, 1.0)
@@ -289,7 +289,7 @@ def test_check_points_are_each_arcs_linspace_bit_for_bit(rng: np.random.Generato
 
 
 def _agreement_wrong(sigma: np.ndarray, arc: np.ndarray, bang: np.ndarray, levels: np.ndarray, tol: float) -> bool:
-    """The numpy form kernels.bang_disagrees replaced (certify's agreement, its _with_minima and _wrong_signed)."""
+    """The numpy form certify_kernels.bang_disagrees replaced (certify's agreement, _with_minima, _wrong_signed)."""
     on = bang[arc]
     values = np.where(on, levels[arc] * sigma, np.inf)
     size = float(np.max(np.abs(sigma[on]), initial=0.0))
@@ -304,11 +304,11 @@ def _agreement_wrong(sigma: np.ndarray, arc: np.ndarray, bang: np.ndarray, level
 
 
 def test_the_certificates_sign_checks_decide_as_their_numpy_form(rng: np.random.Generator) -> None:
-    # kernels.bang_disagrees and density_disagrees against the numpy forms they replaced (certify's agreement with
-    # the parabola's vertex at each dip, and its density; _wrong_signed), on 3000 random switching functions whose
+    # certify_kernels.bang_disagrees and density_disagrees against the numpy forms they replaced (certify's agreement
+    # with the parabola's vertex at each dip, and its density; _wrong_signed), on 3000 random switching functions whose
     # dips sit within 3x the tolerance of the threshold on either side (parabolas between samples, random arcs,
     # levels and kinds): the same decision every time, and both decisions taken.
-    from optim.families.time_optimal.kernels import bang_disagrees, density_disagrees
+    from optim.families.time_optimal.certify_kernels import bang_disagrees, density_disagrees
 
     tol = 1e-6
     decided = {True: 0, False: 0}

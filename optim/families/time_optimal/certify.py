@@ -98,11 +98,11 @@ def _basis(spec: Spec, tau: Array, derivative: int = 0) -> Array:
 
 
 def _phi(spec: Spec, tau: Array, step: Array, theta: Array, derivative: int = 0) -> Array:
-    """phi^(derivative)(tau) = kernel - _basis . theta, compiled point by point (kernels.phi_values: the check
+    """phi^(derivative)(tau) = kernel - _basis . theta, compiled point by point (certify_kernels.phi_values: the check
     points' sigma and densities without the basis matrix, a third of a certificate's time; the same values to
     round-off, tests/optim/test_time_optimal_kernels.py). ``step``: tau's even spacing where it has one (_samples),
     else 0."""
-    from optim.families.time_optimal.kernels import phi_values  # (numba: in the process that refines)
+    from optim.families.time_optimal.certify_kernels import phi_values  # (numba: in the process that refines)
 
     poles = np.asarray(spec.zero_poles, dtype=complex)
     tau = np.ascontiguousarray(tau)
@@ -235,13 +235,14 @@ def _sweep(
 
 def _samples(spec: Spec, durations: Array, starts: Array, ends: Array) -> tuple[Array, NDArray[np.intp], Array] | None:
     """The check points s (each arc's evenly spaced, ends included), their arcs, and each point's step in T - s from
-    the point before on its arc (0 for an arc's first point: kernels.phi_values' products); None beyond MAX_CHECKS."""
+    the point before on its arc (0 for an arc's first point: certify_kernels.phi_values' products); None beyond
+    MAX_CHECKS."""
     fastest = max(abs(p.imag) for p in spec.zero_poles) if spec.zero_poles else 0.0
     spacing = 2 * math.pi / fastest / CHECK_PER_PERIOD if fastest > 0 else float(ends[-1])
     counts = np.maximum(MIN_CHECKS, np.ceil(durations / spacing)).astype(np.int64)
     if int(np.sum(counts)) > MAX_CHECKS:
         return None
-    from optim.families.time_optimal.kernels import check_points  # (numba: in the process that refines)
+    from optim.families.time_optimal.certify_kernels import check_points  # (numba: in the process that refines)
 
     s, arc, step = check_points(starts, ends, counts)  # np.linspace's own arithmetic, bit for bit
     return s, arc, step
@@ -348,7 +349,7 @@ def _switching_of(spec: Spec, arcs: tuple[Arc, ...]) -> _Switching | None:
 def certificate(spec: Spec, arcs: tuple[Arc, ...]) -> Certificate | None:
     """The proof that ``arcs`` (merged, meeting the end conditions and the limits: the caller checks) are the
     minimum-time command of ``spec``, or None where this check does not apply or does not prove it."""
-    from optim.families.time_optimal.kernels import bang_disagrees, density_disagrees  # (numba: as _phi)
+    from optim.families.time_optimal.certify_kernels import bang_disagrees, density_disagrees  # (numba: as _phi)
 
     w = _switching(spec, arcs)
     if w is None:
