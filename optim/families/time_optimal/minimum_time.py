@@ -47,6 +47,7 @@ Array = NDArray[np.float64]
 LimitCheck = Callable[[tuple[Arc, ...]], bool]
 Where = tuple[int, float, float]  # certify.wrong_sign's answer: the arc, the first and the last time of its run
 FALLBACK_FINER = 4  # without an exact candidate, the grid optimum is sought again on steps this much shorter
+UNREFINED_FINER = 8  # ... and then this much too where every refined candidate is longer than the coarse grid's command
 PROBES = 3
 PROBE_FINER = 4  # the probe's grid is this much finer than the search's
 MAX_ARCS = 24  # a start with more arcs is not refined (a chattering grid vertex: another start is tried)
@@ -347,19 +348,28 @@ def _refined(best: _Best, search: GridSearch, grid: GridSolution | None, rigid: 
 
 
 def _grid_answer(best: _Best, search: GridSearch, grid: GridSolution) -> GridSolution:
-    """The grid optimum on a grid FALLBACK_FINER times finer: its structures refined in turn (another local optimum
-    than the coarse grid's: 1028.8 ms instead of 1032.4 on bench/time_optimal.py's 5 Hz cruise with a jerk limit),
-    and itself the answer where nothing exact checks out or it is shorter. Searched where no structure was refined,
+    """The grid optimum on a grid FALLBACK_FINER times finer (``_finer``). Searched where no structure was refined,
     where the refined one is longer than the coarse grid's own command (a local optimum: 509.9 ms against the
     finer grid's 504.2 on bench/time_optimal.py's two-mode case), or with a held jerk (whose refined structures are
-    often local optima); the grid it used."""
+    often local optima); the grid it used. Where the refined candidates are all longer than the coarse grid's command
+    (no band: there none is refined), then also on a grid UNREFINED_FINER times finer (the 25 Hz held-jerk move of
+    docs/benchmarks.md's nested bands: 657.79 ms from the 4x grid, 0.23 % above the 800-step LP's 656.27; 656.53 from
+    the 8x grid's structure, with one BLAS thread as the service's workers run)."""
     spec, found = best.spec, best.found
     coarse_s = grid.steps * grid.step_s
     if found is not None and found.method == "refined" and spec.order == 2 and found.duration_s <= coarse_s:
         return grid  # a refined held acceleration shorter than the grid's own command: the finer grid cost 2.5x
-    fine = search.bisect(
-        grid.step_s / FALLBACK_FINER, FALLBACK_FINER * grid.infeasible_steps, FALLBACK_FINER * grid.steps
-    )
+    struggling = found is not None and found.method == "refined" and found.duration_s > coarse_s and not spec.bands
+    fine = _finer(best, search, grid, FALLBACK_FINER)
+    return _finer(best, search, grid, UNREFINED_FINER) if struggling else fine
+
+
+def _finer(best: _Best, search: GridSearch, grid: GridSolution, finer: int) -> GridSolution:
+    """The grid optimum on steps ``finer`` times shorter: its structures refined in turn (another local optimum than
+    the coarse grid's: 1028.8 ms instead of 1032.4 on bench/time_optimal.py's 5 Hz cruise with a jerk limit), and
+    itself the answer where nothing exact checks out or it is shorter; the grid it used."""
+    spec = best.spec
+    fine = search.bisect(grid.step_s / finer, finer * grid.infeasible_steps, finer * grid.steps)
     if fine is None:
         fine = grid
     values = clip(spec, project(spec, fine))
