@@ -11,22 +11,20 @@ times, ``solve_time_s``).
 
 from __future__ import annotations
 
-import os
 import statistics
 import sys
 import time
 from pathlib import Path
 from typing import Any
 
-# One BLAS thread, as the service's workers run (docs/deployment.md), unless the environment sets it: OpenBLAS's
-# threads made SLSQP's small solves 2-30 times slower whenever another process ran beside them.
-for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_name, "1")
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from vibfree.cli import one_blas_thread
+
+one_blas_thread()  # as the service's workers (docs/deployment.md), before numpy loads BLAS
 
 import numpy as np  # noqa: E402
 import orjson  # noqa: E402
-
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 MOVES = 1000
 ROUNDS = 3

@@ -23,23 +23,21 @@ plant under a torque limit (15 %). ``python bench/time_optimal_random.py [count]
 from __future__ import annotations
 
 import math
-import os
 import statistics
 import sys
 import time
 from pathlib import Path
 from typing import Any
 
-# One BLAS thread, as the service's workers run (docs/deployment.md), unless the environment sets it: OpenBLAS's
-# threads made SLSQP's small solves 2-30 times slower whenever another process ran beside them.
-for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_name, "1")
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from vibfree.cli import one_blas_thread  # noqa: E402
+
+one_blas_thread()  # as the service's workers (docs/deployment.md), before numpy loads BLAS
 
 import numpy as np  # noqa: E402
 from scipy.integrate import quad  # noqa: E402
-
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
 
 from bench.lp_reference import GridMove  # noqa: E402
 from models.rigid_motion import rigid_move  # noqa: E402

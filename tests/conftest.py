@@ -23,10 +23,9 @@ from typing import Any
 
 import pytest
 
-# One BLAS thread, as the service's workers and the benchmarks run (before numpy loads OpenBLAS): the last bits of a
-# design's least squares, and so which local optimum SLSQP reaches, depend on the thread count.
-for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_variable, "1")
+from vibfree.cli import one_blas_thread
+
+one_blas_thread()  # as the service's workers and the benchmarks run (a design's last bits depend on it)
 NUMPY_BEFORE_CONFTEST = "numpy" in sys.modules  # (then the setting above came too late for this process)
 
 SERIAL = "serial"

@@ -45,6 +45,15 @@ SINGLE_THREADED_BLAS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THRE
 HTTP_TIMEOUT_S = 300.0
 
 
+def one_blas_thread() -> None:
+    """Default this process's BLAS libraries to one thread, as ``vibfree serve`` and the image do for the workers
+    (an explicit setting wins); effective only before numpy loads them. A design's last bits, and so which local
+    optimum SLSQP reaches, depend on the thread count; with OpenBLAS's threads its small solves took 2-30 times
+    longer whenever another process ran beside them."""
+    for name in SINGLE_THREADED_BLAS:
+        os.environ.setdefault(name, "1")
+
+
 class Refused(Exception):
     """The service (or the in-process pipeline) refused the request: ``problem`` is its problem+json."""
 
