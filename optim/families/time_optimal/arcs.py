@@ -47,14 +47,12 @@ def merged(arcs: tuple[Arc, ...]) -> tuple[Arc, ...]:
 
 
 def arcs_of(levels: Array, dt: float) -> tuple[Arc, ...]:
-    """The grid solution as arcs: runs of equal values merged."""
-    arcs: list[Arc] = []
-    start = 0
-    for k in range(1, levels.size + 1):
-        if k == levels.size or levels[k] != levels[start]:
-            arcs.append(Arc(start * dt, (k - start) * dt, float(levels[start])))
-            start = k
-    return tuple(arcs)
+    """The grid solution as arcs: runs of equal values merged (found at once, not step by step)."""
+    if not levels.size:
+        return ()
+    firsts = [0, *(np.flatnonzero(levels[1:] != levels[:-1]) + 1).tolist()]
+    ends = [*firsts[1:], levels.size]
+    return tuple(Arc(k * dt, (end - k) * dt, float(levels[k])) for k, end in zip(firsts, ends, strict=True))
 
 
 def structure(values: Array, dt: float) -> tuple[list[float], list[float], list[bool]]:
