@@ -23,7 +23,7 @@ import orjson
 import pytest
 
 import optim.families.time_optimal.family as time_optimal_family
-import optim.families.time_optimal.lp as lp
+import optim.families.time_optimal.highs_model as highs_model
 from app.families import BY_NAME
 from app.presenters import answer_body
 from app.schemas.registry import REQUEST_SCHEMAS
@@ -63,17 +63,17 @@ def fast_clock(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
 
         return clock
 
-    real_linprog = lp.linprog
+    real_run = highs_model.highs_run
 
-    def linprog(*args: Any, options: dict[str, Any] | None = None, **kwargs: Any) -> Any:
-        options = dict(options or {})
+    def highs_run(highs: Any, options: dict[str, Any]) -> tuple[int, int]:
+        options = dict(options)
         if "time_limit" in options:
             options["time_limit"] = options["time_limit"] / FACTOR
-        return real_linprog(*args, options=options, **kwargs)
+        return real_run(highs, options)
 
     monkeypatch.setattr(time, "perf_counter", fast(real_perf))
     monkeypatch.setattr(time, "monotonic", fast(real_mono))
-    monkeypatch.setattr(lp, "linprog", linprog)
+    monkeypatch.setattr(highs_model, "highs_run", highs_run)
     yield
 
 
@@ -140,20 +140,20 @@ def test_a_stap_multistart_does_not_depend_on_the_clock(request: pytest.FixtureR
 def test_a_trade_off_row_at_the_wall_clock_last_resort_fails_the_design(monkeypatch: pytest.MonkeyPatch) -> None:
     # The rows' LPs reach HiGHS's time limit at once (1e-9 s): the design fails, rather than return a row
     # 'solve-timeout' that an idle machine would have found.
-    real_solve, real_linprog = time_optimal_family.solve_within_limits, lp.linprog
+    real_solve, real_run = time_optimal_family.solve_within_limits, highs_model.highs_run
     calls = [0]
 
     def solve_within_limits(*args: Any) -> Any:
         calls[0] += 1
         return real_solve(*args)
 
-    def linprog(*args: Any, options: dict[str, Any], **kwargs: Any) -> Any:
+    def highs_run(highs: Any, options: dict[str, Any]) -> tuple[int, int]:
         if calls[0] > 1:  # a row's search (the design's is the first)
             options = {**options, "time_limit": 1e-9}
-        return real_linprog(*args, options=options, **kwargs)
+        return real_run(highs, options)
 
     monkeypatch.setattr(time_optimal_family, "solve_within_limits", solve_within_limits)
-    monkeypatch.setattr(lp, "linprog", linprog)
+    monkeypatch.setattr(highs_model, "highs_run", highs_run)
     with pytest.raises(SolverTimedOut):
         synthesize(FAMILIES["time_optimal"], KNOWN, TimeOptimalOptions(tradeoff=(0.0, 0.1)))
     # the design, the zero-residual row (certified with no LP: optim.families.time_optimal.certify), then the band's

@@ -1,8 +1,8 @@
 """The solver report of a design counts every solver call it made (issue 15: a pseudo-polynomial search of 43
 solves reported ``solves: 1``). The calls are counted independently of the families' own bookkeeping: every
-IPOPT problem the caches build is wrapped in a counting proxy, and every ``linprog`` call of the time-optimal
-LPs is counted with its ``nit``; the design's ``solver.solves`` must equal the calls and ``iterations`` their
-sum (exact integers: no tolerance)."""
+IPOPT problem the caches build is wrapped in a counting proxy, and every HiGHS run of the time-optimal LPs
+(``highs_model.highs_run``) is counted with its iterations; the design's ``solver.solves`` must equal the calls
+and ``iterations`` their sum (exact integers: no tolerance)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import pytest
 
 import optim.families.pseudo_polynomial.problem as pp_problem
 import optim.families.stap.problem as stap_problem
-import optim.families.time_optimal.lp as lp
+import optim.families.time_optimal.highs_model as highs_model
 from app.families import BY_NAME
 from app.schemas.registry import REQUEST_SCHEMAS
 from app.settings import Settings
@@ -63,14 +63,14 @@ def calls(monkeypatch: pytest.MonkeyPatch) -> Calls:
     monkeypatch.setattr(stap_problem, "build_problem", stap_build)
     monkeypatch.setattr(stap_problem, "SOLVER_CACHE", LruCache("test-stap"))
 
-    real_linprog = lp.linprog
+    real_run = highs_model.highs_run
 
-    def linprog(*args: Any, **kwargs: Any) -> Any:
-        result = real_linprog(*args, **kwargs)
-        calls.iterations.append(int(result.nit))
-        return result
+    def highs_run(highs: Any, options: dict[str, Any]) -> tuple[int, int]:
+        outcome, iterations = real_run(highs, options)
+        calls.iterations.append(iterations)
+        return outcome, iterations
 
-    monkeypatch.setattr(lp, "linprog", linprog)
+    monkeypatch.setattr(highs_model, "highs_run", highs_run)
     return calls
 
 

@@ -23,7 +23,7 @@ from models.errors import Infeasible, InvalidParameter, SolverTimedOut
 from models.plants import ModePlant, TransferFunctionPlant, TwoInertiaPlant
 from models.sensitivity import residual_envelope, sensitivity
 from models.simulation import simulate
-from optim.families.time_optimal import lp
+from optim.families.time_optimal import highs_model
 from optim.families.time_optimal.options import Robustness, TimeOptimalOptions
 from optim.problem import Limits, Problem
 from optim.registry import FAMILIES
@@ -328,7 +328,7 @@ def test_an_lp_stopped_at_its_simplex_cap_is_answered_by_the_interior_point_meth
     options = TimeOptimalOptions()
     spec = spec_of(problem, options, selected_modes(problem, options)[0])
     free = GridSearch(spec).grid_optimum()
-    monkeypatch.setattr(lp, "MAX_LP_ITERATIONS", 40)
+    monkeypatch.setattr(highs_model, "MAX_LP_ITERATIONS", 40)
     search = GridSearch(spec)
     capped = search.grid_optimum()
     assert (capped.steps, capped.step_s) == (free.steps, free.step_s)
@@ -341,7 +341,7 @@ def test_an_lp_at_its_iteration_cap_counts_as_not_found_and_says_so(monkeypatch:
     # they count as "no command found", and the design says so. (A jerk-limited move whose predicted structures
     # and their repairs are not certified, so that the search runs: bench/time_optimal_speed.py's held-jerk move 0,
     # rounded.)
-    monkeypatch.setattr(lp, "MAX_LP_ITERATIONS", 12)
+    monkeypatch.setattr(highs_model, "MAX_LP_ITERATIONS", 12)
     result = _design(Problem(ModePlant(558.0, 0.0243), displacement=0.01, limits=Limits(0.0461, 2.333, 23.54)))
     search = result.summary.search
     assert search.max_lp_iterations == 12

@@ -21,46 +21,31 @@ averaging can change (|int f a - sum abar_k int_step f| <= A max|f'| T dt / 4), 
 circumscribed and widened alike, and the jerk bound becomes |abar_(k+1) - abar_k| <= J dt. HiGHS
 proving it infeasible proves that no command of duration T exists (the certificate of lower_bound_s).
 
-Every LP is capped in work, so that a search is the same on any machine under any load: MAX_LP_ITERATIONS
-HiGHS iterations per method (its simplex, then its interior-point method), after which the LP counts as "no
-command found" at its length (a capped LP, reported in the design's search block); MAX_LP_SOLVES LPs per search
-(SolverFailed beyond). Wall-clock time is only a last resort: HiGHS's own ``time_limit`` (the solve's
-max_wall_time_s) reached, the design fails with SolverTimedOut, never a different design.
+Every LP is solved in HiGHS, capped in work (optim.families.time_optimal.highs_model); a grid LP's model is kept
+so that the band points its cutting-plane rounds add are solved warm (``GridLp``).
 """
 
 from __future__ import annotations
 
-import math
-import time
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
-from scipy.optimize import linprog
 
-from models.errors import InvalidParameter, SolverFailed, SolverTimedOut
+from optim.families.time_optimal.highs_model import INFEASIBLE, LpCounter, LpModel
 from optim.families.time_optimal.sparse_lp import SparseLp
 from optim.families.time_optimal.state_chain import chain
 from optim.families.time_optimal.types import Spec
 from optim.families.time_optimal.weights import exponential_moment
-from optim.solver import SolverReport, record_solve
 
 Array = NDArray[np.float64]
 CArray = NDArray[np.complex128]
 MARGIN = 1e-7  # bounds tightened by this fraction so that HiGHS's feasibility tolerance cannot break a limit
-# The band's bound at its points is lowered by this fraction: between points a PHASE_STEP apart the residual
-# rises by about (PHASE_STEP / 2)^2 / 2 = 0.28 % (its phase turns, its modulus is smooth), so the dense check
-# seldom adds a point.
+# The band's bound at its points is lowered by this fraction: between points 0.15 rad of the residual's phase apart
+# it rises by about (0.15 / 2)^2 / 2 = 0.28 % (its phase turns, its modulus is smooth). The search starts with
+# points further apart (search.PHASE_STEP) and the dense check adds them where the command breaks the band.
 BAND_MARGIN = 0.003
-# HiGHS iterations per LP and method (scipy's ``maxiter``: HiGHS's simplex_iteration_limit and ipm_iteration_limit).
-# The LPs of tests/optim/test_time_optimal.py, the README's examples and bench/determinism.py's 50 random requests
-# need at most 4036 simplex iterations (a band down to 1 mHz, 3856 rows; the 1 s time limit used to stop them) and
-# 16 interior-point ones; one LP of the stalling move of those tests never ends in the simplex (515 000 iterations in
-# 30 s), and the interior-point method proves it infeasible in 16.
-MAX_LP_ITERATIONS = 10_000
-MAX_LP_SOLVES = 200  # LPs per search (those runs need at most 30): beyond, SolverFailed
 TORQUE_POINTS = (0.0, 0.25, 0.5, 0.75, 1.0)  # 1.0: the left limit at the next node (the torque jumps)
 
 
@@ -70,25 +55,6 @@ class Cut:
 
     pole: complex
     bound: float
-
-
-@dataclass
-class LpCounter:
-    """The LPs of one search: HiGHS runs (``solves``), their iterations and seconds, the runs that stopped at
-    ``max_iterations`` (``capped_runs``) and the LPs that therefore counted as not found (``capped_lps``).
-    ``time_limit_s``: each run's wall-clock last resort (HiGHS's own clock)."""
-
-    time_limit_s: float = math.inf
-    max_iterations: int = field(default_factory=lambda: MAX_LP_ITERATIONS)
-    max_solves: int = field(default_factory=lambda: MAX_LP_SOLVES)
-    solves: int = 0
-    iterations: int = 0
-    seconds: float = 0.0
-    capped_runs: int = 0
-    capped_lps: int = 0
-
-    def report(self, status: str) -> SolverReport:
-        return SolverReport(status, self.iterations, self.seconds)
 
 
 def pieces(steps: int, dt: float) -> tuple[Array, Array]:
@@ -112,7 +78,7 @@ def _unit_rows(rows: Array, rhs: Array) -> tuple[Array, Array]:
     return rows / scale[:, None], rhs / scale
 
 
-@np.errstate(divide="ignore", invalid="ignore", over="ignore")  # rows are checked whole: _require_finite
+@np.errstate(divide="ignore", invalid="ignore", over="ignore")  # rows are checked whole: highs_model.require_finite
 def velocity_bound(spec: Spec, dt: float) -> float:
     """The velocity bound the grid LP holds at its check points (the nodes, and with a held jerk every step's
     middle) so that the command holds max_velocity everywhere: with a held jerk the velocity is a parabola on each
@@ -145,11 +111,35 @@ def velocity_bounds(spec: Spec, times_s: Array, total_s: float, dt: float) -> Ar
     return out
 
 
-def grid_lp(
-    spec: Spec, steps: int, dt: float, cuts: list[Cut], counter: LpCounter, weights: Array | None = None
-) -> Array | None:
-    """A feasible x on N = ``steps`` steps of ``dt`` (u_k = spec.scale x_k), or None if none is found; with
-    ``weights`` the one of least weighted L1 norm (see SparseLp.weighted_l1)."""
+class GridLp:
+    """The LP on N = ``steps`` steps of ``dt`` (u_k = spec.scale x_k) in HiGHS: ``solve`` gives a feasible x, or
+    None if none is found (with ``weights``, the one of least weighted L1 norm: see SparseLp.weighted_l1);
+    ``add_cuts`` adds band points, and the next ``solve`` starts from the last basis."""
+
+    def __init__(
+        self, spec: Spec, steps: int, dt: float, cuts: list[Cut], counter: LpCounter, weights: Array | None = None
+    ) -> None:
+        self.spec, self.steps, self.dt = spec, steps, dt
+        self.model = LpModel(_grid_sparse_lp(spec, steps, dt, cuts, weights), counter)
+
+    def solve(self) -> Array | None:
+        x, _ = self.model.solve()
+        return None if x is None else x[: self.steps]
+
+    def add_cuts(self, cuts: list[Cut]) -> None:
+        weights, bounds = _band_weights(self.spec, self.steps, self.dt, cuts)
+        self.model.add_band(weights, bounds)
+
+
+def _band_weights(spec: Spec, steps: int, dt: float, cuts: list[Cut]) -> tuple[CArray, Array]:
+    """The grid LP's band rows at ``cuts``: F_0's weights per step and the bounds, lowered by BAND_MARGIN."""
+    start, end = pieces(steps, dt)
+    poles = np.array([cut.pole for cut in cuts])
+    weights = spec.scale * acceleration_moment(spec, poles, start, end, steps * dt, 0)
+    return weights, np.array([cut.bound for cut in cuts]) * (1.0 - BAND_MARGIN)
+
+
+def _grid_sparse_lp(spec: Spec, steps: int, dt: float, cuts: list[Cut], weights: Array | None) -> SparseLp:
     q, unit = spec.order, spec.scale
     total = steps * dt
     c = chain(spec, total)
@@ -201,14 +191,11 @@ def grid_lp(
         rows_eq, rhs_eq = _unit_rows(np.vstack([w.real, w.imag]), np.zeros(2 * w.shape[0]))
         lp.add_eq(lp.dense_x_rows(rows_eq), rhs_eq)
     if cuts:
-        poles = np.array([cut.pole for cut in cuts])
-        w = unit * acceleration_moment(spec, poles, start, end, total, 0)
-        lp.band(w, np.array([cut.bound for cut in cuts]) * (1.0 - BAND_MARGIN), inscribed=True)
-    x, _ = _solve(lp, counter)
-    return None if x is None else x[:steps]
+        lp.band(*_band_weights(spec, steps, dt, cuts), inscribed=True)
+    return lp
 
 
-@np.errstate(divide="ignore", invalid="ignore", over="ignore")  # rows are checked whole: _require_finite
+@np.errstate(divide="ignore", invalid="ignore", over="ignore")  # rows are checked whole: highs_model.require_finite
 def relaxed_lp(spec: Spec, total_s: float, steps: int, cuts: list[Cut], counter: LpCounter) -> bool:
     """False only if HiGHS proves the relaxation of duration ``total_s`` infeasible (then no command of that
     duration exists); x are step averages of the acceleration over max_acceleration."""
@@ -272,74 +259,5 @@ def relaxed_lp(spec: Spec, total_s: float, steps: int, cuts: list[Cut], counter:
         w = accel * exponential_moment(poles, start, end, total_s, 0)
         widths = np.abs(poles) * total_s * dt / 4 * accel + slack * np.sum(np.abs(w), axis=1)
         lp.band(w, np.array([cut.bound for cut in cuts]) + widths, inscribed=False)
-    x, status = _solve(lp, counter)
-    return not (x is None and status == 2)  # only HiGHS's proven infeasibility is a certificate
-
-
-def _require_finite(*parts: Array | sp.csr_matrix | None) -> None:
-    """Refuse an LP whose rows are not finite in double precision (InvalidParameter on the body): a move, limits and
-    modes whose scales are too far apart (the fuzz bench: a 1e-9 ramp at 5e11 on a 0.001 Hz mode lasts 2e-21 s, a
-    band bound of 5e-324 % is 0) give inf / 0 rows, which HiGHS cannot take; no design is claimed impossible."""
-    for part in parts:
-        if part is None:
-            continue
-        data = part.data if sp.issparse(part) else part
-        if not np.all(np.isfinite(data)):
-            raise InvalidParameter(
-                "body",
-                "not finite",
-                "the move, its limits and the plant's modes span scales too far apart for the time-optimal linear "
-                "programme in double precision: bring them closer (e.g. a longer move, looser limits, a band nearer "
-                "the mode)",
-            )
-
-
-def _solve(lp: SparseLp, counter: LpCounter) -> tuple[Array | None, int]:
-    """HiGHS's solution (None unless optimal) and scipy's status (0 optimal, 1 iteration cap, 2 infeasible, ...).
-
-    HiGHS's simplex now and then stalls on one of these small LPs (seen: 316 steps, held jerk): stopped at
-    its iteration cap, the LP is solved again with the interior-point method (same cap), then counts as not found.
-    Raises SolverFailed past the search's LP cap, SolverTimedOut when HiGHS reaches its time limit."""
-    if counter.solves >= counter.max_solves:
-        raise SolverFailed(
-            counter.report("lp_solve_cap"),
-            f"the time-optimal search reached its cap of {counter.max_solves} LP solves (max_lp_solves) without an "
-            "answer",
-        )
-    a_eq = sp.vstack(lp.eq).tocsr() if lp.eq else None
-    b_eq = np.concatenate(lp.eq_rhs) if lp.eq else None
-    a_ub = sp.vstack(lp.ub).tocsr() if lp.ub else None
-    b_ub = np.concatenate(lp.ub_rhs) if lp.ub else None
-    bounds = np.column_stack([lp.lower, lp.upper])
-    _require_finite(lp.cost, a_eq, b_eq, a_ub, b_ub)
-    options: dict[str, Any] = {"maxiter": counter.max_iterations, "presolve": True}
-    if math.isfinite(counter.time_limit_s):
-        options["time_limit"] = counter.time_limit_s
-    status = 1
-    for method in ("highs", "highs-ipm"):
-        lp_started = time.perf_counter()
-        result = linprog(
-            lp.cost, A_ub=a_ub, b_ub=b_ub, A_eq=a_eq, b_eq=b_eq, bounds=bounds, method=method, options=options
-        )
-        seconds = time.perf_counter() - lp_started  # reported only: nothing below depends on it
-        nit = max(0, int(getattr(result, "nit", 0) or 0))
-        counter.solves += 1
-        counter.iterations += nit
-        counter.seconds += seconds
-        record_solve(nit, seconds)
-        if result.status == 0:
-            x: Array = np.asarray(result.x, dtype=float)
-            return x, 0
-        status = int(result.status)
-        if status == 1 and "iteration limit" not in str(result.message).lower():  # HiGHS's time limit
-            raise SolverTimedOut(
-                counter.report("lp_time_limit"),
-                f"an LP reached its wall-clock last resort ({counter.time_limit_s:g} s, the solve time limit) after "
-                f"{counter.solves} LP solves of the search: no design is returned",
-            )
-        if status != 1:  # proven infeasible, or a numerical failure: no second method
-            break
-        counter.capped_runs += 1
-    if status == 1:
-        counter.capped_lps += 1
-    return None, status
+    x, status = LpModel(lp, counter).solve()
+    return not (x is None and status == INFEASIBLE)  # only HiGHS's proven infeasibility is a certificate

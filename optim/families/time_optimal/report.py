@@ -182,7 +182,7 @@ def design_report(
             lp_iterations=solution.lp_iterations,
             band_points=solution.cut_frequencies,
             solve_time_s=solution.solve_time_s,
-            lp_solver="HiGHS (scipy.optimize.linprog)",
+            lp_solver="HiGHS (highspy)",
             max_lp_iterations=solution.max_lp_iterations,
             max_lp_solves=solution.max_lp_solves,
             lp_runs_at_iteration_cap=solution.capped_runs,

@@ -28,7 +28,8 @@ from optim.families.time_optimal.check import (
     violations,
     worst_ratios,
 )
-from optim.families.time_optimal.lp import MARGIN, Cut, LpCounter, grid_lp, pieces, relaxed_lp
+from optim.families.time_optimal.highs_model import LpCounter
+from optim.families.time_optimal.lp import MARGIN, Cut, GridLp, pieces, relaxed_lp
 from optim.families.time_optimal.types import Arc, Band, GridSolution, Spec
 from optim.families.time_optimal.weights import exponential_moment, integrated_box
 
@@ -37,7 +38,9 @@ STEPS = 96  # steps over the search's upper duration
 CUT_ROUNDS = 12
 RELAXED_STEPS = 250
 BOUND_BISECTIONS = 2
-PHASE_STEP = 0.15  # rad
+# rad of the residual's phase between the LPs' first band points: the dense check adds points where a command
+# breaks the band between them, in rounds that cost a coarse grid's LP (a third of a finer grid's)
+PHASE_STEP = 1.2
 MAX_INITIAL_POINTS = 200
 
 
@@ -52,25 +55,27 @@ class GridSearch:
             self.cuts += band_grid(spec, b, points).cuts(np.arange(points * len(b.damping_ratios)))
 
     def feasible(self, steps: int, dt: float, weights: Array | None = None) -> Array | None:
-        """A grid command of ``steps`` steps meeting every constraint (bands on the dense check), or None."""
+        """A grid command of ``steps`` steps meeting every constraint (bands on the dense check), or None. The
+        band points the dense check adds are added to the LP in HiGHS, which solves it again from its last basis."""
+        lp = GridLp(self.spec, steps, dt, self.cuts, self.counter, weights)
+        start, end = pieces(steps, dt)
         for _ in range(CUT_ROUNDS):
-            x = grid_lp(self.spec, steps, dt, self.cuts, self.counter, weights)
+            x = lp.solve()
             if x is None:
                 return None
-            start, end = pieces(steps, dt)
-            added = self.add_cuts(start, end, self.spec.scale * x, steps * dt)
+            added = self.new_cuts(start, end, self.spec.scale * x, steps * dt)
             if not added:
                 return x
+            self.cuts += added
+            lp.add_cuts(added)
         return None  # the band still fails the dense check: not shown feasible at this length
 
-    def add_cuts(self, start: Array, end: Array, level: Array, total: float) -> bool:
-        added = False
+    def new_cuts(self, start: Array, end: Array, level: Array, total: float) -> list[Cut]:
+        """The band points where the command breaks a band on the dense check (none: it meets every band)."""
+        added: list[Cut] = []
         for grid in self.dense:
             ratios = worst_ratios(self.spec, grid, start, end, level, total)
-            worst = violations(ratios / (1.0 - CHECK_MARGIN), len(grid.band.damping_ratios))
-            if worst.size:
-                self.cuts += grid.cuts(worst)
-                added = True
+            added += grid.cuts(violations(ratios / (1.0 - CHECK_MARGIN), len(grid.band.damping_ratios)))
         return added
 
     def grid_optimum(self, upper_s: float | None = None) -> GridSolution:
@@ -179,7 +184,7 @@ class GridSearch:
 
 def initial_points(band: Band, duration_s: float) -> int:
     """Band points to start with: about one per PHASE_STEP radians of the residual's phase across the band
-    (the phase of F_0 turns by about T dw), so that few cutting-plane rounds are needed."""
+    (the phase of F_0 turns by about T dw), at least INITIAL_POINTS."""
     span = (band.high_rad_s - band.low_rad_s) * duration_s
     return int(min(MAX_INITIAL_POINTS, max(INITIAL_POINTS, math.ceil(span / PHASE_STEP) + 1)))
 

@@ -66,29 +66,10 @@ class SparseLp:
         """|weights_p . x| <= bounds_p for each band point: (Re, Im) / bound as two variables (two dense rows),
         then the 16-gon on them (sparse): inscribed in the unit circle (the bound holds) or circumscribed
         (a relaxation)."""
-        count = weights.shape[0]
-        first = self.lower.size - 2 * count
-        scaled = weights / bounds[:, None]
-        parts = np.vstack([scaled.real, scaled.imag])
-        scale = np.max(np.abs(parts), axis=1)
-        scale[scale == 0.0] = 1.0
-        dense = self.dense_x_rows(parts / scale[:, None]).tocsr()
-        aux = sp.coo_matrix(
-            (-1.0 / scale, (np.arange(2 * count), first + np.arange(2 * count))), shape=(2 * count, self.lower.size)
-        )
-        self.add_eq((dense + aux).tocoo(), np.zeros(2 * count))
-        theta = 2 * math.pi * np.arange(POLYGON_SIDES) / POLYGON_SIDES
-        factor = math.cos(math.pi / POLYGON_SIDES) if inscribed else 1.0
-        p = np.arange(count)
-        rows = (p[:, None] * POLYGON_SIDES + np.arange(POLYGON_SIDES)[None, :]).ravel()
-        re_cols = np.repeat(first + p, POLYGON_SIDES)
-        im_cols = np.repeat(first + count + p, POLYGON_SIDES)
-        cos, sin = np.tile(np.cos(theta), count), np.tile(np.sin(theta), count)
-        m = sp.coo_matrix(
-            (np.concatenate([cos, sin]), (np.concatenate([rows, rows]), np.concatenate([re_cols, im_cols]))),
-            shape=(count * POLYGON_SIDES, self.lower.size),
-        )
-        self.add_ub(m, np.full(count * POLYGON_SIDES, factor))
+        first = self.lower.size - 2 * weights.shape[0]
+        eq, polygon, rhs = band_rows(weights, bounds, inscribed, first, self.lower.size)
+        self.add_eq(eq, np.zeros(eq.shape[0]))
+        self.add_ub(polygon, rhs)
 
     def add_eq(self, m: sp.coo_matrix, rhs: Array) -> None:
         self.eq.append(m)
@@ -146,3 +127,34 @@ class SparseLp:
                 )
             )
         return sp.vstack(mats).tocoo()
+
+
+def band_rows(
+    weights: CArray, bounds: Array, inscribed: bool, first: int, columns: int
+) -> tuple[sp.coo_matrix, sp.coo_matrix, Array]:
+    """SparseLp.band's rows for band points whose (Re, Im) / bound variables are columns ``first`` on (all the
+    real parts, then the imaginary ones) of ``columns``: the equalities that define them (right-hand side 0), the
+    16-gon's rows and their right-hand side."""
+    count = weights.shape[0]
+    steps = weights.shape[1]
+    scaled = weights / bounds[:, None]
+    parts = np.vstack([scaled.real, scaled.imag])
+    scale = np.max(np.abs(parts), axis=1)
+    scale[scale == 0.0] = 1.0
+    # each row: the steps' weights, then its own variable's -1 (over the row's scale)
+    values = np.hstack([parts / scale[:, None], (-1.0 / scale)[:, None]])
+    columns_of = np.hstack([np.tile(np.arange(steps), (2 * count, 1)), (first + np.arange(2 * count))[:, None]])
+    starts = np.arange(2 * count + 1) * (steps + 1)
+    eq = sp.csr_matrix((values.ravel(), columns_of.ravel(), starts), shape=(2 * count, columns)).tocoo()
+    theta = 2 * math.pi * np.arange(POLYGON_SIDES) / POLYGON_SIDES
+    factor = math.cos(math.pi / POLYGON_SIDES) if inscribed else 1.0
+    p = np.arange(count)
+    rows = (p[:, None] * POLYGON_SIDES + np.arange(POLYGON_SIDES)[None, :]).ravel()
+    re_cols = np.repeat(first + p, POLYGON_SIDES)
+    im_cols = np.repeat(first + count + p, POLYGON_SIDES)
+    cos, sin = np.tile(np.cos(theta), count), np.tile(np.sin(theta), count)
+    polygon = sp.coo_matrix(
+        (np.concatenate([cos, sin]), (np.concatenate([rows, rows]), np.concatenate([re_cols, im_cols]))),
+        shape=(count * POLYGON_SIDES, columns),
+    )
+    return eq, polygon, np.full(count * POLYGON_SIDES, factor)
