@@ -37,7 +37,8 @@ CArray = NDArray[np.complex128]
 # 30 s), and the interior-point method proves it infeasible in 16.
 MAX_LP_ITERATIONS = 10_000
 MAX_LP_SOLVES = 200  # LPs per search (those runs need at most 30): beyond, SolverFailed
-OPTIMAL, CAPPED, INFEASIBLE, FAILED = 0, 1, 2, 4  # a run's outcome (scipy.optimize.linprog's status codes)
+# A run's outcome (scipy.optimize.linprog's status codes, and HiGHS's wall-clock last resort).
+OPTIMAL, CAPPED, INFEASIBLE, FAILED, TIMED_OUT = 0, 1, 2, 4, -1
 
 
 @dataclass
@@ -61,8 +62,8 @@ class LpCounter:
 
 def highs_run(highs: Any, options: dict[str, Any]) -> tuple[int, int]:
     """One HiGHS run of ``highs`` with ``options`` set: (outcome, iterations). Outcomes: OPTIMAL, CAPPED (its
-    iteration cap), INFEASIBLE (proven), FAILED (anything else); HiGHS's time limit raises SolverTimedOut upstream
-    (``time_limit`` is reported as such: see LpModel.solve)."""
+    iteration cap), INFEASIBLE (proven), TIMED_OUT (its ``time_limit``: LpModel.solve raises SolverTimedOut), FAILED
+    (anything else, e.g. unbounded or infeasible undecided: nothing is proven)."""
     for name, value in options.items():
         highs.setOptionValue(name, value)
     highs.run()
@@ -73,7 +74,7 @@ def highs_run(highs: Any, options: dict[str, Any]) -> tuple[int, int]:
         highspy.HighsModelStatus.kOptimal: OPTIMAL,
         highspy.HighsModelStatus.kIterationLimit: CAPPED,
         highspy.HighsModelStatus.kInfeasible: INFEASIBLE,
-        highspy.HighsModelStatus.kTimeLimit: -1,
+        highspy.HighsModelStatus.kTimeLimit: TIMED_OUT,
     }
     return outcomes.get(status, FAILED), iterations
 
@@ -150,7 +151,7 @@ class LpModel:
             record_solve(iterations, seconds)
             if outcome == OPTIMAL:
                 return np.asarray(self.highs.getSolution().col_value, dtype=float), OPTIMAL
-            if outcome == -1:  # HiGHS's time limit
+            if outcome == TIMED_OUT:
                 raise SolverTimedOut(
                     counter.report("lp_time_limit"),
                     f"an LP reached its wall-clock last resort ({counter.time_limit_s:g} s, the solve time limit) "
