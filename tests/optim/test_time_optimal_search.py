@@ -1,5 +1,6 @@
 """The time-optimal family's grid search (optim.families.time_optimal.search) and its band check
-(optim.families.time_optimal.check): the bisection's order of LPs, and the check on a grid command's runs."""
+(optim.families.time_optimal.check): the bisection's order of LPs, the check on a grid command's runs, and the
+band's cutting-plane rounds solved warm in the HiGHS model the grid LP keeps (optim.families.time_optimal.lp)."""
 
 from __future__ import annotations
 
@@ -87,3 +88,45 @@ def test_refined_candidates_longer_than_the_grid_send_the_fallback_to_a_finer_gr
     lp_800_s = 0.6562702941894532
     assert result.summary.duration_s == pytest.approx(lp_800_s, rel=5e-4)
     assert result.design.detail.solution.method == "refined"  # type: ignore[attr-defined]
+
+
+def test_a_warm_round_holds_every_band_point_as_the_lp_built_with_them_and_prints_nothing(
+    capfd: pytest.CaptureFixture[str],
+) -> None:
+    # The README's robust move (+-10 %) on the grid its search ends on (341 steps of 0.668 ms): the LP with the
+    # search's first band points (one every 1.2 rad of phase), then the points the dense check adds, added to the kept
+    # HiGHS model (GridLp.add_cuts, solved warm). Its command must hold every band point, checked here by the band's
+    # own moments (acceleration_moment @ level, not the LP's rows), within the LP's margin (BAND_MARGIN 0.3 % below
+    # the bound, less HiGHS's feasibility tolerance 1e-7 on rows scaled to 1: 1e-6 of the bound); and the LP built
+    # anew with all the points must be feasible too (the same decision). HiGHS prints nothing on stdout (highspy's
+    # Highs class prints a banner: the CLI's --json - writes there).
+    from optim.families.time_optimal.family import selected_modes, spec_of
+    from optim.families.time_optimal.highs_model import LpCounter
+    from optim.families.time_optimal.lp import BAND_MARGIN, GridLp, acceleration_moment, pieces
+    from optim.families.time_optimal.options import Robustness, TimeOptimalOptions
+    from optim.families.time_optimal.search import GridSearch
+    from tests.optim.test_time_optimal import KNOWN
+
+    options = TimeOptimalOptions(Robustness(frequency_ratio_range=(0.9, 1.1)))
+    spec = spec_of(KNOWN, options, selected_modes(KNOWN, options)[0])
+    search = GridSearch(spec)
+    first = list(search.cuts)
+    steps, dt = 341, 0.22785639803048094 / 341
+    start, end = pieces(steps, dt)
+    lp = GridLp(spec, steps, dt, first, LpCounter())
+    x = lp.solve()
+    assert x is not None
+    added = search.new_cuts(start, end, spec.scale * x, steps * dt)
+    assert added  # the first points alone let the command break the band between them: a round is needed
+    lp.add_cuts(added)
+    warm = lp.solve()
+    assert warm is not None
+    every = first + added
+    poles = np.array([c.pole for c in every])
+    bound = np.array([c.bound for c in every])
+    moment = acceleration_moment(spec, poles, start, end, steps * dt, 0)
+    ratio = np.abs(moment @ (spec.scale * warm)) / bound
+    assert float(np.max(ratio)) <= (1.0 - BAND_MARGIN) * (1 + 1e-6)
+    assert float(np.max(ratio)) > 0.9  # the band binds: the check is not of a command far inside it
+    assert GridLp(spec, steps, dt, every, LpCounter()).solve() is not None
+    assert capfd.readouterr().out == ""
