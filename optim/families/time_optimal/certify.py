@@ -286,10 +286,14 @@ class _Switching:
         size = float(np.max(np.abs(self.sigma[bang]), initial=0.0))
         return np.where(bang, self.levels[self.arc] * self.sigma, np.inf), size
 
+    def slope(self, spec: Spec) -> Array:
+        """phi'(T - s) at each check point."""
+        return _phi(spec, self.total - self.s, self.step, self.theta, 1)
+
     def density(self, spec: Spec) -> tuple[Array, float]:
         """mu's density times the arc's sign at each check point (+inf off the first-order constrained arcs: >= 0
         where it has the right sign) and max |phi'(T - s)| (its scale)."""
-        slope = _phi(spec, self.total - self.s, self.step, self.theta, 1)
+        slope = self.slope(spec)
         first = self.kind[self.arc] == FIRST
         values = np.where(first, self.sign[self.arc] * (slope + self.beta[self.arc]), np.inf)
         return values, float(np.max(np.abs(slope)))
@@ -360,7 +364,7 @@ def certificate(spec: Spec, arcs: tuple[Arc, ...]) -> Certificate | None:
     first = w.kind == FIRST
     slope_size = 0.0  # mu's density: phi'(T - s) + beta, of the arc's sign (only where a first-order arc or an
     if np.any(first) or w.atoms:  # atom needs it)
-        slope = _phi(spec, w.total - s, w.step, theta, 1)
+        slope = w.slope(spec)
         if density_disagrees(slope, w.arc, first, sign, w.beta, SIGN_TOLERANCE):
             return None
         slope_size = float(np.max(np.abs(slope)))

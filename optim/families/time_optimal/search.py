@@ -59,7 +59,7 @@ class GridSearch:
         band points the dense check adds are added to the LP in HiGHS, which solves it again from its last basis."""
         lp = GridLp(self.spec, steps, dt, self.cuts, self.counter, weights)
         start, end = pieces(steps, dt)
-        for _ in range(CUT_ROUNDS):
+        for round_ in range(CUT_ROUNDS):
             x = lp.solve()
             if x is None:
                 return None
@@ -67,7 +67,8 @@ class GridSearch:
             if not added:
                 return x
             self.cuts += added
-            lp.add_cuts(added)
+            if round_ < CUT_ROUNDS - 1:  # (the last round's points are for the next LP of the search)
+                lp.add_cuts(added)
         return None  # the band still fails the dense check: not shown feasible at this length
 
     def new_cuts(self, start: Array, end: Array, level: Array, total: float) -> list[Cut]:
