@@ -130,3 +130,47 @@ def test_a_warm_round_holds_every_band_point_as_the_lp_built_with_them_and_print
     assert float(np.max(ratio)) > 0.9  # the band binds: the check is not of a command far inside it
     assert GridLp(spec, steps, dt, every, LpCounter()).solve() is not None
     assert capfd.readouterr().out == ""
+
+
+def test_each_run_of_a_kept_model_has_its_own_time_limit(monkeypatch: pytest.MonkeyPatch) -> None:
+    # HiGHS's clock runs on over the runs of one model (a band's warm rounds): a time_limit of 10 s stopped a round
+    # after 0.35 s of its own once the rounds before it had run 9.65 s. Each run's limit is set past the model's run
+    # time so far: here the second run's limit is the first's plus what HiGHS counted for the first.
+    from optim.families.time_optimal import highs_model
+    from optim.families.time_optimal.family import selected_modes, spec_of
+    from optim.families.time_optimal.lp import GridLp
+    from optim.families.time_optimal.options import TimeOptimalOptions
+    from tests.optim.test_time_optimal import KNOWN
+
+    limits: list[tuple[float, float]] = []
+    real_run = highs_model.highs_run
+
+    def highs_run(highs: object, options: dict[str, object]) -> tuple[int, int]:
+        limits.append((float(options["time_limit"]), float(highs.getRunTime())))  # type: ignore[attr-defined,arg-type]
+        return real_run(highs, options)
+
+    monkeypatch.setattr(highs_model, "highs_run", highs_run)
+    options = TimeOptimalOptions()
+    spec = spec_of(KNOWN, options, selected_modes(KNOWN, options)[0])
+    lp = GridLp(spec, 96, 0.23 / 96, [], highs_model.LpCounter(time_limit_s=10.0))
+    assert lp.solve() is not None and lp.solve() is not None
+    (first, at_first), (second, at_second) = limits
+    assert at_first == 0.0 and first == 10.0
+    assert at_second > 0.0 and second == 10.0 + at_second
+
+
+def test_a_wide_band_the_coarse_start_cannot_hold_gets_the_dense_start() -> None:
+    # The README's move over 0.3-3 times its frequency (V <= 5 %): its LPs need some 500 band points; starting from
+    # one every 1.2 rad and adding a dozen a round, the rounds of one LP ran out at lengths that are feasible, and the
+    # answer was 868.66 ms. After COARSE_ROUNDS rounds the search adds the dense start (one point every 0.15 rad, as
+    # before issue 25's warm rounds): 279.308 ms, d9b987e's answer (which started dense), and the band is met on the
+    # report's own check of the exact command (models.sensitivity).
+    from optim.families.time_optimal.options import Robustness, TimeOptimalOptions
+    from optim.registry import FAMILIES
+    from optim.synthesis import synthesize
+    from tests.optim.test_time_optimal import KNOWN
+
+    options = TimeOptimalOptions(Robustness(frequency_ratio_range=(0.3, 3.0)))
+    result = synthesize(FAMILIES["time_optimal"], KNOWN, options)
+    assert result.summary.duration_s == pytest.approx(0.2793078, abs=1e-6)
+    assert result.summary.robustness is not None and result.summary.robustness.covers_request

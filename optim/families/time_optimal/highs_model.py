@@ -103,6 +103,7 @@ class LpModel:
         self.highs: Any = _Highs()  # highspy.Highs without its Python callbacks (they print a banner on stdout)
         self.highs.setOptionValue("output_flag", False)
         self.highs.passModel(model)
+        self.warm = False  # rows were added since the model was passed: a run starts from the last basis
 
     def add_band(self, weights: CArray, bounds: Array) -> None:
         """|weights_p . x| <= bounds_p at more band points (SparseLp.band's inscribed 16-gon), kept warm."""
@@ -118,6 +119,7 @@ class LpModel:
         lower = np.concatenate([np.zeros(eq.shape[0]), np.full(rhs.size, -np.inf)])
         upper = np.concatenate([np.zeros(eq.shape[0]), rhs])
         self.highs.addRows(rows.shape[0], lower, upper, rows.nnz, rows.indptr, rows.indices, rows.data)
+        self.warm = True
 
     def solve(self) -> tuple[Array | None, int]:
         """HiGHS's solution (None unless optimal) and its outcome (OPTIMAL, CAPPED, INFEASIBLE or FAILED).
@@ -142,13 +144,10 @@ class LpModel:
             options["time_limit"] = counter.time_limit_s
         outcome = CAPPED
         for solver in ("choose", "ipm"):
-            started = time.perf_counter()
-            outcome, iterations = highs_run(self.highs, {**options, "solver": solver})
-            seconds = time.perf_counter() - started  # reported only: nothing below depends on it
-            counter.solves += 1
-            counter.iterations += iterations
-            counter.seconds += seconds
-            record_solve(iterations, seconds)
+            outcome = self._run({**options, "solver": solver})
+            if outcome == FAILED and self.warm:  # HiGHS could not go on from the last basis (seen: kNotset after 0
+                self.highs.clearSolver()  # iterations on a band of 3 damping ratios): once more from nothing
+                outcome = self._run({**options, "solver": solver})
             if outcome == OPTIMAL:
                 return np.asarray(self.highs.getSolution().col_value, dtype=float), OPTIMAL
             if outcome == TIMED_OUT:
@@ -163,6 +162,20 @@ class LpModel:
         if outcome == CAPPED:
             counter.capped_lps += 1
         return None, outcome
+
+    def _run(self, options: dict[str, Any]) -> int:
+        """One HiGHS run, counted (solves, iterations, seconds). HiGHS's clock runs on over a kept model's runs, so
+        a run's ``time_limit`` is set past the model's run time so far (each LP keeps its own last resort)."""
+        if "time_limit" in options:
+            options = {**options, "time_limit": self.highs.getRunTime() + options["time_limit"]}
+        started = time.perf_counter()
+        outcome, iterations = highs_run(self.highs, options)
+        seconds = time.perf_counter() - started  # reported only: nothing below depends on it
+        self.counter.solves += 1
+        self.counter.iterations += iterations
+        self.counter.seconds += seconds
+        record_solve(iterations, seconds)
+        return outcome
 
 
 def require_finite(*parts: Array | sp.spmatrix | None) -> None:

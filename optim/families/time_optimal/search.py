@@ -39,8 +39,10 @@ CUT_ROUNDS = 12
 RELAXED_STEPS = 250
 BOUND_BISECTIONS = 2
 # rad of the residual's phase between the LPs' first band points: the dense check adds points where a command
-# breaks the band between them, in rounds that cost a coarse grid's LP (a third of a finer grid's)
+# breaks the band between them, in rounds solved warm (search.GridSearch.feasible)
 PHASE_STEP = 1.2
+DENSE_PHASE_STEP = 0.15  # rad: the dense start, added after COARSE_ROUNDS rounds of one LP
+COARSE_ROUNDS = 4
 MAX_INITIAL_POINTS = 200
 
 
@@ -50,25 +52,35 @@ class GridSearch:
         self.counter = LpCounter(time_limit_s=spec.lp_time_limit_s)
         self.dense = [band_grid(spec, b, dense_points(b, spec.upper_guess_s)) for b in spec.bands]
         self.cuts: list[Cut] = []
+        self.dense_start: list[Cut] = []  # the points every DENSE_PHASE_STEP rad: added where the coarse start fails
         for b in spec.bands:
-            points = initial_points(b, spec.upper_guess_s)
-            self.cuts += band_grid(spec, b, points).cuts(np.arange(points * len(b.damping_ratios)))
+            for step, into in ((PHASE_STEP, self.cuts), (DENSE_PHASE_STEP, self.dense_start)):
+                points = initial_points(b, spec.upper_guess_s, step)
+                into += band_grid(spec, b, points).cuts(np.arange(points * len(b.damping_ratios)))
 
     def feasible(self, steps: int, dt: float, weights: Array | None = None) -> Array | None:
         """A grid command of ``steps`` steps meeting every constraint (bands on the dense check), or None. The
-        band points the dense check adds are added to the LP in HiGHS, which solves it again from its last basis."""
+        band points the dense check adds are added to the LP in HiGHS, which solves it again from its last basis.
+        After COARSE_ROUNDS rounds the dense start's points are added too, for the rest of the search (a wide band,
+        a small V_max or several damping ratios: adding a dozen points a round, the rounds ran out, and the search
+        called lengths infeasible that the dense start shows feasible), with CUT_ROUNDS more rounds."""
         lp = GridLp(self.spec, steps, dt, self.cuts, self.counter, weights)
         start, end = pieces(steps, dt)
-        for round_ in range(CUT_ROUNDS):
+        rounds = CUT_ROUNDS
+        for round_ in range(1, CUT_ROUNDS + COARSE_ROUNDS + 1):
             x = lp.solve()
             if x is None:
                 return None
             added = self.new_cuts(start, end, self.spec.scale * x, steps * dt)
             if not added:
                 return x
+            if round_ == COARSE_ROUNDS and self.dense_start:
+                added += self.dense_start
+                self.dense_start, rounds = [], round_ + CUT_ROUNDS
             self.cuts += added
-            if round_ < CUT_ROUNDS - 1:  # (the last round's points are for the next LP of the search)
-                lp.add_cuts(added)
+            if round_ == rounds:
+                break  # (the last round's points are for the next LP of the search)
+            lp.add_cuts(added)
         return None  # the band still fails the dense check: not shown feasible at this length
 
     def new_cuts(self, start: Array, end: Array, level: Array, total: float) -> list[Cut]:
@@ -183,11 +195,11 @@ class GridSearch:
         )
 
 
-def initial_points(band: Band, duration_s: float) -> int:
-    """Band points to start with: about one per PHASE_STEP radians of the residual's phase across the band
-    (the phase of F_0 turns by about T dw), at least INITIAL_POINTS."""
+def initial_points(band: Band, duration_s: float, phase_step: float = PHASE_STEP) -> int:
+    """Band points to start with: about one per ``phase_step`` radians of the residual's phase across the band
+    (the phase of F_0 turns by about T dw), at least INITIAL_POINTS, at most MAX_INITIAL_POINTS."""
     span = (band.high_rad_s - band.low_rad_s) * duration_s
-    return int(min(MAX_INITIAL_POINTS, max(INITIAL_POINTS, math.ceil(span / PHASE_STEP) + 1)))
+    return int(min(MAX_INITIAL_POINTS, max(INITIAL_POINTS, math.ceil(span / phase_step) + 1)))
 
 
 def project(spec: Spec, grid: GridSolution) -> Array:
