@@ -174,3 +174,83 @@ def test_a_wide_band_the_coarse_start_cannot_hold_gets_the_dense_start() -> None
     result = synthesize(FAMILIES["time_optimal"], KNOWN, options)
     assert result.summary.duration_s == pytest.approx(0.2793078, abs=1e-6)
     assert result.summary.robustness is not None and result.summary.robustness.covers_request
+
+
+def test_the_grid_lp_without_state_bounds_is_the_state_lp_with_its_states_eliminated(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # The README's move (0.12 m, 10 m/s^2, within 5 m/s, which no command of <= 0.5 s within 10 m/s^2 reaches): its
+    # grid LP is written on the held values alone (lp._grid_held_lp: the end state and the residual as dense rows) and
+    # must decide as the LP with the motor's states at every node (lp.states_free forced False) at lengths around its
+    # answer, 96 steps each, nominal and with the +-10 % band's first points. Its command is checked here by exact
+    # integration of the held acceleration (the end position and velocity, to 1e-9 of the move: HiGHS's tolerance
+    # 1e-7 on rows scaled to 1, over 96 steps) and by the residual's own moment at the mode (to 1e-9 of the bang-bang
+    # residual envelope 4 A / w^2). A low max_velocity (1 m/s, reached after 0.1 s) keeps the states.
+    from dataclasses import replace
+
+    from optim.families.time_optimal import lp as lp_module
+    from optim.families.time_optimal.family import selected_modes, spec_of
+    from optim.families.time_optimal.highs_model import LpCounter
+    from optim.families.time_optimal.options import Robustness, TimeOptimalOptions
+    from optim.families.time_optimal.search import GridSearch
+    from optim.families.time_optimal.weights import exponential_moment
+    from tests.optim.test_time_optimal import KNOWN
+
+    nominal = TimeOptimalOptions()
+    spec = spec_of(KNOWN, nominal, selected_modes(KNOWN, nominal)[0])
+    banded = TimeOptimalOptions(Robustness(frequency_ratio_range=(0.9, 1.1)))
+    band_spec = spec_of(KNOWN, banded, selected_modes(KNOWN, banded)[0])
+    cases = [(spec, []), (band_spec, GridSearch(band_spec).cuts)]
+    lengths = (0.21, 0.2197, 0.222, 0.228, 0.25)
+    decided: dict[bool, list[bool]] = {}
+    for held in (True, False):
+        if not held:
+            monkeypatch.setattr(lp_module, "states_free", lambda *_: False)
+        found = []
+        for s, cuts in cases:
+            for total in lengths:
+                assert lp_module.states_free(s, total, total / 96) is held
+                x = lp_module.GridLp(s, 96, total / 96, cuts, LpCounter()).solve()
+                found.append(x is not None)
+                if x is None or not held:
+                    continue
+                start, end = lp_module.pieces(96, total / 96)
+                accel = s.scale * x
+                assert abs(float(np.sum(accel * (end - start)))) <= 1e-9 * s.move / total
+                assert float(np.sum(accel * (end - start) * (total - 0.5 * (start + end)))) == pytest.approx(
+                    s.move, abs=1e-9 * s.move
+                )
+                pole = np.asarray(s.zero_poles)
+                residual = abs(complex((exponential_moment(pole, start, end, total, 0) @ accel)[0]))
+                assert residual <= 1e-9 * 4 * s.max_acceleration / abs(pole[0]) ** 2
+        decided[held] = found
+    assert decided[True] == decided[False]
+    assert any(decided[True]) and not all(decided[True])  # lengths both sides of the grid's optimum
+    assert not lp_module.states_free(replace(spec, max_velocity=1.0), 0.22, 0.22 / 96)
+
+
+def test_the_relaxation_with_an_implied_velocity_limit_proves_what_the_one_with_velocity_states_proves(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # relaxed_lp on the README's move (its 5 m/s is beyond the 10 m/s^2 x 0.25 s any command reaches) without the
+    # velocity at every node (lp.velocity_implied) and with it (forced False), nominal and with the +-10 % band's
+    # first points: the same verdicts at lengths both sides of what it proves (the rigid minimum is 219.089 ms).
+    from optim.families.time_optimal import lp as lp_module
+    from optim.families.time_optimal.family import selected_modes, spec_of
+    from optim.families.time_optimal.highs_model import LpCounter
+    from optim.families.time_optimal.options import Robustness, TimeOptimalOptions
+    from optim.families.time_optimal.search import GridSearch
+    from tests.optim.test_time_optimal import KNOWN
+
+    banded = TimeOptimalOptions(Robustness(frequency_ratio_range=(0.9, 1.1)))
+    spec = spec_of(KNOWN, banded, selected_modes(KNOWN, banded)[0])
+    cuts = GridSearch(spec).cuts
+    lengths = (0.2, 0.215, 0.219, 0.2195, 0.225, 0.25)
+    verdicts = {}
+    for implied in (True, False):
+        if not implied:
+            monkeypatch.setattr(lp_module, "velocity_implied", lambda *_: False)
+        assert all(lp_module.velocity_implied(spec, t) is implied for t in lengths)
+        verdicts[implied] = [lp_module.relaxed_lp(spec, t, 250, c, LpCounter()) for c in ([], cuts) for t in lengths]
+    assert verdicts[True] == verdicts[False]
+    assert any(verdicts[True]) and not all(verdicts[True])

@@ -13,13 +13,18 @@ z_(k+1) = Phi z_k + Gamma u_k. The states are LP variables, so that the LP stays
 - zero residual at each cancelled pole: Re F_n = Im F_n = 0 (optim.families.time_optimal.weights), two dense rows;
 - each band point |F_0| <= (1 - BAND_MARGIN) c, by the 16-gon inscribed in that circle.
 
-The chain is ``state_chain.chain``, the LP's variables and rows are built by ``sparse_lp.SparseLp``.
+The chain is ``state_chain.chain``, the LP's variables and rows are built by ``sparse_lp.SparseLp``. Where no state
+can reach a bound between the ends (``states_free``: no torque, and the velocity limit, with a held jerk the
+acceleration limit too, beyond what the box lets the command reach in T), the states are left out: the end state is
+two or three dense rows of the held values (``_grid_held_lp``), the same LP as HiGHS's presolve made of the states'
+form, without the presolve (16 of the 22 ms of a band's fine LP).
 
 ``relaxed_lp`` is the LP every continuous command of duration T satisfies in its step averages of the
 acceleration, abar_k: the velocity at the nodes is exact, the other equalities are widened by what
 averaging can change (|int f a - sum abar_k int_step f| <= A max|f'| T dt / 4), the band polygons are
 circumscribed and widened alike, and the jerk bound becomes |abar_(k+1) - abar_k| <= J dt. HiGHS
-proving it infeasible proves that no command of duration T exists (the certificate of lower_bound_s).
+proving it infeasible proves that no command of duration T exists (the certificate of lower_bound_s). Its velocity
+is a state at every node only where max_velocity can bind (``velocity_implied``), else one row at the end.
 
 Every LP is solved in HiGHS, capped in work (optim.families.time_optimal.highs_model); a grid LP's model is kept
 so that the band points its cutting-plane rounds add are solved warm (``GridLp``).
@@ -37,7 +42,7 @@ from optim.families.time_optimal.highs_model import INFEASIBLE, LpCounter, LpMod
 from optim.families.time_optimal.sparse_lp import SparseLp
 from optim.families.time_optimal.state_chain import chain
 from optim.families.time_optimal.types import Spec
-from optim.families.time_optimal.weights import exponential_moment
+from optim.families.time_optimal.weights import exponential_moment, integrated_box
 
 Array = NDArray[np.float64]
 CArray = NDArray[np.complex128]
@@ -139,7 +144,27 @@ def _band_weights(spec: Spec, steps: int, dt: float, cuts: list[Cut]) -> tuple[C
     return weights, np.array([cut.bound for cut in cuts]) * (1.0 - BAND_MARGIN)
 
 
+def states_free(spec: Spec, total_s: float, dt: float) -> bool:
+    """No state of the motor's chain can reach a bound between the ends: no torque, and max_velocity (with a held
+    jerk, max_acceleration too) absent or above what any held values within the box reach in ``total_s`` (|v| <=
+    |v0| + A T, or with a held jerk |a| <= |a0| + J T and |v| <= |v0| + |a0| T + J T^2 / 2): the node bounds are
+    implied, and the grid LP needs its states only at the end (``_grid_held_lp``)."""
+    if spec.torque is not None:
+        return False
+    unit, v0, a0 = spec.scale, abs(spec.start_velocity), abs(spec.start_acceleration)
+    if spec.order == 2:
+        reach_v, reach_a = v0 + unit * total_s, 0.0
+    else:
+        reach_v, reach_a = v0 + a0 * total_s + 0.5 * unit * total_s**2, a0 + unit * total_s
+    tight = 1.0 - MARGIN
+    if spec.max_velocity is not None and reach_v > velocity_bound(spec, dt) * tight:
+        return False
+    return spec.order == 2 or spec.max_acceleration is None or reach_a <= spec.max_acceleration * tight
+
+
 def _grid_sparse_lp(spec: Spec, steps: int, dt: float, cuts: list[Cut], weights: Array | None) -> SparseLp:
+    if states_free(spec, steps * dt, dt):
+        return _grid_held_lp(spec, steps, dt, cuts, weights)
     q, unit = spec.order, spec.scale
     total = steps * dt
     c = chain(spec, total)
@@ -195,6 +220,43 @@ def _grid_sparse_lp(spec: Spec, steps: int, dt: float, cuts: list[Cut], weights:
     return lp
 
 
+def _grid_held_lp(spec: Spec, steps: int, dt: float, cuts: list[Cut], weights: Array | None) -> SparseLp:
+    """The grid LP where ``states_free``: the held values alone, the end state and the residuals as dense rows of
+    them (the same LP as _grid_sparse_lp's with its states eliminated: HiGHS's presolve did that in 16 of the 22 ms
+    of a band's fine LP, 1068 columns to 384)."""
+    q, unit = spec.order, spec.scale
+    total = steps * dt
+    lp = SparseLp(steps, 0, 0 if weights is None else steps, len(cuts))
+    if weights is not None:
+        lp.weighted_l1(weights)
+    tight = 1.0 - MARGIN
+    lp.lower[:steps], lp.upper[:steps] = -tight, tight  # (a held jerk, or a held acceleration: states_free)
+    start, end = pieces(steps, dt)
+    at_end = np.array([total])
+    rows = [unit * integrated_box(at_end, start, end, q - m)[0] for m in spec.end_targets()]
+    rhs = [target - float(spec.free_motion(m, at_end)[0]) for m, target in spec.end_targets().items()]
+    if spec.zero_poles:
+        poles = np.asarray(spec.zero_poles)
+        orders = range(spec.derivative_order + 1)
+        w = np.vstack([unit * exponential_moment(poles, start, end, total, n) for n in orders])
+        rows += [*w.real, *w.imag]
+        rhs += [0.0] * (2 * w.shape[0])
+    rows_eq, rhs_eq = _unit_rows(np.vstack(rows), np.asarray(rhs))
+    lp.add_eq(lp.dense_x_rows(rows_eq), rhs_eq)
+    if cuts:
+        lp.band(*_band_weights(spec, steps, dt, cuts), inscribed=True)
+    return lp
+
+
+def velocity_implied(spec: Spec, total_s: float) -> bool:
+    """The relaxation's velocity limit implied by its box (|v| <= |v0| + A T, or no limit): its velocity is needed
+    at the end only, one row of the held values, instead of a state at every node (HiGHS's presolve eliminated them
+    in most of a relaxed LP's time)."""
+    assert spec.max_acceleration is not None
+    reach = abs(spec.start_velocity) + spec.max_acceleration * total_s
+    return spec.max_velocity is None or reach <= spec.max_velocity
+
+
 @np.errstate(divide="ignore", invalid="ignore", over="ignore")  # rows are checked whole: highs_model.require_finite
 def relaxed_lp(spec: Spec, total_s: float, steps: int, cuts: list[Cut], counter: LpCounter) -> bool:
     """False only if HiGHS proves the relaxation of duration ``total_s`` infeasible (then no command of that
@@ -204,29 +266,32 @@ def relaxed_lp(spec: Spec, total_s: float, steps: int, cuts: list[Cut], counter:
     accel = spec.max_acceleration
     dt = total_s / steps
     start, end = pieces(steps, dt)
-    lp = SparseLp(steps, 1, 0, len(cuts))  # the velocity at the nodes, exact for averages
-    lp.lower[:steps], lp.upper[:steps] = -1.0, 1.0
     slack = 1e-9  # relative, against round-off (a wider relaxation stays valid)
     v_scale = accel * total_s
-    k = np.arange(steps)
-    dyn = sp.coo_matrix(
-        (
-            np.concatenate([np.ones(steps), -np.ones(steps), -np.full(steps, dt / total_s)]),
-            (np.concatenate([k, k, k]), np.concatenate([lp.state(k + 1, 0), lp.state(k, 0), k])),
-        ),
-        shape=(steps, lp.lower.size),
-    )
-    lp.add_eq(dyn, np.zeros(steps))
-    lp.lower[lp.state(0, 0)] = lp.upper[lp.state(0, 0)] = spec.start_velocity / v_scale
+    v_start = spec.start_velocity / v_scale
     v_end = (spec.end_velocity if spec.rest_to_rest else spec.move) / v_scale
-    lp.lower[lp.state(steps, 0)], lp.upper[lp.state(steps, 0)] = v_end - slack, v_end + slack
-    if spec.max_velocity is not None:
-        nodes = lp.state(np.arange(1, steps), 0)
-        lp.lower[nodes], lp.upper[nodes] = (
-            -spec.max_velocity / v_scale * (1 + slack),
-            spec.max_velocity / v_scale * (1 + slack),
-        )
     ranged: list[tuple[Array, float, float]] = []  # row . x within target +- width
+    implied = velocity_implied(spec, total_s)
+    lp = SparseLp(steps, 0 if implied else 1, 0, len(cuts))  # (the velocity at the nodes, exact for averages)
+    lp.lower[:steps], lp.upper[:steps] = -1.0, 1.0
+    if implied:
+        ranged.append((np.full(steps, dt / total_s), v_end - v_start, slack))
+    else:
+        k = np.arange(steps)
+        dyn = sp.coo_matrix(
+            (
+                np.concatenate([np.ones(steps), -np.ones(steps), -np.full(steps, dt / total_s)]),
+                (np.concatenate([k, k, k]), np.concatenate([lp.state(k + 1, 0), lp.state(k, 0), k])),
+            ),
+            shape=(steps, lp.lower.size),
+        )
+        lp.add_eq(dyn, np.zeros(steps))
+        lp.lower[lp.state(0, 0)] = lp.upper[lp.state(0, 0)] = v_start
+        lp.lower[lp.state(steps, 0)], lp.upper[lp.state(steps, 0)] = v_end - slack, v_end + slack
+        assert spec.max_velocity is not None
+        nodes = lp.state(np.arange(1, steps), 0)
+        bound = spec.max_velocity / v_scale * (1 + slack)
+        lp.lower[nodes], lp.upper[nodes] = -bound, bound
     if spec.rest_to_rest:
         row = accel * dt * (total_s - 0.5 * (start + end))
         moved = spec.move - spec.start_velocity * total_s  # what the acceleration adds to the start's drift

@@ -42,7 +42,7 @@ BOUND_BISECTIONS = 2
 # breaks the band between them, in rounds solved warm (search.GridSearch.feasible)
 PHASE_STEP = 1.2
 DENSE_PHASE_STEP = 0.15  # rad: the dense start, added after COARSE_ROUNDS rounds of one LP
-COARSE_ROUNDS = 4
+COARSE_ROUNDS = 5
 MAX_INITIAL_POINTS = 200
 
 
