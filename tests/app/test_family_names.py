@@ -28,14 +28,14 @@ def test_a_slug_is_the_name_with_hyphens_and_names_the_endpoint() -> None:
 
 
 def test_the_warm_up_designs_the_solver_examples_of_the_family_table() -> None:
-    """app.warmup reads the examples from the family table (no router): time-optimal's known_answer only (its LPs
-    keep nothing), every pseudo-polynomial example (each an IPOPT solve) and the STAP examples that need IPOPT (the
+    """app.warmup reads the examples from the family table (no router): time-optimal's known_answer and jerk_limited
+    (the compiled kernels of a held acceleration and of a held jerk), every pseudo-polynomial example (each an IPOPT solve) and the STAP examples that need IPOPT (the
     torque limit and method optimized; the closed forms need no worker)."""
     from app.settings import Settings
     from app.warmup import example_jobs
 
     names = [name for name, _, _ in example_jobs(Settings(workers=1))]
-    assert names.count("time_optimal") == 1
+    assert names.count("time_optimal") == 2
     assert names.count("pseudo_polynomial") == len(BY_NAME["pseudo_polynomial"].examples) == 3
     assert names.count("stap") == 2 and set(names) == {"time_optimal", "pseudo_polynomial", "stap"}
 
