@@ -29,8 +29,9 @@ def test_a_slug_is_the_name_with_hyphens_and_names_the_endpoint() -> None:
 
 def test_the_warm_up_designs_the_solver_examples_of_the_family_table() -> None:
     """app.warmup reads the examples from the family table (no router): time-optimal's known_answer and jerk_limited
-    (the compiled kernels of a held acceleration and of a held jerk), every pseudo-polynomial example (each an IPOPT solve) and the STAP examples that need IPOPT (the
-    torque limit and method optimized; the closed forms need no worker)."""
+    (the compiled kernels of a held acceleration and of a held jerk), every pseudo-polynomial example (each an IPOPT
+    solve) and the STAP examples that need IPOPT (the torque limit and method optimized; the closed forms need no
+    worker)."""
     from app.settings import Settings
     from app.warmup import example_jobs
 
