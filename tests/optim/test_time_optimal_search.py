@@ -67,6 +67,48 @@ def test_the_band_check_merges_a_grid_command_into_runs_with_the_same_ratios() -
         np.testing.assert_allclose(ratios, direct, rtol=0, atol=1e-12 * scale)
 
 
+@pytest.mark.parametrize("order", [2, 3])
+def test_the_band_check_on_several_damping_ratios_in_small_blocks_equals_the_moments(
+    order: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """worst_ratios on a band grid of three damping ratios (0, 0.25, 0.5: three rows of evenly spaced poles, each
+    its own running product), in blocks of 96 points that split the rows (MOMENT_BLOCK_ELEMENTS lowered), for a
+    command of 30 arcs whose ends and next starts differ by round-off: the ratios of the moment matrix computed
+    directly (lp.acceleration_moment, one exponential per point and piece), within 2e-14 of the breakpoint terms'
+    moduli at each point (the product's round-off, 32 eps a term; the review measured 4e-13 at most over 30 commands
+    with other block sizes). A delta taken from the wrong row, or a row's product carried into the next, fails."""
+    from types import SimpleNamespace
+
+    from optim.families.time_optimal import check
+    from optim.families.time_optimal.family import selected_modes, spec_of
+    from optim.families.time_optimal.lp import acceleration_moment
+    from optim.families.time_optimal.options import Robustness, TimeOptimalOptions
+    from tests.optim.test_time_optimal import KNOWN
+
+    band = Robustness(frequency_ratio_range=(0.5, 2.0), damping_ratio_range=(0.0, 0.5))
+    options = TimeOptimalOptions(band)
+    spec = spec_of(KNOWN, options, selected_modes(KNOWN, options)[0])
+    grid = check.band_grid(spec, spec.bands[0], 500)
+    assert len(spec.bands[0].damping_ratios) == 3 and grid.row_length == 500
+    rng = np.random.default_rng(7)
+    durations = rng.uniform(0.1, 1.0, 30)
+    durations *= 0.4 / durations.sum()
+    start = np.concatenate([[0.0], np.cumsum(durations)[:-1]])
+    end = start + durations * (1 + 1e-15)  # (the next start differs by round-off: two breakpoints)
+    level = rng.choice([-1.0, 0.0, 0.3, 1.0], 30)
+    total_s = float(end[-1])
+    monkeypatch.setattr(check, "MOMENT_BLOCK_ELEMENTS", 96 * 61)
+    held = SimpleNamespace(order=order)
+    ratios = check.worst_ratios(held, grid, start, end, level, total_s)  # type: ignore[arg-type]
+    moments = acceleration_moment(held, grid.poles, start, end, total_s, 0)  # type: ignore[arg-type]
+    direct = np.abs(moments @ level) / grid.bound
+    times, jumps = check.breakpoints(*check.runs(start, end, level))
+    power = order - 1
+    terms = np.exp(np.outer(grid.poles, total_s - times)) * jumps / grid.poles[:, None] ** power
+    moduli = np.abs(terms).sum(axis=1) / grid.bound
+    assert np.all(np.abs(ratios - direct) <= 2e-14 * moduli)
+
+
 def test_refined_candidates_longer_than_the_grid_send_the_fallback_to_a_finer_grid() -> None:
     # The 25 Hz, zeta 0.02 held-jerk move of docs/benchmarks.md (0.3 m within 0.5 m/s, 10 m/s^2, 2000 m/s^3): every
     # refinement from the 4x finer grid broke a limit or was longer than the coarse grid's command, and the answer was
@@ -185,7 +227,8 @@ def test_the_grid_lp_without_state_bounds_is_the_state_lp_with_its_states_elimin
     # answer, 96 steps each, nominal and with the +-10 % band's first points. Its command is checked here by exact
     # integration of the held acceleration (the end position and velocity, to 1e-9 of the move: HiGHS's tolerance
     # 1e-7 on rows scaled to 1, over 96 steps) and by the residual's own moment at the mode (to 1e-9 of the bang-bang
-    # residual envelope 4 A / w^2). A low max_velocity (1 m/s, reached after 0.1 s) keeps the states.
+    # residual envelope 4 A / w^2); also from 0.5 m/s, where the start state's share of the end state is in the rows'
+    # right-hand side. A low max_velocity (1 m/s, reached after 0.1 s) keeps the states.
     from dataclasses import replace
 
     from optim.families.time_optimal import lp as lp_module
@@ -200,8 +243,9 @@ def test_the_grid_lp_without_state_bounds_is_the_state_lp_with_its_states_elimin
     spec = spec_of(KNOWN, nominal, selected_modes(KNOWN, nominal)[0])
     banded = TimeOptimalOptions(Robustness(frequency_ratio_range=(0.9, 1.1)))
     band_spec = spec_of(KNOWN, banded, selected_modes(KNOWN, banded)[0])
-    cases = [(spec, []), (band_spec, GridSearch(band_spec).cuts)]
-    lengths = (0.21, 0.2197, 0.222, 0.228, 0.25)
+    moving = replace(spec, start_velocity=0.5)  # (from 0.5 m/s: the start state's share of the end state)
+    cases = [(spec, []), (band_spec, GridSearch(band_spec).cuts), (moving, [])]
+    lengths = (0.16, 0.18, 0.2, 0.21, 0.2197, 0.222, 0.228, 0.25)
     decided: dict[bool, list[bool]] = {}
     for held in (True, False):
         if not held:
@@ -216,16 +260,18 @@ def test_the_grid_lp_without_state_bounds_is_the_state_lp_with_its_states_elimin
                     continue
                 start, end = lp_module.pieces(96, total / 96)
                 accel = s.scale * x
-                assert abs(float(np.sum(accel * (end - start)))) <= 1e-9 * s.move / total
-                assert float(np.sum(accel * (end - start) * (total - 0.5 * (start + end)))) == pytest.approx(
-                    s.move, abs=1e-9 * s.move
-                )
+                v0 = s.start_velocity
+                assert abs(v0 + float(np.sum(accel * (end - start)))) <= 1e-9 * s.move / total
+                moved = v0 * total + float(np.sum(accel * (end - start) * (total - 0.5 * (start + end))))
+                assert moved == pytest.approx(s.move, abs=1e-9 * s.move)
                 pole = np.asarray(s.zero_poles)
                 residual = abs(complex((exponential_moment(pole, start, end, total, 0) @ accel)[0]))
                 assert residual <= 1e-9 * 4 * s.max_acceleration / abs(pole[0]) ** 2
         decided[held] = found
     assert decided[True] == decided[False]
-    assert any(decided[True]) and not all(decided[True])  # lengths both sides of the grid's optimum
+    for case in range(len(cases)):  # lengths both sides of each grid optimum
+        verdicts = decided[True][case * len(lengths) : (case + 1) * len(lengths)]
+        assert any(verdicts) and not all(verdicts)
     assert not lp_module.states_free(replace(spec, max_velocity=1.0), 0.22, 0.22 / 96)
 
 
@@ -233,8 +279,11 @@ def test_the_relaxation_with_an_implied_velocity_limit_proves_what_the_one_with_
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     # relaxed_lp on the README's move (its 5 m/s is beyond the 10 m/s^2 x 0.25 s any command reaches) without the
-    # velocity at every node (lp.velocity_implied) and with it (forced False), nominal and with the +-10 % band's
-    # first points: the same verdicts at lengths both sides of what it proves (the rigid minimum is 219.089 ms).
+    # velocity at every node (lp.velocity_implied) and with it (forced False), nominal, with the +-10 % band's first
+    # points, and from 0.5 m/s: the same verdicts at lengths both sides of what each proves (at rest the rigid
+    # minimum is 219.089 ms).
+    from dataclasses import replace
+
     from optim.families.time_optimal import lp as lp_module
     from optim.families.time_optimal.family import selected_modes, spec_of
     from optim.families.time_optimal.highs_model import LpCounter
@@ -244,13 +293,15 @@ def test_the_relaxation_with_an_implied_velocity_limit_proves_what_the_one_with_
 
     banded = TimeOptimalOptions(Robustness(frequency_ratio_range=(0.9, 1.1)))
     spec = spec_of(KNOWN, banded, selected_modes(KNOWN, banded)[0])
-    cuts = GridSearch(spec).cuts
-    lengths = (0.2, 0.215, 0.219, 0.2195, 0.225, 0.25)
+    cases = [(spec, []), (spec, GridSearch(spec).cuts), (replace(spec, start_velocity=0.5), [])]
+    lengths = (0.15, 0.17, 0.19, 0.2, 0.215, 0.219, 0.2195, 0.225, 0.25)
     verdicts = {}
     for implied in (True, False):
         if not implied:
             monkeypatch.setattr(lp_module, "velocity_implied", lambda *_: False)
-        assert all(lp_module.velocity_implied(spec, t) is implied for t in lengths)
-        verdicts[implied] = [lp_module.relaxed_lp(spec, t, 250, c, LpCounter()) for c in ([], cuts) for t in lengths]
+        assert all(lp_module.velocity_implied(s, t) is implied for s, _ in cases for t in lengths)
+        verdicts[implied] = [lp_module.relaxed_lp(s, t, 250, c, LpCounter()) for s, c in cases for t in lengths]
     assert verdicts[True] == verdicts[False]
-    assert any(verdicts[True]) and not all(verdicts[True])
+    for case in range(len(cases)):  # lengths both sides of what each proves
+        proven = verdicts[True][case * len(lengths) : (case + 1) * len(lengths)]
+        assert any(proven) and not all(proven)
