@@ -208,12 +208,8 @@ def _grid_sparse_lp(spec: Spec, steps: int, dt: float, cuts: list[Cut], weights:
         limit = np.full(rows.shape[0], spec.torque.max_torque_nm * tight)
         lp.add_ub(rows, limit)
         lp.add_ub(-rows, limit)
-    start, end = pieces(steps, dt)
-    if spec.zero_poles:
-        poles = np.asarray(spec.zero_poles)
-        dense = [unit * exponential_moment(poles, start, end, total, n) for n in range(spec.derivative_order + 1)]
-        w = np.vstack(dense)
-        rows_eq, rhs_eq = _unit_rows(np.vstack([w.real, w.imag]), np.zeros(2 * w.shape[0]))
+    rows_eq, rhs_eq = equality_rows(spec, steps, dt, end_state=False)  # (the end state is bounds on the states)
+    if rows_eq.size:
         lp.add_eq(lp.dense_x_rows(rows_eq), rhs_eq)
     if cuts:
         lp.band(*_band_weights(spec, steps, dt, cuts), inscribed=True)
@@ -224,28 +220,41 @@ def _grid_held_lp(spec: Spec, steps: int, dt: float, cuts: list[Cut], weights: A
     """The grid LP where ``states_free``: the held values alone, the end state and the residuals as dense rows of
     them (the same LP as _grid_sparse_lp's with its states eliminated: HiGHS's presolve did that in 16 of the 22 ms
     of a band's fine LP, 1068 columns to 384)."""
-    q, unit = spec.order, spec.scale
-    total = steps * dt
     lp = SparseLp(steps, 0, 0 if weights is None else steps, len(cuts))
     if weights is not None:
         lp.weighted_l1(weights)
     tight = 1.0 - MARGIN
     lp.lower[:steps], lp.upper[:steps] = -tight, tight  # (a held jerk, or a held acceleration: states_free)
+    rows_eq, rhs_eq = equality_rows(spec, steps, dt)
+    lp.add_eq(lp.dense_x_rows(rows_eq), rhs_eq)
+    if cuts:
+        lp.band(*_band_weights(spec, steps, dt, cuts), inscribed=True)
+    return lp
+
+
+def equality_rows(spec: Spec, steps: int, dt: float, end_state: bool = True) -> tuple[Array, Array]:
+    """The grid LP's equalities on the held values, each row scaled to max 1: the end state (``end_state``: exact
+    integrals of the steps, less the start state's share) and zero residual at each cancelled pole, Re F_n = Im F_n =
+    0 (every real part, then every imaginary part); (0 rows, 0) where there are none."""
+    q, unit = spec.order, spec.scale
     start, end = pieces(steps, dt)
+    total = steps * dt
     at_end = np.array([total])
-    rows = [unit * integrated_box(at_end, start, end, q - m)[0] for m in spec.end_targets()]
-    rhs = [target - float(spec.free_motion(m, at_end)[0]) for m, target in spec.end_targets().items()]
+    rows: list[Array] = []
+    rhs: list[float] = []
+    if end_state:
+        for m, target in spec.end_targets().items():
+            rows.append(unit * integrated_box(at_end, start, end, q - m)[0])
+            rhs.append(target - float(spec.free_motion(m, at_end)[0]))
     if spec.zero_poles:
         poles = np.asarray(spec.zero_poles)
         orders = range(spec.derivative_order + 1)
         w = np.vstack([unit * exponential_moment(poles, start, end, total, n) for n in orders])
         rows += [*w.real, *w.imag]
         rhs += [0.0] * (2 * w.shape[0])
-    rows_eq, rhs_eq = _unit_rows(np.vstack(rows), np.asarray(rhs))
-    lp.add_eq(lp.dense_x_rows(rows_eq), rhs_eq)
-    if cuts:
-        lp.band(*_band_weights(spec, steps, dt, cuts), inscribed=True)
-    return lp
+    if not rows:
+        return np.zeros((0, steps)), np.zeros(0)
+    return _unit_rows(np.vstack(rows), np.asarray(rhs))
 
 
 def velocity_implied(spec: Spec, total_s: float) -> bool:
