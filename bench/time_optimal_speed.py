@@ -2,8 +2,8 @@
 
 ``python bench/time_optimal_speed.py REF [rounds]`` checks REF out in a temporary git worktree and alternates
 between the two trees, ``rounds`` times (default 3): each round runs one subprocess per tree that designs every
-case through ``vibfree.synthesize`` (a warm-up call first, then each move once; one BLAS thread, as the service's
-workers) and prints its seconds per design.
+case through ``vibfree.synthesize`` (after the service worker's warm-up, app/warmup.py, and a first call of the
+case; then each move once; one BLAS thread, as the service's workers) and prints its seconds per design.
 The table gives the p50 over the rounds and moves of each case, the ratio REF / this, the share of designs under
 FAST_S (a certified design takes milliseconds, a searched one hundreds: the p50 of a mix says little), and how many
 answers differ in duration by more than 1e-9 (they should not be longer: the script reports any that are).
@@ -94,6 +94,16 @@ import json, sys, time
 sys.path.insert(0, '.')
 from vibfree import synthesize
 cases = json.loads(sys.stdin.read())
+try:  # warmed as a service worker warms the family (app/warmup.py: its examples load the compiled kernels)
+    from app.settings import Settings
+    from app.warmup import example_jobs
+    from optim.registry import FAMILIES
+    from optim.synthesis import synthesize as design
+    for family, problem, options in example_jobs(Settings(workers=1)):
+        if family == 'time_optimal':
+            design(FAMILIES[family], problem, options)
+except ImportError:  # (a reference tree from before the warm-up)
+    pass
 out = {}
 for name, requests in cases.items():
     synthesize('time-optimal', requests[0])

@@ -11,15 +11,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from functools import lru_cache, partial
+from functools import partial
 from typing import Any, ClassVar
 
 import numpy as np
 
-from models.commands import PiecewiseCommand
 from models.errors import DomainError, Infeasible, InvalidParameter, SolverFailed, SolverTimedOut
 from models.simulation import simulate
 from optim.families.time_optimal import Arc, Solution, Spec, Torque, command_of, solve
+from optim.families.time_optimal.arcs import exact_peaks
 from optim.families.time_optimal.options import Robustness, TimeOptimalOptions, bands_of
 from optim.families.time_optimal.report import (
     TimeOptimalExtras,
@@ -129,22 +129,20 @@ def spec_of(problem: Problem, options: TimeOptimalOptions, chosen: tuple[int, ..
     )
 
 
-@lru_cache(maxsize=8)
-def _exact(arcs: tuple[Arc, ...], order: int, rest_to_rest: bool, initial: tuple[float, ...]) -> PiecewiseCommand:
-    """command_of, remembered for the latest few: limits_met checks the answer, then excess checks it again (peaks
-    only: a level of -0.0 and one of 0.0 are the same key, and give the same peaks)."""
-    return command_of(arcs, order, rest_to_rest, initial)
-
-
 def limits_met(problem: Problem, spec: Spec, arcs: tuple[Arc, ...]) -> bool:
-    """The refined command's exact peaks within the limits (the pipeline's own check is 1e-9)."""
-    command = _exact(arcs, spec.order, spec.rest_to_rest, spec.start_state())
-    for m, limit in ((1, spec.max_velocity), (2, spec.max_acceleration), (3, spec.max_jerk)):
-        peak = command.peak_abs(m)
+    """The refined command's exact peaks within the limits (the pipeline's own check is 1e-9): in closed form
+    (arcs.exact_peaks), independent of the refinement's kernels."""
+    peaks = exact_peaks(arcs, spec.order, spec.start_state())
+    for peak, limit in (
+        (peaks.velocity, spec.max_velocity),
+        (peaks.acceleration, spec.max_acceleration),
+        (peaks.jerk, spec.max_jerk),
+    ):
         if limit is not None and (peak is None or peak > limit * (1 + LIMIT_RTOL)):
             return False
-    scale = spec.position_scale(float(command.time_s[-1]))  # round-off is relative to the positions passed through
-    return not (problem.rest_to_rest and abs(command.derivatives[0, -1] - spec.move) > 1e-12 * scale)
+    end_s = arcs[-1].start_s + arcs[-1].duration_s
+    scale = spec.position_scale(end_s)  # round-off is relative to the positions passed through
+    return not (problem.rest_to_rest and abs(peaks.end_position - spec.move) > 1e-12 * scale)
 
 
 TIGHTENINGS = 3
@@ -154,15 +152,15 @@ def excess(problem: Problem, spec: Spec, arcs: tuple[Arc, ...]) -> dict[str, flo
     """peak / limit > 1 for every limit a grid command breaks beyond the LP's own check: the velocity of a held
     jerk between nodes, the acceleration (a safety net: the nodes are checked), the torque (simulated on 4000
     points and the corners)."""
-    command = _exact(arcs, spec.order, spec.rest_to_rest, spec.start_state())
+    peaks = exact_peaks(arcs, spec.order, spec.start_state())
     out: dict[str, float] = {}
-    peak = command.peak_abs(1)
-    if spec.max_velocity is not None and peak is not None and peak > spec.max_velocity * (1 + LIMIT_RTOL):
+    peak, accel = peaks.velocity, peaks.acceleration
+    if spec.max_velocity is not None and peak > spec.max_velocity * (1 + LIMIT_RTOL):
         out["max_velocity"] = peak / spec.max_velocity
-    accel = command.peak_abs(2)
-    if spec.max_acceleration is not None and accel is not None and accel > spec.max_acceleration * (1 + LIMIT_RTOL):
+    if spec.max_acceleration is not None and accel > spec.max_acceleration * (1 + LIMIT_RTOL):
         out["max_acceleration"] = accel / spec.max_acceleration
     if spec.torque is not None:
+        command = command_of(arcs, spec.order, spec.rest_to_rest, spec.start_state())
         fine = command.resampled(float(command.time_s[-1]) / 4000)
         torque = simulate(problem.plant, fine).motor_torque_nm
         peak_torque = float(np.max(np.abs(torque))) if torque is not None else 0.0

@@ -33,13 +33,12 @@ from numpy.typing import NDArray
 
 from models.errors import SolverFailed, SolverTimedOut
 from models.rigid_motion import RigidMove
-from models.shapers import ImpulseSequence, convolve
 from optim.families.time_optimal.arcs import arcs_of, merged, structure
 from optim.families.time_optimal.certify import Certificate, certificate, certificate_applies, wrong_sign
 from optim.families.time_optimal.refine import Refined, newton, refine
 from optim.families.time_optimal.repair import NOTCH_SHARE, bang_start, coast_dips, notched
 from optim.families.time_optimal.search import GridSearch, clip, project
-from optim.families.time_optimal.shaped import as_start, band_shapers, nominal_shaper, rigid_of, shaped_arcs
+from optim.families.time_optimal.shaped import as_start, rigid_of, shaped_arcs, shapers
 from optim.families.time_optimal.structures import Start, reversal_starts, three_switch_starts
 from optim.families.time_optimal.types import Arc, GridSolution, Solution, Spec
 
@@ -61,11 +60,19 @@ CHAIN_REFINES = 4  # ... of this many refines at most in all (each an SLSQP run 
 WIDER = 3.0  # a chain's notch SLSQP fails from is tried again this many times wider
 CHAIN_AFTER = 4  # the chains start once this many predicted commands converged uncertified (or after all starts)
 PROGRESS = 1e-6  # a chain's step that shortens the command by less than this (relative) ends it (no new structure)
+SAME_S = 1e-12  # Newton's commands from two starts whose arcs differ by less than this (relative) are one
 REPAIRS = 4  # off-limit arcs made bang at most this often a design (each an SLSQP run of a few milliseconds)
 
 
 def _duration_s(arcs: tuple[Arc, ...]) -> float:
     return sum(a.duration_s for a in arcs)
+
+
+def _same(a: tuple[Arc, ...], b: tuple[Arc, ...]) -> bool:
+    """The same structure with switching times equal to round-off (SAME_S of the duration)."""
+    if len(a) != len(b) or any(x.level != y.level for x, y in zip(a, b, strict=True)):
+        return False
+    return all(abs(x.duration_s - y.duration_s) <= SAME_S * _duration_s(a) for x, y in zip(a, b, strict=True))
 
 
 def _next_repair(spec: Spec, arcs: tuple[Arc, ...], notching: bool) -> tuple[Start | None, Where | None]:
@@ -204,15 +211,23 @@ class _Best:
         commands not certified, to offer after the search (as the search did without them)."""
         held: list[tuple[Arc, ...]] = []
         budget = [CHAIN_REFINES]
+        seen: list[tuple[tuple[Arc, ...], bool]] = []  # each command Newton converged to, and whether it was held
         for durations, levels, _ in starts:
             result = newton(self.spec, durations, levels)
             if result is None:
                 continue
-            proof = certificate(self.spec, merged(result.arcs))
-            if proof is not None and self.offer(result.arcs, "refined", note, proof):
-                return []
-            if proof is None and not self.accepts(result.arcs):
-                continue  # it breaks a limit: no chain from it (its repairs keep the breach), nothing to offer
+            again = next((kept for arcs, kept in seen if _same(arcs, result.arcs)), None)
+            if again is not None:  # another start's command to round-off (9 of 36 on the held-jerk bench): as it
+                if not again:  # was, without its certificate and limit check again (0.3 ms)
+                    continue
+            else:
+                proof = certificate(self.spec, merged(result.arcs))
+                if proof is not None and self.offer(result.arcs, "refined", note, proof):
+                    return []
+                keep = proof is not None or self.accepts(result.arcs)
+                seen.append((result.arcs, keep))
+                if not keep:
+                    continue  # it breaks a limit: no chain from it (its repairs keep the breach), nothing to offer
             held.append(result.arcs)
             if len(held) == CHAIN_AFTER and self.chains(held, note, budget):
                 return []
@@ -268,21 +283,6 @@ class _Best:
             if bang is not None:
                 kept |= self.refine_from(bang, f"{note} (its fractional levels made bang)")
         return kept
-
-
-def shapers(spec: Spec) -> list[ImpulseSequence]:
-    """The shapers tried on the rigid optimum, shortest first: ZV^(n+1) at every zero-residual pole, and with
-    bands the same times a robust shaper over every band (optim.families.time_optimal.shaped.band_shapers)."""
-    base = nominal_shaper(spec)
-    if not spec.bands:
-        return [base]
-    out = [base] if spec.zero_poles else []
-    for per_band in zip(*(band_shapers(b) for b in spec.bands), strict=True):
-        shaper = base
-        for extra in per_band:
-            shaper = convolve(shaper, extra)
-        out.append(shaper)
-    return out
 
 
 def shaped_rigid(best: _Best) -> Found | None:

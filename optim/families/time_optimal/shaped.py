@@ -108,3 +108,18 @@ def as_start(spec: Spec, arcs: tuple[Arc, ...]) -> tuple[list[float], list[float
     levels = [a.level / spec.scale for a in arcs]
     free = [not any(abs(v - level) < 1e-12 for level in (-1.0, 0.0, 1.0)) for v in levels]
     return [a.duration_s for a in arcs], levels, free
+
+
+def shapers(spec: Spec) -> list[ImpulseSequence]:
+    """The shapers tried on the rigid optimum, shortest first: ZV^(n+1) at every zero-residual pole, and with
+    bands the same times a robust shaper over every band (band_shapers)."""
+    base = nominal_shaper(spec)
+    if not spec.bands:
+        return [base]
+    out = [base] if spec.zero_poles else []
+    for per_band in zip(*(band_shapers(b) for b in spec.bands), strict=True):
+        shaper = base
+        for extra in per_band:
+            shaper = convolve(shaper, extra)
+        out.append(shaper)
+    return out
