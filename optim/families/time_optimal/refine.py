@@ -271,12 +271,10 @@ def newton(spec: Spec, durations: list[float], levels: list[float]) -> Refined |
 
 def _arcs(spec: Spec, model: _Model, z: Array) -> tuple[Arc, ...]:
     start, end, lv = model.unpack(z)
-    keep = end - start > 0.0
-    return tuple(
-        Arc(float(s), float(e - s), float(level * spec.scale))
-        for s, e, level, k in zip(start, end, lv, keep, strict=True)
-        if k
-    )
+    duration = end - start
+    keep = duration > 0.0
+    rows = zip(start[keep].tolist(), duration[keep].tolist(), (lv[keep] * spec.scale).tolist(), strict=True)
+    return tuple(Arc(s, d, level) for s, d, level in rows)  # (Python floats: the same values as float(x))
 
 
 def _polish(model: _Model, z: Array, iterations: int = 20, stall: bool = False) -> Array | None:
