@@ -204,8 +204,10 @@ def _sweep(
     total = float(ends[-1])
     width = _width(spec) + int(np.sum(kind == SECOND))
     at_starts = _phis(spec, width, total - starts)  # phi(T - s1) of every arc
-    slopes = _phis(spec, width, total - np.concatenate([starts, ends]), 1)  # phi'(T - s1), then phi'(T - s2)
     zero: Linear = (np.zeros(width), 0.0)
+    if np.all(kind == BANG):  # no rest on a limit: every line is 0, a switch sigma = phi = 0 at each arc's start
+        return [(zero, zero)] * kind.size, [at_starts[k] for k in range(kind.size - 1, 0, -1)], []
+    slopes = _phis(spec, width, total - np.concatenate([starts, ends]), 1)  # phi'(T - s1), then phi'(T - s2)
     alpha, beta = zero, zero
     lines: list[tuple[Linear, Linear]] = [(zero, zero)] * kind.size
     conditions: list[Linear] = []

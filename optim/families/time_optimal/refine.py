@@ -66,8 +66,12 @@ class _Fixed:
     poles: NDArray[np.complex128]
     derivative_order: int
     limits: tuple[tuple[int, float], ...]
+    bound_m: NDArray[np.int64]  # the limits' derivatives and values as arrays (kernels.polish's rows)
+    bound_limit: Array
 
 
+_NO_BOUNDS = (np.zeros(0, dtype=np.int64), np.zeros(0))
+_NOT_FREE = np.zeros(0, dtype=np.int64)
 _last_fixed: tuple[Spec, _Fixed] | None = None  # _fixed's latest answer
 
 
@@ -80,13 +84,16 @@ def _fixed(spec: Spec) -> _Fixed:
     orders = np.fromiter(targets, dtype=np.int64)
     poles = np.asarray(spec.zero_poles, dtype=complex)
     below = [(1, spec.max_velocity)] + ([(2, spec.max_acceleration)] if spec.order == 3 else [])
+    limits = tuple((m, float(limit)) for m, limit in below if limit is not None)
     fixed = _Fixed(
         state=np.asarray(spec.start_state(), dtype=float),
         orders=orders,
         targets=np.array([targets[m] for m in orders]),
         poles=poles,
         derivative_order=spec.derivative_order if poles.size else -1,
-        limits=tuple((m, float(limit)) for m, limit in below if limit is not None),
+        limits=limits,
+        bound_m=np.array([m for m, _ in limits], dtype=np.int64),
+        bound_limit=np.array([limit for _, limit in limits], dtype=float),
     )
     _last_fixed = (spec, fixed)
     return fixed
@@ -107,10 +114,14 @@ class _Model:
         self.spec = spec
         self.t0 = sum(durations)
         self.levels = np.asarray(levels, dtype=float)
-        self.free = np.flatnonzero(np.asarray(free))
+        durations_s = np.asarray(durations, dtype=float)
         self.count = len(durations)
         self.cuts = cuts
-        self.z0 = np.concatenate([np.asarray(durations) / self.t0, self.levels[self.free]])
+        if any(free):
+            self.free = np.flatnonzero(np.asarray(free))
+            self.z0 = np.concatenate([durations_s / self.t0, self.levels[self.free]])
+        else:  # (Newton's models, sixteen a design: no level is free)
+            self.free, self.z0 = _NOT_FREE, durations_s / self.t0
         q, u = spec.order, spec.scale
         fixed = _fixed(spec)
         self.free_at = self.free.astype(np.int64)
@@ -118,11 +129,10 @@ class _Model:
         eq_scale = [spec.position_scale(self.t0)] + [u * self.t0 ** (q - m) for m in range(1, q)]
         self.eq_scale = np.array([eq_scale[m] for m in self.orders])
         self.poles, self.derivative_order = fixed.poles, fixed.derivative_order
-        durations_s = np.asarray(durations, dtype=float)
         self.moment_scales = np.ones((self.derivative_order + 1, self.poles.size))  # sum |diff| at z0, fixed
         for n in range(self.derivative_order + 1):
             diff = moment_terms(self.poles, n, durations_s, self.levels, False)[2]
-            self.moment_scales[n] = np.sum(np.abs(diff), axis=1) + 1e-300
+            np.add(np.abs(diff).sum(axis=1), 1e-300, out=self.moment_scales[n])
         self.bounds = [  # (derivative, limit, the check points' times: rows . d): arc ends, and mid-arc with a jerk
             (m, limit, _check_times(self.count, m == 1 and q == 3)) for m, limit in fixed.limits if self.count >= 2
         ]
@@ -141,10 +151,11 @@ class _Model:
             self.moment_scales,
         )
         self._last: dict[str, tuple[bytes, Array, Array]] = {}  # _remembered's
-        self.bound_m = np.array([m for m, _, _ in self.bounds], dtype=np.int64)  # the same, for kernels.polish
-        self.bound_limit = np.array([limit for _, limit, _ in self.bounds], dtype=float)
-        none = np.zeros((0, self.count))
-        self.bound_times = [at for _, _, at in self.bounds] + [none] * (2 - len(self.bounds))
+        # the same, for kernels.polish (per spec: _fixed), and no rows for a missing bound
+        self.bound_m, self.bound_limit = (fixed.bound_m, fixed.bound_limit) if self.bounds else _NO_BOUNDS
+        self.bound_times = [at for _, _, at in self.bounds]
+        if len(self.bound_times) < 2:
+            self.bound_times += [np.zeros((0, self.count))] * (2 - len(self.bound_times))
 
     def durations_and_levels(self, z: Array) -> tuple[Array, Array]:
         """The durations (negatives as 0) and the levels, the free ones from z (as kernels._unpack)."""
