@@ -34,7 +34,7 @@ def command_of(
 
 
 @dataclass(frozen=True)
-class Peaks:
+class ArcPeaks:
     """command_of's peaks over the command and its end position, in closed form (``exact_peaks``)."""
 
     velocity: float
@@ -43,7 +43,7 @@ class Peaks:
     end_position: float
 
 
-def exact_peaks(arcs: tuple[Arc, ...], order: int, initial: tuple[float, ...] = ()) -> Peaks:
+def exact_peaks(arcs: tuple[Arc, ...], order: int, initial: tuple[float, ...] = ()) -> ArcPeaks:
     """max |velocity|, |acceleration| and |jerk| of ``command_of(arcs, order, _, initial)`` and its end position,
     integrated per arc in closed form (as PiecewiseCommand.from_held_steps, from the arcs' start times): the
     velocity's extremum inside an arc of a held jerk is where the acceleration crosses 0, at tau = -a / j. What
@@ -59,7 +59,7 @@ def exact_peaks(arcs: tuple[Arc, ...], order: int, initial: tuple[float, ...] = 
         v_start = np.concatenate(([v0], v_end[:-1]))
         position = float(np.sum(v_start * h + held * h**2 / 2))
         velocity = max(abs(v0), float(np.max(np.abs(v_end))))
-        return Peaks(velocity, float(np.max(np.abs(held))), None, position)
+        return ArcPeaks(velocity, float(np.max(np.abs(held))), None, position)
     a_end = np.cumsum(held * h) + a0
     a_start = np.concatenate(([a0], a_end[:-1]))
     v_end = np.cumsum(a_start * h + held * h**2 / 2) + v0
@@ -71,7 +71,7 @@ def exact_peaks(arcs: tuple[Arc, ...], order: int, initial: tuple[float, ...] = 
     turning = v_start[inside] + a_start[inside] * tau[inside] / 2  # v + a tau + j tau^2 / 2 with j tau = -a
     velocity = max(abs(v0), float(np.max(np.abs(v_end))), float(np.max(np.abs(turning), initial=0.0)))
     acceleration = max(abs(a0), float(np.max(np.abs(a_end))))
-    return Peaks(velocity, acceleration, float(np.max(np.abs(held))), position)
+    return ArcPeaks(velocity, acceleration, float(np.max(np.abs(held))), position)
 
 
 def merged(arcs: tuple[Arc, ...]) -> tuple[Arc, ...]:
