@@ -284,7 +284,8 @@ def _fresh_turn() -> None:
     _TURN = threading.Lock()  # a child forked while another thread held it would wait forever
 
 
-os.register_at_fork(after_in_child=_fresh_turn)
+if hasattr(os, "register_at_fork"):  # (POSIX)
+    os.register_at_fork(after_in_child=_fresh_turn)
 
 
 def _run(coroutine: Any) -> Any:

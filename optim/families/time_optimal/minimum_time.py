@@ -60,7 +60,7 @@ CHAIN_REFINES = 4  # ... of this many refines at most in all (each an SLSQP run 
 WIDER = 3.0  # a chain's notch SLSQP fails from is tried again this many times wider
 CHAIN_AFTER = 4  # the chains start once this many predicted commands converged uncertified (or after all starts)
 PROGRESS = 1e-6  # a chain's step that shortens the command by less than this (relative) ends it (no new structure)
-SAME_S = 1e-12  # Newton's commands from two starts whose arcs differ by less than this (relative) are one
+SAME_RTOL = 1e-12  # Newton's commands from two starts whose arcs differ by less than this (of the duration) are one
 REPAIRS = 4  # off-limit arcs made bang at most this often a design (each an SLSQP run of a few milliseconds)
 
 
@@ -69,10 +69,10 @@ def _duration_s(arcs: tuple[Arc, ...]) -> float:
 
 
 def _same(a: tuple[Arc, ...], b: tuple[Arc, ...]) -> bool:
-    """The same structure with switching times equal to round-off (SAME_S of the duration)."""
+    """The same structure with switching times equal to round-off (SAME_RTOL of the duration)."""
     if len(a) != len(b) or any(x.level != y.level for x, y in zip(a, b, strict=True)):
         return False
-    return all(abs(x.duration_s - y.duration_s) <= SAME_S * _duration_s(a) for x, y in zip(a, b, strict=True))
+    return all(abs(x.duration_s - y.duration_s) <= SAME_RTOL * _duration_s(a) for x, y in zip(a, b, strict=True))
 
 
 def _next_repair(spec: Spec, arcs: tuple[Arc, ...], notching: bool) -> tuple[Start | None, Where | None]:
