@@ -74,6 +74,14 @@ def exact_peaks(arcs: tuple[Arc, ...], order: int, initial: tuple[float, ...] = 
     return ArcPeaks(velocity, acceleration, float(np.max(np.abs(held))), position)
 
 
+def same_command(a: tuple[Arc, ...], b: tuple[Arc, ...], rtol: float) -> bool:
+    """The same levels, and durations equal to ``rtol`` of the whole."""
+    if len(a) != len(b) or any(x.level != y.level for x, y in zip(a, b, strict=True)):
+        return False
+    total = sum(x.duration_s for x in a)
+    return all(abs(x.duration_s - y.duration_s) <= rtol * total for x, y in zip(a, b, strict=True))
+
+
 def merged(arcs: tuple[Arc, ...]) -> tuple[Arc, ...]:
     """Consecutive arcs on the same level joined, empty arcs dropped."""
     out: list[Arc] = []

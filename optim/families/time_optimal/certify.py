@@ -97,6 +97,12 @@ def _basis(spec: Spec, tau: Array, derivative: int = 0) -> Array:
     return out
 
 
+def phi_parts(spec: Spec, tau: Array, derivative: int = 0) -> tuple[Array, Array]:
+    """phi^(derivative)(tau) = k^(derivative)(tau) - basis . theta as (k^(derivative)(tau), the basis's rows): the
+    switching function of any theta at the points ``tau`` (optim.families.time_optimal.shooting's system)."""
+    return kernel(spec.order, tau, derivative), _basis(spec, tau, derivative)
+
+
 def _phi(spec: Spec, tau: Array, step: Array, theta: Array, derivative: int = 0) -> Array:
     """phi^(derivative)(tau) = kernel - _basis . theta, compiled point by point (certify_kernels.phi_values: the check
     points' sigma and densities without the basis matrix, a third of a certificate's time; the same values to

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -278,6 +279,18 @@ def newton(spec: Spec, durations: list[float], levels: list[float]) -> Refined |
     model = _Model(spec, durations, levels, [False] * len(levels), [])
     z = _polish(model, model.z0.copy(), NEWTON_ITERATIONS, stall=True)
     return None if z is None else Refined(_arcs(spec, model, z), "Newton on the switching times")
+
+
+def end_conditions(spec: Spec, durations: list[float], levels: list[float]) -> Callable[[Array], tuple[Array, Array]]:
+    """The end state's and the residuals' equalities of a structure with fixed levels (scaled as the refinement's)
+    and their Jacobian, as functions of the durations d (s)."""
+    model = _Model(spec, durations, levels, [False] * len(levels), [])
+
+    def at(d: Array) -> tuple[Array, Array]:
+        values, jac = model._parts(d / model.t0, "eq")
+        return values, jac / model.t0
+
+    return at
 
 
 def _arcs(spec: Spec, model: _Model, z: Array) -> tuple[Arc, ...]:

@@ -1,0 +1,61 @@
+"""Newton on Pontryagin's conditions of a bang train (optim.families.time_optimal.shooting) against SLSQP on the
+durations alone (optim.families.time_optimal.refine.refine: another method, from the same start) and the
+certificate: both reach the same proven minimum-time command."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from models.plants import ModePlant
+from optim.families.time_optimal.arcs import merged
+from optim.families.time_optimal.certify import certificate
+from optim.families.time_optimal.family import selected_modes, spec_of
+from optim.families.time_optimal.options import TimeOptimalOptions
+from optim.families.time_optimal.refine import refine
+from optim.families.time_optimal.shooting import shoot
+from optim.families.time_optimal.types import Spec
+from optim.problem import Limits, Problem
+
+# bench/time_optimal_speed.py's held-jerk move 3: its minimum-time command is the bang train +-+-+-+ (7 arcs for 5
+# end conditions: the end state and one mode's residual), found by a repair's notch and, before, SLSQP.
+MOVE_3 = Problem(
+    plant=ModePlant(natural_frequency_hz=36.14480673752081, damping_ratio=0.17950920643221377),
+    displacement=0.032636985875315445,
+    limits=Limits(max_acceleration=15.519850020351807, max_jerk=352.50828660284446),
+)
+# The answer's durations (s), rounded to 1e-4: a start the size of a repair's notch away from the optimum.
+START = [0.0354, 0.0619, 0.0082, 0.0115, 0.0240, 0.0003, 0.0061]
+TRAIN = [1.0, -1.0, 1.0, -1.0, 1.0, -1.0, 1.0]
+
+
+def _spec(problem: Problem) -> Spec:
+    options = TimeOptimalOptions()
+    return spec_of(problem, options, selected_modes(problem, options)[0])
+
+
+def test_the_bang_train_is_slsqps_proven_answer() -> None:
+    """Both methods from the same start: the same duration to 1e-12 and the same switching times to 1e-6 of it, and
+    the certificate proves the Newton's command. (The duration is flat at the optimum: SLSQP, stopping at ftol 1e-10,
+    leaves the switching times ~1e-9 s from the point where the conditions hold, which costs ~1e-16 of duration;
+    the Newton solves those conditions to round-off.)"""
+    spec = _spec(MOVE_3)
+    slsqp = refine(spec, START, TRAIN, [False] * 7, [])
+    assert slsqp is not None
+    assert certificate(spec, merged(slsqp.arcs)) is not None  # the reference is itself proven
+    arcs = shoot(spec, START, TRAIN)
+    assert arcs is not None
+    assert certificate(spec, merged(arcs)) is not None
+    expected = np.array([a.duration_s for a in slsqp.arcs])
+    got = np.array([a.duration_s for a in arcs])
+    assert got.sum() == pytest.approx(expected.sum(), rel=1e-12)
+    assert got == pytest.approx(expected, abs=1e-6 * expected.sum())
+    assert [a.level for a in arcs] == [a.level for a in slsqp.arcs]
+
+
+def test_only_bang_trains_with_more_arcs_than_end_conditions() -> None:
+    """A rest (a level 0) is not a bang train, and 5 arcs for 5 end conditions are a square system on the
+    durations alone (refine.newton's): neither is shot."""
+    spec = _spec(MOVE_3)
+    assert shoot(spec, [0.03, 0.02, 0.05, 0.02, 0.03], [1.0, 0.0, -1.0, 0.0, 1.0]) is None
+    assert shoot(spec, START[:5], TRAIN[:5]) is None
