@@ -27,8 +27,9 @@ CONVERGED = 1e-12  # the scaled residual of a solved system (the refinement's)
 
 def shoot(spec: Spec, durations: list[float], levels: list[float]) -> tuple[Arc, ...] | None:
     """The bang train of ``levels`` whose durations and multipliers meet the end conditions and vanish sigma at
-    every switch, by damped Newton from ``durations``; None where it does not apply (a rest, fewer arcs than
-    switches need, a band, a move in motion) or does not converge."""
+    every switch, by damped Newton from ``durations``; None where it does not apply (a rest; no more arcs than end
+    conditions, whose durations alone are refine.newton's square system; a band, a move in motion) or does not
+    converge."""
     n = len(durations)
     if not certificate_applies(spec) or any(abs(v) != 1.0 for v in levels):
         return None
@@ -40,7 +41,6 @@ def shoot(spec: Spec, durations: list[float], levels: list[float]) -> tuple[Arc,
         return None  # a square end system already (Newton on the durations alone: refine.newton)
     scale = float(phi_parts(spec, np.array([d.sum()]))[0][0])  # k(T): the switching function's size
     after = np.arange(n)[None, :] >= np.arange(1, n)[:, None]  # d(T - s_k)/d d_j: the arcs from switch k on
-
     size = g_end.size + n - 1  # = n + width: square
 
     def system(d: Array, theta: Array) -> tuple[Array, Array]:
@@ -58,6 +58,8 @@ def shoot(spec: Spec, durations: list[float], levels: list[float]) -> tuple[Arc,
         return g, jac
 
     k0, basis0 = phi_parts(spec, np.cumsum(d[::-1])[::-1][1:])
+    if basis0.shape[1] != width:  # (the certificate's multipliers are one fewer than the end conditions)
+        return None
     columns = np.max(np.abs(basis0), axis=0) + 1e-300
     theta = np.linalg.lstsq(basis0 / columns, k0, rcond=None)[0] / columns  # the start's best multipliers
     g, jac = system(d, theta)
