@@ -1,13 +1,14 @@
 """Newton on Pontryagin's conditions of a bang train (optim.families.time_optimal.shooting) against SLSQP on the
 durations alone (optim.families.time_optimal.refine.refine: another method, from the same start) and the
-certificate: both reach the same proven minimum-time command."""
+certificate: both reach the same proven minimum-time command, with a held jerk and with a held acceleration on
+three modes."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from models.plants import ModePlant
+from models.plants import ModePlant, TransferFunctionPlant
 from optim.families.time_optimal.arcs import merged
 from optim.families.time_optimal.certify import certificate
 from optim.families.time_optimal.family import selected_modes, spec_of
@@ -27,23 +28,49 @@ MOVE_3 = Problem(
 # The answer's durations (s), rounded to 1e-4: a start the size of a repair's notch away from the optimum.
 START = [0.0354, 0.0619, 0.0082, 0.0115, 0.0240, 0.0003, 0.0061]
 TRAIN = [1.0, -1.0, 1.0, -1.0, 1.0, -1.0, 1.0]
+# bench/time_optimal_speed.py's three-mode move 13 (three modes in one transfer function, each 1.5-4 times faster
+# than the one before; a held acceleration): its proven answer is the 10-arc bang train +-+-+-+-+- (8 end
+# conditions), found after the LP search.
+THREE_MODES = Problem(
+    plant=TransferFunctionPlant(
+        numerator=(156552.92779907322, 786733281.0667441, 1210061737839.6658, 583471084684335.9),
+        denominator=(
+            1.0,
+            398.22733372456486,
+            987829.7450822078,
+            76277381.30437633,
+            67024368581.999146,
+            1210061737839.6658,
+            583471084684335.9,
+        ),
+    ),
+    displacement=0.025120112584705184,
+    limits=Limits(max_acceleration=2.137437820454822),
+)
+THREE_START = [0.1007, 0.0115, 0.0067, 0.0199, 0.0023, 0.0730, 0.0011, 0.0051, 0.0004, 0.0017]
+CASES = {
+    "held jerk, one mode": (MOVE_3, START, TRAIN, None),
+    "held acceleration, three modes": (THREE_MODES, THREE_START, [1.0, -1.0] * 5, (0, 1, 2)),
+}
 
 
-def _spec(problem: Problem) -> Spec:
-    options = TimeOptimalOptions()
+def _spec(problem: Problem, modes: tuple[int, ...] | None = None) -> Spec:
+    options = TimeOptimalOptions(modes=modes)
     return spec_of(problem, options, selected_modes(problem, options)[0])
 
 
-def test_the_bang_train_is_slsqps_proven_answer() -> None:
+@pytest.mark.parametrize("case", list(CASES))
+def test_the_bang_train_is_slsqps_proven_answer(case: str) -> None:
     """Both methods from the same start: the same duration to 1e-12 and the same switching times to 1e-6 of it, and
     the certificate proves the Newton's command. (The duration is flat at the optimum: SLSQP, stopping at ftol 1e-10,
     leaves the switching times ~1e-9 s from the point where the conditions hold, which costs ~1e-16 of duration;
     the Newton solves those conditions to round-off.)"""
-    spec = _spec(MOVE_3)
-    slsqp = refine(spec, START, TRAIN, [False] * 7, [])
+    problem, start, train, modes = CASES[case]
+    spec = _spec(problem, modes)
+    slsqp = refine(spec, start, train, [False] * len(train), [])
     assert slsqp is not None
     assert certificate(spec, merged(slsqp.arcs)) is not None  # the reference is itself proven
-    arcs = shoot(spec, START, TRAIN)
+    arcs = shoot(spec, start, train)
     assert arcs is not None
     assert certificate(spec, merged(arcs)) is not None
     expected = np.array([a.duration_s for a in slsqp.arcs])
