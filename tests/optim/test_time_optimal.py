@@ -387,7 +387,8 @@ def test_the_band_check_is_computed_in_blocks_of_bounded_memory_with_the_same_ra
     points, pieces, total_s = 20_000, 600, 3.0
     omega = np.linspace(2 * np.pi * 5.0, 2 * np.pi * 80.0, points)
     zeta = np.full(points, 0.02)
-    grid = check.BandGrid(None, omega, zeta, mode_poles(omega, zeta), np.full(points, 1e-3))  # type: ignore[arg-type]
+    bound = np.full(points, 1e-3)
+    grid = check.BandGrid(None, omega, zeta, mode_poles(omega, zeta), bound, points)  # type: ignore[arg-type]
     edges = np.linspace(0.0, total_s, pieces + 1)
     level = np.sin(np.arange(pieces))
     spec = SimpleNamespace(order=2)

@@ -57,7 +57,7 @@ def test_the_band_check_merges_a_grid_command_into_runs_with_the_same_ratios() -
     omega = np.linspace(2 * np.pi * 5.0, 2 * np.pi * 40.0, 300)
     zeta = np.full(omega.size, 0.05)
     poles = mode_poles(omega, zeta)
-    grid = check.BandGrid(None, omega, zeta, poles, np.full(omega.size, 1e-3))  # type: ignore[arg-type]
+    grid = check.BandGrid(None, omega, zeta, poles, np.full(omega.size, 1e-3), omega.size)  # type: ignore[arg-type]
     for order in (2, 3):
         spec = SimpleNamespace(order=order)
         moments = acceleration_moment(spec, poles, edges[:-1], edges[1:], total_s, 0)  # type: ignore[arg-type]

@@ -38,7 +38,7 @@ class BandGrid:
     zeta: Array
     poles: NDArray[np.complex128]
     bound: Array
-    row_length: int = 0  # points per damping ratio, frequencies evenly spaced along each (0: all in one row)
+    row_length: int  # points per damping ratio (a row of the grid), its frequencies evenly spaced
 
     def cuts(self, index: NDArray[np.intp]) -> list[Cut]:
         return [Cut(complex(self.poles[i]), float(self.bound[i])) for i in index]
@@ -85,7 +85,7 @@ def worst_ratios(spec: Spec, grid: BandGrid, start: Array, end: Array, level: Ar
     times, jumps = breakpoints(*runs(start, end, level))
     age = total_s - times
     ratios: Array = np.empty(grid.bound.size)
-    per_row = grid.row_length or grid.bound.size
+    per_row = grid.row_length
     rows = max(RESTART, MOMENT_BLOCK_ELEMENTS // max(1, age.size) // RESTART * RESTART)
     for row_start in range(0, grid.bound.size, per_row):
         poles = grid.poles[row_start : row_start + per_row]
