@@ -292,9 +292,15 @@ def _run(coroutine: Any) -> Any:
     """The coroutine's result, run on the API's event loop (its own thread: the caller may run a loop of its own,
     a notebook or an async caller). Calls from several threads take turns (``_TURN``), as IPOPT needs."""
     _route_logs_to_stdlib()
-    with _TURN:
+    turn = _TURN  # (the lock this call takes: a fork replaces the module's)
+    turn.acquire()
+    try:
         future = asyncio.run_coroutine_threadsafe(coroutine, _loop())
-        return _guard(future.result)
+    except BaseException:
+        turn.release()
+        raise
+    future.add_done_callback(lambda _: turn.release())  # when the coroutine ends, not when the wait for it does (a
+    return _guard(future.result)  # Ctrl-C in the caller leaves it running on the loop, still holding the turn)
 
 
 def _run_inline(coroutine: Any) -> Any:

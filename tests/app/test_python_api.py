@@ -6,6 +6,7 @@ import os
 import re
 import shlex
 import shutil
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -271,3 +272,63 @@ def test_designs_from_several_threads_take_turns_and_answer_as_one_thread():
     with ThreadPoolExecutor(4) as pool:
         threaded = list(pool.map(design, requests * 2))
     assert threaded == serial * 2
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="fork is POSIX")
+def test_a_child_forked_while_the_turn_is_held_designs():
+    # The API's turn (vibfree.api._TURN) is held for a whole call; a child forked meanwhile gets the lock locked with
+    # no thread to release it, so it must make its own (os.register_at_fork): the child designs (exit 0) within 60 s.
+    import time
+
+    from vibfree import api
+
+    with api._TURN:  # as another thread's design would hold it
+        pid = os.fork()
+        if pid == 0:
+            try:
+                design = vibfree.synthesize("stap", STAP, settings=TEST_SETTINGS)
+                os._exit(0 if round(design.answer["metrics"]["settling_time_s"], 3) == 0.175 else 1)
+            except BaseException:
+                os._exit(2)
+    deadline = time.monotonic() + 60.0
+    while (done := os.waitpid(pid, os.WNOHANG))[0] == 0 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    if done[0] == 0:
+        os.kill(pid, 9)
+        os.waitpid(pid, 0)
+        pytest.fail("the forked child waited for a turn no thread of its own held")
+    assert os.waitstatus_to_exitcode(done[1]) == 0
+
+
+@pytest.mark.skipif(not hasattr(signal, "setitimer"), reason="setitimer is POSIX")
+def test_a_call_interrupted_while_its_coroutine_runs_keeps_the_turn_until_it_ends():
+    # Ctrl-C in the caller of compare or sweep ends the wait, not the coroutine on the API's loop thread (IPOPT
+    # there cannot be stopped): the turn is released when the coroutine ends, so a design from this thread waits for
+    # it instead of solving beside it.
+    import threading
+    import time
+
+    from vibfree import api
+
+    done = threading.Event()
+
+    async def solving() -> int:
+        time.sleep(1.0)  # a synchronous solve on the loop thread
+        done.set()
+        return 1
+
+    async def design() -> bool:
+        return done.is_set()
+
+    def interrupt(*_: object) -> None:
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGALRM, interrupt)
+    try:
+        signal.setitimer(signal.ITIMER_REAL, 0.2)
+        with pytest.raises(KeyboardInterrupt):
+            api._run(solving())
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+    assert api._run_inline(design())  # it ran only once the interrupted call's coroutine had ended

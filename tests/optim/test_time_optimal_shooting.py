@@ -5,18 +5,23 @@ three modes."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
 from models.plants import ModePlant, TransferFunctionPlant
 from optim.families.time_optimal.arcs import merged
 from optim.families.time_optimal.certify import certificate
-from optim.families.time_optimal.family import selected_modes, spec_of
+from optim.families.time_optimal.family import limits_met, selected_modes, spec_of
 from optim.families.time_optimal.options import TimeOptimalOptions
 from optim.families.time_optimal.refine import refine
+from optim.families.time_optimal.report import TimeOptimalReport
 from optim.families.time_optimal.shooting import shoot
-from optim.families.time_optimal.types import Spec
+from optim.families.time_optimal.types import Arc, Spec
 from optim.problem import Limits, Problem
+from optim.registry import FAMILIES
+from optim.synthesis import synthesize
 
 # bench/time_optimal_speed.py's held-jerk move 3: its minimum-time command is the bang train +-+-+-+ (7 arcs for 5
 # end conditions: the end state and one mode's residual), found by a repair's notch and, before, SLSQP.
@@ -86,3 +91,23 @@ def test_only_bang_trains_with_more_arcs_than_end_conditions() -> None:
     spec = _spec(MOVE_3)
     assert shoot(spec, [0.03, 0.02, 0.05, 0.02, 0.03], [1.0, 0.0, -1.0, 0.0, 1.0]) is None
     assert shoot(spec, START[:5], TRAIN[:5]) is None
+
+
+def test_move_3s_design_is_proven_by_the_bang_trains_newton() -> None:
+    """The whole design of move 3 (the pipeline) ends in a chain whose repaired bang train the Newton solves and the
+    certificate proves: its note says so. Without the step in the chain, SLSQP proves the same command and the note
+    names SLSQP instead."""
+    summary = synthesize(FAMILIES["time_optimal"], MOVE_3, TimeOptimalOptions()).summary
+    assert isinstance(summary, TimeOptimalReport)
+    note = summary.refinement
+    assert "Newton on the switching times and the multipliers (Pontryagin's conditions)" in note
+    assert "certifies it the minimum-time command" in note
+    assert summary.duration_s == pytest.approx(sum(START), rel=1e-3)  # the answer START was rounded from
+
+
+def test_a_command_with_a_nan_duration_meets_no_limit() -> None:
+    """limits_met on arcs of a NaN duration: every comparison with NaN is False, so the check must refuse them
+    itself (exact_peaks' end position is NaN)."""
+    spec = _spec(MOVE_3)
+    arcs = (Arc(0.0, 0.01, spec.scale), Arc(0.01, math.nan, -spec.scale))
+    assert not limits_met(MOVE_3, spec, arcs)

@@ -133,6 +133,8 @@ def limits_met(problem: Problem, spec: Spec, arcs: tuple[Arc, ...]) -> bool:
     """The refined command's exact peaks within the limits (the pipeline's own check is 1e-9): in closed form
     (arcs.exact_peaks), independent of the refinement's kernels."""
     peaks = exact_peaks(arcs, spec.order, spec.start_state())
+    if not all(math.isfinite(x) for x in (peaks.velocity, peaks.acceleration, peaks.end_position)):
+        return False  # (a comparison with NaN is False: it would pass every limit below)
     for peak, limit in (
         (peaks.velocity, spec.max_velocity),
         (peaks.acceleration, spec.max_acceleration),

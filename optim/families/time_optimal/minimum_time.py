@@ -210,18 +210,17 @@ class _Best:
             result = newton(self.spec, durations, levels)
             if result is None:
                 continue
-            again = next((kept for arcs, kept in seen if same_command(arcs, result.arcs, SAME_RTOL)), None)
-            if again is not None:  # another start's command to round-off (9 of 36 on the held-jerk bench): as it
-                if not again:  # was, without its certificate and limit check again (0.3 ms)
-                    continue
-            else:
+            # another start's command to round-off (9 of 36 on the held-jerk bench) is kept or not as it was, without
+            # its certificate and limit check again (0.3 ms)
+            keep = next((kept for arcs, kept in seen if same_command(arcs, result.arcs, SAME_RTOL)), None)
+            if keep is None:
                 proof = certificate(self.spec, merged(result.arcs))
                 if proof is not None and self.offer(result.arcs, "refined", note, proof):
                     return []
                 keep = proof is not None or self.accepts(result.arcs)
                 seen.append((result.arcs, keep))
-                if not keep:
-                    continue  # it breaks a limit: no chain from it (its repairs keep the breach), nothing to offer
+            if not keep:
+                continue  # it breaks a limit: no chain from it (its repairs keep the breach), nothing to offer
             held.append(result.arcs)
             if len(held) == CHAIN_AFTER and self.chains(held, note, budget):
                 return []

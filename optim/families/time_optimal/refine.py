@@ -133,7 +133,7 @@ class _Model:
         self.moment_scales = np.ones((self.derivative_order + 1, self.poles.size))  # sum |diff| at z0, fixed
         for n in range(self.derivative_order + 1):
             diff = moment_terms(self.poles, n, durations_s, self.levels, False)[2]
-            np.add(np.abs(diff).sum(axis=1), 1e-300, out=self.moment_scales[n])
+            self.moment_scales[n] = np.abs(diff).sum(axis=1) + 1e-300
         self.bounds = [  # (derivative, limit, the check points' times: rows . d): arc ends, and mid-arc with a jerk
             (m, limit, _check_times(self.count, m == 1 and q == 3)) for m, limit in fixed.limits if self.count >= 2
         ]

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from optim.families.time_optimal.certify import certificate_applies, phi_parts
+from optim.families.time_optimal.certify import certificate_applies, kernel, phi_parts
 from optim.families.time_optimal.refine import end_conditions
 from optim.families.time_optimal.types import Arc, Spec
 
@@ -39,7 +39,7 @@ def shoot(spec: Spec, durations: list[float], levels: list[float]) -> tuple[Arc,
     width = g_end.size - 1  # theta's unknowns: one fewer than the end conditions
     if n - 1 <= width:
         return None  # a square end system already (Newton on the durations alone: refine.newton)
-    scale = float(phi_parts(spec, np.array([d.sum()]))[0][0])  # k(T): the switching function's size
+    scale = float(kernel(spec.order, np.array([d.sum()]))[0])  # k(T): the switching function's size
     after = np.arange(n)[None, :] >= np.arange(1, n)[:, None]  # d(T - s_k)/d d_j: the arcs from switch k on
     size = g_end.size + n - 1  # = n + width: square
 
