@@ -231,7 +231,6 @@ def test_a_forked_child_designs_on_a_loop_of_its_own():
     # The API keeps one event loop in a daemon thread (compare and sweeps run on it; a design runs in the caller's
     # thread); a child forked after it ran has the loop object but not the thread, so reusing it would wait forever.
     # The child must start its own (exit 0), within 60 s.
-    import time
 
     body = {**STAP, "families": ["stap"]}
     vibfree.compare(body, settings=TEST_SETTINGS)
@@ -244,14 +243,7 @@ def test_a_forked_child_designs_on_a_loop_of_its_own():
             os._exit(0 if round(settling, 3) == 0.175 and ranked == settling else 1)
         except BaseException:
             os._exit(2)
-    deadline = time.monotonic() + 60.0
-    while (done := os.waitpid(pid, os.WNOHANG))[0] == 0 and time.monotonic() < deadline:
-        time.sleep(0.05)
-    if done[0] == 0:
-        os.kill(pid, 9)
-        os.waitpid(pid, 0)
-        pytest.fail("the forked child's design did not finish in 60 s")
-    assert os.waitstatus_to_exitcode(done[1]) == 0
+    assert _child_exit_code(pid, "the forked child's design did not finish in 60 s") == 0
 
 
 def test_designs_from_several_threads_take_turns_and_answer_as_one_thread():
@@ -278,7 +270,6 @@ def test_designs_from_several_threads_take_turns_and_answer_as_one_thread():
 def test_a_child_forked_while_the_turn_is_held_designs():
     # The API's turn (vibfree.api._TURN) is held for a whole call; a child forked meanwhile gets the lock locked with
     # no thread to release it, so it must make its own (os.register_at_fork): the child designs (exit 0) within 60 s.
-    import time
 
     from vibfree import api
 
@@ -290,14 +281,7 @@ def test_a_child_forked_while_the_turn_is_held_designs():
                 os._exit(0 if round(design.answer["metrics"]["settling_time_s"], 3) == 0.175 else 1)
             except BaseException:
                 os._exit(2)
-    deadline = time.monotonic() + 60.0
-    while (done := os.waitpid(pid, os.WNOHANG))[0] == 0 and time.monotonic() < deadline:
-        time.sleep(0.05)
-    if done[0] == 0:
-        os.kill(pid, 9)
-        os.waitpid(pid, 0)
-        pytest.fail("the forked child waited for a turn no thread of its own held")
-    assert os.waitstatus_to_exitcode(done[1]) == 0
+    assert _child_exit_code(pid, "the forked child waited for a turn no thread of its own held") == 0
 
 
 @pytest.mark.skipif(not hasattr(signal, "setitimer"), reason="setitimer is POSIX")
@@ -332,3 +316,17 @@ def test_a_call_interrupted_while_its_coroutine_runs_keeps_the_turn_until_it_end
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, previous)
     assert api._run_inline(design())  # it ran only once the interrupted call's coroutine had ended
+
+
+def _child_exit_code(pid: int, timeout_message: str, timeout_s: float = 60.0) -> int:
+    """The forked child's exit code; the test fails with ``timeout_message`` (the child killed) past ``timeout_s``."""
+    import time
+
+    deadline = time.monotonic() + timeout_s
+    while (done := os.waitpid(pid, os.WNOHANG))[0] == 0 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    if done[0] == 0:
+        os.kill(pid, 9)
+        os.waitpid(pid, 0)
+        pytest.fail(timeout_message)
+    return os.waitstatus_to_exitcode(done[1])
