@@ -27,7 +27,6 @@ round-off over the mode's memory exceeds 1e-12 of the motion, the complex recurr
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -36,29 +35,18 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.signal import lfilter, lfiltic
 
 from models.commands import PiecewiseCommand
-from models.errors import InvalidParameter
+from models.modal_data import FreeResponse as FreeResponse  # (re-exported: the simulation's types)
+from models.modal_data import ModalForm as ModalForm
 from models.plants import Plant
+from models.simulation_checks import (
+    PAIR_ROUNDOFF_RELATIVE,
+    check_conditioning,
+    check_finite,
+    pair_roundoff,
+    quasi_static_size,
+)
 
 _REAL_POLE_TOLERANCE = 1e-12
-_RELIABLE_RELATIVE = 1e-6  # largest round-off accepted, relative to the load's motion
-
-
-@dataclass(frozen=True)
-class ModalForm:
-    """G(s) = sum_m taylor[m] s^m near 0, and sum over poles of weights * residues / (s - pole).
-
-    One entry per real pole or per complex pair (the pole with Im > 0, weight 2).
-    """
-
-    taylor: NDArray[np.float64]
-    poles: NDArray[np.complex128]
-    residues: NDArray[np.complex128]
-    weights: NDArray[np.float64]
-
-    @property
-    def oscillatory(self) -> NDArray[np.bool_]:
-        pairs: NDArray[np.bool_] = self.weights == 2.0
-        return pairs
 
 
 def taylor_coefficients(num: ArrayLike, den: ArrayLike, count: int) -> NDArray[np.float64]:
@@ -120,54 +108,6 @@ def _real_pair_history(q: complex, decay: complex) -> tuple[float, float]:
     """Real (s_{-1}, s_{-2}) with s_{-1} - conj(decay) s_{-2} = q (needs Im decay != 0)."""
     before2 = q.imag / decay.imag
     return q.real + decay.real * before2, before2
-
-
-@dataclass(frozen=True)
-class FreeResponse:
-    """h_k of one pole at every breakpoint, stored as what computed it.
-
-    Either ``values`` (h itself) or, for a complex pole on a uniform grid driven by one order of jumps,
-    the real sequence s of the second-order recurrence s_k = 2 Re(z) s_{k-1} - |z|^2 s_{k-2} + u_k
-    (``scipy.signal.lfilter`` on real numbers), from which h_k = gain (s_k - conj(z) s_{k-1}): the
-    denominator (1 - z q^-1)(1 - conj(z) q^-1) is the complex first-order recurrence times its conjugate.
-    """
-
-    values: NDArray[np.complex128] | None = None
-    s: NDArray[np.float64] | None = None
-    s_before: float = 0.0  # s_{-1}
-    gain: complex = 0.0
-    decay: complex = 0.0  # z = exp(pole h)
-
-    def combination(self, c: complex) -> tuple[float, float]:
-        """(alpha, beta) with Re(c h_k) = alpha s_k - beta s_{k-1} (the s representation only)."""
-        ca = c * self.gain
-        return ca.real, (ca * self.decay.conjugate()).real
-
-    def at(self, index: int) -> complex:
-        if self.values is not None:
-            return complex(self.values[index])
-        assert self.s is not None
-        previous = float(self.s[index - 1]) if index > 0 else self.s_before
-        return self.gain * (float(self.s[index]) - self.decay.conjugate() * previous)
-
-    def full(self) -> NDArray[np.complex128]:
-        if self.values is not None:
-            return self.values
-        assert self.s is not None
-        shifted = np.empty_like(self.s)
-        shifted[0] = self.s_before
-        shifted[1:] = self.s[:-1]
-        h: NDArray[np.complex128] = self.gain * (self.s - self.decay.conjugate() * shifted)
-        return h
-
-    @cached_property
-    def bound(self) -> float:
-        """An upper bound of max_k |h_k|; for the s representation also the scale of its round-off."""
-        if self.values is not None:
-            return float(np.max(np.abs(self.values))) if self.values.size else 0.0
-        assert self.s is not None
-        largest = max(float(self.s.max()), -float(self.s.min()), abs(self.s_before))
-        return abs(self.gain) * (1.0 + abs(self.decay)) * largest
 
 
 @dataclass(frozen=True)
@@ -233,23 +173,6 @@ class Response:
         return amplitudes
 
 
-# Largest round-off the real second-order form may add to a pole's free response, relative to the load's
-# motion, before the complex first-order recurrence is used instead (see ``_pair_roundoff``).
-_PAIR_ROUNDOFF_RELATIVE = 1e-12
-
-
-def _pair_roundoff(free: FreeResponse, weighted: complex, samples: int) -> float:
-    """Estimated round-off of the real second-order form in |w r h| (Oppenheim & Schafer, Discrete-Time
-    Signal Processing, 3rd ed., Sec. 6.8-6.9: coefficient quantisation and round-off noise of direct forms).
-    Rounding 2 Re(z) moves the pole's angle by eps / Im(z) per step, which the free response (of size
-    about |a| max|s| |1 - z|) accumulates over its memory (the samples, or 1 / (1 - |z|) steps of decay);
-    each step's rounding, eps |s|, adds a free response of |a| eps |s|, summed at random over the memory."""
-    eps = float(np.finfo(float).eps)
-    memory = min(float(samples), 1.0 / max(1.0 - abs(free.decay), eps))
-    angle = abs(1.0 - free.decay) * memory / abs(free.decay.imag)
-    return abs(weighted) * free.bound * eps * (angle + math.sqrt(memory) + 4.0)
-
-
 def _single_order_free(
     pole: complex, decay: complex, jumps: NDArray[np.float64], order: int, start: complex
 ) -> FreeResponse:
@@ -268,10 +191,12 @@ def _single_order_free(
     return FreeResponse(s=s, s_before=before1, gain=gain, decay=decay)
 
 
-def simulate(plant: Plant, command: PiecewiseCommand) -> Response:
-    """The exact response of ``plant`` to ``command`` (see the module docstring)."""
+def simulate(plant: Plant, command: PiecewiseCommand, modal: ModalForm | None = None) -> Response:
+    """The exact response of ``plant`` to ``command`` (see the module docstring); ``modal``: its transfer function
+    in partial fractions where the caller has it more precisely than from polynomial coefficients (the closed loop
+    of models.servo, from its eigenvectors), with at least ``command.degree + 1`` Taylor coefficients."""
     degree = command.degree
-    modal = plant_modal_form(plant, degree + 1)
+    modal = plant_modal_form(plant, degree + 1) if modal is None else modal
     jumps = command.jumps()
     uniform = command.is_uniform
     first = jumps[:, 0]
@@ -282,7 +207,7 @@ def simulate(plant: Plant, command: PiecewiseCommand) -> Response:
     weighted = modal.weights * modal.residues
     samples = command.time_s.size
     step = float(command.steps_s[0]) if uniform else 0.0
-    quasi_static_size = _quasi_static_size(command, modal)
+    static_size = quasi_static_size(command, modal)
     free: list[FreeResponse] = []
     for pole, w in zip(modal.poles, weighted, strict=True):  # a loop over poles, not samples
         p = complex(pole)
@@ -296,16 +221,39 @@ def simulate(plant: Plant, command: PiecewiseCommand) -> Response:
             decay = complex(np.exp(p * step))
             rest = start - first[m] * p ** -(m + 1)  # d_0 without the active order, carried by zi
             pole_free = _single_order_free(p, decay, jumps[m], m, rest)
-            if decay.imag != 0.0 and _pair_roundoff(pole_free, w, samples) > (
-                _PAIR_ROUNDOFF_RELATIVE * quasi_static_size
-            ):
+            if decay.imag != 0.0 and pair_roundoff(pole_free, w, samples) > (PAIR_ROUNDOFF_RELATIVE * static_size):
                 pole_free = None  # the real form would lose accuracy: the complex recurrence instead
         free.append(pole_free or _complex_free(p, command, jumps, active, start, uniform))
     position, velocity, acceleration = _load_motion(command, modal, free)
     response = Response(plant, command, modal, position, velocity, acceleration, tuple(free))
-    _check_finite(response)
-    _check_conditioning(command, modal, response.free, position, quasi_static_size)
+    check_finite(command, modal, response.free, (position, velocity, acceleration))
+    check_conditioning(command, modal, response.free, position, static_size)
     return response
+
+
+def another_output(response: Response, modal: ModalForm) -> Response:
+    """Another output of the system ``response`` simulated, written with the same poles in the same order (other
+    residues and Taylor coefficients: models.servo's closed loop, one per signal): the free responses h_j depend
+    on the pole and the command only, so they are reused. Where the real second-order form of a pole would lose
+    accuracy for this output (``_pair_roundoff`` against its own size), it is simulated afresh."""
+    if not np.array_equal(modal.poles, response.modal.poles):
+        raise ValueError("another_output needs the same poles in the same order")
+    command = response.command
+    static_size = quasi_static_size(command, modal)
+    weighted = modal.weights * modal.residues
+    samples = command.time_s.size
+    for w, pole_free in zip(weighted, response.free, strict=True):  # a loop over poles
+        if (
+            pole_free.s is not None
+            and pole_free.decay.imag != 0.0
+            and pair_roundoff(pole_free, complex(w), samples) > (PAIR_ROUNDOFF_RELATIVE * static_size)
+        ):
+            return simulate(response.plant, command, modal)
+    position, velocity, acceleration = _load_motion(command, modal, list(response.free))
+    other = Response(response.plant, command, modal, position, velocity, acceleration, response.free)
+    check_finite(command, modal, other.free, (position, velocity, acceleration))
+    check_conditioning(command, modal, other.free, position, static_size)
+    return other
 
 
 def _load_motion(
@@ -376,27 +324,6 @@ def plant_modal_form(plant: Plant, taylor_count: int) -> ModalForm:
     return cache[taylor_count]
 
 
-def _check_finite(response: Response) -> None:
-    """Refuse a load motion that overflows double precision. A bound on every output (the quasi-static
-    sizes plus each pole's |c| max|h|) below 1e300 proves them finite without looking at the samples."""
-    modal, cmd = response.modal, response.command
-    weighted = np.abs(modal.weights * modal.residues)
-    bounds = [f.bound for f in response.free]
-    for k, (name, arr) in enumerate(
-        (
-            ("load position", response.load_position),
-            ("load velocity", response.load_velocity),
-            ("load acceleration", response.load_acceleration),
-        )
-    ):
-        size = sum(abs(float(g)) * cmd.max_abs(m + k) for m, g in enumerate(modal.taylor) if g != 0.0)
-        size += sum(float(w * abs(p) ** k) * b for w, p, b in zip(weighted, modal.poles, bounds, strict=True))
-        if size < 1e300:
-            continue
-        if not (math.isfinite(float(arr.max())) and math.isfinite(float(arr.min()))):
-            raise InvalidParameter("profile", "out of range", f"the {name} overflows double precision")
-
-
 def _complex_free(
     pole: complex,
     command: PiecewiseCommand,
@@ -413,38 +340,3 @@ def _complex_free(
     steps = command.steps_s
     decay = np.exp(pole * (steps[:1] if uniform else steps))
     return FreeResponse(values=first_order_scan(decay, drive, uniform))
-
-
-def _quasi_static_size(command: PiecewiseCommand, modal: ModalForm) -> float:
-    """sum_m |g_m| max |p^(m)|: the size of the quasi-static motion, the scale of round-off bounds."""
-    return sum(abs(float(g)) * command.max_abs(m) for m, g in enumerate(modal.taylor) if g != 0.0)
-
-
-def _check_conditioning(
-    command: PiecewiseCommand,
-    modal: ModalForm,
-    free: tuple[FreeResponse, ...],
-    position: NDArray[np.float64],
-    quasi_static_size: float,
-) -> None:
-    """Refuse a result that round-off could have spoilt.
-
-    The load position is the sum of the quasi-static part sum_m g_m p^(m) (of size ``quasi_static_size``) and
-    the free responses; when a mode is very slow next to how fast the command changes, both are huge
-    (1/lambda^(m+1)) and cancel, and the sum keeps only eps times their size of accuracy.
-    """
-    eps = np.finfo(float).eps
-    size = quasi_static_size + sum(
-        abs(float(w)) * f.bound for w, f in zip(np.abs(modal.weights * modal.residues), free, strict=True)
-    )
-    scale = max(abs(modal.taylor[0]) * command.max_abs(0), 1e-300)
-    if 16 * eps * size > _RELIABLE_RELATIVE * scale:  # only then the load's own extent decides
-        scale = max(scale, float(position.max()), -float(position.min()))
-    if 16 * eps * size > _RELIABLE_RELATIVE * scale:
-        slowest = float(np.min(np.abs(modal.poles))) / (2 * np.pi)
-        raise InvalidParameter(
-            "plant",
-            f"{slowest:.3g} Hz",
-            f"the slowest pole ({slowest:.3g} Hz) is too slow for how fast this command changes: round-off would "
-            f"reach {16 * eps * size / scale:.1e} of the motion; sample a slower command or check the plant",
-        )
