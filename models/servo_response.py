@@ -1,0 +1,169 @@
+"""What the machine does with a command through its drive: the closed loop of models.servo, simulated exactly.
+
+Each output of the closed loop (the motor's position, current, torque, voltage, the load, the tracking error) is
+a transfer function of the command's position in partial fractions (``ClosedLoop.modal``); models.simulation's
+exact recurrence gives it at the command's breakpoints (no time step, no Python loop over samples). The load's
+answer is a full models.simulation.Response, so that its settling and residual vibration are measured as on an
+ideal motor (models.metrics), from the closed loop's free state at the command's end.
+
+Saturation: the prediction is linear. Where the commanded torque or the winding's voltage exceeds the motor's
+limits it is not what the drive does; each limit exceeded is reported (``Saturation``), never clipped silently.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from models.commands import PiecewiseCommand
+from models.plants import Plant, TransferFunctionPlant
+from models.servo import OUTPUTS, ClosedLoop, Drive, ModalOutput, closed_loop
+from models.simulation import ModalForm, Response, another_output, simulate
+
+Array = NDArray[np.float64]
+CArray = NDArray[np.complex128]
+_REAL_POLE_TOLERANCE = 1e-12
+PREPARED_CACHE = 32  # machines (plant and drive) whose closed loop is kept between simulations
+ROUND_OFF = 1e-9  # a numerator term below this share of the largest is the cancellation's round-off
+
+
+@dataclass(frozen=True)
+class Saturation:
+    """A limit the linear prediction exceeds: which, its value, the largest |value| and when it is first passed."""
+
+    quantity: str  # "torque_nm" or "voltage_v"
+    limit: float
+    peak: float
+    first_time_s: float
+
+
+@dataclass(frozen=True)
+class DriveResponse:
+    """The closed loop's outputs at the command's breakpoints, the load's Response and the limits exceeded."""
+
+    time_s: Array
+    motor_position: Array
+    motor_velocity: Array
+    motor_acceleration: Array
+    current_a: Array
+    torque_nm: Array
+    voltage_v: Array
+    tracking_error: Array
+    load: Response
+    saturation: tuple[Saturation, ...]
+
+    @property
+    def saturated(self) -> bool:
+        return bool(self.saturation)
+
+
+def _upper(poles: CArray) -> NDArray[np.bool_]:
+    """One pole of each conjugate pair (Im > 0) and every real pole."""
+    flat = np.abs(poles.imag) <= _REAL_POLE_TOLERANCE * np.abs(poles)
+    keep: NDArray[np.bool_] = flat | (poles.imag > 0.0)
+    return keep
+
+
+def modal_form(poles: CArray, output: ModalOutput, taylor_count: int) -> ModalForm:
+    """models.simulation's ModalForm of ``output``: its Taylor coefficients at 0, g_m = P_m - sum_j rho_j /
+    lambda_j^(m+1) (over every pole), and one entry per real pole or conjugate pair."""
+    orders = np.arange(taylor_count)
+    polynomial = np.zeros(taylor_count)
+    size = min(taylor_count, 3)
+    polynomial[:size] = output.polynomial[:size]
+    taylor = polynomial - np.real(np.sum(output.residues[:, None] / poles[:, None] ** (orders[None, :] + 1), axis=0))
+    keep = _upper(poles)
+    flat = np.abs(poles.imag) <= _REAL_POLE_TOLERANCE * np.abs(poles)
+    chosen = np.where(flat, poles.real + 0j, poles)[keep]
+    residues = np.where(flat, output.residues.real + 0j, output.residues)[keep]
+    weights = np.where(flat[keep], 1.0, 2.0)
+    return ModalForm(taylor, chosen, residues, weights)
+
+
+def transfer_function(loop: ClosedLoop, name: str) -> tuple[Array, Array]:
+    """H(s) of an output as polynomials (descending powers): the closed loop as a plant's transfer function."""
+    output = loop.modal(name)
+    poles = loop.poles
+    den = np.real(np.poly(poles))
+    num = np.polymul(np.array(output.polynomial[::-1]), den)
+    for j, rho in enumerate(output.residues):  # a loop over poles
+        others = np.poly(np.delete(poles, j))
+        num = np.polyadd(num, rho * others)
+    return _without_round_off(np.real(num), float(np.max(np.abs(poles)))), den
+
+
+def _without_round_off(num: Array, omega: float) -> Array:
+    """``num`` without its leading coefficients that are the round-off of terms cancelling (the closed loop's
+    relative degree): c_k with |c_k| omega^k below ROUND_OFF of the largest such term, omega the fastest pole
+    (the powers of s compared at the frequency where they are largest)."""
+    powers = np.arange(num.size - 1, -1, -1, dtype=float)
+    with np.errstate(over="ignore"):
+        size = np.abs(num) * omega**powers
+    negligible = size <= ROUND_OFF * float(np.max(size))
+    first = int(np.argmin(negligible)) if not np.all(negligible) else num.size - 1
+    return num[first:]
+
+
+def load_plant(loop: ClosedLoop) -> TransferFunctionPlant:
+    """The closed loop from the command to the load, as a transfer-function plant (its modes are the loop's)."""
+    num, den = transfer_function(loop, "load_position")
+    return TransferFunctionPlant(tuple(num), tuple(den))
+
+
+@dataclass(frozen=True)
+class ServoMachine:
+    """What a machine's simulations share, built once (``prepared``): the loop, its load's plant, every output's
+    partial fractions."""
+
+    loop: ClosedLoop
+    load_plant: TransferFunctionPlant
+    modal: dict[str, ModalOutput]
+
+
+@functools.lru_cache(maxsize=PREPARED_CACHE)
+def prepared(mechanics: Plant, drive: Drive) -> ServoMachine:
+    """The closed loop of ``drive`` on ``mechanics``, its checks passed (stable, exact partial fractions), kept for
+    the next command through the same machine (both are frozen: their values are the key)."""
+    loop = closed_loop(mechanics, drive)
+    return ServoMachine(loop, load_plant(loop), {name: loop.modal(name) for name in OUTPUTS})
+
+
+def simulate_drive(mechanics: Plant, drive: Drive, command: PiecewiseCommand) -> DriveResponse:
+    """``command`` through ``drive`` on ``mechanics`` (module docstring)."""
+    machine = prepared(mechanics, drive)
+    count = command.degree + 1
+    poles = machine.loop.poles
+    load = simulate(machine.load_plant, command, modal_form(poles, machine.modal["load_position"], count))
+
+    def run(name: str) -> Response:  # the same poles, the load's free responses (models.simulation.another_output)
+        return another_output(load, modal_form(poles, machine.modal[name], count))
+
+    motor = run("motor_position")
+    values = {name: run(name).load_position for name in ("current_a", "torque_nm", "voltage_v")}
+    error = run("tracking_error").load_position
+    limits = {"torque_nm": drive.motor.max_torque_nm, "voltage_v": drive.motor.max_voltage_v}
+    saturation = tuple(
+        _exceeded(name, values[name], limit, command.time_s) for name, limit in limits.items() if np.isfinite(limit)
+    )
+    return DriveResponse(
+        command.time_s,
+        motor.load_position,
+        motor.load_velocity,
+        motor.load_acceleration,
+        values["current_a"],
+        values["torque_nm"],
+        values["voltage_v"],
+        error,
+        load,
+        tuple(s for s in saturation if s is not None),
+    )
+
+
+def _exceeded(name: str, values: Array, limit: float, time_s: Array) -> Saturation | None:
+    over = np.abs(values) > limit
+    if not np.any(over):
+        return None
+    return Saturation(name, limit, float(np.max(np.abs(values))), float(time_s[int(np.argmax(over))]))
