@@ -189,7 +189,7 @@ def problem_response(slug: str, detail: str, *, field: str | None = None, **extr
 
 # Discriminated unions put the tag in the error location (plant -> mode -> field); the user
 # wrote plant.field, so tags are dropped from the reported path.
-UNION_TAGS: frozenset[str] = frozenset(PLANT_KINDS)
+UNION_TAGS: frozenset[str] = frozenset((*PLANT_KINDS, "closed_loop"))
 
 
 def field_path(loc: tuple[Any, ...]) -> str:

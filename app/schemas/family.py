@@ -27,8 +27,9 @@ from app.schemas.common import (
     plant_kind_is,
     present,
 )
+from app.schemas.drive import DriveIn
 from app.schemas.plants import PlantIn, to_plant
-from app.schemas.simulate import LoadOut, MetricsOut, ProfileOut, SettlingIn
+from app.schemas.simulate import ClosedLoopOut, LoadOut, MetricsOut, ProfileOut, SettlingIn
 from app.settings import Settings
 from models.errors import InvalidParameter
 from optim.problem import MAX_MOVE, MIN_MOVE, Limits, Problem, SensitivityGrid, SettlingCriteria
@@ -193,6 +194,12 @@ class ProfileRequest(StrictModel):
         "periods of the slowest mode.",
     )
     settling: SettlingIn = Field(default_factory=SettlingIn)
+    drive: DriveIn | None = Field(
+        None,
+        description="The servo that executes the command: the answer gains ``closed_loop``, what the motor and the "
+        "load do through it (``load`` and ``metrics`` stay the ideal motor's). Not with a closed_loop plant, whose "
+        "prediction is already through its drive.",
+    )
     sensitivity: SensitivityIn | None = Field(
         None, description="Percentage vibration versus f_n/f_n,e (see SensitivityOut), when asked."
     )
@@ -216,6 +223,7 @@ class ProfileRequest(StrictModel):
         "sample cap (VIBFREE_MAX_SAMPLES); the answer names the smallest period that fits. horizon_s: at least the "
         "command's end.",
         "limits.max_torque_nm: M / (J_M + J_L) at least 1e-9.",
+        "drive: not with a closed_loop plant (its prediction is already through its drive).",
     )
 
     @classmethod
@@ -364,6 +372,7 @@ class FamilyResponse(OutModel):
         description="Every requested limit the command breaks (only with allow_limit_violation; also in warnings).",
     )
     warnings: list[str] = Field(default_factory=list)
+    closed_loop: ClosedLoopOut | None = Field(None, description="With ``drive``: the design through it.")
 
 
 __all__ = [

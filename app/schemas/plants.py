@@ -7,6 +7,7 @@ from typing import Annotated, Any, ClassVar, Literal
 from pydantic import Field
 
 from app.schemas.common import OutModel, StrictModel
+from app.schemas.drive import DriveIn, checked_drive
 from models.errors import InvalidParameter
 from models.plants import (
     FREQUENCY_MAX_HZ,
@@ -21,6 +22,8 @@ from models.plants import (
 from models.plants import (
     PLANT_KINDS as MODEL_PLANT_KINDS,
 )
+from models.servo import closed_loop
+from models.servo_response import load_plant
 
 # Physical lower bounds: far below any machine (a 1e-9 kg m^2 rotor is a watch's; a 1e-6 kg mass a grain of
 # sand), and high enough that every derived quantity (k/J, k J, c0 k, m0 m1, 2 k R^2) stays a normal double.
@@ -149,18 +152,53 @@ class TransferFunctionIn(StrictModel):
         ]
 
 
-PlantIn = Annotated[
-    ModeIn | TwoInertiaIn | BeltPlatformIn | RigidFlexibleIn | TransferFunctionIn, Field(discriminator="kind")
-]
-PLANT_KINDS = tuple(MODEL_PLANT_KINDS)  # the model's kinds, in its order: mode, two_inertia, ... transfer_function
+Mechanics = ModeIn | TwoInertiaIn | BeltPlatformIn | RigidFlexibleIn | TransferFunctionIn
+MechanicsIn = Annotated[Mechanics, Field(discriminator="kind")]
 
 
-def to_plant(schema: ModeIn | TwoInertiaIn | BeltPlatformIn | RigidFlexibleIn | TransferFunctionIn) -> Plant:
+class ClosedLoopIn(StrictModel):
+    """The machine through its drive: the closed loop from the position command (what the drive is sent) to the
+    load (models.servo), as a transfer function whose modes are the closed loop's: the modes a design cancels."""
+
+    kind: Literal["closed_loop"]
+    UNSCHEMED_RULES: ClassVar[tuple[str, ...]] = (
+        "plant (closed_loop): the closed loop must be stable and its transfer function a valid transfer_function "
+        "plant (poles not repeated, modes within [1e-3, 1e5] Hz).",
+    )
+    mechanics: MechanicsIn = Field(description="The machine's mechanics: any other plant kind.")
+    drive: DriveIn
+
+
+PlantIn = Annotated[Mechanics | ClosedLoopIn, Field(discriminator="kind")]
+# the model's kinds, in its order (mode, two_inertia, ... transfer_function), then the closed loop through a drive
+PLANT_KINDS = (*MODEL_PLANT_KINDS, "closed_loop")
+
+
+def to_plant(schema: Mechanics | ClosedLoopIn) -> Plant:
     """The core plant of a request's ``plant`` object; physics errors name ``plant.<field>``."""
+    if isinstance(schema, ClosedLoopIn):
+        return _closed_loop_plant(schema)
     try:
         return make_plant(**schema.model_dump())
     except InvalidParameter as exc:
         raise exc.under("plant") from None
+
+
+def _closed_loop_plant(schema: ClosedLoopIn) -> Plant:
+    """The closed loop's transfer function from the command to the load (models.servo_response.load_plant)."""
+    mechanics = to_plant(schema.mechanics)
+    try:
+        drive = checked_drive(schema.drive, mechanics)
+    except InvalidParameter as exc:
+        raise exc.under("plant") from None
+    try:
+        return load_plant(closed_loop(mechanics, drive))
+    except InvalidParameter as exc:
+        if exc.field.startswith("drive"):
+            raise exc.under("plant") from None
+        raise InvalidParameter(
+            "plant.drive", exc.value, f"the closed loop's transfer function is not usable as a plant: {exc.rule}"
+        ) from None
 
 
 # --- analysis response --------------------------------------------------------------------

@@ -21,7 +21,8 @@ from app.schemas.common import (
     never,
     present,
 )
-from app.schemas.plants import PlantIn
+from app.schemas.drive import DriveIn, GainsOut
+from app.schemas.plants import ModeOut, PlantIn
 from models.commands import DERIVATIVE_NAMES, PiecewiseCommand
 from models.errors import InvalidParameter
 
@@ -124,6 +125,11 @@ class SimulationOptions(StrictModel):
 class SimulateRequest(SimulationOptions):
     plant: PlantIn
     profile: ProfileIn
+    drive: DriveIn | None = Field(
+        None,
+        description="The servo that executes the command: the answer gains ``closed_loop``, what the motor and the "
+        "load do through it (the ideal-motor prediction stays in ``load`` and ``metrics``).",
+    )
 
     @classmethod
     def schema_rules(cls) -> list[dict[str, Any]]:
@@ -215,11 +221,68 @@ class MetricsOut(OutModel):
     peak_motor_torque_nm: float | None = Field(description="Peak |motor torque| at the samples (two_inertia only).")
 
 
+class MotorOut(OutModel):
+    """The motor through its drive, at the command's times."""
+
+    position: list[float]
+    velocity: list[float]
+    acceleration: list[float]
+    torque_nm: list[float] = Field(description="K_T i (the torque reference where the current loop is ideal).")
+    current_a: list[float]
+    voltage_v: list[float] = Field(
+        description="The current PI's output; without a current loop what the winding needs, R i + K_E w (its "
+        "inductance neglected)."
+    )
+
+
+class ClosedLoopLoadOut(OutModel):
+    position: list[float]
+    velocity: list[float]
+    acceleration: list[float]
+
+
+class SaturationOut(OutModel):
+    quantity: Literal["torque_nm", "voltage_v"]
+    limit: float
+    peak: float = Field(description="Largest |value| the linear prediction reaches at the command's times.")
+    first_time_s: float
+
+
+class DifferenceOut(OutModel):
+    """The closed loop against the ideal motor (``load`` and ``metrics``)."""
+
+    load_position_max_abs: float = Field(description="max |closed-loop load - ideal-motor load| at the samples.")
+    residual_amplitude_ratio: float | None = Field(
+        description="Closed-loop residual amplitude over the ideal motor's; null where the ideal one is 0."
+    )
+    settling_time_change_s: float | None = Field(
+        description="Closed-loop settling time less the ideal motor's; null where either never settles."
+    )
+
+
+class ClosedLoopOut(OutModel):
+    """What the machine does through its drive (models.servo): linear, exact at the command's times."""
+
+    motor: MotorOut
+    load: ClosedLoopLoadOut
+    tracking_error: list[float] = Field(description="Command position less motor position.")
+    metrics: MetricsOut = Field(description="The load's, from the closed loop's state at the command's end.")
+    saturated: bool = Field(
+        description="The command drives the motor past max_torque_nm or max_voltage_v: the linear prediction is "
+        "not what the drive does there (see saturation)."
+    )
+    saturation: list[SaturationOut]
+    gains: GainsOut
+    modes: list[ModeOut] = Field(description="The closed loop's oscillatory poles, lowest first: the modes to cancel.")
+    difference: DifferenceOut
+
+
 class SimulateResponse(OutModel):
     profile: ProfileOut
     load: LoadOut
     metrics: MetricsOut
     warnings: list[str]
+    closed_loop: ClosedLoopOut | None = Field(None, description="With ``drive``: the prediction through it.")
 
 
 def check_sample_count(field: str, count: int, max_samples: int) -> None:

@@ -7,6 +7,7 @@ from typing import Any
 from app.presenters import load_json, metrics_json
 from app.schemas.plants import to_plant
 from app.schemas.simulate import SimulateRequest, to_command
+from app.services.drive import Criteria, closed_loop_block
 from models.metrics import metrics
 from models.simulation import simulate
 from optim.problem import VIBRATION_FRACTION_OF_MOVE
@@ -26,9 +27,13 @@ def answer(request: SimulateRequest, max_samples: int) -> dict[str, Any]:
     result = metrics(
         response, tolerance, request.settling_window, vibration_window, vibration_fraction=VIBRATION_FRACTION_OF_MOVE
     )
-    return {
+    answer = {
         "profile": profile_arrays(command),
         "load": load_json(response),
         "metrics": metrics_json(MetricsReport(result)),
         "warnings": warnings,
     }
+    if request.drive is not None:
+        how = Criteria(tolerance, request.settling_window, vibration_window, VIBRATION_FRACTION_OF_MOVE)
+        answer["closed_loop"] = closed_loop_block(request.drive, plant, command, response, result, how)
+    return answer

@@ -1,0 +1,83 @@
+"""The drive in the loop: the ``closed_loop`` block of /v1/simulate and of every profile endpoint's answer.
+
+The command (exactly the one the ideal-motor prediction ran: the design's sampled command, corners kept) is run
+through the drive (models.servo_response); its load is measured as the ideal motor's is (models.metrics, the same
+settling criteria), and the difference from the ideal prediction is stated."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from app.presenters import metrics_json
+from app.schemas.drive import DriveIn, checked_drive
+from models.commands import PiecewiseCommand
+from models.metrics import Metrics, metrics
+from models.plants import Plant
+from models.servo_response import simulate_drive
+from models.simulation import Response
+from optim.results import MetricsReport
+
+
+@dataclass(frozen=True)
+class Criteria:
+    """The settling criteria the ideal prediction was measured with (models.metrics.metrics' arguments)."""
+
+    position_tolerance: float
+    settling_window: float | None
+    vibration_window: float | None
+    vibration_fraction: float | None
+
+
+def closed_loop_block(
+    drive_in: DriveIn, plant: Plant, command: PiecewiseCommand, ideal: Response, ideal_metrics: Metrics, how: Criteria
+) -> dict[str, Any]:
+    """The ``closed_loop`` block (app.schemas.simulate.ClosedLoopOut), JSON-ready apart from numpy arrays."""
+    drive = checked_drive(drive_in, plant)
+    run = simulate_drive(plant, drive, command)
+    closed = metrics(
+        run.load,
+        how.position_tolerance,
+        how.settling_window,
+        how.vibration_window,
+        how.vibration_fraction,
+    )
+    settle, settle_ideal = closed.settling.time_s, ideal_metrics.settling.time_s
+    return {
+        "motor": {
+            "position": run.motor_position,
+            "velocity": run.motor_velocity,
+            "acceleration": run.motor_acceleration,
+            "torque_nm": run.torque_nm,
+            "current_a": run.current_a,
+            "voltage_v": run.voltage_v,
+        },
+        "load": {
+            "position": run.load.load_position,
+            "velocity": run.load.load_velocity,
+            "acceleration": run.load.load_acceleration,
+        },
+        "tracking_error": run.tracking_error,
+        "metrics": metrics_json(MetricsReport(closed)),
+        "saturated": run.saturated,
+        "saturation": [vars(s) for s in run.saturation],
+        "gains": {
+            "position_kp_per_s": drive.position_kp_per_s,
+            "velocity_kp": drive.velocity.kp,
+            "velocity_ki": drive.velocity.ki,
+            "current_kp": None if drive.current is None else drive.current.kp,
+            "current_ki": None if drive.current is None else drive.current.ki,
+        },
+        "modes": [mode.as_dict() for mode in run.load.plant.modes()],
+        "difference": {
+            "load_position_max_abs": float(np.max(np.abs(run.load.load_position - ideal.load_position))),
+            "residual_amplitude_ratio": (
+                closed.residual_amplitude / ideal_metrics.residual_amplitude
+                if ideal_metrics.residual_amplitude > 0.0
+                else None
+            ),
+            "settling_time_change_s": None if settle is None or settle_ideal is None else settle - settle_ideal,
+        },
+    }
