@@ -9,7 +9,7 @@ from pydantic import Field
 from app.family_names import FamilyName
 from app.schemas.common import OutModel
 from app.schemas.family import ProfileRequest, SensitivityIn, SensitivityOut
-from app.schemas.simulate import LoadOut, ProfileOut
+from app.schemas.simulate import LoadOut, ProfileOut, SaturationOut
 from app.schemas.stap import StapSensitivityOut
 from optim.families.pseudo_polynomial.family import PseudoPolynomialOptions
 from optim.problem import Problem
@@ -44,6 +44,16 @@ class Curves(OutModel):
     load: LoadOut
     # a STAP row's sensitivity also says which method computed each curve
     sensitivity: SensitivityOut | StapSensitivityOut | None
+
+
+class ClosedLoopRow(OutModel):
+    """A row's command through the request's ``drive`` (the ``closed_loop`` block of /v1/profiles/*, summed up)."""
+
+    settling_time_s: float | None = Field(description="The load's settling through the drive; null if never.")
+    residual_amplitude: float = Field(description="Its free-oscillation envelope (velocity for rest-to-velocity).")
+    residual_vibration: float = Field(description="The same, fraction of the load's move.")
+    saturated: bool = Field(description="The command drives the motor past a torque or voltage limit.")
+    saturation: list[SaturationOut]
 
 
 class Row(OutModel):
@@ -81,6 +91,7 @@ class Row(OutModel):
     limit_violations: list[str]
     warnings: list[str]
     curves: Curves | None = None
+    closed_loop: ClosedLoopRow | None = Field(None, description="With ``drive``: this design through the drive.")
 
 
 class Unavailable(OutModel):
@@ -92,7 +103,8 @@ class Unavailable(OutModel):
 class CompareOut(OutModel):
     move: Literal["rest_to_rest", "rest_to_velocity"]
     rows: list[Row] = Field(
-        description="Sorted by settling time (never-settling designs last), then motion time. A family offering "
+        description="Sorted by settling time (never-settling designs last; with ``drive``, the closed loop's), then "
+        "motion time. A family offering "
         "several variants (shapers) has a row per variant; of alternatives (closed form or optimized, filter kinds) "
         "only the one that settles first."
     )

@@ -8,6 +8,7 @@ The route (app.routers.compare) and the Python API (vibfree.api) both call ``ans
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Any
 
 import anyio.to_thread
@@ -17,6 +18,7 @@ from app.presenters import load_json, present
 from app.request_bodies import request_fields
 from app.schemas.compare import DEFAULT_SENSITIVITY, CompareIn
 from app.services import profile as profiles
+from app.services.drive import Criteria, closed_loop_block
 from app.settings import Settings
 from models.errors import InvalidParameter
 from optim.compare import ComparedRow, plan, run_plan
@@ -33,6 +35,10 @@ async def answer(
     route's and the Python API's."""
     if body.sensitivity is None:
         body = body.model_copy(update={"sensitivity": DEFAULT_SENSITIVITY})
+    if body.drive is not None and body.plant.kind == "closed_loop":
+        raise InvalidParameter(
+            "drive", "given", "the plant is a closed_loop, already through its drive: give drive with its mechanics"
+        )
     problem = await anyio.to_thread.run_sync(body.to_problem, settings)
     # every row is held until the last one ends: each gets its share of the sample cap (VIBFREE_COMPARE_MAX_SAMPLES)
     problem = dataclasses.replace(problem, max_samples=min(problem.max_samples, settings.compare_max_samples))
@@ -51,11 +57,41 @@ async def answer(
 
         rows, unavailable = await run_plan(planned, run)
     common = body.common_body()
+    out = [_row(body, common, row, problem.load_move) for row in rows]
+    if body.drive is not None:
+        out = await threads.run(_through_drive, body, problem, rows, out, deadline_s=settings.thread_deadline_s)
     return {
         "move": "rest_to_rest" if problem.rest_to_rest else "rest_to_velocity",
-        "rows": [_row(body, common, row, problem.load_move) for row in rows],
+        "rows": out,
         "unavailable": [{**vars(u), "problem_type": f"/problems/{u.problem_type}"} for u in unavailable],
     }
+
+
+def _through_drive(
+    body: CompareIn, problem: Problem, rows: list[ComparedRow], out: list[dict[str, Any]]
+) -> list[dict[str, Any]]:
+    """Each row's command through ``body.drive`` (app.services.drive): its ``closed_loop`` summary, and the rows
+    ranked by the closed loop's settling (never-settling last), then motion time."""
+    assert body.drive is not None
+    how = Criteria(problem.settling.position_tolerance, None, problem.vibration_window, None)
+    for row, answer in zip(rows, out, strict=True):  # a loop over the rows (a few designs)
+        result: Result = row.result
+        block = closed_loop_block(body.drive, problem.plant, result.command, result.response, result.metrics, how)
+        metrics = block["metrics"]
+        amplitude = metrics["residual_amplitude" if body.displacement is not None else "residual_velocity_amplitude"]
+        answer["closed_loop"] = {
+            "settling_time_s": metrics["settling_time_s"],
+            "residual_amplitude": amplitude,
+            "residual_vibration": amplitude / problem.load_move,
+            "saturated": block["saturated"],
+            "saturation": block["saturation"],
+        }
+
+    def key(answer: dict[str, Any]) -> tuple[float, float]:
+        settle = answer["closed_loop"]["settling_time_s"]
+        return (math.inf if settle is None else settle, answer["motion_time_s"])
+
+    return sorted(out, key=key)
 
 
 def _row(request: CompareIn, common: dict[str, Any], row: ComparedRow, load_move: float) -> dict[str, Any]:

@@ -132,3 +132,24 @@ def test_a_closed_loop_plant_takes_no_second_drive(client):
     through = {"kind": "closed_loop", "mechanics": CUSIMANO, "drive": SOFT}
     answer = client.post("/v1/profiles/time-optimal", json={"plant": through, "drive": SOFT, "displacement": 0.5})
     assert answer.status_code == 422 and answer.json()["field"] == "drive"
+
+
+def test_compare_ranks_the_designs_by_their_settling_through_the_drive(client):
+    """Each row's command through the soft loop: its closed-loop summary is the profile endpoint's closed_loop
+    block for that row's request, and the rows are ranked by it (never-settling last)."""
+    move = {"displacement": 0.5, "limits": {"max_velocity": 2.0, "max_acceleration": 20.0}}
+    body = {"plant": CUSIMANO, "drive": SOFT, **move, "families": ["time_optimal", "input_shaped", "smoother"]}
+    answer = client.post("/v1/compare", json=body)
+    assert answer.status_code == 200, answer.text
+    rows = answer.json()["rows"]
+    settle = [row["closed_loop"]["settling_time_s"] for row in rows]
+    finite = [s for s in settle if s is not None]
+    assert len(finite) >= 2  # (the soft loop damps every design: each settles, the ranking is not vacuous)
+    assert finite == sorted(finite) and settle[: len(finite)] == finite  # never-settling rows last
+    first = rows[0]
+    alone = client.post(first["endpoint"], json={**first["request"], "drive": SOFT}).json()["closed_loop"]["metrics"]
+    assert first["closed_loop"]["settling_time_s"] == alone["settling_time_s"]
+    assert first["closed_loop"]["residual_amplitude"] == pytest.approx(alone["residual_amplitude"], rel=1e-12)
+    through = {"kind": "closed_loop", "mechanics": CUSIMANO, "drive": SOFT}
+    refused = client.post("/v1/compare", json={**body, "plant": through})
+    assert refused.status_code == 422 and refused.json()["field"] == "drive"
