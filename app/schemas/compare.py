@@ -9,7 +9,7 @@ from pydantic import Field
 from app.family_names import FamilyName
 from app.schemas.common import OutModel
 from app.schemas.family import ProfileRequest, SensitivityIn, SensitivityOut
-from app.schemas.simulate import LoadOut, ProfileOut, SaturationOut
+from app.schemas.simulate import ClosedLoopLoadOut, LoadOut, ProfileOut, SaturationOut
 from app.schemas.stap import StapSensitivityOut
 from optim.families.pseudo_polynomial.family import PseudoPolynomialOptions
 from optim.problem import Problem
@@ -44,6 +44,7 @@ class Curves(OutModel):
     load: LoadOut
     # a STAP row's sensitivity also says which method computed each curve
     sensitivity: SensitivityOut | StapSensitivityOut | None
+    closed_loop_load: ClosedLoopLoadOut | None = Field(None, description="With ``drive``: the load through it.")
 
 
 class ClosedLoopRow(OutModel):

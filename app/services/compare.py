@@ -86,6 +86,8 @@ def _through_drive(
             "saturated": block["saturated"],
             "saturation": block["saturation"],
         }
+        if "curves" in answer:
+            answer["curves"]["closed_loop_load"] = block["load"]
 
     def key(answer: dict[str, Any]) -> tuple[float, float]:
         settle = answer["closed_loop"]["settling_time_s"]

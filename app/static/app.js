@@ -45,6 +45,7 @@ const PALETTE = ["#1f6fb4", "#d9541e", "#2a8a4a", "#8e44ad", "#b8860b", "#17a2b8
   "#a0522d"];
 const MOTOR_COLOUR = "#1f6fb4";
 const LOAD_COLOUR = "#d9541e";
+const DRIVE_COLOUR = "#2a9d4b";
 
 const $ = (id) => document.getElementById(id);
 const form = $("design-form");
@@ -301,7 +302,26 @@ function buildCommon() {
     const value = numberOrNull(name);
     if (value !== null) request[name] = value;
   }
+  const drive = buildDrive();
+  if (drive) request.drive = drive;
   return request;
+}
+
+// The API's drive by bandwidths (null without the checkbox): an empty position loop is a velocity-mode drive, an
+// empty current loop an ideal torque.
+function buildDrive() {
+  if (!$("drive-on").checked) return null;
+  const loop = (id) => { const hz = numberOrNull(id); return hz === null ? null : { bandwidth_hz: hz }; };
+  const motor = {
+    resistance_ohm: numberOrNull("drive-r"), inductance_h: numberOrNull("drive-l"),
+    torque_constant_nm_per_a: numberOrNull("drive-kt"),
+  };
+  const inertia = numberOrNull("drive-inertia");
+  if (inertia !== null) motor.inertia_kgm2 = inertia;
+  return {
+    position_loop: loop("drive-position"), velocity_loop: loop("drive-velocity") || {},
+    current_loop: loop("drive-current"), motor,
+  };
 }
 
 // The robustness control: null (none), or the band as the time-optimal endpoint takes it.
@@ -335,7 +355,11 @@ function endpointRow(body, meta) {
     peak_velocity: m.peak_velocity, peak_acceleration: m.peak_acceleration, peak_jerk: m.peak_jerk,
     peak_motor_torque_nm: m.peak_motor_torque_nm, limits_met: body.limits_met,
     warnings: body.warnings, design: body.design,
-    curves: { profile: body.profile, load: body.load, sensitivity: body.sensitivity },
+    curves: { profile: body.profile, load: body.load, sensitivity: body.sensitivity,
+      closed_loop_load: body.closed_loop ? body.closed_loop.load : null },
+    closed_loop: body.closed_loop ? {
+      settling_time_s: body.closed_loop.metrics.settling_time_s, saturated: body.closed_loop.saturated,
+    } : null,
   };
 }
 
@@ -438,7 +462,7 @@ function renderTable() {
     tr.setAttribute("aria-selected", String(row === selected));
     tr.dataset.label = row.label || row.family;
     const cells = [
-      designName(row), fmt(row.motion_time_s), fmt(row.settling_time_s), fmt(row.percentage_vibration),
+      designName(row), fmt(row.motion_time_s), fmt(row.settling_time_s), throughDrive(row), fmt(row.percentage_vibration),
       fmt(row.residual_amplitude), bandText(row.band_5_percent), fmt(row.peak_velocity), fmt(row.peak_acceleration),
       fmt(row.peak_jerk), fmt(row.peak_motor_torque_nm), fmt(row.limits_met),
     ];
@@ -464,9 +488,16 @@ function renderTable() {
   }
 }
 
-// Compare's order: settling time (never-settling last), then motion time.
+// The settling through the drive, and whether the command drives the motor past a limit there.
+function throughDrive(row) {
+  if (!row.closed_loop) return "–";
+  return fmt(row.closed_loop.settling_time_s) + (row.closed_loop.saturated ? " (saturates)" : "");
+}
+
+// Compare's order: settling time (never-settling last; through the drive where there is one), then motion time.
 function insertSorted(rows, row) {
-  const key = (r) => [r.settling_time_s === null ? Infinity : r.settling_time_s, r.motion_time_s];
+  const settling = (r) => (r.closed_loop ? r.closed_loop.settling_time_s : r.settling_time_s);
+  const key = (r) => [settling(r) === null ? Infinity : settling(r), r.motion_time_s];
   const [s, t] = key(row);
   let index = rows.findIndex((r) => { const [rs, rt] = key(r); return rs > s || (rs === s && rt > t); });
   if (index < 0) index = rows.length;
@@ -533,15 +564,23 @@ function drawMotion() {
   const motorLabel = velocityInput ? `G(0) × drive ${DERIVATIVE[quantity]}`
     : Math.abs(gain - 1) < 1e-12 ? `motor ${quantity}` : `motor ${quantity} × G(0)`;
   $("plot-title").textContent = `Motor and load: ${designName(row)}`;
+  const closed = row.curves.closed_loop_load && row.curves.closed_loop_load[quantity] ? row.curves.closed_loop_load : null;
+  const ideal = closed ? ", ideal motor" : "";
+  const series = [{ label: "t (s)" },
+    { label: `${motorLabel} (${scale.unit})`, stroke: MOTOR_COLOUR, width: 2 },
+    { label: `load ${quantity}${ideal} (${scale.unit})`, stroke: LOAD_COLOUR, width: 2 }];
+  const data = [profile.time_s, motor.map((v) => v * scale.factor), loadValues.map((v) => v * scale.factor)];
+  if (closed) {
+    series.push({ label: `load ${quantity}, through the drive (${scale.unit})`, stroke: DRIVE_COLOUR, width: 2, dash: [6, 4] });
+    data.push(closed[quantity].map((v) => v * scale.factor));
+  }
   motionPlot = new uPlot({
     width: plotWidth(el), height: 280,
     legend: { live: false },
     scales: { x: { time: false } },
     axes: [{ label: "time (s)", values: tickValues }, { label: `${quantity} (${scale.unit})`, values: tickValues, size: 60 }],
-    series: [{ label: "t (s)" },
-      { label: `${motorLabel} (${scale.unit})`, stroke: MOTOR_COLOUR, width: 2 },
-      { label: `load ${quantity} (${scale.unit})`, stroke: LOAD_COLOUR, width: 2 }],
-  }, [profile.time_s, motor.map((v) => v * scale.factor), loadValues.map((v) => v * scale.factor)], el);
+    series,
+  }, data, el);
   motionPlot.unitScale = scale;
   if (!velocityInput && Math.abs(gain - 1) >= 1e-12) {
     $("motion-note").textContent = `The motor is drawn referred to the load: times G(0) = ${fmt(gain)}, the load's `
@@ -574,16 +613,26 @@ function drawResidual() {
   if (first < 0 || time.length - first < 5) first = 0; // no samples after the command: show it all
   const t = time.slice(first);
   const r = residual.slice(first);
-  const peak = maxAbs(r);
+  // Through the drive (with one): its load less the same rigid target.
+  const closedLoad = row.curves.closed_loop_load;
+  const reference = motorReferred(row.curves.profile, "position");
+  const c = closedLoad ? closedLoad.position.map((v, i) => v - reference[i]).slice(first) : null;
+  const peak = Math.max(maxAbs(r), c ? maxAbs(c) : 0);
   const scale = siScale(peak, coordinate());
   const half = peak > 0 ? peak * scale.factor * 1.15 : 1;
+  const series = [{ label: "t (s)" }, { label: `load − rigid target${c ? ", ideal motor" : ""} (${scale.unit})`, stroke: LOAD_COLOUR, width: 1.5 }];
+  const data = [t, r.map((v) => v * scale.factor)];
+  if (c) {
+    series.push({ label: `through the drive (${scale.unit})`, stroke: DRIVE_COLOUR, width: 1.5, dash: [6, 4] });
+    data.push(c.map((v) => v * scale.factor));
+  }
   residualPlot = new uPlot({
     width: plotWidth(el), height: 220,
     legend: { live: false },
     scales: { x: { time: false }, y: { range: [-half, half] } },
     axes: [{ label: "time (s)", values: tickValues }, { label: `load − target (${scale.unit})`, values: tickValues, size: 70 }],
-    series: [{ label: "t (s)" }, { label: `load − rigid target (${scale.unit})`, stroke: LOAD_COLOUR, width: 1.5 }],
-  }, [t, r.map((v) => v * scale.factor)], el);
+    series,
+  }, data, el);
   residualPlot.unitScale = scale;
   const window = row.settling_vibration_window;
   $("residual-title").textContent = `Residual vibration after the move: ${designName(row)}`;
@@ -1025,6 +1074,7 @@ function syncForm() {
   const velocity = form.elements.move.value === "target_velocity";
   $("move-value").dataset.field = velocity ? "target_velocity" : "displacement";
   $("band-fields").hidden = $("robustness").value !== "band";
+  $("drive-inputs").hidden = !$("drive-on").checked;
   updateUnitLabels();
 }
 
@@ -1074,6 +1124,7 @@ $("plant-kind").addEventListener("change", () => {
 });
 $("coordinate").addEventListener("change", () => { syncForm(); drawMotion(); drawResidual(); });
 $("robustness").addEventListener("change", syncForm);
+$("drive-on").addEventListener("change", syncForm);
 $("tradeoff-button").addEventListener("click", computeTradeoff);
 for (const radio of form.elements.move) radio.addEventListener("change", syncForm);
 $("quantity").addEventListener("change", drawMotion);

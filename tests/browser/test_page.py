@@ -379,3 +379,31 @@ def test_the_page_loads_without_console_errors_or_failed_requests(page):
     page.goto("/")
     page.wait_for_load_state("networkidle")
     assert not errors and not failed, (errors, failed)
+
+
+def test_a_drive_adds_the_load_through_it_beside_the_ideal_one(page, screenshots):
+    """Cusimano's 8 Hz shaft (J_L = J_M) under the page's default drive (a 20 Hz velocity loop: the machine rings
+    at 7.53 Hz): each row's settling through the drive, the rows ranked by it, and the selected design's load and
+    residual through the drive drawn beside the ideal motor's (the time-optimal command rings there, mrad)."""
+    page.goto("/")
+    page.get_by_label("Plant", exact=True).select_option("two_inertia")
+    page.fill("#plant-motor_inertia_kgm2", "0.005")
+    page.fill("#plant-load_inertia_kgm2", "0.005")
+    page.fill("#plant-stiffness_nm_per_rad", "12.633")
+    page.get_by_label("Displacement").fill("0.5")
+    page.get_by_label("Max velocity").fill("2")
+    page.get_by_label("Max acceleration").fill("20")
+    expect(page.locator("#drive-inputs")).to_be_hidden()
+    page.get_by_label("Predict through a servo drive").check()
+    expect(page.get_by_label("Velocity loop (Hz)")).to_have_value("20")
+    page.get_by_role("button", name="Design").click()
+    wait_until_done(page)
+    through = [cell.inner_text() for cell in page.locator("#compare-table tbody tr td:nth-child(4)").all()]
+    assert len(through) >= 2 and all(FIXED.match(text) for text in through), through
+    assert [float(t) for t in through] == sorted(float(t) for t in through)  # ranked by it
+    page.locator("#compare-table tbody tr", has_text="Time-optimal").click()
+    labels = page.evaluate("() => motionPlot.series.map(s => s.label)")
+    assert labels[2:] == ["load position, ideal motor (mrad)", "load position, through the drive (mrad)"]
+    _, ideal, drive = plot_data(page, "residualPlot")
+    assert max(abs(v) for v in ideal) < 1e-6 < max(abs(v) for v in drive)  # mrad: round-off, and a ringing load
+    page.locator("#results").screenshot(path=screenshots / "drive.png")
