@@ -32,6 +32,26 @@ CHATLATANAGULCHAI_EQ3: dict[str, Any] = {
 # sigma = -15.6539 1/s, Omega = 122.7185 rad/s (Biagiotti Sec. VI): omega_n = 123.7129 rad/s, zeta = 0.126534
 BIAGIOTTI_MODE: dict[str, Any] = {"kind": "mode", "natural_frequency_hz": 19.6895152, "damping_ratio": 0.1265341}
 CUSIMANO_40HZ: dict[str, Any] = {"kind": "mode", "natural_frequency_hz": 40.0, "damping_ratio": 0.0}
+# Table 2's motor in a velocity-mode drive (Fig. 20), its gains by the named rules (docs/drive.md)
+CUSIMANO_MOTOR: dict[str, Any] = {
+    "resistance_ohm": 0.9,
+    "inductance_h": 0.015,
+    "torque_constant_nm_per_a": 0.8,
+    "max_torque_nm": 10.0,
+}
+CUSIMANO_DRIVE: dict[str, Any] = {
+    "position_loop": None,
+    "velocity_loop": {"bandwidth_hz": 100.0},
+    "current_loop": {"bandwidth_hz": 2500.0},
+    "motor": CUSIMANO_MOTOR,
+}
+# A soft velocity loop on the 8 Hz shaft: the closed loop rings at 7.53 Hz, zeta 0.026
+SOFT_DRIVE: dict[str, Any] = {
+    "position_loop": {"bandwidth_hz": 2.0},
+    "velocity_loop": {"bandwidth_hz": 20.0},
+    "current_loop": {"bandwidth_hz": 800.0},
+    "motor": CUSIMANO_MOTOR,
+}
 
 PLANT_EXAMPLES: dict[str, dict[str, Any]] = {
     "incerti_belt_platform": {
@@ -75,6 +95,20 @@ SIMULATE_EXAMPLES: dict[str, dict[str, Any]] = {
                 "time_s": [0.0, 0.025, 0.15, 0.175, 0.3],
                 "acceleration": [0.0, 1000.0, 1000.0, 0.0, 0.0],
             },
+        },
+    },
+    "through_a_drive": {
+        "summary": "Through the drive: a held-jerk move on Cusimano's 8 Hz shaft under a soft 20 Hz velocity loop",
+        "description": "The answer's closed_loop block: the motor, its current and torque, the load and the tracking "
+        "error through the drive, its metrics beside the ideal motor's (docs/drive.md).",
+        "value": {
+            "plant": CUSIMANO_8HZ,
+            "profile": {
+                "time_s": [0.0, 0.05, 0.1, 0.2, 0.25, 0.3, 0.6],
+                "jerk": [400.0, -400.0, 0.0, -400.0, 400.0, 0.0, 0.0],
+            },
+            "hold": "zero",
+            "drive": SOFT_DRIVE,
         },
     },
     "chatlatanagulchai_zvd_step": {

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from app.examples import CUSIMANO_8HZ, SOFT_DRIVE
+
 _40HZ = {"plant": {"kind": "mode", "natural_frequency_hz": 40.0, "damping_ratio": 0.0}, "displacement": 0.12}
 _LIMITS = {"max_velocity": 5.0, "max_acceleration": 10.0}
 
@@ -44,6 +46,16 @@ EXAMPLES: dict[str, dict[str, Any]] = {
             "limits": {"max_velocity": 0.5, "max_acceleration": 3.0},
             "initial_state": {"velocity": 0.2},
             "final_state": {"velocity": 0.1},
+        },
+    },
+    "through_a_drive": {
+        "summary": "Designed through a soft drive: Cusimano's 8 Hz shaft under a 20 Hz velocity loop",
+        "description": "The closed_loop plant is the closed loop from the command to the load: its mode (7.53 Hz, "
+        "zeta 0.026) is cancelled, not the shaft's 8 Hz (docs/drive.md).",
+        "value": {
+            "plant": {"kind": "closed_loop", "mechanics": CUSIMANO_8HZ, "drive": SOFT_DRIVE},
+            "displacement": 0.5,
+            "limits": {"max_velocity": 2.0, "max_acceleration": 20.0},
         },
     },
     "tradeoff": {
