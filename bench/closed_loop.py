@@ -18,10 +18,7 @@ on 2,000 uniform steps. Interleaved medians, reported as ratios measured in the 
 from __future__ import annotations
 
 import math
-import statistics
 import sys
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +26,7 @@ from scipy import signal
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from bench.simulation import medians_ms
 from models.commands import PiecewiseCommand
 from models.plants import example_plants
 from models.servo import OUTPUTS, Drive, Motor, closed_loop, current_pi, velocity_pi
@@ -45,18 +43,6 @@ def command() -> PiecewiseCommand:
     t = np.linspace(0.0, 0.6, SAMPLES + 1)
     jerk = np.select([t < 0.05, t < 0.1, (t >= 0.2) & (t < 0.25), (t >= 0.25) & (t < 0.3)], [400, -400, -400, 400], 0)
     return PiecewiseCommand.from_held_steps(t, jerk.astype(float), 3)
-
-
-def medians_ms(functions: dict[str, Callable[[], object]], repeats: int) -> dict[str, float]:
-    for fn in functions.values():
-        fn()
-    times: dict[str, list[float]] = {name: [] for name in functions}
-    for _ in range(repeats):
-        for name, fn in functions.items():
-            start = time.perf_counter()
-            fn()
-            times[name].append(time.perf_counter() - start)
-    return {name: 1e3 * statistics.median(values) for name, values in times.items()}
 
 
 def main() -> int:

@@ -11,7 +11,9 @@ acceleration r'' as feed-forward) enters
 and the torque drives the mechanics: on a two_inertia plant J_M w_M' = T - k (th_M - th_L) - c (w_M - w_L),
 J_L w_L' = k (th_M - th_L) + c (w_M - w_L) (Cusimano Fig. 1, the load's reaction on the motor); on every other
 kind the motor (``Motor.inertia_kgm2``) is driven alone and the load follows its position through the plant's
-G(s) (a load too light to react). Without a current loop the torque is its reference.
+G(s) (a load too light to react). Without a current loop the torque is its reference. Without a position loop
+the drive follows the command's velocity (a velocity-mode drive, Cusimano Fig. 20): w_ref = r', no position is a
+state, and the positions are outputs given by their rates (``ClosedLoop.integrated``).
 
 Every output y (motor position, velocity, acceleration, current, torque, voltage, load position, tracking error)
 is linear in the state x and the command, y = c x + d_r r + d_v r' + d_a r''; from the command's position it is
@@ -55,6 +57,10 @@ STABLE_MARGIN = 1e-9
 # The partial fractions must give H(s) back to this share of its terms' sizes at a test point (2 pi 1e4 rad/s
 # current loops beside a 10 Hz mode: 3.5e-8, eigenvectors of condition 3e5; nearly repeated poles: of order 1).
 PARTIAL_FRACTIONS_RTOL = 1e-6
+REPEATED = (
+    "the closed loop's poles are (nearly) repeated: its partial fractions are not accurate; change a bandwidth or a "
+    "gain slightly"
+)
 OUTPUTS = (
     "motor_position",
     "motor_velocity",
@@ -193,7 +199,11 @@ class ClosedLoop:
     @cached_property
     def _eigen(self) -> tuple[CArray, CArray, CArray]:
         values, vectors = np.linalg.eig(self.a)
-        return values.astype(complex), vectors.astype(complex), np.linalg.inv(vectors).astype(complex)
+        try:
+            inverse = np.linalg.inv(vectors)
+        except np.linalg.LinAlgError:  # a defective matrix: repeated poles with one eigenvector
+            raise InvalidParameter("drive", "repeated poles", REPEATED) from None
+        return values.astype(complex), vectors.astype(complex), inverse.astype(complex)
 
     def modal(self, name: str) -> ModalOutput:
         """H(s) of output ``name`` in partial fractions (module docstring)."""
@@ -225,12 +235,7 @@ class ClosedLoop:
             size = float(np.sum(residue_sizes / np.abs(s - lam)) + np.sum(np.abs(c) * np.abs(x)))
             size += abs(p0) + abs(p1 * s) + abs(p2 * s * s)
         if not (np.isfinite(rebuilt) and abs(rebuilt - exact) <= PARTIAL_FRACTIONS_RTOL * max(size, 1e-300)):
-            raise InvalidParameter(
-                "drive",
-                f"{name}",
-                "the closed loop's poles are (nearly) repeated: its partial fractions are not accurate; change a "
-                "bandwidth or a gain slightly",
-            )
+            raise InvalidParameter("drive", name, REPEATED)
 
 
 def closed_loop(mechanics: Plant, drive: Drive) -> ClosedLoop:

@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from models.commands import PiecewiseCommand
+from models.errors import InvalidParameter
 from models.plants import Plant, TransferFunctionPlant
 from models.servo import OUTPUTS, ClosedLoop, Drive, ModalOutput, closed_loop
 from models.simulation import ModalForm, Response, another_output, simulate
@@ -108,9 +109,15 @@ def _without_round_off(num: Array, omega: float) -> Array:
 
 
 def load_plant(loop: ClosedLoop) -> TransferFunctionPlant:
-    """The closed loop from the command to the load, as a transfer-function plant (its modes are the loop's)."""
+    """The closed loop from the command to the load, as a transfer-function plant (its modes are the loop's);
+    InvalidParameter on ``drive`` where that is not a valid plant (models.plants.TransferFunctionPlant's rules)."""
     num, den = transfer_function(loop, "load_position")
-    return TransferFunctionPlant(tuple(num), tuple(den))
+    try:
+        return TransferFunctionPlant(tuple(num), tuple(den))
+    except InvalidParameter as exc:
+        raise InvalidParameter(
+            "drive", exc.value, f"the closed loop's transfer function is not usable as a plant: {exc.rule}"
+        ) from None
 
 
 @dataclass(frozen=True)
