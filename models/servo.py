@@ -44,7 +44,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from models.errors import InvalidParameter
-from models.plant_base import StateSpace
+from models.plant_base import Mode, StateSpace
 from models.plants import Plant, TwoInertiaPlant
 
 Array = NDArray[np.float64]
@@ -186,6 +186,11 @@ class ClosedLoop:
     @cached_property
     def poles(self) -> CArray:
         return self._eigen[0]
+
+    def modes(self) -> tuple[Mode, ...]:
+        """The closed loop's oscillatory poles (one of each pair), lowest natural frequency first."""
+        upper = sorted((p for p in self.poles if p.imag > STABLE_MARGIN * abs(p)), key=abs)
+        return tuple(Mode.from_pole(complex(p)) for p in upper)
 
     def rows(self, name: str) -> tuple[Array, Array, Array]:
         """(c, d, B) of output ``name`` as a function of the command's position (shifted where integrated)."""

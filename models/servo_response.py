@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 
 from models.commands import PiecewiseCommand
 from models.errors import InvalidParameter
+from models.plant_base import Mode
 from models.plants import Plant, TransferFunctionPlant
 from models.servo import OUTPUTS, ClosedLoop, Drive, ModalOutput, closed_loop
 from models.simulation import ModalForm, Response, another_output, simulate
@@ -55,6 +56,7 @@ class DriveResponse:
     tracking_error: Array
     load: Response
     saturation: tuple[Saturation, ...]
+    modes: tuple[Mode, ...]  # the closed loop's (ClosedLoop.modes)
 
     @property
     def saturated(self) -> bool:
@@ -121,6 +123,17 @@ def load_plant(loop: ClosedLoop) -> TransferFunctionPlant:
 
 
 @dataclass(frozen=True)
+class _LoadStandIn(TransferFunctionPlant):
+    """The closed loop's load transfer function as the simulated load's plant (its G(0), its command input): its
+    partial fractions come from the loop's eigenvectors (ClosedLoop.modal), so the polynomial's own checks, which
+    refuse poles too clustered for partial fractions of the coefficients, do not apply (a transfer_function plant
+    that a family designs for is checked: ``load_plant``)."""
+
+    def __post_init__(self) -> None:
+        pass
+
+
+@dataclass(frozen=True)
 class ServoMachine:
     """What a machine's simulations share, built once (``prepared``): the loop, its load's plant, every output's
     partial fractions."""
@@ -135,7 +148,8 @@ def prepared(mechanics: Plant, drive: Drive) -> ServoMachine:
     """The closed loop of ``drive`` on ``mechanics``, its checks passed (stable, exact partial fractions), kept for
     the next command through the same machine (both are frozen: their values are the key)."""
     loop = closed_loop(mechanics, drive)
-    return ServoMachine(loop, load_plant(loop), {name: loop.modal(name) for name in OUTPUTS})
+    num, den = transfer_function(loop, "load_position")
+    return ServoMachine(loop, _LoadStandIn(tuple(num), tuple(den)), {name: loop.modal(name) for name in OUTPUTS})
 
 
 def simulate_drive(mechanics: Plant, drive: Drive, command: PiecewiseCommand) -> DriveResponse:
@@ -166,6 +180,7 @@ def simulate_drive(mechanics: Plant, drive: Drive, command: PiecewiseCommand) ->
         error,
         load,
         tuple(s for s in saturation if s is not None),
+        machine.loop.modes(),
     )
 
 

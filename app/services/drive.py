@@ -70,7 +70,7 @@ def closed_loop_block(
             "current_kp": None if drive.current is None else drive.current.kp,
             "current_ki": None if drive.current is None else drive.current.ki,
         },
-        "modes": [mode.as_dict() for mode in run.load.plant.modes()],
+        "modes": [mode.as_dict() for mode in run.modes],
         "difference": {
             "load_position_max_abs": float(np.max(np.abs(run.load.load_position - ideal.load_position))),
             "residual_amplitude_ratio": (

@@ -165,3 +165,16 @@ def test_a_torque_beyond_the_limit_is_reported() -> None:
     (saturation,) = response.saturation
     assert saturation.quantity == "torque_nm" and saturation.peak > 0.1
     assert saturation.peak == pytest.approx(float(np.max(np.abs(response.torque_nm))))
+
+
+def test_a_velocity_input_plant_through_the_drive_is_simulated() -> None:
+    """Chatlatanagulchai's eq. (3) plant (its command the drive's velocity) behind a motor: the load's closed-loop
+    poles are too clustered for partial fractions of its polynomial, which a transfer_function plant refuses; the
+    simulation takes them from the eigenvectors, so it runs, and its modes are the loop's."""
+    plant = example_plants()["chatlatanagulchai_eq3"]
+    motor = Motor(0.9, 0.015, 0.8, inertia_kgm2=2.0)
+    drive = Drive(2 * math.pi * 2, velocity_pi(20, 2.0), current_pi(800, motor), motor)
+    response = simulate_drive(plant, drive, jerk_command())
+    loop = closed_loop(plant, drive)
+    assert response.modes == loop.modes() and all(m.damping_ratio < 1 for m in response.modes)
+    assert np.all(np.isfinite(response.load.load_position))
