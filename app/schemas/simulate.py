@@ -224,6 +224,7 @@ class MetricsOut(OutModel):
 class MotorOut(OutModel):
     """The motor through its drive, at the command's times."""
 
+    time_s: list[float] = Field(description="The times of every closed-loop array: the command's (profile.time_s).")
     position: list[float]
     velocity: list[float]
     acceleration: list[float]

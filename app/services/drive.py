@@ -47,6 +47,7 @@ def closed_loop_block(
     settle, settle_ideal = closed.settling.time_s, ideal_metrics.settling.time_s
     return {
         "motor": {
+            "time_s": run.time_s,
             "position": run.motor_position,
             "velocity": run.motor_velocity,
             "acceleration": run.motor_acceleration,
