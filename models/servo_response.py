@@ -63,13 +63,6 @@ class DriveResponse:
         return bool(self.saturation)
 
 
-def _upper(poles: CArray) -> NDArray[np.bool_]:
-    """One pole of each conjugate pair (Im > 0) and every real pole."""
-    flat = np.abs(poles.imag) <= _REAL_POLE_TOLERANCE * np.abs(poles)
-    keep: NDArray[np.bool_] = flat | (poles.imag > 0.0)
-    return keep
-
-
 def modal_form(poles: CArray, output: ModalOutput, taylor_count: int) -> ModalForm:
     """models.simulation's ModalForm of ``output``: its Taylor coefficients at 0, g_m = P_m - sum_j rho_j /
     lambda_j^(m+1) (over every pole), and one entry per real pole or conjugate pair."""
@@ -78,8 +71,8 @@ def modal_form(poles: CArray, output: ModalOutput, taylor_count: int) -> ModalFo
     size = min(taylor_count, 3)
     polynomial[:size] = output.polynomial[:size]
     taylor = polynomial - np.real(np.sum(output.residues[:, None] / poles[:, None] ** (orders[None, :] + 1), axis=0))
-    keep = _upper(poles)
     flat = np.abs(poles.imag) <= _REAL_POLE_TOLERANCE * np.abs(poles)
+    keep = flat | (poles.imag > 0.0)  # one pole of each conjugate pair, and every real pole
     chosen = np.where(flat, poles.real + 0j, poles)[keep]
     residues = np.where(flat, output.residues.real + 0j, output.residues)[keep]
     weights = np.where(flat[keep], 1.0, 2.0)

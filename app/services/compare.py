@@ -18,7 +18,7 @@ from app.presenters import load_json, present
 from app.request_bodies import request_fields
 from app.schemas.compare import DEFAULT_SENSITIVITY, CompareIn
 from app.services import profile as profiles
-from app.services.drive import Criteria, closed_loop_block
+from app.services.drive import Criteria, closed_loop_block, refuse_a_second_drive
 from app.settings import Settings
 from models.errors import InvalidParameter
 from optim.compare import ComparedRow, plan, run_plan
@@ -35,10 +35,7 @@ async def answer(
     route's and the Python API's."""
     if body.sensitivity is None:
         body = body.model_copy(update={"sensitivity": DEFAULT_SENSITIVITY})
-    if body.drive is not None and body.plant.kind == "closed_loop":
-        raise InvalidParameter(
-            "drive", "given", "the plant is a closed_loop, already through its drive: give drive with its mechanics"
-        )
+    refuse_a_second_drive(body)
     problem = await anyio.to_thread.run_sync(body.to_problem, settings)
     # every row is held until the last one ends: each gets its share of the sample cap (VIBFREE_COMPARE_MAX_SAMPLES)
     problem = dataclasses.replace(problem, max_samples=min(problem.max_samples, settings.compare_max_samples))
@@ -73,7 +70,7 @@ def _through_drive(
     """Each row's command through ``body.drive`` (app.services.drive): its ``closed_loop`` summary, and the rows
     ranked by the closed loop's settling (never-settling last), then motion time."""
     assert body.drive is not None
-    how = Criteria(problem.settling.position_tolerance, None, problem.vibration_window, None)
+    how = Criteria.of(problem)
     for row, answer in zip(rows, out, strict=True):  # a loop over the rows (a few designs)
         result: Result = row.result
         block = closed_loop_block(body.drive, problem.plant, result.command, result.response, result.metrics, how)

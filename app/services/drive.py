@@ -13,11 +13,14 @@ import numpy as np
 
 from app.presenters import metrics_json
 from app.schemas.drive import DriveIn, checked_drive
+from app.schemas.family import ProfileRequest
 from models.commands import PiecewiseCommand
+from models.errors import InvalidParameter
 from models.metrics import Metrics, metrics
 from models.plants import Plant
 from models.servo_response import simulate_drive
 from models.simulation import Response
+from optim.problem import Problem
 from optim.results import MetricsReport
 
 
@@ -29,6 +32,19 @@ class Criteria:
     settling_window: float | None
     vibration_window: float | None
     vibration_fraction: float | None
+
+    @classmethod
+    def of(cls, problem: Problem) -> Criteria:
+        """A design's: optim.synthesis.metrics_of's criteria."""
+        return cls(problem.settling.position_tolerance, None, problem.vibration_window, None)
+
+
+def refuse_a_second_drive(body: ProfileRequest) -> None:
+    """A ``drive`` beside a closed_loop plant, whose prediction is already through its drive: a 422 on ``drive``."""
+    if body.drive is not None and body.plant.kind == "closed_loop":
+        raise InvalidParameter(
+            "drive", "given", "the plant is a closed_loop, already through its drive: give drive with its mechanics"
+        )
 
 
 def closed_loop_block(

@@ -16,7 +16,7 @@ import anyio.to_thread
 from app.observability import record_solve
 from app.presenters import answer_body
 from app.schemas.family import ProfileRequest
-from app.services.drive import Criteria, closed_loop_block
+from app.services.drive import Criteria, closed_loop_block, refuse_a_second_drive
 from app.settings import Settings
 from models.errors import DomainError, Infeasible, InvalidParameter, NotApplicable
 from optim.family import Family
@@ -61,10 +61,7 @@ async def design(
     family: Family, body: ProfileRequest, settings: Settings, pool: Executor, threads: Executor = INLINE
 ) -> tuple[dict[str, Any], Result]:
     """The answer of a family endpoint and the pipeline's ``Result`` it was made from (for the CSV table)."""
-    if body.drive is not None and body.plant.kind == "closed_loop":
-        raise InvalidParameter(
-            "drive", "given", "the plant is a closed_loop, already through its drive: give drive with its mechanics"
-        )
+    refuse_a_second_drive(body)
     try:
         problem = await _problem_of(body, settings, pool)
         reason = family.not_applicable(problem)
@@ -85,7 +82,7 @@ async def design(
 def _through_drive(body: ProfileRequest, problem: Problem, result: Result) -> dict[str, Any]:
     """The design's command through ``body.drive`` (app.services.drive), measured with the problem's criteria."""
     assert body.drive is not None
-    how = Criteria(problem.settling.position_tolerance, None, problem.vibration_window, None)
+    how = Criteria.of(problem)
     return closed_loop_block(body.drive, problem.plant, result.command, result.response, result.metrics, how)
 
 
