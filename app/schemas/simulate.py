@@ -267,7 +267,10 @@ class ClosedLoopOut(OutModel):
     motor: MotorOut
     load: ClosedLoopLoadOut
     tracking_error: list[float] = Field(description="Command position less motor position.")
-    metrics: MetricsOut = Field(description="The load's, from the closed loop's state at the command's end.")
+    metrics: MetricsOut = Field(
+        description="The load's, from the closed loop's state at the command's end; peak_motor_torque_nm is the peak "
+        "of motor.torque_nm; percentage_vibration is null (V's reference is the ideal motor's, in ``metrics``)."
+    )
     saturated: bool = Field(
         description="The command drives the motor past max_torque_nm or max_voltage_v: the linear prediction is "
         "not what the drive does there (see saturation)."

@@ -77,7 +77,11 @@ def closed_loop_block(
             "acceleration": run.load.load_acceleration,
         },
         "tracking_error": run.tracking_error,
-        "metrics": metrics_json(MetricsReport(closed)),
+        # the motor's torque through the drive is K_T i (the stand-in load plant defines none)
+        "metrics": {
+            **metrics_json(MetricsReport(closed)),
+            "peak_motor_torque_nm": float(np.max(np.abs(run.torque_nm))),
+        },
         "saturated": run.saturated,
         "saturation": [vars(s) for s in run.saturation],
         "gains": {

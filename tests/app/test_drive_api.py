@@ -153,3 +153,10 @@ def test_compare_ranks_the_designs_by_their_settling_through_the_drive(client):
     through = {"kind": "closed_loop", "mechanics": CUSIMANO, "drive": SOFT}
     refused = client.post("/v1/compare", json={**body, "plant": through})
     assert refused.status_code == 422 and refused.json()["field"] == "drive"
+
+
+def test_the_closed_loop_metrics_peak_torque_is_the_drives(client):
+    """closed_loop.metrics.peak_motor_torque_nm means what it says: the peak |K_T i| of closed_loop.motor."""
+    closed = _simulate(client).json()["closed_loop"]
+    assert closed["metrics"]["peak_motor_torque_nm"] == max(abs(x) for x in closed["motor"]["torque_nm"])
+    assert closed["metrics"]["percentage_vibration"] is None
