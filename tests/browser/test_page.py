@@ -386,6 +386,8 @@ def test_a_drive_adds_the_load_through_it_beside_the_ideal_one(page, screenshots
     at 7.53 Hz): each row's settling through the drive, the rows ranked by it, and the selected design's load and
     residual through the drive drawn beside the ideal motor's (the time-optimal command rings there, mrad)."""
     page.goto("/")
+    # the form is ready (its schema loaded): before, its start-up drew the default mode's fields over ours
+    expect(page.get_by_role("button", name="Design")).to_be_enabled()
     page.get_by_label("Plant", exact=True).select_option("two_inertia")
     page.fill("#plant-motor_inertia_kgm2", "0.005")
     page.fill("#plant-load_inertia_kgm2", "0.005")
