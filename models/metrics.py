@@ -101,7 +101,7 @@ def vibration_envelope(response: Response, order: int) -> NDArray[np.float64]:
     der = response.command.derivatives
     quasi_static = np.zeros_like(der[0])
     for m in range(1, der.shape[0] - order):  # a loop over derivative orders (a handful)
-        coefficient = float(np.sum(-(weighted / poles ** (m + 1))).real)
+        coefficient = float(np.sum(weighted * modal.pole_term(m)[osc]).real)
         quasi_static += coefficient * der[m + order]
     envelope: NDArray[np.float64] = np.sum(free, axis=0) + np.abs(quasi_static)
     return envelope

@@ -14,13 +14,24 @@ from numpy.typing import NDArray
 class ModalForm:
     """G(s) = sum_m taylor[m] s^m near 0, and sum over poles of weights * residues / (s - pole).
 
-    One entry per real pole or per complex pair (the pole with Im > 0, weight 2).
+    One entry per real pole or per complex pair (the pole with Im > 0, weight 2). ``pole_taylor[j, m]``: the
+    Taylor coefficients at 0 of pole j's term per unit residue, -1 / pole^(m+1) (None), or a sampled loop's
+    (models.servo_sampled), whose terms are not r / (s - pole).
     """
 
     taylor: NDArray[np.float64]
     poles: NDArray[np.complex128]
     residues: NDArray[np.complex128]
     weights: NDArray[np.float64]
+    pole_taylor: NDArray[np.complex128] | None = None
+
+    def pole_term(self, order: int) -> NDArray[np.complex128]:
+        """Each pole's Taylor coefficient of ``order`` per unit residue."""
+        if self.pole_taylor is not None:
+            column: NDArray[np.complex128] = self.pole_taylor[:, order]
+            return column
+        term: NDArray[np.complex128] = -(self.poles ** -(order + 1))
+        return term
 
     @property
     def oscillatory(self) -> NDArray[np.bool_]:

@@ -101,7 +101,8 @@ class PI:
 @dataclass(frozen=True)
 class Drive:
     """A cascade: position P (``position_kp_per_s``), velocity PI (torque per rad/s and per rad), current PI (volts
-    per ampere and per ampere-second; None: the torque is its reference), feed-forward, the motor."""
+    per ampere and per ampere-second; None: the torque is its reference), feed-forward, the motor; continuous, or
+    its position and velocity loops sampled every ``sample_period_s`` (models.servo_sampled)."""
 
     position_kp_per_s: float | None  # None: no position loop, the drive follows the command's velocity
     velocity: PI
@@ -109,6 +110,7 @@ class Drive:
     motor: Motor
     velocity_feedforward: bool = True
     acceleration_feedforward: bool = True
+    sample_period_s: float | None = None  # the position and velocity loops' (models.servo_sampled); None: continuous
 
 
 def current_pi(bandwidth_hz: float, motor: Motor) -> PI:
@@ -145,13 +147,15 @@ class ModalOutput:
 
 
 class _Rows:
-    """Linear signals over the state x and the command (r, r', r''): (row over x, row over the command)."""
+    """Linear signals over the state x and the inputs (the command's r, r', r''; a sampled drive's held torque
+    reference): (row over x, row over the inputs)."""
 
-    def __init__(self, states: int) -> None:
+    def __init__(self, states: int, inputs: int = 3) -> None:
         self.states = states
+        self.inputs = inputs
 
     def zero(self) -> tuple[Array, Array]:
-        return np.zeros(self.states), np.zeros(3)
+        return np.zeros(self.states), np.zeros(self.inputs)
 
     def state(self, index: int) -> tuple[Array, Array]:
         x, u = self.zero()
@@ -168,7 +172,7 @@ class _Rows:
 def _comb(*terms: tuple[float, tuple[Array, Array]]) -> tuple[Array, Array]:
     """sum_k c_k signal_k."""
     x = sum((c * s[0] for c, s in terms), np.zeros_like(terms[0][1][0]))
-    u = sum((c * s[1] for c, s in terms), np.zeros(3))
+    u = sum((c * s[1] for c, s in terms), np.zeros_like(terms[0][1][1]))
     return x, u
 
 
@@ -247,24 +251,38 @@ def closed_loop(mechanics: Plant, drive: Drive) -> ClosedLoop:
     """The continuous closed loop of ``drive`` on ``mechanics`` (module docstring); InvalidParameter naming the
     gains if it is not stable. Without a position loop (``position_kp_per_s`` None) the drive follows the command's
     velocity (Cusimano Fig. 20): no position is a state, and the positions are outputs given by their rates."""
+    a, b, outputs = assemble(mechanics, drive, held_torque=False)
+    positions = drive.position_kp_per_s is not None
+    integrated = frozenset() if positions else frozenset({"motor_position", "load_position", "tracking_error"})
+    loop = ClosedLoop(a, b, outputs, integrated)
+    _check_stable(loop, drive)
+    return loop
+
+
+def assemble(mechanics: Plant, drive: Drive, held_torque: bool) -> tuple[Array, Array, dict[str, tuple[Array, Array]]]:
+    """x' = A x + B u and every output's (c, d) rows. u = (r, r', r'') and the velocity PI is in the loop; with
+    ``held_torque`` (a sampled drive, models.servo_sampled) u = (r, r', r'', T_ref): the torque reference is an
+    input, and what is left is the continuous part, the motor, its current loop and the mechanics, which needs
+    a position loop (its position a state). InvalidParameter if a matrix is not finite."""
     motor = drive.motor
     two_inertia = isinstance(mechanics, TwoInertiaPlant)
     inertia = moved_inertia(mechanics, motor)
     load = None if two_inertia else mechanics.state_space()
     positions = drive.position_kp_per_s is not None
     n_load = 2 if two_inertia else (0 if load is None else load.a.shape[0])
-    # states: [th_M,] w_M, the load's (th_L or th_M - th_L, w_L; or G's realisation), i, int(e_v), int(e_i)
+    # states: [th_M,] w_M, the load's (th_L or th_M - th_L, w_L; or G's realisation), i, [int(e_v),] int(e_i)
     th_m = 0 if positions else -1
     w_m = th_m + 1
     first_load = w_m + 1
     index = first_load + n_load
     i_state = index if drive.current is not None else -1
     index += drive.current is not None
-    xi_v = index
-    xi_i = index + 1 if drive.current is not None else -1
-    n = index + 1 + (drive.current is not None)
-    rows = _Rows(n)
-    a, b = np.zeros((n, n)), np.zeros((n, 3))
+    xi_v = -1 if held_torque else index
+    index += not held_torque
+    xi_i = index if drive.current is not None else -1
+    n = index + (drive.current is not None)
+    rows = _Rows(n, 4 if held_torque else 3)
+    a, b = np.zeros((n, n)), np.zeros((n, rows.inputs))
 
     def set_derivative(state: int, signal: tuple[Array, Array]) -> None:
         a[state], b[state] = signal
@@ -280,10 +298,13 @@ def closed_loop(mechanics: Plant, drive: Drive) -> ClosedLoop:
         w_ref = rows.command(1)
         e_p = _comb((1.0, rows.command(1)), (-1.0, motor_velocity))
         motor_position = motor_velocity
-    e_v = _comb((1.0, w_ref), (-1.0, motor_velocity))
-    feedforward = inertia if drive.acceleration_feedforward else 0.0
-    t_ref = _comb((drive.velocity.kp, e_v), (drive.velocity.ki, rows.state(xi_v)), (feedforward, rows.command(2)))
-    set_derivative(xi_v, e_v)
+    if held_torque:
+        t_ref = rows.command(3)
+    else:
+        e_v = _comb((1.0, w_ref), (-1.0, motor_velocity))
+        feedforward = inertia if drive.acceleration_feedforward else 0.0
+        t_ref = _comb((drive.velocity.kp, e_v), (drive.velocity.ki, rows.state(xi_v)), (feedforward, rows.command(2)))
+        set_derivative(xi_v, e_v)
     k_t = motor.torque_constant_nm_per_a
     i_ref = _comb((1.0 / k_t, t_ref))
     if drive.current is not None:
@@ -324,10 +345,7 @@ def closed_loop(mechanics: Plant, drive: Drive) -> ClosedLoop:
             "not finite",
             "the gains, the motor's data and the plant span scales too far apart for double precision",
         )
-    integrated = frozenset() if positions else frozenset({"motor_position", "load_position", "tracking_error"})
-    loop = ClosedLoop(a, b, outputs, integrated)
-    _check_stable(loop, drive)
-    return loop
+    return a, b, outputs
 
 
 Setter = Callable[[int, tuple[Array, Array]], None]
@@ -373,11 +391,11 @@ def _kinematic_load(
         x = np.zeros(rows.states)
         x[z] = load.a[row]
         x[driver] += float(load.b[row, 0])
-        set_derivative(first + row, (x, np.zeros(3)))
+        set_derivative(first + row, (x, np.zeros(rows.inputs)))
     x = np.zeros(rows.states)
     x[z] = load.c[0]
     x[driver] += float(load.d[0, 0])
-    return x, np.zeros(3)
+    return x, np.zeros(rows.inputs)
 
 
 def _check_stable(loop: ClosedLoop, drive: Drive) -> None:

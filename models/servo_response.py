@@ -23,6 +23,7 @@ from models.errors import InvalidParameter
 from models.plant_base import Mode
 from models.plants import Plant, TransferFunctionPlant
 from models.servo import OUTPUTS, ClosedLoop, Drive, ModalOutput, closed_loop
+from models.servo_sampled import sampled_loop, simulate_sampled
 from models.simulation import ModalForm, Response, another_output, simulate
 
 Array = NDArray[np.float64]
@@ -146,7 +147,10 @@ def prepared(mechanics: Plant, drive: Drive) -> ServoMachine:
 
 
 def simulate_drive(mechanics: Plant, drive: Drive, command: PiecewiseCommand) -> DriveResponse:
-    """``command`` through ``drive`` on ``mechanics`` (module docstring)."""
+    """``command`` through ``drive`` on ``mechanics`` (module docstring): at the command's breakpoints, or at the
+    samples of a sampled drive (models.servo_sampled)."""
+    if drive.sample_period_s is not None:
+        return _sampled(mechanics, drive, command)
     machine = prepared(mechanics, drive)
     count = command.degree + 1
     poles = machine.loop.poles
@@ -158,10 +162,6 @@ def simulate_drive(mechanics: Plant, drive: Drive, command: PiecewiseCommand) ->
     motor = run("motor_position")
     values = {name: run(name).load_position for name in ("current_a", "torque_nm", "voltage_v")}
     error = run("tracking_error").load_position
-    limits = {"torque_nm": drive.motor.max_torque_nm, "voltage_v": drive.motor.max_voltage_v}
-    saturation = tuple(
-        _exceeded(name, values[name], limit, command.time_s) for name, limit in limits.items() if np.isfinite(limit)
-    )
     return DriveResponse(
         command.time_s,
         motor.load_position,
@@ -172,9 +172,33 @@ def simulate_drive(mechanics: Plant, drive: Drive, command: PiecewiseCommand) ->
         values["voltage_v"],
         error,
         load,
-        tuple(s for s in saturation if s is not None),
+        _saturation(drive, values, command.time_s),
         machine.loop.modes(),
     )
+
+
+def _sampled(mechanics: Plant, drive: Drive, command: PiecewiseCommand) -> DriveResponse:
+    run = simulate_sampled(mechanics, drive, command, lambda gain: _LoadStandIn((gain,), (1.0,)))
+    v = run.values
+    return DriveResponse(
+        run.time_s,
+        v["motor_position"],
+        v["motor_velocity"],
+        v["motor_acceleration"],
+        v["current_a"],
+        v["torque_nm"],
+        v["voltage_v"],
+        v["tracking_error"],
+        run.load,
+        _saturation(drive, v, run.time_s),
+        sampled_loop(mechanics, drive).modes(),
+    )
+
+
+def _saturation(drive: Drive, values: dict[str, Array], time_s: Array) -> tuple[Saturation, ...]:
+    limits = {"torque_nm": drive.motor.max_torque_nm, "voltage_v": drive.motor.max_voltage_v}
+    found = (_exceeded(name, values[name], limit, time_s) for name, limit in limits.items() if np.isfinite(limit))
+    return tuple(s for s in found if s is not None)
 
 
 def _exceeded(name: str, values: Array, limit: float, time_s: Array) -> Saturation | None:

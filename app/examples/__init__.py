@@ -132,3 +132,20 @@ BIAGIOTTI_PLANT: dict[str, Any] = {
     "damping_ratio": round(-SIGMA_1_S / _OMEGA_N, 10),  # 0.1265341244
 }
 T0_S = 2 * math.pi / OMEGA_RAD_S  # 0.0512 s
+# Biagiotti Sec. VI's controller, as the paper describes it: a PID position loop with feed-forward run on a PC
+# every 500 us, the current loop in the LinMot drive. The paper gives no gains or masses: a P-PI cascade is a PID
+# on the position error (P = kv kp + ki, I = ki kp, D = kv), here 3 Hz and 15 Hz (symmetric optimum) on an
+# assumed 0.5 kg moving mass, with velocity and acceleration feed-forward; the current loop ideal.
+BIAGIOTTI_DRIVE: dict[str, Any] = {
+    "sample_period_s": 0.0005,
+    "position_loop": {"bandwidth_hz": 3.0},
+    "velocity_loop": {"bandwidth_hz": 15.0},
+    "current_loop": None,
+    "motor": {
+        "resistance_ohm": 4.0,
+        "inductance_h": 0.002,
+        "torque_constant_nm_per_a": 10.0,
+        "max_torque_nm": 200.0,
+        "inertia_kgm2": 0.5,
+    },
+}

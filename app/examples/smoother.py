@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from app.examples import BIAGIOTTI_PLANT, T0_S
+from app.examples import BIAGIOTTI_DRIVE, BIAGIOTTI_PLANT, T0_S
 
 EXAMPLES: dict[str, dict[str, Any]] = {
     "biagiotti_damped_harmonic": {
@@ -20,6 +20,20 @@ EXAMPLES: dict[str, dict[str, Any]] = {
             "sample_period_s": 0.0005,
             "discrete_sample_period_s": 0.0005,
             "sensitivity": {"min_ratio": 0.5, "max_ratio": 1.5, "count": 101},
+        },
+    },
+    "biagiotti_through_a_sampled_drive": {
+        "summary": "Sec. VI: the damped harmonic smoother through a PID + feed-forward loop sampled every 500 us",
+        "description": "closed_loop is the 30 mm move through the drive, at its samples: the loop's lag leaves "
+        "about 1 % of the move in residual vibration where the ideal motor leaves none, still 5 times less than "
+        "the undamped smoother's (the paper's Fig. 17: 3.6 N against 4.7 N). The gains and the moving mass are "
+        "assumed: the paper gives neither.",
+        "value": {
+            "plant": BIAGIOTTI_PLANT,
+            "displacement": 0.03,
+            "filters": [{"type": "damped_harmonic"}],
+            "sample_period_s": 0.0005,
+            "drive": BIAGIOTTI_DRIVE,
         },
     },
     "biagiotti_harmonic": {

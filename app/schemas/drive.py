@@ -6,7 +6,7 @@ import math
 from collections.abc import Callable
 from typing import Annotated, Any, ClassVar
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, model_validator
 
 from app.schemas.common import OutModel, StrictModel, either, given, never
 from models.errors import InvalidParameter
@@ -23,6 +23,7 @@ Electrical = Annotated[float, Field(ge=1e-6, le=1e6)]  # ohm, N m/A, V s/rad
 Inductance = Annotated[float, Field(ge=1e-9, le=1e3)]
 Limit = Annotated[float, Field(ge=1e-9, le=1e12)]
 Inertia = Annotated[float, Field(ge=1e-9, le=1e12)]  # app.schemas.plants.Inertia's range
+SamplePeriod = Annotated[float, Field(ge=1e-6, le=0.1)]
 
 
 class PositionLoopIn(StrictModel):
@@ -111,10 +112,13 @@ class DriveIn(StrictModel):
         "drive: the closed loop of these gains on the plant must be stable (its poles are given where not).",
         "drive.motor.inertia_kgm2 is required unless the plant (or closed_loop's mechanics) is two_inertia.",
     )
-    sample_period_s: None = Field(
+    sample_period_s: SamplePeriod | None = Field(
         None,
-        description="A sampled drive (zero-order hold, one sample of computation delay) is not modelled yet: null "
-        "(the loops are continuous).",
+        description="The position and velocity loops' sample period, s (1e-6 to 0.1): they run digitally, the "
+        "command and the motor's position and velocity sampled every period, the torque reference applied one "
+        "period later and held (zero-order hold, one sample of computation delay); the motor, its current loop "
+        "and the mechanics stay continuous, discretised exactly. Needs a position loop. The closed_loop block is "
+        "then at the samples k sample_period_s. null: continuous loops.",
     )
     position_loop: PositionLoopIn | None = Field(
         description="The position loop; null: none, the drive follows the command's velocity (a velocity-mode "
@@ -124,16 +128,6 @@ class DriveIn(StrictModel):
     current_loop: CurrentLoopIn | None = None
     feedforward: FeedforwardIn = FeedforwardIn()
     motor: MotorIn
-
-    @field_validator("sample_period_s", mode="before")
-    @classmethod
-    def _continuous_only(cls, value: Any) -> None:
-        if value is not None:
-            raise ValueError(
-                "a sampled drive (zero-order hold, one sample of computation delay) is not modelled yet: give null "
-                "(continuous loops)"
-            )
-        return None
 
 
 def _pi(loop: PiLoopIn, rule: Callable[[float], PI]) -> PI:
@@ -168,6 +162,7 @@ def to_drive(schema: DriveIn, mechanics: Plant) -> Drive:
         motor,
         schema.feedforward.velocity,
         schema.feedforward.acceleration,
+        schema.sample_period_s,
     )
 
 
@@ -187,3 +182,4 @@ class GainsOut(OutModel):
     velocity_ki: float
     current_kp: float | None
     current_ki: float | None
+    sample_period_s: float | None = Field(description="The position and velocity loops'; null: continuous.")

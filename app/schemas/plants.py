@@ -191,6 +191,14 @@ def _closed_loop_plant(schema: ClosedLoopIn) -> Plant:
         drive = checked_drive(schema.drive, mechanics)
     except InvalidParameter as exc:
         raise exc.under("plant") from None
+    if drive.sample_period_s is not None:
+        raise InvalidParameter(
+            "plant.drive.sample_period_s",
+            drive.sample_period_s,
+            "designing through a sampled drive is not modelled (its loop has no transfer function in s): design "
+            "through its continuous loops (null), and check the design through the sampled drive with the "
+            "request's drive",
+        )
     try:
         return load_plant(closed_loop(mechanics, drive))
     except InvalidParameter as exc:  # (named drive...: models.servo, servo_response.load_plant)

@@ -222,9 +222,12 @@ class MetricsOut(OutModel):
 
 
 class MotorOut(OutModel):
-    """The motor through its drive, at the command's times."""
+    """The motor through its drive, at the command's times (a sampled drive's: at its samples)."""
 
-    time_s: list[float] = Field(description="The times of every closed-loop array: the command's (profile.time_s).")
+    time_s: list[float] = Field(
+        description="The times of every closed-loop array: the command's (profile.time_s); with a sampled drive "
+        "its samples, k drive.sample_period_s from the command's start to the first sample at or after its end."
+    )
     position: list[float]
     velocity: list[float]
     acceleration: list[float]
@@ -237,6 +240,7 @@ class MotorOut(OutModel):
 
 
 class ClosedLoopLoadOut(OutModel):
+    time_s: list[float] = Field(description="As motor.time_s.")
     position: list[float]
     velocity: list[float]
     acceleration: list[float]
@@ -262,7 +266,8 @@ class DifferenceOut(OutModel):
 
 
 class ClosedLoopOut(OutModel):
-    """What the machine does through its drive (models.servo): linear, exact at the command's times."""
+    """What the machine does through its drive (models.servo): linear, exact at the command's times (a sampled
+    drive's, models.servo_sampled: exact at its samples, and its settling and residual measured there)."""
 
     motor: MotorOut
     load: ClosedLoopLoadOut

@@ -73,7 +73,9 @@ def _through_drive(
     how = Criteria.of(problem)
     for row, answer in zip(rows, out, strict=True):  # a loop over the rows (a few designs)
         result: Result = row.result
-        block = closed_loop_block(body.drive, problem.plant, result.command, result.response, result.metrics, how)
+        block = closed_loop_block(
+            body.drive, problem.plant, result.command, result.response, result.metrics, how, problem.max_samples
+        )
         metrics = block["metrics"]
         amplitude = metrics["residual_amplitude" if body.displacement is not None else "residual_velocity_amplitude"]
         answer["closed_loop"] = {

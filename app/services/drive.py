@@ -6,20 +6,24 @@ settling criteria), and the difference from the ideal prediction is stated."""
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from app.presenters import metrics_json
 from app.schemas.drive import DriveIn, checked_drive
 from app.schemas.family import ProfileRequest
-from models.commands import PiecewiseCommand
+from app.schemas.simulate import check_sample_count
+from models.commands import MIN_STEP_S, PiecewiseCommand
 from models.errors import InvalidParameter
 from models.metrics import Metrics, metrics
 from models.plants import Plant
 from models.servo_response import simulate_drive
-from models.simulation import Response
+from models.servo_sampled import sample_count
+from models.simulation import Response, simulate
 from optim.problem import Problem
 from optim.results import MetricsReport
 
@@ -48,10 +52,19 @@ def refuse_a_second_drive(body: ProfileRequest) -> None:
 
 
 def closed_loop_block(
-    drive_in: DriveIn, plant: Plant, command: PiecewiseCommand, ideal: Response, ideal_metrics: Metrics, how: Criteria
+    drive_in: DriveIn,
+    plant: Plant,
+    command: PiecewiseCommand,
+    ideal: Response,
+    ideal_metrics: Metrics,
+    how: Criteria,
+    max_samples: int,
 ) -> dict[str, Any]:
-    """The ``closed_loop`` block (app.schemas.simulate.ClosedLoopOut), JSON-ready apart from numpy arrays."""
+    """The ``closed_loop`` block (app.schemas.simulate.ClosedLoopOut), JSON-ready apart from numpy arrays; a
+    sampled drive's at its samples, within ``max_samples``."""
     drive = checked_drive(drive_in, plant)
+    if drive.sample_period_s is not None:
+        check_sample_count("drive.sample_period_s", sample_count(command, drive.sample_period_s), max_samples)
     run = simulate_drive(plant, drive, command)
     closed = metrics(
         run.load,
@@ -59,6 +72,14 @@ def closed_loop_block(
         how.settling_window,
         how.vibration_window,
         how.vibration_fraction,
+    )
+    # the command's peaks (a sampled run's load Response holds the command at the samples only)
+    closed = dataclasses.replace(
+        closed,
+        peak_velocity=ideal_metrics.peak_velocity,
+        peak_acceleration=ideal_metrics.peak_acceleration,
+        peak_jerk=ideal_metrics.peak_jerk,
+        peak_motor_torque_nm=float(np.max(np.abs(run.torque_nm))),  # K_T i (the stand-in load plant has none)
     )
     settle, settle_ideal = closed.settling.time_s, ideal_metrics.settling.time_s
     return {
@@ -72,16 +93,13 @@ def closed_loop_block(
             "voltage_v": run.voltage_v,
         },
         "load": {
+            "time_s": run.time_s,
             "position": run.load.load_position,
             "velocity": run.load.load_velocity,
             "acceleration": run.load.load_acceleration,
         },
         "tracking_error": run.tracking_error,
-        # the motor's torque through the drive is K_T i (the stand-in load plant defines none)
-        "metrics": {
-            **metrics_json(MetricsReport(closed)),
-            "peak_motor_torque_nm": float(np.max(np.abs(run.torque_nm))),
-        },
+        "metrics": metrics_json(MetricsReport(closed)),
         "saturated": run.saturated,
         "saturation": [vars(s) for s in run.saturation],
         "gains": {
@@ -90,10 +108,11 @@ def closed_loop_block(
             "velocity_ki": drive.velocity.ki,
             "current_kp": None if drive.current is None else drive.current.kp,
             "current_ki": None if drive.current is None else drive.current.ki,
+            "sample_period_s": drive.sample_period_s,
         },
         "modes": [mode.as_dict() for mode in run.modes],
         "difference": {
-            "load_position_max_abs": float(np.max(np.abs(run.load.load_position - ideal.load_position))),
+            "load_position_max_abs": float(np.max(np.abs(run.load.load_position - _ideal_at(ideal, run.time_s)))),
             "residual_amplitude_ratio": (
                 closed.residual_amplitude / ideal_metrics.residual_amplitude
                 if ideal_metrics.residual_amplitude > 0.0
@@ -102,3 +121,15 @@ def closed_loop_block(
             "settling_time_change_s": None if settle is None or settle_ideal is None else settle - settle_ideal,
         },
     }
+
+
+def _ideal_at(ideal: Response, time_s: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The ideal motor's load at ``time_s``: its own samples, or a sampled drive's instants (simulated again on the
+    command resampled there, models.commands.PiecewiseCommand.resampled)."""
+    if time_s.size == ideal.time_s.size and np.array_equal(time_s, ideal.time_s):
+        return ideal.load_position
+    period = float(time_s[1] - time_s[0]) if time_s.size > 1 else 1.0
+    finer = ideal.command.resampled(period, float(time_s[-1]))
+    load = simulate(ideal.plant, finer).load_position
+    nearest = np.clip(np.searchsorted(finer.time_s, time_s - MIN_STEP_S), 0, finer.time_s.size - 1)
+    return load[nearest]

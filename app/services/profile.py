@@ -83,7 +83,9 @@ def _through_drive(body: ProfileRequest, problem: Problem, result: Result) -> di
     """The design's command through ``body.drive`` (app.services.drive), measured with the problem's criteria."""
     assert body.drive is not None
     how = Criteria.of(problem)
-    return closed_loop_block(body.drive, problem.plant, result.command, result.response, result.metrics, how)
+    return closed_loop_block(
+        body.drive, problem.plant, result.command, result.response, result.metrics, how, problem.max_samples
+    )
 
 
 async def _problem_of(body: ProfileRequest, settings: Settings, pool: Executor) -> Problem:

@@ -35,5 +35,5 @@ def answer(request: SimulateRequest, max_samples: int) -> dict[str, Any]:
     }
     if request.drive is not None:
         how = Criteria(tolerance, request.settling_window, vibration_window, VIBRATION_FRACTION_OF_MOVE)
-        answer["closed_loop"] = closed_loop_block(request.drive, plant, command, response, result, how)
+        answer["closed_loop"] = closed_loop_block(request.drive, plant, command, response, result, how, max_samples)
     return answer
