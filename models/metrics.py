@@ -113,6 +113,7 @@ def settling(
     window: float | None = None,
     vibration_window: float | None = None,
     vibration_fraction: float | None = None,
+    free_from: int | None = None,
 ) -> Settling:
     """The earliest time after which the load stays within its band for ever.
 
@@ -124,9 +125,10 @@ def settling(
     During the command both are checked at the samples; after its end the exact closed-form envelope
     of the free response is used, so the answer does not depend on the horizon. It can be earlier
     than the command's end when the last changes are within both bands. None when an undamped mode
-    is left ringing above a band.
+    is left ringing above a band. ``free_from``: the sample from which the response is free and linear, if later
+    than the command's end (a drive that saturates after it, models.servo_limits).
     """
-    end = response.command.end_index()
+    end = free_from if free_from is not None else response.command.end_index()
     t = response.time_s
     ss_pos, ss_vel = _steady_state(response, end)
     moving = abs(ss_vel[end]) > 1e-9 * max(1.0, float(np.max(np.abs(response.load_velocity))))
@@ -168,9 +170,12 @@ def metrics(
     window: float | None = None,
     vibration_window: float | None = None,
     vibration_fraction: float | None = None,
+    free_from: int | None = None,
 ) -> Metrics:
-    """Residual vibration, energy, settling and peaks of a simulated command."""
-    end = response.command.end_index()
+    """Residual vibration, energy, settling and peaks of a simulated command; the residual is the free vibration
+    from the command's end, or from ``free_from`` (``settling``)."""
+    command_end = response.command.end_index()
+    end = free_from if free_from is not None else command_end
     modal = response.modal
     pos_amp = response.free_amplitudes(end, 0)
     vel_amp = response.free_amplitudes(end, 1)
@@ -195,14 +200,14 @@ def metrics(
     torque = response.motor_torque_nm
     cmd = response.command
     return Metrics(
-        command_end_s=float(cmd.time_s[end]),
+        command_end_s=float(cmd.time_s[command_end]),
         residual_amplitude=float(np.sum(pos_amp[osc])),
         residual_velocity_amplitude=float(np.sum(vel_amp[osc])),
         modes=modes,
         final_energy_j=None if energy is None else float(energy),
-        settling=settling(response, tolerance, window, vibration_window, vibration_fraction),
-        peak_velocity=cmd.peak_abs(1, end),  # the command's own span: after its end it continues its final motion
-        peak_acceleration=cmd.peak_abs(2, end),
-        peak_jerk=cmd.peak_abs(3, end),
+        settling=settling(response, tolerance, window, vibration_window, vibration_fraction, free_from),
+        peak_velocity=cmd.peak_abs(1, command_end),  # the command's own span: after its end it continues its motion
+        peak_acceleration=cmd.peak_abs(2, command_end),
+        peak_jerk=cmd.peak_abs(3, command_end),
         peak_motor_torque_nm=None if torque is None else float(np.max(np.abs(torque))),
     )

@@ -205,6 +205,10 @@ class ClosedLoop:
         shift[:, :2] = self.b[:, 1:]
         return c, np.array([d[1], d[2], 0.0]), shift
 
+    def eigenbasis(self) -> tuple[CArray, CArray, CArray]:
+        """(lambda, V, V^-1) with A = V diag(lambda) V^-1."""
+        return self._eigen
+
     @cached_property
     def _eigen(self) -> tuple[CArray, CArray, CArray]:
         values, vectors = np.linalg.eig(self.a)
@@ -251,19 +255,35 @@ def closed_loop(mechanics: Plant, drive: Drive) -> ClosedLoop:
     """The continuous closed loop of ``drive`` on ``mechanics`` (module docstring); InvalidParameter naming the
     gains if it is not stable. Without a position loop (``position_kp_per_s`` None) the drive follows the command's
     velocity (Cusimano Fig. 20): no position is a state, and the positions are outputs given by their rates."""
-    a, b, outputs = assemble(mechanics, drive, held_torque=False)
+    built = assemble(mechanics, drive)
     positions = drive.position_kp_per_s is not None
     integrated = frozenset() if positions else frozenset({"motor_position", "load_position", "tracking_error"})
-    loop = ClosedLoop(a, b, outputs, integrated)
+    loop = ClosedLoop(built.a, built.b, built.outputs, integrated)
     _check_stable(loop, drive)
     return loop
 
 
-def assemble(mechanics: Plant, drive: Drive, held_torque: bool) -> tuple[Array, Array, dict[str, tuple[Array, Array]]]:
-    """x' = A x + B u and every output's (c, d) rows. u = (r, r', r'') and the velocity PI is in the loop; with
-    ``held_torque`` (a sampled drive, models.servo_sampled) u = (r, r', r'', T_ref): the torque reference is an
-    input, and what is left is the continuous part, the motor, its current loop and the mechanics, which needs
-    a position loop (its position a state). InvalidParameter if a matrix is not finite."""
+@dataclass(frozen=True)
+class Assembly:
+    """x' = A x + B u and every output's (c, d) rows."""
+
+    a: Array
+    b: Array
+    outputs: dict[str, tuple[Array, Array]]
+
+
+def assemble(mechanics: Plant, drive: Drive, inputs: str = "command") -> Assembly:
+    """The loop's matrices and rows, by what enters it:
+
+    - "command": u = (r, r', r''), the loop of ``closed_loop``;
+    - "held_torque": u = (r, r', r'', T_ref), the continuous part of a sampled drive (models.servo_sampled): the
+      motor, its current loop and the mechanics, the torque reference an input (needs a position loop);
+    - "limited": u = (r, r', r'', di, dV), the corrections a drive's limits add to its current reference and its
+      voltage (models.servo_limits), which also feed each PI's integrator back (anti-windup by back-calculation),
+      with the outputs ``current_reference`` and ``voltage_demand`` before them.
+
+    InvalidParameter if a matrix is not finite."""
+    held_torque, limited = inputs == "held_torque", inputs == "limited"
     motor = drive.motor
     two_inertia = isinstance(mechanics, TwoInertiaPlant)
     inertia = moved_inertia(mechanics, motor)
@@ -281,7 +301,7 @@ def assemble(mechanics: Plant, drive: Drive, held_torque: bool) -> tuple[Array, 
     index += not held_torque
     xi_i = index if drive.current is not None else -1
     n = index + (drive.current is not None)
-    rows = _Rows(n, 4 if held_torque else 3)
+    rows = _Rows(n, {"command": 3, "held_torque": 4, "limited": 5}[inputs])
     a, b = np.zeros((n, n)), np.zeros((n, rows.inputs))
 
     def set_derivative(state: int, signal: tuple[Array, Array]) -> None:
@@ -304,17 +324,24 @@ def assemble(mechanics: Plant, drive: Drive, held_torque: bool) -> tuple[Array, 
         e_v = _comb((1.0, w_ref), (-1.0, motor_velocity))
         feedforward = inertia if drive.acceleration_feedforward else 0.0
         t_ref = _comb((drive.velocity.kp, e_v), (drive.velocity.ki, rows.state(xi_v)), (feedforward, rows.command(2)))
-        set_derivative(xi_v, e_v)
+        k_t = motor.torque_constant_nm_per_a
+        # at a limit the integral tracks the clamped torque back (models.servo_limits): + (T_sat - T_ref) / kp
+        tracking = (k_t / drive.velocity.kp, rows.command(3)) if limited else (0.0, rows.zero())
+        set_derivative(xi_v, _comb((1.0, e_v), tracking))
     k_t = motor.torque_constant_nm_per_a
-    i_ref = _comb((1.0 / k_t, t_ref))
+    demanded = _comb((1.0 / k_t, t_ref))
+    i_ref = _comb((1.0, demanded), (1.0, rows.command(3))) if limited else demanded
+    demand = None
     if drive.current is not None:
         e_i = _comb((1.0, i_ref), (-1.0, rows.state(i_state)))
-        voltage = _comb((drive.current.kp, e_i), (drive.current.ki, rows.state(xi_i)))
+        demand = _comb((drive.current.kp, e_i), (drive.current.ki, rows.state(xi_i)))
+        voltage = _comb((1.0, demand), (1.0, rows.command(4))) if limited else demand
         current = rows.state(i_state)
         back_emf = _comb((motor.k_e, motor_velocity))
         winding = _comb((1.0, voltage), (-motor.resistance_ohm, current), (-1.0, back_emf))
         set_derivative(i_state, _comb((1.0 / motor.inductance_h, winding)))
-        set_derivative(xi_i, e_i)
+        tracking = (1.0 / drive.current.kp, rows.command(4)) if limited else (0.0, rows.zero())
+        set_derivative(xi_i, _comb((1.0, e_i), tracking))
     else:
         current = i_ref
         voltage = _comb((motor.resistance_ohm, current), (motor.k_e, motor_velocity))  # the winding's steady need
@@ -339,13 +366,16 @@ def assemble(mechanics: Plant, drive: Drive, held_torque: bool) -> tuple[Array, 
         "load_position": load_position,
         "tracking_error": e_p,
     }
+    if limited:
+        outputs["current_reference"] = demanded
+        outputs["voltage_demand"] = voltage if demand is None else demand
     if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
         raise InvalidParameter(
             "drive",
             "not finite",
             "the gains, the motor's data and the plant span scales too far apart for double precision",
         )
-    return a, b, outputs
+    return Assembly(a, b, outputs)
 
 
 Setter = Callable[[int, tuple[Array, Array]], None]

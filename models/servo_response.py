@@ -6,12 +6,17 @@ exact recurrence gives it at the command's breakpoints (no time step, no Python 
 answer is a full models.simulation.Response, so that its settling and residual vibration are measured as on an
 ideal motor (models.metrics), from the closed loop's free state at the command's end.
 
-Saturation: the prediction is linear. Where the commanded torque or the winding's voltage exceeds the motor's
-limits it is not what the drive does; each limit exceeded is reported (``Saturation``), never clipped silently.
+Saturation: where the linear prediction needs more torque or voltage than the motor's limits, a continuous drive is
+simulated again with its limits (models.servo_limits: the current reference and the voltage clamped, the
+integrators kept from winding up), and each limit is reported with what the linear loop would need
+(``Saturation``: the command's demand through an unlimited drive, its peak and when it first passes the limit).
+A sampled drive's prediction stays linear and reports the limits it exceeds, as does a continuous one whose
+limited simulation cannot answer within its work cap (``note`` says why).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from dataclasses import dataclass
 
@@ -23,6 +28,7 @@ from models.errors import InvalidParameter
 from models.plant_base import Mode
 from models.plants import Plant, TransferFunctionPlant
 from models.servo import OUTPUTS, ClosedLoop, Drive, ModalOutput, closed_loop
+from models.servo_limits import WorkCapExceeded, simulate_limited
 from models.servo_sampled import sampled_loop, simulate_sampled
 from models.simulation import ModalForm, Response, another_output, simulate
 
@@ -58,6 +64,9 @@ class DriveResponse:
     load: Response
     saturation: tuple[Saturation, ...]
     modes: tuple[Mode, ...]  # the closed loop's (ClosedLoop.modes)
+    simulation: str = "linear"  # or "limited" (models.servo_limits)
+    free_from: int | None = None  # the sample the load's free response is measured from (None: the command's end)
+    note: str | None = None  # why a saturated prediction is linear
 
     @property
     def saturated(self) -> bool:
@@ -162,7 +171,7 @@ def simulate_drive(mechanics: Plant, drive: Drive, command: PiecewiseCommand) ->
     motor = run("motor_position")
     values = {name: run(name).load_position for name in ("current_a", "torque_nm", "voltage_v")}
     error = run("tracking_error").load_position
-    return DriveResponse(
+    linear = DriveResponse(
         command.time_s,
         motor.load_position,
         motor.load_velocity,
@@ -174,6 +183,28 @@ def simulate_drive(mechanics: Plant, drive: Drive, command: PiecewiseCommand) ->
         load,
         _saturation(drive, values, command.time_s),
         machine.loop.modes(),
+    )
+    if not linear.saturated:
+        return linear
+    try:
+        limited = simulate_limited(mechanics, drive, command, machine.loop, load.modal, machine.load_plant)
+    except WorkCapExceeded as exc:
+        return dataclasses.replace(linear, note=f"{exc.reason}: the prediction is linear past the limits")
+    v = limited.values
+    return DriveResponse(
+        limited.command.time_s,
+        v["motor_position"],
+        v["motor_velocity"],
+        v["motor_acceleration"],
+        v["current_a"],
+        v["torque_nm"],
+        v["voltage_v"],
+        v["tracking_error"],
+        limited.load,
+        linear.saturation,  # what the command needs through the loop (the clamped loop's own demand winds up)
+        machine.loop.modes(),
+        "limited",
+        limited.free_from,
     )
 
 

@@ -102,7 +102,8 @@ def sampled_loop(mechanics: Plant, drive: Drive) -> SampledLoop:
             "a sampled drive needs its position loop (a velocity-mode drive is modelled with continuous loops: "
             "sample_period_s null)",
         )
-    a, b, rows = assemble(mechanics, drive, held_torque=True)
+    built = assemble(mechanics, drive, "held_torque")
+    a, b, rows = built.a, built.b, built.outputs
     n = a.shape[0]
     augmented = np.zeros((n + 1, n + 1))
     augmented[:n, :n], augmented[:n, n] = a, b[:, 3]

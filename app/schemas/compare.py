@@ -55,6 +55,7 @@ class ClosedLoopRow(OutModel):
     residual_vibration: float = Field(description="The same, fraction of the load's move.")
     saturated: bool = Field(description="The command drives the motor past a torque or voltage limit.")
     saturation: list[SaturationOut]
+    simulation: Literal["linear", "limited"] = Field(description="As the closed_loop block's (ClosedLoopOut).")
 
 
 class Row(OutModel):

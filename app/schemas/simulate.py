@@ -249,7 +249,10 @@ class ClosedLoopLoadOut(OutModel):
 class SaturationOut(OutModel):
     quantity: Literal["torque_nm", "voltage_v"]
     limit: float
-    peak: float = Field(description="Largest |value| the linear prediction reaches at the command's times.")
+    peak: float = Field(
+        description="Largest |value| the command needs through the loop were the motor unlimited (the linear "
+        "prediction's, at the command's times): how far past the limit the command asks to go."
+    )
     first_time_s: float
 
 
@@ -277,10 +280,20 @@ class ClosedLoopOut(OutModel):
         "of motor.torque_nm; percentage_vibration is null (V's reference is the ideal motor's, in ``metrics``)."
     )
     saturated: bool = Field(
-        description="The command drives the motor past max_torque_nm or max_voltage_v: the linear prediction is "
-        "not what the drive does there (see saturation)."
+        description="The command asks the motor for more than max_torque_nm or max_voltage_v (see saturation): "
+        "then the drive clamps its current reference and its voltage, and every array here is the drive at its "
+        "limits (simulation 'limited'), unless simulation_note says why it is linear."
     )
     saturation: list[SaturationOut]
+    simulation: Literal["linear", "limited"] = Field(
+        description="'linear': the loop never reaches a limit, or (saturated, with simulation_note) the limited "
+        "simulation could not answer, or the drive is sampled (its limits are reported, not simulated); "
+        "'limited': the drive at its limits, the current reference and voltage clamped, the integrators "
+        "kept from winding up by back-calculation, integrated to rtol 1e-10 (models.servo_limits). Its arrays "
+        "then run past the command's end until the drive provably stays within its limits, and the metrics' "
+        "free vibration is measured from there."
+    )
+    simulation_note: str | None = Field(description="Why a saturated prediction is linear; null otherwise.")
     gains: GainsOut
     modes: list[ModeOut] = Field(description="The closed loop's oscillatory poles, lowest first: the modes to cancel.")
     difference: DifferenceOut

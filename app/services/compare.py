@@ -84,6 +84,7 @@ def _through_drive(
             "residual_vibration": amplitude / problem.load_move,
             "saturated": block["saturated"],
             "saturation": block["saturation"],
+            "simulation": block["simulation"],
         }
         if "curves" in answer:
             answer["curves"]["closed_loop_load"] = block["load"]

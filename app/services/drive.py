@@ -72,6 +72,7 @@ def closed_loop_block(
         how.settling_window,
         how.vibration_window,
         how.vibration_fraction,
+        run.free_from,
     )
     # the command's peaks (a sampled run's load Response holds the command at the samples only)
     closed = dataclasses.replace(
@@ -102,6 +103,8 @@ def closed_loop_block(
         "metrics": metrics_json(MetricsReport(closed)),
         "saturated": run.saturated,
         "saturation": [vars(s) for s in run.saturation],
+        "simulation": run.simulation,
+        "simulation_note": run.note,
         "gains": {
             "position_kp_per_s": drive.position_kp_per_s,
             "velocity_kp": drive.velocity.kp,

@@ -541,6 +541,22 @@ const DERIVATIVE = { position: "velocity", velocity: "acceleration", acceleratio
 
 // The motor as the load would follow it if the plant were rigid: G(0) times the command input (the
 // motor's quantity for position input; for a velocity input, the drive's next derivative).
+// A closed-loop series on the profile's times: the drive's own where they are the same (a continuous drive), else
+// linearly interpolated between its samples for drawing (a sampled drive; a run past the end at a limit), null
+// outside them.
+function onProfileTimes(time, closedTime, values) {
+  if (!closedTime || (closedTime.length === time.length && closedTime[0] === time[0]
+      && closedTime[closedTime.length - 1] === time[time.length - 1])) return values;
+  let j = 0;
+  return time.map((t) => {
+    if (t < closedTime[0] || t > closedTime[closedTime.length - 1]) return null;
+    while (j < closedTime.length - 2 && closedTime[j + 1] < t) j += 1;
+    const span = closedTime[j + 1] - closedTime[j];
+    const w = span > 0 ? (t - closedTime[j]) / span : 0;
+    return values[j] + w * (values[j + 1] - values[j]);
+  });
+}
+
 function motorReferred(profile, quantity) {
   const { gain, input } = lastPlant;
   const source = input === "velocity" ? profile[DERIVATIVE[quantity]] : profile[quantity];
@@ -572,7 +588,7 @@ function drawMotion() {
   const data = [profile.time_s, motor.map((v) => v * scale.factor), loadValues.map((v) => v * scale.factor)];
   if (closed) {
     series.push({ label: `load ${quantity}, through the drive (${scale.unit})`, stroke: DRIVE_COLOUR, width: 2, dash: [6, 4] });
-    data.push(closed[quantity].map((v) => v * scale.factor));
+    data.push(onProfileTimes(profile.time_s, closed.time_s, closed[quantity]).map((v) => (v === null ? null : v * scale.factor)));
   }
   motionPlot = new uPlot({
     width: plotWidth(el), height: 280,
@@ -616,7 +632,9 @@ function drawResidual() {
   // Through the drive (with one): its load less the same rigid target.
   const closedLoad = row.curves.closed_loop_load;
   const reference = motorReferred(row.curves.profile, "position");
-  const c = closedLoad ? closedLoad.position.map((v, i) => v - reference[i]).slice(first) : null;
+  const c = closedLoad
+    ? onProfileTimes(time, closedLoad.time_s, closedLoad.position).map((v, i) => (v === null ? null : v - reference[i])).slice(first)
+    : null;
   const peak = Math.max(maxAbs(r), c ? maxAbs(c) : 0);
   const scale = siScale(peak, coordinate());
   const half = peak > 0 ? peak * scale.factor * 1.15 : 1;
@@ -624,7 +642,7 @@ function drawResidual() {
   const data = [t, r.map((v) => v * scale.factor)];
   if (c) {
     series.push({ label: `through the drive (${scale.unit})`, stroke: DRIVE_COLOUR, width: 1.5, dash: [6, 4] });
-    data.push(c.map((v) => v * scale.factor));
+    data.push(c.map((v) => (v === null ? null : v * scale.factor)));
   }
   residualPlot = new uPlot({
     width: plotWidth(el), height: 220,

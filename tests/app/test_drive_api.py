@@ -83,14 +83,20 @@ def test_bad_drives_are_422s_that_name_the_field(client):
     assert answer.status_code == 422 and answer.json()["field"] == "plant.drive"
 
 
-def test_a_torque_the_command_drives_past_the_limit_is_reported(client):
+def test_a_torque_the_command_drives_past_the_limit_is_reported_and_simulated(client):
+    """The linear loop would need 0.30 N m of a 0.1 N m motor: the answer is the drive at its limit
+    (models.servo_limits, checked against the equations in tests/models/test_servo_limits.py), which says so."""
     weak = copy.deepcopy(SOFT)
     weak["motor"]["max_torque_nm"] = 0.1
     closed = _simulate(client, drive=weak).json()["closed_loop"]
-    assert closed["saturated"] is True
+    assert closed["saturated"] is True and closed["simulation"] == "limited" and closed["simulation_note"] is None
     (saturation,) = closed["saturation"]
     assert saturation["quantity"] == "torque_nm" and saturation["limit"] == 0.1
-    assert saturation["peak"] == pytest.approx(max(abs(x) for x in closed["motor"]["torque_nm"]))
+    assert saturation["peak"] > 0.1  # what the command needs through an unlimited drive
+    assert max(abs(x) for x in closed["motor"]["torque_nm"]) <= 0.1  # what the motor gives (the current follows)
+    linear = _simulate(client).json()["closed_loop"]
+    assert linear["simulation"] == "linear" and linear["saturated"] is False
+    assert closed["metrics"]["settling_time_s"] != linear["metrics"]["settling_time_s"]
 
 
 def _lowest_mode_residual(metrics: dict) -> float:

@@ -81,15 +81,14 @@ def test_the_residual_at_f_ne_is_10x_below_the_one_at_0_9_f_ne_which_the_sensiti
 def test_the_torque_oscillates_by_about_0_055_of_its_limit_and_a_crossing_is_reported(client, stap):
     """At 0.9 f_n,e the motor torque oscillates while the speed is held (Figs. 18-19: |M_m,c| ~ 0.055 M_Max;
     measured 0.044 here, where the lowered limit scales it by 0.948 and the velocity loop damps the load mode). The
-    lowered acceleration limit keeps the peak within 0.2 % of the limit through the drive (10.010 N m); the linear
-    prediction says so, with the crossing reported as a saturation, never clipped."""
+    lowered acceleration limit keeps the torque the loop asks for within 0.2 % of the limit (10.010 N m): the
+    crossing is reported, and the drive at its limit (the current reference clamped) is what the answer shows."""
     closed = _through_drive(client, stap, 7.2)
     torque = np.array(closed["motor"]["torque_nm"])
     held = np.array(stap["profile"]["time_s"]) > stap["design"]["acceleration_time_s"] + 0.01
     assert 0.03 * LIMIT_NM <= np.max(np.abs(torque[held])) <= 0.06 * LIMIT_NM
     peak = float(np.max(np.abs(torque)))
-    assert LIMIT_NM * 0.99 <= peak <= LIMIT_NM * 1.002
-    assert closed["saturated"] == (peak > LIMIT_NM)
-    if closed["saturated"]:
-        (crossing,) = closed["saturation"]
-        assert crossing["quantity"] == "torque_nm" and crossing["peak"] == pytest.approx(peak)
+    assert LIMIT_NM * 0.99 <= peak <= LIMIT_NM  # the motor gives what the drive allows
+    assert closed["saturated"] and closed["simulation"] == "limited"
+    (crossing,) = closed["saturation"]
+    assert crossing["quantity"] == "torque_nm" and LIMIT_NM < crossing["peak"] <= LIMIT_NM * 1.002
