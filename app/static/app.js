@@ -303,7 +303,9 @@ function buildCommon() {
     if (value !== null) request[name] = value;
   }
   const drive = buildDrive();
-  if (drive) request.drive = drive;
+  // Designed for the loop: the plant is the closed loop from the command to the load (its modes are cancelled)
+  if (drive && $("drive-design").checked) request.plant = { kind: "closed_loop", mechanics: plant, drive };
+  else if (drive) request.drive = drive;
   return request;
 }
 
@@ -407,7 +409,8 @@ function showProblem(problem, context = "") {
   const errors = problem.errors && problem.errors.length ? problem.errors : [{ field: problem.field, rule: problem.detail }];
   let placed = false;
   for (const error of errors) {
-    const field = error.field || "";
+    // a closed_loop plant's mechanics and drive are the form's plant and drive fields
+    const field = (error.field || "").replace(/^plant\.drive(?=$|\.)/, "drive").replace(/^plant\.mechanics(?=$|\.)/, "plant");
     const candidates = [...document.querySelectorAll("[data-field]")]
       .filter((el) => field === el.dataset.field || field.startsWith(el.dataset.field + ".") || field.startsWith(el.dataset.field + "["))
       .sort((a, b) => b.dataset.field.length - a.dataset.field.length);
@@ -581,7 +584,8 @@ function drawMotion() {
     : Math.abs(gain - 1) < 1e-12 ? `motor ${quantity}` : `motor ${quantity} × G(0)`;
   $("plot-title").textContent = `Motor and load: ${designName(row)}`;
   const closed = row.curves.closed_loop_load && row.curves.closed_loop_load[quantity] ? row.curves.closed_loop_load : null;
-  const ideal = closed ? ", ideal motor" : "";
+  const designedThrough = row.closed_loop && row.closed_loop.designedThrough;
+  const ideal = closed ? ", ideal motor" : designedThrough ? ", through the drive" : "";
   const series = [{ label: "t (s)" },
     { label: `${motorLabel} (${scale.unit})`, stroke: MOTOR_COLOUR, width: 2 },
     { label: `load ${quantity}${ideal} (${scale.unit})`, stroke: LOAD_COLOUR, width: 2 }];
@@ -638,7 +642,8 @@ function drawResidual() {
   const peak = Math.max(maxAbs(r), c ? maxAbs(c) : 0);
   const scale = siScale(peak, coordinate());
   const half = peak > 0 ? peak * scale.factor * 1.15 : 1;
-  const series = [{ label: "t (s)" }, { label: `load − rigid target${c ? ", ideal motor" : ""} (${scale.unit})`, stroke: LOAD_COLOUR, width: 1.5 }];
+  const through = row.closed_loop && row.closed_loop.designedThrough ? ", through the drive" : "";
+  const series = [{ label: "t (s)" }, { label: `load − rigid target${c ? ", ideal motor" : through} (${scale.unit})`, stroke: LOAD_COLOUR, width: 1.5 }];
   const data = [t, r.map((v) => v * scale.factor)];
   if (c) {
     series.push({ label: `through the drive (${scale.unit})`, stroke: DRIVE_COLOUR, width: 1.5, dash: [6, 4] });
@@ -902,6 +907,10 @@ async function design(event) {
     } else {
       for (const row of outcome.rows) {
         if (row.preference === 2) lastBand = band;
+        // designed for the closed loop: the row's own load is the load through the drive
+        if (common.plant.kind === "closed_loop" && !row.closed_loop) {
+          row.closed_loop = { settling_time_s: row.settling_time_s, saturated: false, designedThrough: true };
+        }
         insertSorted(results.rows, row);
       }
       results.unavailable.push(...(outcome.unavailable || []));
@@ -1089,6 +1098,7 @@ async function downloadCsv() {
 
 function syncForm() {
   $("coordinate-field").hidden = $("plant-kind").value !== "mode";
+  $("drive-design-note").hidden = !$("drive-design").checked;
   const velocity = form.elements.move.value === "target_velocity";
   $("move-value").dataset.field = velocity ? "target_velocity" : "displacement";
   $("band-fields").hidden = $("robustness").value !== "band";
@@ -1122,7 +1132,8 @@ async function init() {
     return;
   }
   loadPresets();
-  renderPlantFields("mode", DEFAULT_MODE);
+  // the kind shown now (chosen, or restored by the browser, before the schema loaded): its fields
+  renderPlantFields($("plant-kind").value, plantExample($("plant-kind").value));
   await loadShapers();
   syncForm();
   $("design-button").disabled = false;
@@ -1143,6 +1154,7 @@ $("plant-kind").addEventListener("change", () => {
 $("coordinate").addEventListener("change", () => { syncForm(); drawMotion(); drawResidual(); });
 $("robustness").addEventListener("change", syncForm);
 $("drive-on").addEventListener("change", syncForm);
+$("drive-design").addEventListener("change", () => { syncForm(); analysePlant(); });
 $("tradeoff-button").addEventListener("click", computeTradeoff);
 for (const radio of form.elements.move) radio.addEventListener("change", syncForm);
 $("quantity").addEventListener("change", drawMotion);

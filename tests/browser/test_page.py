@@ -409,3 +409,39 @@ def test_a_drive_adds_the_load_through_it_beside_the_ideal_one(page, screenshots
     _, ideal, drive = plot_data(page, "residualPlot")
     assert max(abs(v) for v in ideal) < 1e-6 < max(abs(v) for v in drive)  # mrad: round-off, and a ringing load
     page.locator("#results").screenshot(path=screenshots / "drive.png")
+
+
+def test_designing_for_the_closed_loop_cancels_the_modes_the_machine_has(page, screenshots):
+    """The same shaft and drive, designed for the closed loop (the API's closed_loop plant): every row's load is
+    the load through the drive, so its settling there is its own, the plot says so, and the time-optimal command
+    leaves round-off at the loop's modes (against mrad designed for the shaft, above). A drive the loop cannot run
+    is refused next to the drive's fields (the API names plant.drive)."""
+    page.goto("/")
+    expect(page.get_by_role("button", name="Design")).to_be_enabled()
+    page.get_by_label("Plant", exact=True).select_option("two_inertia")
+    page.fill("#plant-motor_inertia_kgm2", "0.005")
+    page.fill("#plant-load_inertia_kgm2", "0.005")
+    page.fill("#plant-stiffness_nm_per_rad", "12.633")
+    page.get_by_label("Displacement").fill("0.5")
+    page.get_by_label("Max velocity").fill("2")
+    page.get_by_label("Max acceleration").fill("20")
+    page.get_by_label("Predict through a servo drive").check()
+    page.get_by_label("Design for the closed loop").check()
+    expect(page.locator("#drive-design-note")).to_be_visible()
+    page.get_by_role("button", name="Design").click()
+    wait_until_done(page)
+    rows = page.locator("#compare-table tbody tr")
+    own = [cell.inner_text() for cell in page.locator("#compare-table tbody tr td:nth-child(3)").all()]
+    through = [cell.inner_text() for cell in page.locator("#compare-table tbody tr td:nth-child(4)").all()]
+    assert rows.count() >= 2 and through == own, (own, through)
+    rows.filter(has_text="Time-optimal").first.click()
+    labels = page.evaluate("() => motionPlot.series.map(s => s.label)")
+    assert len(labels) == 3 and labels[2].startswith("load position, through the drive ("), labels
+    # in rad (the plot's unit follows its peak): round-off of a 0.5 rad move
+    peak_rad = page.evaluate("() => Math.max(...residualPlot.data[1].map(Math.abs)) / residualPlot.unitScale.factor")
+    assert peak_rad < 1e-9 * 0.5
+    page.locator("#results").screenshot(path=screenshots / "drive_design.png")
+    page.get_by_label("Velocity loop (Hz)").fill("80")
+    page.get_by_label("Position loop (Hz)").fill("15")
+    page.get_by_role("button", name="Design").click()
+    expect(page.locator("#err-drive")).to_contain_text("unstable")
