@@ -73,15 +73,22 @@ async def _one(family: Family, problem: Problem, candidate: Candidate, run: Runn
         return UnavailableFamily(family.name, reason_of(exc), exc.problem_type)
 
 
+Key = Callable[[ComparedRow], tuple[float, float]]
+
+
+def _settling(row: ComparedRow) -> tuple[float, float]:
+    return row.settling_key
+
+
 def _best_of_groups(
-    candidates: tuple[Candidate, ...], outcomes: list[ComparedRow | UnavailableFamily]
+    candidates: tuple[Candidate, ...], outcomes: list[ComparedRow | UnavailableFamily], key: Key
 ) -> list[ComparedRow | UnavailableFamily]:
-    """Per group, the row that settles first; a group with no row gives its first failure."""
+    """Per group, the row first by ``key``; a group with no row gives its first failure."""
     out: list[ComparedRow | UnavailableFamily] = []
     for group in dict.fromkeys(c.group for c in candidates):
         members = [o for c, o in zip(candidates, outcomes, strict=True) if c.group == group]
         rows = [o for o in members if isinstance(o, ComparedRow)]
-        out.append(min(rows, key=lambda r: r.settling_key) if rows else members[0])
+        out.append(min(rows, key=key) if rows else members[0])
     return out
 
 
@@ -130,15 +137,25 @@ def plan(
 async def run_plan(planned: ComparePlan, run: Runner) -> tuple[list[ComparedRow], list[UnavailableFamily]]:
     """Rows sorted by settling time (never-settling designs last), and the families that gave none; the first
     ``NOT_AN_ANSWER`` error (or unexpected error) is raised instead, once the other runs are cancelled."""
-    outcomes = await _every_or_first_error(
-        [_one(f, planned.problem, c, run) for f, cands in planned.runs for c in cands]
-    )
+    return choose(planned, await run_candidates(planned, run))
+
+
+async def run_candidates(planned: ComparePlan, run: Runner) -> list[ComparedRow | UnavailableFamily]:
+    """Every candidate's outcome, in the plan's order (``run_plan``'s errors)."""
+    return await _every_or_first_error([_one(f, planned.problem, c, run) for f, cands in planned.runs for c in cands])
+
+
+def choose(
+    planned: ComparePlan, outcomes: list[ComparedRow | UnavailableFamily], key: Key = _settling
+) -> tuple[list[ComparedRow], list[UnavailableFamily]]:
+    """Of each group the row first by ``key`` (default: the load's settling, then motion time), the rows sorted by
+    it, and the families that gave none."""
     kept: list[ComparedRow | UnavailableFamily] = []
     start = 0
     for _, cands in planned.runs:
-        kept += _best_of_groups(cands, outcomes[start : start + len(cands)])
+        kept += _best_of_groups(cands, outcomes[start : start + len(cands)], key)
         start += len(cands)
-    rows = sorted((o for o in kept if isinstance(o, ComparedRow)), key=lambda r: r.settling_key)
+    rows = sorted((o for o in kept if isinstance(o, ComparedRow)), key=key)
     failures = [o for o in kept if isinstance(o, UnavailableFamily)]
     # a reason once per family (the shapers share one)
     return rows, list(planned.unavailable) + list(dict.fromkeys(failures))

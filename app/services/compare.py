@@ -21,7 +21,7 @@ from app.services import profile as profiles
 from app.services.drive import Criteria, closed_loop_block, refuse_a_second_drive
 from app.settings import Settings
 from models.errors import InvalidParameter
-from optim.compare import ComparedRow, plan, run_plan
+from optim.compare import ComparedRow, ComparePlan, UnavailableFamily, choose, plan, run_candidates
 from optim.family import Family
 from optim.problem import Problem
 from optim.synthesis import Result
@@ -52,11 +52,15 @@ async def answer(
         async def run(family: Family, p: Problem, options: Any) -> Result:
             return await profiles.run(family, p, options, settings, solver_executor, thread_executor)
 
-        rows, unavailable = await run_plan(planned, run)
+        outcomes = await run_candidates(planned, run)
     common = body.common_body()
-    out = [_row(body, common, row, problem.load_move) for row in rows]
-    if body.drive is not None:
-        out = await threads.run(_through_drive, body, problem, rows, out, deadline_s=settings.thread_deadline_s)
+    if body.drive is None:
+        rows, unavailable = choose(planned, outcomes)
+        out = [_row(body, common, row, problem.load_move) for row in rows]
+    else:
+        out, unavailable = await threads.run(
+            _through_drive, body, common, planned, outcomes, deadline_s=settings.thread_deadline_s
+        )
     return {
         "move": "rest_to_rest" if problem.rest_to_rest else "rest_to_velocity",
         "rows": out,
@@ -65,17 +69,31 @@ async def answer(
 
 
 def _through_drive(
-    body: CompareIn, problem: Problem, rows: list[ComparedRow], out: list[dict[str, Any]]
-) -> list[dict[str, Any]]:
-    """Each row's command through ``body.drive`` (app.services.drive): its ``closed_loop`` summary, and the rows
-    ranked by the closed loop's settling (never-settling last), then motion time."""
+    body: CompareIn, common: dict[str, Any], planned: ComparePlan, outcomes: list[ComparedRow | UnavailableFamily]
+) -> tuple[list[dict[str, Any]], list[UnavailableFamily]]:
+    """Every candidate's command through ``body.drive`` (app.services.drive), each group's design and the rows
+    chosen and ranked by the closed loop's settling (never-settling last), then motion time; each row with its
+    ``closed_loop`` summary."""
     assert body.drive is not None
+    problem = planned.problem
     how = Criteria.of(problem)
-    for row, answer in zip(rows, out, strict=True):  # a loop over the rows (a few designs)
-        result: Result = row.result
-        block = closed_loop_block(
-            body.drive, problem.plant, result.command, result.response, result.metrics, how, problem.max_samples
-        )
+    blocks: dict[int, dict[str, Any]] = {}
+    for row in outcomes:  # a loop over the candidates (a few designs)
+        if isinstance(row, ComparedRow):
+            result: Result = row.result
+            blocks[id(row)] = closed_loop_block(
+                body.drive, problem.plant, result.command, result.response, result.metrics, how, problem.max_samples
+            )
+
+    def key(row: ComparedRow) -> tuple[float, float]:
+        settle = blocks[id(row)]["metrics"]["settling_time_s"]
+        return (math.inf if settle is None else settle, row.settling_key[1])
+
+    rows, unavailable = choose(planned, outcomes, key)
+    out = []
+    for row in rows:  # a loop over the rows
+        answer = _row(body, common, row, problem.load_move)
+        block = blocks[id(row)]
         metrics = block["metrics"]
         amplitude = metrics["residual_amplitude" if body.displacement is not None else "residual_velocity_amplitude"]
         answer["closed_loop"] = {
@@ -88,12 +106,8 @@ def _through_drive(
         }
         if "curves" in answer:
             answer["curves"]["closed_loop_load"] = block["load"]
-
-    def key(answer: dict[str, Any]) -> tuple[float, float]:
-        settle = answer["closed_loop"]["settling_time_s"]
-        return (math.inf if settle is None else settle, answer["motion_time_s"])
-
-    return sorted(out, key=key)
+        out.append(answer)
+    return out, unavailable
 
 
 def _row(request: CompareIn, common: dict[str, Any], row: ComparedRow, load_move: float) -> dict[str, Any]:

@@ -163,3 +163,22 @@ def test_the_closed_loop_metrics_peak_torque_is_the_drives(client):
     closed = _simulate(client).json()["closed_loop"]
     assert closed["metrics"]["peak_motor_torque_nm"] == max(abs(x) for x in closed["motor"]["torque_nm"])
     assert closed["metrics"]["percentage_vibration"] is None
+
+
+def test_compare_chooses_each_familys_design_by_its_settling_through_the_drive(client):
+    """The smoother family offers two tuned chains and compare keeps one. On the ideal motor the exponential one
+    settles first (0.375 s against 0.4375 s); through the soft loop the damped harmonic one does (2.52 s against
+    2.86 s), so that is the row compare keeps with the drive: the choice, not only the ranking, is the drive's."""
+    move = {"displacement": 0.5, "limits": {"max_velocity": 2.0, "max_acceleration": 20.0}}
+    settle = {}
+    for kind in ("damped_harmonic", "exponential"):
+        body = {"plant": CUSIMANO, "drive": SOFT, **move, "filters": [{"type": kind}]}
+        answer = client.post("/v1/profiles/smoother", json=body).json()
+        settle[kind] = (answer["metrics"]["settling_time_s"], answer["closed_loop"]["metrics"]["settling_time_s"])
+    assert settle["exponential"][0] < settle["damped_harmonic"][0]  # ideal: exponential first
+    assert settle["damped_harmonic"][1] < settle["exponential"][1]  # through the drive: damped harmonic first
+    ideal = client.post("/v1/compare", json={"plant": CUSIMANO, **move, "families": ["smoother"]}).json()["rows"]
+    through = client.post("/v1/compare", json={"plant": CUSIMANO, "drive": SOFT, **move, "families": ["smoother"]})
+    (row,) = through.json()["rows"]
+    assert [r["label"] for r in ideal] == ["smoother/exponential"] and row["label"] == "smoother/damped_harmonic"
+    assert row["closed_loop"]["settling_time_s"] == settle["damped_harmonic"][1]
