@@ -277,7 +277,9 @@ class ClosedLoopOut(OutModel):
     tracking_error: list[float] = Field(description="Command position less motor position.")
     metrics: MetricsOut = Field(
         description="The load's, from the closed loop's state at the command's end; peak_motor_torque_nm is the peak "
-        "of motor.torque_nm; percentage_vibration is null (V's reference is the ideal motor's, in ``metrics``)."
+        "of motor.torque_nm; percentage_vibration (on the profile endpoints and compare) is 100 x the residual over "
+        "the unshaped rigid command's under the same limits, both through the drive (null on /v1/simulate, as "
+        "``metrics``' own)."
     )
     saturated: bool = Field(
         description="The command asks the motor for more than max_torque_nm or max_voltage_v (see saturation): "

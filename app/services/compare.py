@@ -82,7 +82,14 @@ def _through_drive(
         if isinstance(row, ComparedRow):
             result: Result = row.result
             blocks[id(row)] = closed_loop_block(
-                body.drive, problem.plant, result.command, result.response, result.metrics, how, problem.max_samples
+                body.drive,
+                problem.plant,
+                result.command,
+                result.response,
+                result.metrics,
+                how,
+                problem.max_samples,
+                problem.rigid_reference,
             )
 
     def key(row: ComparedRow) -> tuple[float, float]:

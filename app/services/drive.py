@@ -21,6 +21,7 @@ from models.commands import MIN_STEP_S, PiecewiseCommand
 from models.errors import InvalidParameter
 from models.metrics import Metrics, metrics
 from models.plants import Plant
+from models.servo import Drive
 from models.servo_response import simulate_drive
 from models.servo_sampled import sample_count
 from models.simulation import Response, simulate
@@ -59,9 +60,12 @@ def closed_loop_block(
     ideal_metrics: Metrics,
     how: Criteria,
     max_samples: int,
+    reference: PiecewiseCommand | None = None,
 ) -> dict[str, Any]:
     """The ``closed_loop`` block (app.schemas.simulate.ClosedLoopOut), JSON-ready apart from numpy arrays; a
-    sampled drive's at its samples, within ``max_samples``."""
+    sampled drive's at its samples, within ``max_samples``. With ``reference`` (the problem's unshaped rigid
+    command, optim.problem.Problem.rigid_reference) its percentage vibration: the residual through the drive over
+    the reference's through the same drive."""
     drive = checked_drive(drive_in, plant)
     if drive.sample_period_s is not None:
         check_sample_count("drive.sample_period_s", sample_count(command, drive.sample_period_s), max_samples)
@@ -100,7 +104,7 @@ def closed_loop_block(
             "acceleration": run.load.load_acceleration,
         },
         "tracking_error": run.tracking_error,
-        "metrics": metrics_json(MetricsReport(closed)),
+        "metrics": metrics_json(MetricsReport(closed, _percentage(plant, drive, closed, reference, how, max_samples))),
         "saturated": run.saturated,
         "saturation": [vars(s) for s in run.saturation],
         "simulation": run.simulation,
@@ -136,3 +140,22 @@ def _ideal_at(ideal: Response, time_s: NDArray[np.float64]) -> NDArray[np.float6
     load = simulate(ideal.plant, finer).load_position
     nearest = np.clip(np.searchsorted(finer.time_s, time_s - MIN_STEP_S), 0, finer.time_s.size - 1)
     return load[nearest]
+
+
+def _percentage(
+    plant: Plant, drive: Drive, closed: Metrics, reference: PiecewiseCommand | None, how: Criteria, max_samples: int
+) -> float | None:
+    """V through the drive: 100 x the load's residual over the unshaped rigid command's, both through ``drive``
+    (position residuals at rest, velocity residuals for rest-to-velocity: the reference's kind of move); None
+    without a reference, where the reference leaves none, or where a sampled drive would need more than
+    ``max_samples`` samples for it."""
+    if reference is None:
+        return None
+    if drive.sample_period_s is not None and sample_count(reference, drive.sample_period_s) > max_samples:
+        return None  # (the step reference spans a second: more samples than the cap allows)
+    run = simulate_drive(plant, drive, reference)
+    base = metrics(run.load, how.position_tolerance, free_from=run.free_from)
+    moving = closed.settling.quantity == "velocity"  # a rest-to-velocity move (its reference is one too)
+    ours = closed.residual_velocity_amplitude if moving else closed.residual_amplitude
+    theirs = base.residual_velocity_amplitude if moving else base.residual_amplitude
+    return 100.0 * ours / theirs if theirs > 0.0 else None

@@ -84,7 +84,14 @@ def _through_drive(body: ProfileRequest, problem: Problem, result: Result) -> di
     assert body.drive is not None
     how = Criteria.of(problem)
     return closed_loop_block(
-        body.drive, problem.plant, result.command, result.response, result.metrics, how, problem.max_samples
+        body.drive,
+        problem.plant,
+        result.command,
+        result.response,
+        result.metrics,
+        how,
+        problem.max_samples,
+        problem.rigid_reference,
     )
 
 

@@ -162,7 +162,24 @@ def test_the_closed_loop_metrics_peak_torque_is_the_drives(client):
     """closed_loop.metrics.peak_motor_torque_nm means what it says: the peak |K_T i| of closed_loop.motor."""
     closed = _simulate(client).json()["closed_loop"]
     assert closed["metrics"]["peak_motor_torque_nm"] == max(abs(x) for x in closed["motor"]["torque_nm"])
-    assert closed["metrics"]["percentage_vibration"] is None
+    assert closed["metrics"]["percentage_vibration"] is None  # /v1/simulate has no reference move (nor metrics' V)
+
+
+def test_the_percentage_vibration_through_the_drive_is_of_the_unshaped_move_through_it(client):
+    """V through the drive means what V means on the ideal motor, through the drive: 100 x the design's residual
+    over the unshaped rigid command's under the same limits (here the trapezoidal velocity at 2 rad/s and
+    20 rad/s^2: 0.1 s ramps, 0.15 s at speed), that command written here and run through /v1/simulate."""
+    move = {"displacement": 0.5, "limits": {"max_velocity": 2.0, "max_acceleration": 20.0}}
+    design = client.post("/v1/profiles/input-shaped", json={"plant": CUSIMANO, "drive": SOFT, **move, "shaper": "zv"})
+    closed = design.json()["closed_loop"]["metrics"]
+    unshaped = {"time_s": [0.0, 0.1, 0.25, 0.35, 0.5], "acceleration": [20.0, 0.0, -20.0, 0.0, 0.0]}
+    body = {"plant": CUSIMANO, "drive": SOFT, "profile": unshaped, "hold": "zero", "held_quantity": "acceleration"}
+    reference = client.post("/v1/simulate", json=body)
+    assert reference.status_code == 200, reference.text
+    base = reference.json()["closed_loop"]["metrics"]["residual_amplitude"]
+    assert base > 1e-3  # the unshaped move rings through the drive
+    assert closed["percentage_vibration"] == pytest.approx(100 * closed["residual_amplitude"] / base, rel=1e-9)
+    assert 1.0 < closed["percentage_vibration"] < 100.0  # ZV for the shaft, detuned by the loop: some, not all
 
 
 def test_compare_chooses_each_familys_design_by_its_settling_through_the_drive(client):
