@@ -22,7 +22,7 @@ from models.errors import InvalidParameter
 from models.metrics import Metrics, metrics
 from models.plants import Plant
 from models.servo import Drive
-from models.servo_response import simulate_drive
+from models.servo_response import DriveResponse, simulate_drive
 from models.servo_sampled import sample_count
 from models.simulation import Response, simulate
 from optim.problem import Problem
@@ -119,7 +119,7 @@ def closed_loop_block(
         },
         "modes": [mode.as_dict() for mode in run.modes],
         "difference": {
-            "load_position_max_abs": float(np.max(np.abs(run.load.load_position - _ideal_at(ideal, run.time_s)))),
+            "load_position_max_abs": float(np.max(np.abs(run.load.load_position - _ideal_at(ideal, run)))),
             "residual_amplitude_ratio": (
                 closed.residual_amplitude / ideal_metrics.residual_amplitude
                 if ideal_metrics.residual_amplitude > 0.0
@@ -130,11 +130,16 @@ def closed_loop_block(
     }
 
 
-def _ideal_at(ideal: Response, time_s: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The ideal motor's load at ``time_s``: its own samples, or a sampled drive's instants (simulated again on the
-    command resampled there, models.commands.PiecewiseCommand.resampled)."""
+def _ideal_at(ideal: Response, run: DriveResponse) -> NDArray[np.float64]:
+    """The ideal motor's load at the run's instants: its own samples; a limited run's, which go on past the
+    command's end on breakpoints of the same command (simulated again on them); or a sampled drive's uniform
+    instants (simulated again on the command resampled there, models.commands.PiecewiseCommand.resampled, whose
+    sample count the sample cap bounds)."""
+    time_s = run.time_s
     if time_s.size == ideal.time_s.size and np.array_equal(time_s, ideal.time_s):
         return ideal.load_position
+    if run.simulation == "limited":
+        return simulate(ideal.plant, run.load.command).load_position
     period = float(time_s[1] - time_s[0]) if time_s.size > 1 else 1.0
     finer = ideal.command.resampled(period, float(time_s[-1]))
     load = simulate(ideal.plant, finer).load_position

@@ -199,3 +199,23 @@ def test_compare_chooses_each_familys_design_by_its_settling_through_the_drive(c
     (row,) = through.json()["rows"]
     assert [r["label"] for r in ideal] == ["smoother/exponential"] and row["label"] == "smoother/damped_harmonic"
     assert row["closed_loop"]["settling_time_s"] == settle["damped_harmonic"][1]
+
+
+def test_a_drive_still_at_its_limit_when_the_command_ends_is_followed_past_the_end(client):
+    """The same move cut at its last change (0.3 s): the 0.1 N m motor is still behind and at its limit then, so
+    the closed loop's arrays go on past the command's end (the command holding its final position) until the
+    drive provably stays within its limit, its metrics from there; the difference from the ideal motor is taken
+    at those instants too."""
+    weak = copy.deepcopy(SOFT)
+    weak["motor"]["max_torque_nm"] = 0.1
+    cut = {"time_s": JERK_PROFILE["time_s"][:-1], "jerk": JERK_PROFILE["jerk"][:-1]}
+    answer = _simulate(client, drive=weak, profile=cut)
+    assert answer.status_code == 200, answer.text
+    closed = answer.json()["closed_loop"]
+    time = closed["motor"]["time_s"]
+    assert closed["simulation"] == "limited" and time[-1] > 0.3 and time[: len(cut["time_s"])] == cut["time_s"]
+    assert len(closed["load"]["position"]) == len(time) == len(closed["motor"]["torque_nm"])
+    assert max(abs(x) for x in closed["motor"]["torque_nm"]) <= 0.1
+    assert closed["load"]["position"][-1] == pytest.approx(0.2, abs=0.01)  # back on the target (0.2 rad)
+    assert 0.0 < closed["difference"]["load_position_max_abs"] < 0.2
+    assert closed["metrics"]["settling_time_s"] is not None
