@@ -189,7 +189,7 @@ class ClosedLoop:
 
     @cached_property
     def poles(self) -> CArray:
-        return self._eigen[0]
+        return self.eigenbasis[0]
 
     def modes(self) -> tuple[Mode, ...]:
         """The closed loop's oscillatory poles (one of each pair), lowest natural frequency first."""
@@ -205,12 +205,9 @@ class ClosedLoop:
         shift[:, :2] = self.b[:, 1:]
         return c, np.array([d[1], d[2], 0.0]), shift
 
+    @cached_property
     def eigenbasis(self) -> tuple[CArray, CArray, CArray]:
         """(lambda, V, V^-1) with A = V diag(lambda) V^-1."""
-        return self._eigen
-
-    @cached_property
-    def _eigen(self) -> tuple[CArray, CArray, CArray]:
         values, vectors = np.linalg.eig(self.a)
         try:
             inverse = np.linalg.inv(vectors)
@@ -221,7 +218,7 @@ class ClosedLoop:
     def modal(self, name: str) -> ModalOutput:
         """H(s) of output ``name`` in partial fractions (module docstring)."""
         c, d, b = self.rows(name)
-        lam, v, w = self._eigen
+        lam, v, w = self.eigenbasis
         b_r, b_v, b_a = b[:, 0], b[:, 1], b[:, 2]
         drive = w @ b_r + lam * (w @ b_v) + lam * lam * (w @ b_a)
         c_v = c @ v
@@ -234,7 +231,7 @@ class ClosedLoop:
     def _check_partial_fractions(self, name: str, output: ModalOutput, residue_sizes: Array) -> None:
         """Refuse partial fractions that do not reproduce H(s) at a point of the right half-plane (nearly repeated
         poles: eigenvectors nearly parallel), as models.plants does for a transfer function."""
-        lam = self._eigen[0]
+        lam = self.eigenbasis[0]
         s = float(np.max(np.abs(lam))) * (0.5 + 0.5j)
         c, d, columns = self.rows(name)
         b = columns[:, 0] + s * columns[:, 1] + s * s * columns[:, 2]
@@ -428,11 +425,16 @@ def _kinematic_load(
     return x, np.zeros(rows.inputs)
 
 
-def _check_stable(loop: ClosedLoop, drive: Drive) -> None:
-    poles = loop.poles
+def unstable(poles: CArray) -> bool:
+    """A pole right of the imaginary axis, or a real one on it (an integrator), to STABLE_MARGIN (module top)."""
     size = STABLE_MARGIN * np.abs(poles)
     oscillatory = np.abs(poles.imag) > size
-    if not np.any((poles.real > size) | (~oscillatory & (poles.real >= -size))):
+    return bool(np.any((poles.real > size) | (~oscillatory & (poles.real >= -size))))
+
+
+def _check_stable(loop: ClosedLoop, drive: Drive) -> None:
+    poles = loop.poles
+    if not unstable(poles):
         return
     position = "none" if drive.position_kp_per_s is None else f"{drive.position_kp_per_s:g} 1/s"
     gains = f"position kp {position}, velocity kp {drive.velocity.kp:g} ki {drive.velocity.ki:g}"

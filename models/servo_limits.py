@@ -113,7 +113,7 @@ def _machine(mechanics: Plant, drive: Drive, loop: ClosedLoop) -> _Machine:
     motor = drive.motor
     i_max = motor.max_torque_nm / motor.torque_constant_nm_per_a
     v_max = motor.max_voltage_v if drive.current is not None else math.inf  # no voltage loop to clamp without one
-    lam, vectors, inverse = loop.eigenbasis()
+    lam, vectors, inverse = loop.eigenbasis
     integrated = tuple(name for name in OUTPUTS if name in loop.integrated)
     return _Machine(built.a, built.b, built.outputs, integrated, (i_max, v_max), lam, vectors, inverse)
 

@@ -190,39 +190,34 @@ def simulate_drive(mechanics: Plant, drive: Drive, command: PiecewiseCommand) ->
         limited = simulate_limited(mechanics, drive, command, machine.loop, load.modal, machine.load_plant)
     except WorkCapExceeded as exc:
         return dataclasses.replace(linear, note=f"{exc.reason}: the prediction is linear past the limits")
-    v = limited.values
-    return DriveResponse(
-        limited.command.time_s,
-        v["motor_position"],
-        v["motor_velocity"],
-        v["motor_acceleration"],
-        v["current_a"],
-        v["torque_nm"],
-        v["voltage_v"],
-        v["tracking_error"],
-        limited.load,
-        linear.saturation,  # what the command needs through the loop (the clamped loop's own demand winds up)
-        machine.loop.modes(),
-        "limited",
-        limited.free_from,
-    )
+    # the saturation is what the command needs through the loop (the clamped loop's own demand winds up)
+    at_limits = _response(limited.command.time_s, limited.values, limited.load, linear.saturation, linear.modes)
+    return dataclasses.replace(at_limits, simulation="limited", free_from=limited.free_from)
 
 
 def _sampled(mechanics: Plant, drive: Drive, command: PiecewiseCommand) -> DriveResponse:
     run = simulate_sampled(mechanics, drive, command, lambda gain: _LoadStandIn((gain,), (1.0,)))
-    v = run.values
+    saturation = _saturation(drive, run.values, run.time_s)
+    return _response(run.time_s, run.values, run.load, saturation, sampled_loop(mechanics, drive).modes())
+
+
+def _response(
+    time_s: Array, values: dict[str, Array], load: Response, saturation: tuple[Saturation, ...], modes: tuple[Mode, ...]
+) -> DriveResponse:
+    """A DriveResponse of every output by name (models.servo.OUTPUTS)."""
+    v = values
     return DriveResponse(
-        run.time_s,
-        v["motor_position"],
-        v["motor_velocity"],
-        v["motor_acceleration"],
-        v["current_a"],
-        v["torque_nm"],
-        v["voltage_v"],
-        v["tracking_error"],
-        run.load,
-        _saturation(drive, v, run.time_s),
-        sampled_loop(mechanics, drive).modes(),
+        time_s,
+        motor_position=v["motor_position"],
+        motor_velocity=v["motor_velocity"],
+        motor_acceleration=v["motor_acceleration"],
+        current_a=v["current_a"],
+        torque_nm=v["torque_nm"],
+        voltage_v=v["voltage_v"],
+        tracking_error=v["tracking_error"],
+        load=load,
+        saturation=saturation,
+        modes=modes,
     )
 
 

@@ -42,7 +42,7 @@ from models.errors import InvalidParameter
 from models.modal_data import FreeResponse, ModalForm
 from models.plant_base import Mode
 from models.plants import Plant
-from models.servo import REPEATED, STABLE_MARGIN, Drive, assemble, moved_inertia
+from models.servo import REPEATED, Drive, assemble, moved_inertia, unstable
 from models.simulation import Response
 
 Array = NDArray[np.float64]
@@ -147,10 +147,7 @@ def sampled_loop(mechanics: Plant, drive: Drive) -> SampledLoop:
 def _check_stable(loop: SampledLoop, drive: Drive) -> None:
     """As models.servo's check, on the equivalent poles: every |mu| < 1 (an undamped load's mode, on |mu| = 1
     to round-off, as on an ideal motor)."""
-    poles = loop.poles
-    size = STABLE_MARGIN * np.abs(poles)
-    oscillatory = np.abs(poles.imag) > size
-    if not np.any((poles.real > size) | (~oscillatory & (poles.real >= -size))):
+    if not unstable(loop.poles):
         return
     gains = (
         f"position kp {drive.position_kp_per_s:g} 1/s, velocity kp {drive.velocity.kp:g} ki {drive.velocity.ki:g}, "

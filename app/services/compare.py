@@ -18,7 +18,7 @@ from app.presenters import load_json, present
 from app.request_bodies import request_fields
 from app.schemas.compare import DEFAULT_SENSITIVITY, CompareIn
 from app.services import profile as profiles
-from app.services.drive import Criteria, closed_loop_block, refuse_a_second_drive
+from app.services.drive import design_through_drive, refuse_a_second_drive
 from app.settings import Settings
 from models.errors import InvalidParameter
 from optim.compare import ComparedRow, ComparePlan, UnavailableFamily, choose, plan, run_candidates
@@ -76,21 +76,11 @@ def _through_drive(
     ``closed_loop`` summary."""
     assert body.drive is not None
     problem = planned.problem
-    how = Criteria.of(problem)
-    blocks: dict[int, dict[str, Any]] = {}
-    for row in outcomes:  # a loop over the candidates (a few designs)
-        if isinstance(row, ComparedRow):
-            result: Result = row.result
-            blocks[id(row)] = closed_loop_block(
-                body.drive,
-                problem.plant,
-                result.command,
-                result.response,
-                result.metrics,
-                how,
-                problem.max_samples,
-                problem.rigid_reference,
-            )
+    blocks = {
+        id(row): design_through_drive(body.drive, problem, row.result)
+        for row in outcomes  # a loop over the candidates (a few designs)
+        if isinstance(row, ComparedRow)
+    }
 
     def key(row: ComparedRow) -> tuple[float, float]:
         settle = blocks[id(row)]["metrics"]["settling_time_s"]

@@ -27,6 +27,7 @@ from models.servo_sampled import sample_count
 from models.simulation import Response, simulate
 from optim.problem import Problem
 from optim.results import MetricsReport
+from optim.synthesis import Result
 
 
 @dataclass(frozen=True)
@@ -50,6 +51,21 @@ def refuse_a_second_drive(body: ProfileRequest) -> None:
         raise InvalidParameter(
             "drive", "given", "the plant is a closed_loop, already through its drive: give drive with its mechanics"
         )
+
+
+def design_through_drive(drive_in: DriveIn, problem: Problem, result: Result) -> dict[str, Any]:
+    """A design's ``closed_loop`` block: its command through the drive, measured with the problem's criteria, its
+    V over the problem's unshaped rigid command through the same drive (the profile endpoints' and compare's)."""
+    return closed_loop_block(
+        drive_in,
+        problem.plant,
+        result.command,
+        result.response,
+        result.metrics,
+        Criteria.of(problem),
+        problem.max_samples,
+        problem.rigid_reference,
+    )
 
 
 def closed_loop_block(

@@ -16,7 +16,7 @@ import anyio.to_thread
 from app.observability import record_solve
 from app.presenters import answer_body
 from app.schemas.family import ProfileRequest
-from app.services.drive import Criteria, closed_loop_block, refuse_a_second_drive
+from app.services.drive import design_through_drive, refuse_a_second_drive
 from app.settings import Settings
 from models.errors import DomainError, Infeasible, InvalidParameter, NotApplicable
 from optim.family import Family
@@ -82,17 +82,7 @@ async def design(
 def _through_drive(body: ProfileRequest, problem: Problem, result: Result) -> dict[str, Any]:
     """The design's command through ``body.drive`` (app.services.drive), measured with the problem's criteria."""
     assert body.drive is not None
-    how = Criteria.of(problem)
-    return closed_loop_block(
-        body.drive,
-        problem.plant,
-        result.command,
-        result.response,
-        result.metrics,
-        how,
-        problem.max_samples,
-        problem.rigid_reference,
-    )
+    return design_through_drive(body.drive, problem, result)
 
 
 async def _problem_of(body: ProfileRequest, settings: Settings, pool: Executor) -> Problem:

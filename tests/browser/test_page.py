@@ -381,12 +381,10 @@ def test_the_page_loads_without_console_errors_or_failed_requests(page):
     assert not errors and not failed, (errors, failed)
 
 
-def test_a_drive_adds_the_load_through_it_beside_the_ideal_one(page, screenshots):
-    """Cusimano's 8 Hz shaft (J_L = J_M) under the page's default drive (a 20 Hz velocity loop: the machine rings
-    at 7.53 Hz): each row's settling through the drive, the rows ranked by it, and the selected design's load and
-    residual through the drive drawn beside the ideal motor's (the time-optimal command rings there, mrad)."""
+def open_cusimano_shaft_move(page):
+    """The page, ready (its schema loaded), with Cusimano's 8 Hz shaft (J_L = J_M) and a 0.5 rad move at 2 rad/s
+    and 20 rad/s^2."""
     page.goto("/")
-    # the form is ready (its schema loaded): before, its start-up drew the default mode's fields over ours
     expect(page.get_by_role("button", name="Design")).to_be_enabled()
     page.get_by_label("Plant", exact=True).select_option("two_inertia")
     page.fill("#plant-motor_inertia_kgm2", "0.005")
@@ -395,6 +393,13 @@ def test_a_drive_adds_the_load_through_it_beside_the_ideal_one(page, screenshots
     page.get_by_label("Displacement").fill("0.5")
     page.get_by_label("Max velocity").fill("2")
     page.get_by_label("Max acceleration").fill("20")
+
+
+def test_a_drive_adds_the_load_through_it_beside_the_ideal_one(page, screenshots):
+    """Cusimano's 8 Hz shaft (J_L = J_M) under the page's default drive (a 20 Hz velocity loop: the machine rings
+    at 7.53 Hz): each row's settling through the drive, the rows ranked by it, and the selected design's load and
+    residual through the drive drawn beside the ideal motor's (the time-optimal command rings there, mrad)."""
+    open_cusimano_shaft_move(page)
     expect(page.locator("#drive-inputs")).to_be_hidden()
     page.get_by_label("Predict through a servo drive").check()
     expect(page.get_by_label("Velocity loop (Hz)")).to_have_value("20")
@@ -416,15 +421,7 @@ def test_designing_for_the_closed_loop_cancels_the_modes_the_machine_has(page, s
     the load through the drive, so its settling there is its own, the plot says so, and the time-optimal command
     leaves round-off in the loop's modes (against mrad designed for the shaft, above). A drive the loop cannot run
     is refused next to the drive's fields (the API names plant.drive)."""
-    page.goto("/")
-    expect(page.get_by_role("button", name="Design")).to_be_enabled()
-    page.get_by_label("Plant", exact=True).select_option("two_inertia")
-    page.fill("#plant-motor_inertia_kgm2", "0.005")
-    page.fill("#plant-load_inertia_kgm2", "0.005")
-    page.fill("#plant-stiffness_nm_per_rad", "12.633")
-    page.get_by_label("Displacement").fill("0.5")
-    page.get_by_label("Max velocity").fill("2")
-    page.get_by_label("Max acceleration").fill("20")
+    open_cusimano_shaft_move(page)
     page.get_by_label("Predict through a servo drive").check()
     page.get_by_label("Design for the closed loop").check()
     expect(page.locator("#drive-design-note")).to_be_visible()
