@@ -155,6 +155,12 @@ def prepared(mechanics: Plant, drive: Drive) -> ServoMachine:
     return ServoMachine(loop, _LoadStandIn(tuple(num), tuple(den)), {name: loop.modal(name) for name in OUTPUTS})
 
 
+def loop_of(mechanics: Plant, drive: Drive) -> object:
+    """The machine's loop, built and checked (InvalidParameter on ``drive`` where it cannot run: unstable,
+    repeated poles), continuous or sampled."""
+    return sampled_loop(mechanics, drive) if drive.sample_period_s is not None else prepared(mechanics, drive)
+
+
 def simulate_drive(mechanics: Plant, drive: Drive, command: PiecewiseCommand) -> DriveResponse:
     """``command`` through ``drive`` on ``mechanics`` (module docstring): at the command's breakpoints, or at the
     samples of a sampled drive (models.servo_sampled)."""
@@ -186,6 +192,9 @@ def simulate_drive(mechanics: Plant, drive: Drive, command: PiecewiseCommand) ->
     )
     if not linear.saturated:
         return linear
+    if drive.current is None and all(limit.quantity == "voltage_v" for limit in linear.saturation):
+        note = "without a current loop the voltage is what the winding needs, not clamped"
+        return dataclasses.replace(linear, note=f"{note}: the prediction is linear past the voltage limit")
     try:
         limited = simulate_limited(mechanics, drive, command, machine.loop, load.modal, machine.load_plant)
     except WorkCapExceeded as exc:
@@ -198,7 +207,10 @@ def simulate_drive(mechanics: Plant, drive: Drive, command: PiecewiseCommand) ->
 def _sampled(mechanics: Plant, drive: Drive, command: PiecewiseCommand) -> DriveResponse:
     run = simulate_sampled(mechanics, drive, command, lambda gain: _LoadStandIn((gain,), (1.0,)))
     saturation = _saturation(drive, run.values, run.time_s)
-    return _response(run.time_s, run.values, run.load, saturation, sampled_loop(mechanics, drive).modes())
+    answer = _response(run.time_s, run.values, run.load, saturation, sampled_loop(mechanics, drive).modes())
+    if not saturation:
+        return answer
+    return dataclasses.replace(answer, note="a sampled drive's limits are reported, not simulated: linear past them")
 
 
 def _response(

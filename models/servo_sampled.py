@@ -104,6 +104,7 @@ def sampled_loop(mechanics: Plant, drive: Drive) -> SampledLoop:
         )
     built = assemble(mechanics, drive, "held_torque")
     a, b, rows = built.a, built.b, built.outputs
+    _check_nyquist(a, period_s)
     n = a.shape[0]
     augmented = np.zeros((n + 1, n + 1))
     augmented[:n, :n], augmented[:n, n] = a, b[:, 3]
@@ -142,6 +143,20 @@ def sampled_loop(mechanics: Plant, drive: Drive) -> SampledLoop:
     loop = SampledLoop(period_s, f, g, outputs, mu.astype(complex), vectors.astype(complex), inverse.astype(complex))
     _check_stable(loop, drive)
     return loop
+
+
+def _check_nyquist(a: Array, period_s: float) -> None:
+    """Refuse a machine with a mode at or above the Nyquist frequency 1 / (2 T_s): its samples alias it to a lower
+    frequency, and no description at the samples says what the load does."""
+    fastest = float(np.max(np.abs(np.linalg.eigvals(a).imag), initial=0.0))
+    nyquist = math.pi / period_s
+    if fastest >= nyquist:
+        raise InvalidParameter(
+            "drive.sample_period_s",
+            period_s,
+            f"the machine rings at {fastest / (2 * math.pi):.4g} Hz, at or above the sampling's Nyquist frequency "
+            f"{nyquist / (2 * math.pi):.4g} Hz: its samples would alias it; give a shorter sample period",
+        )
 
 
 def _check_stable(loop: SampledLoop, drive: Drive) -> None:

@@ -97,8 +97,16 @@ class MotorIn(StrictModel):
     back_emf_v_s_per_rad: Electrical | None = Field(
         None, description="K_E, V s/rad (default K_T: the same in SI units)."
     )
-    max_torque_nm: Limit | None = Field(None, description="Torque limit: a command that needs more is reported.")
-    max_voltage_v: Limit | None = Field(None, description="Supply voltage limit: reported where exceeded.")
+    max_torque_nm: Limit | None = Field(
+        None,
+        description="Torque limit: the drive clamps its current reference to max_torque_nm / K_T; a command that "
+        "needs more is reported and simulated at the limit (closed_loop.simulation).",
+    )
+    max_voltage_v: Limit | None = Field(
+        None,
+        description="Supply voltage limit: the current loop's output is clamped to it; a command that needs more is "
+        "reported and simulated at the limit (reported only without a current loop or with a sampled drive).",
+    )
     inertia_kgm2: Inertia | None = Field(
         None, description="Motor inertia J_M, kg m^2, needed on plants other than two_inertia (which give it)."
     )

@@ -276,7 +276,8 @@ class ClosedLoopOut(OutModel):
     load: ClosedLoopLoadOut
     tracking_error: list[float] = Field(description="Command position less motor position.")
     metrics: MetricsOut = Field(
-        description="The load's, from the closed loop's state at the command's end; peak_motor_torque_nm is the peak "
+        description="The load's, from the closed loop's state at the command's end (at the drive's limits: from the "
+        "first sample after which it provably stays within them); peak_motor_torque_nm is the peak "
         "of motor.torque_nm; percentage_vibration (on the profile endpoints and compare) is 100 x the residual over "
         "the unshaped rigid command's under the same limits, both through the drive (null on /v1/simulate, as "
         "``metrics``' own)."

@@ -18,10 +18,10 @@ from app.presenters import load_json, present
 from app.request_bodies import request_fields
 from app.schemas.compare import DEFAULT_SENSITIVITY, CompareIn
 from app.services import profile as profiles
-from app.services.drive import design_through_drive, refuse_a_second_drive
+from app.services.drive import SAMPLE_CAP_FIELD, design_through_drive, reference_residuals, refuse_a_second_drive
 from app.settings import Settings
 from models.errors import InvalidParameter
-from optim.compare import ComparedRow, ComparePlan, UnavailableFamily, choose, plan, run_candidates
+from optim.compare import ComparedRow, ComparePlan, UnavailableFamily, choose, plan, reason_of, run_candidates
 from optim.family import Family
 from optim.problem import Problem
 from optim.synthesis import Result
@@ -76,11 +76,17 @@ def _through_drive(
     ``closed_loop`` summary."""
     assert body.drive is not None
     problem = planned.problem
-    blocks = {
-        id(row): design_through_drive(body.drive, problem, row.result)
-        for row in outcomes  # a loop over the candidates (a few designs)
-        if isinstance(row, ComparedRow)
-    }
+    reference = reference_residuals(body.drive, problem)  # V's, once for every design
+    blocks: dict[int, dict[str, Any]] = {}
+    for index, row in enumerate(outcomes):  # a loop over the candidates (a few designs)
+        if not isinstance(row, ComparedRow):
+            continue
+        try:
+            blocks[id(row)] = design_through_drive(body.drive, problem, row.result, reference)
+        except InvalidParameter as exc:  # a design too long for the sampled drive's sample cap: not a row
+            if exc.field != SAMPLE_CAP_FIELD:
+                raise
+            outcomes[index] = UnavailableFamily(row.family.name, reason_of(exc), exc.problem_type)
 
     def key(row: ComparedRow) -> tuple[float, float]:
         settle = blocks[id(row)]["metrics"]["settling_time_s"]

@@ -21,13 +21,14 @@ from models.commands import MIN_STEP_S, PiecewiseCommand
 from models.errors import InvalidParameter
 from models.metrics import Metrics, metrics
 from models.plants import Plant
-from models.servo import Drive
-from models.servo_response import DriveResponse, simulate_drive
+from models.servo_response import DriveResponse, loop_of, simulate_drive
 from models.servo_sampled import sample_count
 from models.simulation import Response, simulate
 from optim.problem import Problem
 from optim.results import MetricsReport
 from optim.synthesis import Result
+
+SAMPLE_CAP_FIELD = "drive.sample_period_s"  # the field a sampled drive's sample cap names
 
 
 @dataclass(frozen=True)
@@ -53,9 +54,14 @@ def refuse_a_second_drive(body: ProfileRequest) -> None:
         )
 
 
-def design_through_drive(drive_in: DriveIn, problem: Problem, result: Result) -> dict[str, Any]:
+def design_through_drive(
+    drive_in: DriveIn, problem: Problem, result: Result, reference: ReferenceResiduals | None = None
+) -> dict[str, Any]:
     """A design's ``closed_loop`` block: its command through the drive, measured with the problem's criteria, its
-    V over the problem's unshaped rigid command through the same drive (the profile endpoints' and compare's)."""
+    V over the problem's unshaped rigid command through the same drive (``reference``: that command's residuals
+    through it, computed once for several designs; default: computed here)."""
+    if reference is None:
+        reference = reference_residuals(drive_in, problem)
     return closed_loop_block(
         drive_in,
         problem.plant,
@@ -64,7 +70,36 @@ def design_through_drive(drive_in: DriveIn, problem: Problem, result: Result) ->
         result.metrics,
         Criteria.of(problem),
         problem.max_samples,
-        problem.rigid_reference,
+        reference,
+    )
+
+
+@dataclass(frozen=True)
+class ReferenceResiduals:
+    """The unshaped rigid command's residuals through the drive (V's reference); None where it has none."""
+
+    position: float | None
+    velocity: float | None
+
+
+def reference_residuals(drive_in: DriveIn, problem: Problem) -> ReferenceResiduals:
+    """The residuals of ``problem.rigid_reference`` through the drive: None where it cannot be run (a sampled
+    drive that would need more than the sample cap for it; a reference the simulation cannot represent, such as
+    a velocity step beside a slow pole) or leaves none. The reference is the problem's, never the user's input:
+    its failure leaves V unknown (null), not the answer."""
+    drive = checked_drive(drive_in, problem.plant)
+    loop_of(problem.plant, drive)  # the drive's own errors (unstable, ...) are the request's
+    command = problem.rigid_reference
+    if drive.sample_period_s is not None and sample_count(command, drive.sample_period_s) > problem.max_samples:
+        return ReferenceResiduals(None, None)
+    try:
+        run = simulate_drive(problem.plant, drive, command)
+        base = metrics(run.load, problem.settling.position_tolerance, free_from=run.free_from)
+    except InvalidParameter:
+        return ReferenceResiduals(None, None)
+    return ReferenceResiduals(
+        base.residual_amplitude if base.residual_amplitude > 0.0 else None,
+        base.residual_velocity_amplitude if base.residual_velocity_amplitude > 0.0 else None,
     )
 
 
@@ -76,15 +111,14 @@ def closed_loop_block(
     ideal_metrics: Metrics,
     how: Criteria,
     max_samples: int,
-    reference: PiecewiseCommand | None = None,
+    reference: ReferenceResiduals | None = None,
 ) -> dict[str, Any]:
     """The ``closed_loop`` block (app.schemas.simulate.ClosedLoopOut), JSON-ready apart from numpy arrays; a
-    sampled drive's at its samples, within ``max_samples``. With ``reference`` (the problem's unshaped rigid
-    command, optim.problem.Problem.rigid_reference) its percentage vibration: the residual through the drive over
-    the reference's through the same drive."""
+    sampled drive's at its samples, within ``max_samples``. With ``reference`` (``reference_residuals``) its
+    percentage vibration: the residual through the drive over the unshaped rigid command's through it."""
     drive = checked_drive(drive_in, plant)
     if drive.sample_period_s is not None:
-        check_sample_count("drive.sample_period_s", sample_count(command, drive.sample_period_s), max_samples)
+        check_sample_count(SAMPLE_CAP_FIELD, sample_count(command, drive.sample_period_s), max_samples)
     run = simulate_drive(plant, drive, command)
     closed = metrics(
         run.load,
@@ -120,7 +154,7 @@ def closed_loop_block(
             "acceleration": run.load.load_acceleration,
         },
         "tracking_error": run.tracking_error,
-        "metrics": metrics_json(MetricsReport(closed, _percentage(plant, drive, closed, reference, how, max_samples))),
+        "metrics": metrics_json(MetricsReport(closed, _percentage(closed, reference))),
         "saturated": run.saturated,
         "saturation": [vars(s) for s in run.saturation],
         "simulation": run.simulation,
@@ -163,20 +197,13 @@ def _ideal_at(ideal: Response, run: DriveResponse) -> NDArray[np.float64]:
     return load[nearest]
 
 
-def _percentage(
-    plant: Plant, drive: Drive, closed: Metrics, reference: PiecewiseCommand | None, how: Criteria, max_samples: int
-) -> float | None:
-    """V through the drive: 100 x the load's residual over the unshaped rigid command's, both through ``drive``
-    (position residuals at rest, velocity residuals for rest-to-velocity: the reference's kind of move); None
-    without a reference, where the reference leaves none, or where a sampled drive would need more than
-    ``max_samples`` samples for it."""
+def _percentage(closed: Metrics, reference: ReferenceResiduals | None) -> float | None:
+    """V through the drive: 100 x the load's residual over the unshaped rigid command's, both through the drive
+    (position residuals at rest, velocity residuals for rest-to-velocity: the reference is the same kind of move);
+    None without a reference residual."""
     if reference is None:
         return None
-    if drive.sample_period_s is not None and sample_count(reference, drive.sample_period_s) > max_samples:
-        return None  # (the step reference spans a second: more samples than the cap allows)
-    run = simulate_drive(plant, drive, reference)
-    base = metrics(run.load, how.position_tolerance, free_from=run.free_from)
-    moving = closed.settling.quantity == "velocity"  # a rest-to-velocity move (its reference is one too)
+    moving = closed.settling.quantity == "velocity"
+    theirs = reference.velocity if moving else reference.position
     ours = closed.residual_velocity_amplitude if moving else closed.residual_amplitude
-    theirs = base.residual_velocity_amplitude if moving else base.residual_amplitude
-    return 100.0 * ours / theirs if theirs > 0.0 else None
+    return None if theirs is None else 100.0 * ours / theirs

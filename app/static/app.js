@@ -550,6 +550,7 @@ const DERIVATIVE = { position: "velocity", velocity: "acceleration", acceleratio
 function onProfileTimes(time, closedTime, values) {
   if (!closedTime || (closedTime.length === time.length && closedTime[0] === time[0]
       && closedTime[closedTime.length - 1] === time[time.length - 1])) return values;
+  if (closedTime.length < 2) return time.map((t) => (t === closedTime[0] ? values[0] : null));
   let j = 0;
   return time.map((t) => {
     if (t < closedTime[0] || t > closedTime[closedTime.length - 1]) return null;
@@ -1155,6 +1156,11 @@ $("coordinate").addEventListener("change", () => { syncForm(); drawMotion(); dra
 $("robustness").addEventListener("change", syncForm);
 $("drive-on").addEventListener("change", syncForm);
 $("drive-design").addEventListener("change", () => { syncForm(); analysePlant(); });
+// designed for the loop, the modes shown are the loop's: they follow the drive's fields
+$("drive-on").addEventListener("change", () => { if ($("drive-design").checked) analysePlant(); });
+$("drive-inputs").addEventListener("change", (event) => {
+  if (event.target.id !== "drive-design" && $("drive-design").checked && $("drive-on").checked) analysePlant();
+});
 $("tradeoff-button").addEventListener("click", computeTradeoff);
 for (const radio of form.elements.move) radio.addEventListener("change", syncForm);
 $("quantity").addEventListener("change", drawMotion);

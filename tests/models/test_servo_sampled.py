@@ -163,3 +163,13 @@ def test_an_unstable_sampled_loop_and_a_velocity_mode_one_are_refused():
     with pytest.raises(InvalidParameter) as refused:
         simulate_drive(SPRING, velocity_mode, jerk_command())
     assert refused.value.field == "drive.position_loop"
+
+
+def test_a_mode_above_the_nyquist_frequency_is_refused():
+    """A 900 Hz mode sampled every 1 ms (Nyquist 500 Hz) would alias to 100 Hz at the samples: refused, named."""
+    motor = Motor(1.0, 1e-3, 10.0, inertia_kgm2=0.5)
+    drive = Drive(2 * math.pi * 8, velocity_pi(40, 0.5), None, motor, sample_period_s=1e-3)
+    with pytest.raises(InvalidParameter) as refused:
+        simulate_drive(ModePlant(900.0, 0.01), drive, jerk_command())
+    assert refused.value.field == "drive.sample_period_s" and "Nyquist" in refused.value.rule
+    simulate_drive(ModePlant(400.0, 0.01), drive, jerk_command())  # below it: answered
