@@ -219,3 +219,15 @@ def test_a_drive_still_at_its_limit_when_the_command_ends_is_followed_past_the_e
     assert closed["load"]["position"][-1] == pytest.approx(0.2, abs=0.01)  # back on the target (0.2 rad)
     assert 0.0 < closed["difference"]["load_position_max_abs"] < 0.2
     assert closed["metrics"]["settling_time_s"] is not None
+
+
+def test_a_reference_the_drive_cannot_run_leaves_v_unknown_not_the_answer(client):
+    """Rest-to-velocity without an acceleration limit: V's reference is a velocity step, which the simulation
+    refuses beside the loop's slow pole. That is the service's reference, not the user's design: the design is
+    answered through the drive, with V null."""
+    body = {"plant": CUSIMANO, "target_velocity": 2.0, "shaper": "zv", "drive": SOFT}
+    answer = client.post("/v1/profiles/input-shaped", json=body)
+    assert answer.status_code == 200, answer.text
+    closed = answer.json()["closed_loop"]
+    assert closed["metrics"]["percentage_vibration"] is None
+    assert closed["metrics"]["residual_velocity_amplitude"] >= 0.0
