@@ -321,6 +321,7 @@ function buildDrive() {
   const inertia = numberOrNull("drive-inertia");
   if (inertia !== null) motor.inertia_kgm2 = inertia;
   return {
+    sample_period_s: numberOrNull("drive-period"),
     position_loop: loop("drive-position"), velocity_loop: loop("drive-velocity") || {},
     current_loop: loop("drive-current"), motor,
   };

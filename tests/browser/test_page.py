@@ -441,3 +441,34 @@ def test_designing_for_the_closed_loop_cancels_the_modes_the_machine_has(page, s
     page.get_by_label("Position loop (Hz)").fill("15")
     page.get_by_role("button", name="Design").click()
     expect(page.locator("#err-drive")).to_contain_text("unstable")
+
+
+def test_a_sampled_drive_is_drawn_from_its_samples(page):
+    """A drive whose loops run every 2 ms: its closed-loop arrays are at its samples, not the profile's times. The
+    dashed series is drawn on the profile's times, equal to the drive's own values wherever the two grids meet
+    and between them on the line joining its samples."""
+    open_cusimano_shaft_move(page)
+    page.get_by_label("Predict through a servo drive").check()
+    page.get_by_label("Sample period of the position and velocity loops (s; empty: continuous)").fill("0.002")
+    page.get_by_role("button", name="Design").click()
+    wait_until_done(page)
+    page.locator("#compare-table tbody tr", has_text="Time-optimal").first.click()
+    check = page.evaluate(
+        """() => {
+        const closed = selected.curves.closed_loop_load, profile = selected.curves.profile.time_s;
+        const drawn = motionPlot.data[3], factor = motionPlot.unitScale.factor;
+        let worst = 0, met = 0, drawnCount = 0;
+        for (let i = 0; i < profile.length; i++) {
+          if (drawn[i] !== null) drawnCount += 1;
+          const j = closed.time_s.indexOf(profile[i]);
+          if (j >= 0 && drawn[i] !== null) {
+            met += 1;
+            worst = Math.max(worst, Math.abs(drawn[i] / factor - closed.position[j]));
+          }
+        }
+        const step = closed.time_s[1] - closed.time_s[0];
+        return { worst, met, drawnCount, samples: closed.time_s.length, step, profile: profile.length };
+    }"""
+    )
+    assert abs(check["step"] - 0.002) < 1e-12 and check["samples"] != check["profile"], check
+    assert check["met"] >= 10 and check["worst"] <= 1e-12 and check["drawnCount"] >= check["profile"] - 1, check
