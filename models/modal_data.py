@@ -85,3 +85,16 @@ class FreeResponse:
         assert self.s is not None
         largest = max(float(self.s.max()), -float(self.s.min()), abs(self.s_before))
         return abs(self.gain) * (1.0 + abs(self.decay)) * largest
+
+
+def partial_fraction_taylor(
+    polynomial: tuple[float, ...], residues: NDArray[np.complex128], poles: NDArray[np.complex128], count: int
+) -> NDArray[np.float64]:
+    """The first ``count`` Taylor coefficients at 0 of P0 + P1 s + P2 s^2 + sum_j rho_j / (s - lambda_j) over every
+    pole: g_m = P_m - Re sum_j rho_j / lambda_j^(m+1)."""
+    orders = np.arange(count)
+    taylor = np.zeros(count)
+    size = min(count, len(polynomial))
+    taylor[:size] = polynomial[:size]
+    taylor -= np.real(np.sum(residues[:, None] / poles[:, None] ** (orders[None, :] + 1), axis=0))
+    return taylor

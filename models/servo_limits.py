@@ -27,13 +27,14 @@ import itertools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
 from models.commands import PiecewiseCommand
-from models.modal_data import FreeResponse, ModalForm
+from models.modal_data import FreeResponse, ModalForm, partial_fraction_taylor
 from models.plants import Plant
 from models.servo import OUTPUTS, ClosedLoop, Drive, assemble
 from models.simulation import Response
@@ -94,11 +95,17 @@ class _Machine:
         dv = np.clip(demanded_v, -v_max, v_max) - demanded_v
         return demanded_i, demanded_v, di, dv
 
+    @cached_property
+    def modal_input(self) -> tuple[CArray, CArray]:
+        """w b (each pole's input from r, r', r'') and alpha = w (b_r + lambda b_v + lambda^2 b_a)."""
+        lam = self.lam
+        wb = self.inverse @ self.b[:, :3]
+        return wb, wb[:, 0] + lam * wb[:, 1] + lam * lam * wb[:, 2]
+
     def particular(self, derivatives: Array) -> CArray:
         """q_p at each column of p, p', ... (module docstring)."""
         lam = self.lam
-        wb = self.inverse @ self.b[:, :3]
-        alpha = wb[:, 0] + lam * wb[:, 1] + lam * lam * wb[:, 2]
+        wb, alpha = self.modal_input
         r = derivatives
         orders = np.zeros((3, r.shape[1]))
         orders[: min(3, r.shape[0])] = r[:3]
@@ -118,7 +125,9 @@ def _machine(mechanics: Plant, drive: Drive, loop: ClosedLoop) -> _Machine:
     return _Machine(built.a, built.b, built.outputs, integrated, (i_max, v_max), lam, vectors, inverse)
 
 
-def _rates(machine: _Machine, command: PiecewiseCommand, counter: list[int]) -> Callable[[float, Array], Array]:
+def _rates(
+    machine: _Machine, command: PiecewiseCommand, first: int, counter: list[int]
+) -> Callable[[float, Array], Array]:
     """The right-hand side at t: z = (x, the integrated positions), z' = A_z z + B_z c + b_i di + b_V dV with c the
     command's (r, r', r'') on its piece (a table of each piece's coefficients: one product per call)."""
     a, b = machine.a, machine.b
@@ -134,13 +143,13 @@ def _rates(machine: _Machine, command: PiecewiseCommand, counter: list[int]) -> 
     rows_c = np.vstack([machine.rows["current_reference"][1][:3], machine.rows["voltage_demand"][1][:3]])
     v_from_i = float(machine.rows["voltage_demand"][1][3])
     i_max, v_max = machine.limits
-    time = command.time_s.tolist()
+    time = command.time_s[first:].tolist()  # the pieces from ``first`` on: those integrated
     degree = command.degree
     # coefficients[k, m, j]: p^(m)(t_k + tau) = sum_j coefficients[k, m, j] tau^j, m < 3
     coefficients = np.zeros((len(time), 3, degree + 1))
     for m in range(min(3, degree + 1)):  # a loop over orders
         for j in range(degree + 1 - m):
-            coefficients[:, m, j] = command.derivatives[m + j] / math.factorial(j)
+            coefficients[:, m, j] = command.derivatives[m + j, first:] / math.factorial(j)
     exponents = np.arange(degree + 1)
 
     def rhs(t: float, z: Array) -> Array:
@@ -175,7 +184,7 @@ def _integrate(
     machine: _Machine, command: PiecewiseCommand, start: Array, first: int, counter: list[int], atol: float
 ) -> Array:
     """The state at every breakpoint from ``first`` on (columns), from ``start`` at breakpoint ``first``."""
-    rhs = _rates(machine, command, counter)
+    rhs = _rates(machine, command, first, counter)
     time = command.time_s
     jumps = command.jumps()[:3]
     restarts = [first, *(int(k) for k in np.flatnonzero(np.any(jumps[:, first + 1 :] != 0.0, axis=0)) + first + 1)]
@@ -262,6 +271,9 @@ def simulate_limited(
             continue
         row, d = machine.rows[name]
         values[name] = row @ x + d[:3] @ c + d[3] * di + d[4] * dv
+    if drive.current is None:  # the torque is the clamped reference: K_T (T_max / K_T) is T_max up to round-off
+        limit = drive.motor.max_torque_nm
+        values["torque_nm"] = np.clip(values["torque_nm"], -limit, limit)
     motion = _load_motion(machine, x, command.derivatives, (demanded_i, demanded_v, di, dv))
     load = _load(machine, loop, command, (values["load_position"], *motion), h, load_modal, plant, int(found[0]))
     return LimitedRun(command, values, load, int(found[0]))
@@ -292,15 +304,9 @@ def _load_motion(
 
 
 def _quasi_static(loop: ClosedLoop, name: str, before: Array) -> float:
-    """An integrated output's value at rest in the motion before the command, sum_m g_m p^(m)(t_0-), with
-    g_m = P_m - sum_j rho_j / lambda_j^(m+1) (models.servo_response.modal_form)."""
+    """An integrated output's value at rest in the motion before the command, sum_m g_m p^(m)(t_0-)."""
     output = loop.modal(name)
-    orders = np.arange(before.size)
-    polynomial = np.zeros(before.size)
-    polynomial[: min(3, before.size)] = output.polynomial[: min(3, before.size)]
-    lam = loop.poles
-    taylor = polynomial - np.real(np.sum(output.residues[:, None] / lam[:, None] ** (orders[None, :] + 1), axis=0))
-    return float(taylor @ before)
+    return float(partial_fraction_taylor(output.polynomial, output.residues, loop.poles, before.size) @ before)
 
 
 def _load(
@@ -322,8 +328,7 @@ def _load(
     row = machine.rows["load_position"][0]
     kappa = 1.0 / lam if "load_position" in machine.integrated else np.ones_like(lam)
     residues = (row @ machine.vectors) * kappa
-    wb = machine.inverse @ machine.b[:, :3]
-    alpha = wb[:, 0] + lam * wb[:, 1] + lam * lam * wb[:, 2]
+    alpha = machine.modal_input[1]
     orders = np.arange(command.degree + 1)
     pole_taylor = -alpha[:, None] / lam[:, None] ** (orders[None, :] + 1)
     flat = np.abs(lam.imag) <= _REAL_POLE_TOLERANCE * np.abs(lam)

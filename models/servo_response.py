@@ -25,6 +25,7 @@ from numpy.typing import NDArray
 
 from models.commands import PiecewiseCommand
 from models.errors import InvalidParameter
+from models.modal_data import partial_fraction_taylor
 from models.plant_base import Mode
 from models.plants import Plant, TransferFunctionPlant
 from models.servo import OUTPUTS, ClosedLoop, Drive, ModalOutput, closed_loop
@@ -76,11 +77,7 @@ class DriveResponse:
 def modal_form(poles: CArray, output: ModalOutput, taylor_count: int) -> ModalForm:
     """models.simulation's ModalForm of ``output``: its Taylor coefficients at 0, g_m = P_m - sum_j rho_j /
     lambda_j^(m+1) (over every pole), and one entry per real pole or conjugate pair."""
-    orders = np.arange(taylor_count)
-    polynomial = np.zeros(taylor_count)
-    size = min(taylor_count, 3)
-    polynomial[:size] = output.polynomial[:size]
-    taylor = polynomial - np.real(np.sum(output.residues[:, None] / poles[:, None] ** (orders[None, :] + 1), axis=0))
+    taylor = partial_fraction_taylor(output.polynomial, output.residues, poles, taylor_count)
     flat = np.abs(poles.imag) <= _REAL_POLE_TOLERANCE * np.abs(poles)
     keep = flat | (poles.imag > 0.0)  # one pole of each conjugate pair, and every real pole
     chosen = np.where(flat, poles.real + 0j, poles)[keep]

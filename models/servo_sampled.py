@@ -31,6 +31,7 @@ import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
@@ -65,6 +66,12 @@ class SampledLoop:
     mu: CArray
     vectors: CArray
     inverse: CArray
+
+    @cached_property
+    def modal_input(self) -> CArray:
+        """V^-1 G: each pole's input from the command's r, r', r''."""
+        product: CArray = self.inverse @ self.g
+        return product
 
     @property
     def flat(self) -> NDArray[np.bool_]:
@@ -190,7 +197,7 @@ def _pole_taylor(loop: SampledLoop, count: int) -> CArray:
             acc += series[:, n - i] / math.factorial(i)
         series[:, n] = -acc / (1.0 - mu)
     series *= period ** np.arange(count)[None, :]  # in powers of s
-    weights = loop.inverse @ loop.g  # (poles, 3): the input of r, r', r''
+    weights = loop.modal_input  # (poles, 3): the input of r, r', r''
     taylor = np.zeros((mu.size, count), dtype=complex)
     for order in range(3):  # s^order multiplies the input of the command's order-th derivative
         taylor[:, order:] += weights[:, order : order + 1] * series[:, : count - order]
@@ -227,7 +234,7 @@ def simulate_sampled(
     before = np.array([command.before(m) for m in range(count)])
     drive_q = np.empty((loop.mu.size, grid.size), dtype=complex)
     drive_q[:, 0] = taylor @ before  # at rest in the motion before the command: h = 0 at t_0-
-    drive_q[:, 1:] = (loop.inverse @ loop.g) @ inputs[:, :-1]
+    drive_q[:, 1:] = loop.modal_input @ inputs[:, :-1]
     q = np.empty_like(drive_q)
     for j, mu in enumerate(loop.mu):  # a loop over poles
         q[j] = lfilter([1.0], [1.0, -mu], drive_q[j])
