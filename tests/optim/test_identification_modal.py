@@ -162,6 +162,22 @@ def test_jitter_is_interpolated_and_a_gap_refused():
     assert info.value.field == "time_s[50]" and "gap" in info.value.rule
 
 
+def test_rounded_timestamps_are_a_uniform_record():
+    """Klipper's ACCELEROMETER_MEASURE prints times as %.6f: at 3200 Hz the steps read 312 and 313 us (their median,
+    313 us, is 3194.9 Hz; the issue saw 3205.13 Hz). Each printed time is within 0.5 us of the true grid, so the
+    record is the uniform one, its period the least-squares slope: its error is about 0.29 us sqrt(12 / n^3) =
+    4e-13 s for n = 12,800 (1e-9 relative; bound 1e-7), and nothing is interpolated."""
+    rate = 3200.0
+    t = 1234.567891 + np.arange(12_800) / rate
+    printed = np.array([float(f"{x:.6f}") for x in t])
+    dt, _, resampled = uniform_record(printed, np.sin(t)[None, :])
+    assert not resampled and dt == pytest.approx(1 / rate, rel=1e-7)
+    lines = "\n".join(f"{x:.6f},{a:.3f},{b:.3f},{c:.3f}" for x, (a, b, c) in zip(t, free_vibration(t - t[0]).T))
+    result = identify_modes(parse_record_csv("#time,accel_x,accel_y,accel_z\n" + lines, max_rows=20_000))
+    assert not result.resampled and result.sample_rate_hz == pytest.approx(rate, rel=1e-7)
+    assert not any("not uniform" in w for w in result.warnings)
+
+
 def test_pure_noise_and_constant_records_are_refused():
     rng = np.random.default_rng(2)
     t = np.arange(2000) / RATE_HZ
