@@ -1,0 +1,272 @@
+"""Klipper's resonance calibration, and a firmware shaper never worse than its pick by its own criteria.
+
+Klipper's criteria (klippy/extras/shaper_calibrate.py at Klipper3d/klipper 84104bbbd, master of 2026-08-07; the
+formulas are those of v0.13.0, the selection rules gained a tolerance, a dominance pass and a zv override since),
+for a shaper of amplitudes A_i (sum D) and times T_i over a measured acceleration PSD p(f), f <= 200 Hz:
+
+- V(f, zeta) = |sum_i A_i e^(-zeta w (T_last - T_i)) e^(j w_d T_i)| / D, the residual of a damped oscillator
+  (``_estimate_shaper``);
+- remaining vibrations = sum_f max(V p - p_max / 20, 0) / sum_f max(p - p_max / 20, 0), at its worst over the
+  printer's damping ratios 0.075, 0.1 and 0.15 (``_estimate_remaining_vibrations``);
+- smoothing (mm) = max(sqrt 2 / D sum_(T_i >= t_s) A_i (scv + a/2 (T_i - t_s)) (T_i - t_s),
+  1 / D sum_i A_i a/2 (T_i - t_s)^2) at a = 5000 mm/s^2, t_s = sum A_i T_i / D (``_get_shaper_smoothing``);
+- max_accel (mm/s^2): the largest a whose smoothing is <= 0.12 mm (``find_shaper_max_accel``; both terms are
+  affine in a, so it is solved in closed form where Klipper bisects to 1e-8 mm/s^2);
+- score = smoothing (vibrations^1.5 + 0.2 vibrations + 0.01) (``fit_shaper``).
+
+Candidates: each type from its min_freq (shaper_defs.INPUT_SHAPERS) to 150 Hz (excluded) every 0.2 Hz, shaper
+damping 0.1. The arrays are evaluated once; Klipper's pick (``klipper_pick``: fit_shaper's and find_best_shaper's
+rules) and ours (``dominating_pick``) are read from them.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from models.shapers import ImpulseSequence
+
+Array = NDArray[np.float64]
+ImpulsesOf = Callable[[str, float, float], ImpulseSequence]
+
+KLIPPER_TYPES = ("zv", "mzv", "ei", "2hump_ei", "3hump_ei")  # AUTOTUNE_SHAPERS, tried in this order
+MIN_FREQ_HZ = {"zv": 21.0, "mzv": 23.0, "zvd": 29.0, "ei": 29.0, "2hump_ei": 39.0, "3hump_ei": 48.0}
+MAX_SHAPER_FREQ_HZ = 150.0  # MAX_SHAPER_FREQ: the candidates' end (excluded)
+FREQ_STEP_HZ = 0.2
+MAX_PSD_FREQ_HZ = 200.0  # MAX_FREQ: the PSD's bins above it are not scored
+TEST_DAMPING_RATIOS = (0.075, 0.1, 0.15)
+SHAPER_DAMPING_RATIO = 0.1  # shaper_defs.DEFAULT_DAMPING_RATIO
+VIBRATION_REDUCTION = 20.0  # shaper_defs.SHAPER_VIBRATION_REDUCTION
+SMOOTHING_ACCEL_MM_S2 = 5000.0
+TARGET_SMOOTHING_MM = 0.12
+DEFAULT_SCV_MM_S = 5.0  # calibrate_shaper.py's --scv default (SHAPER_CALIBRATE uses square_corner_velocity)
+WINDOW_S = 0.5  # WINDOW_T_SEC: the Welch segment's target length
+KAISER_BETA = 6.0
+NORMALIZE_BELOW_HZ = 10.0  # 2 MIN_FREQ
+MAX_BINS = 8192  # PSD bins scored at most (units of work: candidates x bins x impulses)
+
+
+@dataclass(frozen=True)
+class Scores:
+    """One shaper type's candidates under Klipper's criteria, one entry per frequency (increasing)."""
+
+    kind: str
+    frequency_hz: Array
+    damping_ratio: float
+    impulses: tuple[ImpulseSequence, ...]
+    vibrations: Array  # remaining share, 0..1
+    smoothing_mm: Array
+    max_accel_mm_s2: Array
+
+    @property
+    def score(self) -> Array:
+        v = self.vibrations
+        return self.smoothing_mm * (v**1.5 + 0.2 * v + 0.01)
+
+
+@dataclass(frozen=True)
+class Pick:
+    """One candidate: its type's scores and the frequency's index."""
+
+    scores: Scores
+    index: int
+
+    @property
+    def kind(self) -> str:
+        return self.scores.kind
+
+    @property
+    def frequency_hz(self) -> float:
+        return float(self.scores.frequency_hz[self.index])
+
+    @property
+    def vibrations(self) -> float:
+        return float(self.scores.vibrations[self.index])
+
+    @property
+    def smoothing_mm(self) -> float:
+        return float(self.scores.smoothing_mm[self.index])
+
+    @property
+    def max_accel_mm_s2(self) -> float:
+        return float(self.scores.max_accel_mm_s2[self.index])
+
+    @property
+    def score(self) -> float:
+        return float(self.scores.score[self.index])
+
+    @property
+    def impulses(self) -> ImpulseSequence:
+        return self.scores.impulses[self.index]
+
+
+# --- the PSD -----------------------------------------------------------------------------------------------------
+
+
+def klipper_psd(time_s: Array, accel: Array) -> tuple[Array, Array]:
+    """(frequencies, PSD per axis (axes, bins)) as calc_freq_response computes them: fs = N / (t_last - t_0),
+    Welch over segments of 2^bitlen(int(fs WINDOW_S - 1)) samples, half overlap, each segment's mean removed, a
+    symmetric Kaiser window (beta 6), density scaling, one-sided (scipy.signal.welch with those settings)."""
+    from scipy.signal import welch
+
+    n = time_s.size
+    fs = n / float(time_s[-1] - time_s[0])
+    segment = 1 << int(fs * WINDOW_S - 1).bit_length()
+    if n <= segment:
+        raise ValueError(f"{n} samples: Klipper's PSD needs more than one segment of {segment}")
+    window = np.kaiser(segment, KAISER_BETA)
+    frequency, psd = welch(accel, fs=fs, window=window, noverlap=segment // 2, detrend="constant", axis=-1)
+    return np.asarray(frequency, float), np.atleast_2d(np.asarray(psd, float))
+
+
+def normalized(frequency_hz: Array, psd: Array) -> Array:
+    """CalibrationData.normalize_to_frequencies: p / (f + 0.1), and below 10 Hz times e^(1 - (10 / (f + 0.1))^2)."""
+    out = psd / (frequency_hz + 0.1)
+    low = frequency_hz < NORMALIZE_BELOW_HZ
+    out[..., low] *= np.exp(1.0 - (NORMALIZE_BELOW_HZ / (frequency_hz[low] + 0.1)) ** 2)
+    return out
+
+
+# --- the criteria, vectorised over candidates (rows) --------------------------------------------------------------
+
+
+def shaper_response(amplitudes: Array, times_s: Array, zeta: float, frequency_hz: Array) -> Array:
+    """V (candidates, bins): the residual of a damped oscillator at each frequency after each candidate's impulses."""
+    omega = 2.0 * math.pi * frequency_hz
+    omega_d = omega * math.sqrt(1.0 - zeta * zeta)
+    lag = times_s[:, -1:] - times_s  # (k, m)
+    weight = amplitudes[:, None, :] * np.exp(-zeta * omega[None, :, None] * lag[:, None, :])
+    phase = omega_d[None, :, None] * times_s[:, None, :]
+    s = np.sum(weight * np.sin(phase), axis=-1)
+    c = np.sum(weight * np.cos(phase), axis=-1)
+    return np.hypot(s, c) / np.sum(amplitudes, axis=1, keepdims=True)
+
+
+def remaining_vibrations(response: Array, psd: Array) -> Array:
+    """The share of the PSD above p_max / 20 the shaper leaves (candidates,)."""
+    threshold = float(np.max(psd)) / VIBRATION_REDUCTION
+    every = float(np.sum(np.maximum(psd - threshold, 0.0)))
+    left = np.sum(np.maximum(response * psd - threshold, 0.0), axis=1)
+    return np.asarray(left / every if every > 0 else np.zeros_like(left), float)
+
+
+def _smoothing_terms(amplitudes: Array, times_s: Array, scv_mm_s: float) -> tuple[Array, Array, Array]:
+    """(c90, s90, s180): the 90-degree offset is c90 + a s90, the 180-degree one a s180 (mm, a in mm/s^2)."""
+    total = np.sum(amplitudes, axis=1)
+    shift = np.sum(amplitudes * times_s, axis=1) / total
+    tau = times_s - shift[:, None]
+    after = tau >= 0.0
+    c90 = math.sqrt(2.0) * np.sum(np.where(after, amplitudes * scv_mm_s * tau, 0.0), axis=1) / total
+    s90 = math.sqrt(2.0) * np.sum(np.where(after, amplitudes * 0.5 * tau * tau, 0.0), axis=1) / total
+    s180 = np.sum(amplitudes * 0.5 * tau * tau, axis=1) / total
+    return c90, s90, s180
+
+
+def smoothing_mm(amplitudes: Array, times_s: Array, accel_mm_s2: float, scv_mm_s: float) -> Array:
+    c90, s90, s180 = _smoothing_terms(amplitudes, times_s, scv_mm_s)
+    return np.asarray(np.maximum(c90 + accel_mm_s2 * s90, accel_mm_s2 * s180), float)
+
+
+def max_acceleration(amplitudes: Array, times_s: Array, scv_mm_s: float) -> Array:
+    """The largest a with smoothing <= 0.12 mm: min((0.12 - c90) / s90, 0.12 / s180), 0 where c90 > 0.12."""
+    c90, s90, s180 = _smoothing_terms(amplitudes, times_s, scv_mm_s)
+    with np.errstate(divide="ignore"):
+        by90 = np.where(s90 > 0, (TARGET_SMOOTHING_MM - c90) / np.where(s90 > 0, s90, 1.0), np.inf)
+        by180 = np.where(s180 > 0, TARGET_SMOOTHING_MM / np.where(s180 > 0, s180, 1.0), np.inf)
+    return np.asarray(np.maximum(np.minimum(by90, by180), 0.0), float)
+
+
+def candidate_frequencies(kind: str, low_hz: float | None = None, high_hz: float = MAX_SHAPER_FREQ_HZ) -> Array:
+    """fit_shaper's grid: np.arange(min_freq, 150, 0.2) (end excluded), from ``low_hz`` where a firmware's
+    range starts higher."""
+    start = max(MIN_FREQ_HZ.get(kind, MIN_FREQ_HZ["zv"]), low_hz or 0.0)
+    return np.arange(start, high_hz, FREQ_STEP_HZ)
+
+
+def evaluate(
+    kind: str,
+    impulses_of: ImpulsesOf,
+    frequency_hz: Array,
+    psd: Array,
+    scv_mm_s: float = DEFAULT_SCV_MM_S,
+    candidates_hz: Array | None = None,
+    damping_ratio: float = SHAPER_DAMPING_RATIO,
+) -> Scores:
+    """Klipper's criteria for ``kind`` (built by ``impulses_of(kind, f, zeta)``) at each candidate frequency over
+    the PSD's bins up to 200 Hz."""
+    grid = candidate_frequencies(kind) if candidates_hz is None else candidates_hz
+    keep = frequency_hz <= max(MAX_PSD_FREQ_HZ, float(grid[-1]) if grid.size else 0.0)
+    bins, p = frequency_hz[keep], psd[keep]
+    sequences = tuple(impulses_of(kind, float(f), damping_ratio) for f in grid)
+    a = np.array([s.amplitudes for s in sequences], dtype=float)
+    t = np.array([s.times_s for s in sequences], dtype=float)
+    vibrations = np.max([remaining_vibrations(shaper_response(a, t, z, bins), p) for z in TEST_DAMPING_RATIOS], axis=0)
+    return Scores(
+        kind=kind,
+        frequency_hz=np.asarray(grid, float),
+        damping_ratio=damping_ratio,
+        impulses=sequences,
+        vibrations=vibrations,
+        smoothing_mm=smoothing_mm(a, t, SMOOTHING_ACCEL_MM_S2, scv_mm_s),
+        max_accel_mm_s2=max_acceleration(a, t, scv_mm_s),
+    )
+
+
+# --- the picks ----------------------------------------------------------------------------------------------------
+
+
+def klipper_fit(scores: Scores) -> Pick:
+    """fit_shaper's choice for one type: the frequency of least vibrations (scanned from the highest: a tie keeps
+    the higher), then the one of least score among those within 1.1 x + 0.0005 of it (scanned from the lowest)."""
+    v, score = scores.vibrations, scores.score
+    best = int(v.size - 1 - np.argmin(v[::-1]))
+    selected = best
+    for k in range(v.size):
+        if v[k] < v[best] * 1.1 + 0.0005 and score[k] < score[selected]:
+            selected = k
+    return Pick(scores, selected)
+
+
+def klipper_pick(types: Sequence[Scores]) -> tuple[Pick, list[Pick]]:
+    """find_best_shaper's choice over the types in order (its rules without max_vibrations: a type wins on a
+    20 % better score, or a 5 % better score with 10 % less smoothing; then any of its frequencies with both fewer
+    vibrations and less smoothing; a zv winner gives way to the first type with 10 % fewer vibrations), and each
+    type's own pick."""
+    best: Pick | None = None
+    each: list[Pick] = []
+    for scores in types:
+        pick = klipper_fit(scores)
+        if (
+            best is None
+            or pick.score * 1.2 < best.score
+            or (pick.score * 1.05 < best.score and pick.smoothing_mm * 1.1 < best.smoothing_mm)
+        ):
+            best = pick
+        for k in range(scores.frequency_hz.size):
+            if scores.vibrations[k] < best.vibrations and scores.smoothing_mm[k] < best.smoothing_mm:
+                best = pick = Pick(scores, k)
+        each.append(pick)
+    assert best is not None, "no shaper type"
+    if best.kind == "zv":
+        best = next((p for p in each if p.kind != "zv" and p.vibrations * 1.1 < best.vibrations), best)
+    return best, each
+
+
+def dominating_pick(types: Sequence[Scores], reference: Pick) -> Pick:
+    """Of every candidate whose max_accel is at least the reference's: the fewest remaining vibrations, then the
+    highest max_accel (the reference itself qualifies when it is among them, so the pick is never worse by
+    either criterion; where it is not, any at least as fast)."""
+    best: Pick | None = None
+    for scores in types:
+        ok = np.flatnonzero(scores.max_accel_mm_s2 >= reference.max_accel_mm_s2 * (1 - 1e-12))
+        if ok.size == 0:
+            continue
+        order = np.lexsort((-scores.max_accel_mm_s2[ok], scores.vibrations[ok]))
+        pick = Pick(scores, int(ok[order[0]]))
+        if best is None or (pick.vibrations, -pick.max_accel_mm_s2) < (best.vibrations, -best.max_accel_mm_s2):
+            best = pick
+    return best or reference

@@ -1,0 +1,79 @@
+"""The CSV formats a printer's user has, told from the header (or named), and Klipper's resonance CSV read.
+
+- ``klipper_raw``: Klipper's accelerometer record, ``#time,accel_x,accel_y,accel_z`` (ACCELEROMETER_MEASURE, and
+  the raw data TEST_RESONANCES writes with ``RAW_DATA``: klippy/extras/adxl345.py, ``write_to_file``), times in s
+  printed ``%.6f``, accelerations in mm/s^2: a time record (optim.identification.record_csv).
+- ``klipper_psd``: the resonance test's output, ``freq,psd_x,psd_y,psd_z,psd_xyz`` and one ``name(freq)`` column
+  per shaper it tried (klippy/extras/shaper_calibrate.py, ``save_calibration_data``): the power spectral density
+  of the measured acceleration, (mm/s^2)^2/Hz, per axis and summed.
+- ``generic``: a time column (``time_s`` or the first) and signal columns.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from models.errors import InvalidParameter
+from optim.identification.record_csv import parse_record_csv
+
+__all__ = ["FORMATS", "PsdRecord", "RecordFormat", "detect_format", "parse_psd_csv"]
+
+RecordFormat = Literal["generic", "klipper_raw", "klipper_psd"]
+FORMATS: tuple[str, ...] = ("auto", "generic", "klipper_raw", "klipper_psd")
+PSD_AXES = ("psd_x", "psd_y", "psd_z")
+RAW_COLUMNS = ("time", "accel_x", "accel_y", "accel_z")
+MAX_HEADER_CHARS = 4096  # the header is looked at within this many characters of the body's start
+
+
+@dataclass(frozen=True)
+class PsdRecord:
+    """A measured power spectral density: frequencies (Hz, increasing), the sum over the axes, and each axis."""
+
+    frequency_hz: NDArray[np.float64]
+    psd: NDArray[np.float64]  # summed over the axes, (signal units)^2 / Hz
+    axes: dict[str, NDArray[np.float64]]
+
+
+def _header_names(text: str) -> list[str]:
+    head = text[:MAX_HEADER_CHARS].removeprefix("\ufeff")
+    for line in head.splitlines():
+        if line.strip():
+            return [name.strip().lower() for name in line.strip().removeprefix("#").split(",")]
+    return []
+
+
+def detect_format(text: str) -> RecordFormat:
+    """The format of a CSV body from its header: ``freq`` then ``psd_*`` columns is Klipper's resonance CSV,
+    ``time,accel_x,accel_y,accel_z`` its accelerometer record, anything else generic."""
+    names = _header_names(text)
+    if names[:1] == ["freq"] and any(name.startswith("psd_") for name in names[1:]):
+        return "klipper_psd"
+    if tuple(names[:4]) == RAW_COLUMNS:
+        return "klipper_raw"
+    return "generic"
+
+
+def parse_psd_csv(text: str, *, max_rows: int) -> PsdRecord:
+    """Klipper's resonance CSV (see the module): the frequency column and the PSD columns (the shapers' columns
+    are the shapers Klipper tried: not read). The total is ``psd_xyz`` where given (Klipper's psd_sum), else the sum
+    of the axes given. Every PSD must be >= 0 and the frequencies increase strictly (named by column and row)."""
+    record = parse_record_csv(text, max_rows=max_rows, max_signals=64, command_column="")
+    names = [name.lower() for name in record.names]
+    columns = {name: record.signals[i] for i, name in enumerate(names)}
+    axes = {name: columns[name] for name in PSD_AXES if name in columns}
+    total = columns.get("psd_xyz")
+    if total is None and not axes:
+        raise InvalidParameter("header", ",".join(record.names)[:80], "a PSD CSV needs psd_xyz or psd_x, psd_y, psd_z")
+    for name, values in {**axes, **({"psd_xyz": total} if total is not None else {})}.items():
+        negative = np.flatnonzero(values < 0)
+        if negative.size:
+            k = int(negative[0])
+            raise InvalidParameter(f"{name}[{k}]", float(values[k]), "a power spectral density must be >= 0")
+    if float(record.time_s[0]) < 0:
+        raise InvalidParameter("freq[0]", float(record.time_s[0]), "frequencies must be >= 0 Hz")
+    psd = total if total is not None else np.sum(np.vstack(list(axes.values())), axis=0)
+    return PsdRecord(np.asarray(record.time_s, float), np.asarray(psd, float), axes)
