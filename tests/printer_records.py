@@ -1,0 +1,103 @@
+"""Synthetic printer records in Klipper's formats, with a known truth.
+
+An axis whose toolhead hangs on modes (f_n, zeta, share; shares sum to 1) is driven by a commanded acceleration
+a_c(t) held between the generator's samples. The toolhead's acceleration is a_c through the base-excited modes,
+sum_i share_i (2 zeta_i w_i s + w_i^2) / (s^2 + 2 zeta_i w_i s + w_i^2) (unit gain at rest), discretised exactly
+for the held input (zero-order hold, scipy.signal.cont2discrete), measured by an accelerometer at RATE_HZ with
+white noise, gravity on z and a little of x seen on y (a mounting skew). Klipper's files print times ``%.6f`` and
+accelerations ``%.6f`` (adxl345.py write_to_file); its resonance CSV ``%.1f`` and ``%.3e``.
+
+Excitations: Klipper's resonance test (resonance_tester.py, VibrationPulseTestGenerator: at frequency f a square
+wave of +-accel_per_hz f in quarter periods, f rising hz_per_sec per second; the sweeping overlay, below 1 Hz, is
+left out) and a short pulse (a knock) followed by free decay.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.signal import cont2discrete, lfilter, ss2tf
+
+Array = NDArray[np.float64]
+AXIS = ((42.0, 0.07, 0.6), (71.0, 0.10, 0.4))  # the issue's axis: (f_n Hz, zeta, share)
+RATE_HZ = 3200.0
+NOISE_MM_S2 = 150.0
+GRAVITY_MM_S2 = 9806.65
+SKEW = 0.05  # share of x's acceleration seen on y
+START_S = 1234.5  # printer time: Klipper's records do not start at 0
+
+
+def chirp(rate_hz: float, f_start: float, f_end: float, accel_per_hz: float = 60.0, hz_per_sec: float = 1.0) -> Array:
+    """Klipper's pulse chirp sampled at ``rate_hz`` (each quarter period's level held over its samples)."""
+    edges, levels = [0.0], []
+    f, sign = f_start, 1.0
+    while f <= f_end + 1e-6:
+        quarter = 1.0 / (4.0 * f)
+        a = accel_per_hz * f
+        edges += [edges[-1] + quarter, edges[-1] + 2 * quarter]
+        levels += [sign * a, -sign * a]
+        f += hz_per_sec / (2.0 * f)
+        sign = -sign
+    t = np.arange(int(edges[-1] * rate_hz)) / rate_hz
+    return np.asarray(levels, float)[np.searchsorted(edges, t, side="right") - 1]
+
+
+def knock(rate_hz: float, duration_s: float, accel_mm_s2: float = 20_000.0, width_s: float = 0.004) -> Array:
+    """A short acceleration pulse out and back (+a, -a, each ``width_s``) at 0.1 s, then rest."""
+    t = np.arange(int(duration_s * rate_hz)) / rate_hz
+    out = np.zeros_like(t)
+    out[(t >= 0.1) & (t < 0.1 + width_s)] = accel_mm_s2
+    out[(t >= 0.1 + width_s) & (t < 0.1 + 2 * width_s)] = -accel_mm_s2
+    return out
+
+
+def toolhead(command: Array, rate_hz: float, modes: tuple[tuple[float, float, float], ...]) -> Array:
+    """The toolhead's acceleration for the held command (exact at the samples)."""
+    out = np.zeros_like(command)
+    for f, zeta, share in modes:
+        w = 2 * math.pi * f
+        a = np.array([[0.0, 1.0], [-w * w, -2 * zeta * w]])
+        b = np.array([[0.0], [1.0]])
+        c = np.array([[w * w, 2 * zeta * w]])
+        # y'' + 2 zeta w y' + w^2 y = u, output w^2 y + 2 zeta w y': the base-excited mode's acceleration
+        ad, bd, cd, dd, _ = cont2discrete((a, b, c, np.zeros((1, 1))), 1.0 / rate_hz, method="zoh")
+        numerator, denominator = ss2tf(ad, bd, cd, dd)
+        out += share * lfilter(numerator[0], denominator, command)
+    return out
+
+
+def raw_record(
+    command: Array,
+    rng: np.random.Generator,
+    modes: tuple[tuple[float, float, float], ...] = AXIS,
+    noise_mm_s2: float = NOISE_MM_S2,
+    rate_hz: float = RATE_HZ,
+) -> Array:
+    """(samples, 4): time, accel_x, accel_y, accel_z as Klipper measures them (before printing)."""
+    x = toolhead(command, rate_hz, modes)
+    n = x.size
+    t = START_S + np.arange(n) / rate_hz
+    noise = rng.normal(0.0, noise_mm_s2, (3, n))
+    return np.column_stack([t, x + noise[0], SKEW * x + noise[1], GRAVITY_MM_S2 + noise[2]])
+
+
+def raw_csv(table: Array) -> str:
+    """Klipper's accelerometer CSV (adxl345.py write_to_file): ``#time,accel_x,accel_y,accel_z``, ``%.6f``."""
+    body = "\n".join(f"{t:.6f},{x:.6f},{y:.6f},{z:.6f}" for t, x, y, z in table)
+    return "#time,accel_x,accel_y,accel_z\n" + body + "\n"
+
+
+def psd_csv(frequency_hz: Array, psd_axes: Array, max_freq_hz: float = 200.0, shapers: str = "") -> str:
+    """Klipper's resonance CSV (save_calibration_data): ``freq,psd_x,psd_y,psd_z,psd_xyz``, ``%.1f`` and ``%.3e``,
+    rows below ``max_freq_hz``; ``shapers`` (e.g. ``",shapers:,zv(42.8)"``) appended to the header with an empty
+    cell and a 0.5 under them on every row (the cells are not read)."""
+    rows = []
+    cells = ",," + ",".join(["0.5"] * shapers.count("(")) if shapers else ""
+    for k, f in enumerate(frequency_hz):
+        if f >= max_freq_hz:
+            break
+        x, y, z = psd_axes[:, k]
+        rows.append(f"{f:.1f},{x:.3e},{y:.3e},{z:.3e},{x + y + z:.3e}{cells}")
+    return "freq,psd_x,psd_y,psd_z,psd_xyz" + shapers + "\n" + "\n".join(rows) + "\n"
