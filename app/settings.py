@@ -40,6 +40,12 @@ class Settings(BaseSettings):
 
     max_samples: int = Field(200_000, ge=2, description="Most samples in any sampled array, in or out.")
     max_body_bytes: int = Field(32 * 1024 * 1024, ge=1024, description="Largest request body accepted (413 above).")
+    identify_max_rows: int = Field(
+        600_000,
+        ge=2,
+        description="Most data rows of a CSV record to identify (Klipper's default resonance test, 130 s, is 416,000 "
+        "rows at 3200 Hz and 520,000 at 4000 Hz; its CSV, 19 MB, is within max_body_bytes).",
+    )
     solve_time_limit_s: float = Field(
         10.0,
         gt=0,

@@ -52,7 +52,10 @@ def main(klippy: str) -> None:
         best, each = helper.find_best_shaper(data, scv=5.0)
         mine, dominating = ours(table)
         for pick in each:
-            print(f"        Klipper's {pick.name}: {pick.freq:.1f} Hz vibrations {pick.vibrs!r} max_accel {pick.max_accel!r}")
+            print(
+                f"        Klipper's {pick.name}: {pick.freq:.1f} Hz vibrations {pick.vibrs!r} "
+                f"max_accel {pick.max_accel!r}"
+            )
         print(
             f"seed {seed}: Klipper {best.name} {best.freq:.1f} Hz vibrations {best.vibrs!r} smoothing "
             f"{best.smoothing!r} max_accel {best.max_accel!r}"

@@ -168,7 +168,7 @@ def identify(record: str | bytes, *, settings: Settings | None = None, **params:
     settings = settings or get_settings()
     text = record.decode() if isinstance(record, bytes) else record
     query = _validate(MeasurementParams, params)
-    coroutine = identify_csv(text, query, in_process_runner(settings), max_rows=settings.max_samples)
+    coroutine = identify_csv(text, query, in_process_runner(settings), max_rows=settings.identify_max_rows)
     answer: dict[str, Any] = _run(coroutine)
     return answer
 

@@ -115,7 +115,21 @@ def _parser() -> argparse.ArgumentParser:
     identify = commands.add_parser(
         "identify", help="the modes of a recorded vibration and the recommended design (POST /v1/identify)"
     )
-    identify.add_argument("record", help="a CSV file: a header, a time_s column, one or more signal columns")
+    identify.add_argument(
+        "record",
+        help="a CSV file: a header, a time_s column, one or more signal columns; or Klipper's accelerometer record "
+        "(#time,accel_x,accel_y,accel_z) or resonance CSV (freq,psd_x,psd_y,psd_z,psd_xyz)",
+    )
+    identify.add_argument(
+        "--target",
+        choices=("klipper", "reprapfirmware", "marlin"),
+        help="print the input shaper to set in this firmware (Klipper's [input_shaper] section, M593, M493)",
+    )
+    identify.add_argument("--format", choices=("auto", "generic", "klipper_raw", "klipper_psd"))
+    identify.add_argument("--square-corner-velocity", type=float, help="mm/s, for smoothing and max_accel (5)")
+    identify.add_argument(
+        "--frequency-tolerance", type=float, help="make the shaper robust over f x [1 - tol, 1 + tol]"
+    )
     move = identify.add_mutually_exclusive_group()
     move.add_argument("--displacement", type=float, help="the move to recommend a design for (rest-to-rest)")
     move.add_argument("--target-velocity", type=float, help="or the final speed (rest-to-velocity)")
@@ -211,6 +225,10 @@ def _identify(args: argparse.Namespace) -> int:
             ("max_velocity", args.max_velocity),
             ("max_acceleration", args.max_acceleration),
             ("max_jerk", args.max_jerk),
+            ("target", args.target),
+            ("format", args.format),
+            ("square_corner_velocity", args.square_corner_velocity),
+            ("frequency_tolerance", args.frequency_tolerance),
         )
         if value is not None
     }

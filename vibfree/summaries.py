@@ -65,9 +65,20 @@ def identify_summary(answer: dict[str, Any]) -> str:
             f"mode {precise(mode['natural_frequency_hz'])} Hz (95 %: {precise(lo)}..{precise(hi)} Hz), "
             f"zeta {precise(mode['damping_ratio'])} (95 %: {precise(zlo)}..{precise(zhi)})"
         )
+    for peak in answer.get("peaks") or []:
+        lo, hi = peak["frequency_interval_hz"]
+        lines.append(
+            f"peak {precise(peak['frequency_hz'])} Hz ({precise(lo)}..{precise(hi)} Hz), "
+            f"zeta ~ {precise(peak['damping_ratio_half_power'])} (half-power width)"
+        )
     lines += [f"warning: {w}" for w in answer.get("warnings", [])]
     recommended = answer.get("recommended")
-    reason = (answer.get("recommendation") or {}).get("reason", "")
+    recommendation = answer.get("recommendation") or {}
+    reason = recommendation.get("reason", "")
+    if recommendation.get("shaper"):
+        lines += _shaper_lines(recommendation)
+        if not recommended:
+            return "\n".join(lines)
     if recommended:
         lines.append(
             f"recommended: {recommended.get('label', recommended['endpoint'])}, settling "
@@ -80,6 +91,31 @@ def identify_summary(answer: dict[str, Any]) -> str:
     else:
         lines.append(f"no recommendation: {reason or 'give the move (--displacement or --target-velocity)'}")
     return "\n".join(lines)
+
+
+def _shaper_lines(recommendation: dict[str, Any]) -> list[str]:
+    """The firmware's shaper, Klipper's own pick beside it, and the text to paste."""
+    shaper, klipper = recommendation["shaper"], recommendation["klipper_calibration"]
+    blocks = recommendation["firmware"]
+    text = {
+        "klipper": (blocks.get("klipper") or {}).get("section"),
+        "reprapfirmware": (blocks.get("reprapfirmware") or {}).get("command"),
+        "marlin": (blocks.get("marlin") or {}).get("command"),
+    }[recommendation["target"]]
+    reason = blocks.get(f"{recommendation['target']}_reason")
+    return [
+        f"{recommendation['target']}: {shaper['type']} at {shaper['frequency_hz']:.1f} Hz (damping "
+        f"{shaper['damping_ratio']:g}), max_accel {recommendation['max_acceleration']:.0f} mm/s^2, remaining "
+        f"vibrations {recommendation['remaining_vibration_percent']:.2f} % "
+        f"({recommendation['robust_remaining_vibration_percent']:.2f} % at worst over "
+        f"{band_text(recommendation['robust_over']['frequency_ratio_interval'])}), smoothing "
+        f"{recommendation['smoothing']:.3f} mm",
+        f"  Klipper's calibration picks {klipper['type']} at {klipper['frequency_hz']:.1f} Hz: max_accel "
+        f"{klipper['max_acceleration']:.0f} mm/s^2, remaining vibrations "
+        f"{klipper['remaining_vibration_percent']:.2f} %",
+        f"  ({recommendation['reason']})",
+        (text or f"  (no {recommendation['target']} setting: {reason})").rstrip("\n"),
+    ]
 
 
 def precise(value: Any) -> str:

@@ -24,7 +24,7 @@ from app.examples.identify import CSV_EXAMPLE
 from app.examples.identify import EXAMPLES as IDENTIFY_EXAMPLES
 from app.json_bodies import JSONRoute
 from app.responses import NumpyJSONResponse
-from app.schemas.identify import IdentifyMeasurementResponse, MeasurementParams
+from app.schemas.identify import IdentifyMeasurementResponse, IdentifySpectrumResponse, MeasurementParams
 from app.schemas.smoothers import IdentifyRequest, IdentifyResponse
 from app.services.identify import identify_csv, identify_respond, runner
 from models.errors import InvalidParameter
@@ -70,7 +70,7 @@ def _decode(raw: bytes) -> str:
 @router.post(
     "/identify",
     summary="Identify vibration modes from a record (JSON free vibration, or a CSV measurement) and recommend a design",
-    response_model=IdentifyResponse | IdentifyMeasurementResponse,
+    response_model=IdentifyResponse | IdentifyMeasurementResponse | IdentifySpectrumResponse,
     responses=problems.responses(400, 413, 422, 503),
     openapi_extra=OPENAPI_BODY,
 )
@@ -90,7 +90,7 @@ async def identify_mode(
 
     **text/csv**: a header row, a time column (``time_s``, or the first column; seconds, uniform or nearly:
     jitter is interpolated, a gap refused) and up to 16 signal columns (e.g. ``accel_x,accel_y,accel_z``), at
-    most VIBFREE_MAX_SAMPLES rows. The fit starts at ``start_s``, else where a ``command`` column (the known
+    most VIBFREE_IDENTIFY_MAX_ROWS rows. The fit starts at ``start_s``, else where a ``command`` column (the known
     command the record responds to) last changes (the residual vibration after the command ends is a free
     vibration), else at the record's largest excursion. Returns the Welch spectrum (rectangular window,
     summed over the signals, at most 2049 points), and per mode (its peaks start the fit) the natural
@@ -101,7 +101,16 @@ async def identify_mode(
     request, ready to POST to its endpoint, of the design that settles first among those whose returned 5 %
     band covers the lowest mode's interval: time-optimal (robust over the interval, and nominal), every
     catalogue shaper, STAP with frequency_uncertainty, damped harmonic smoothers; ``recommendation.candidates``
-    lists each with its settling time and band."""
+    lists each with its settling time and band.
+
+    **A printer's files** (``format``, told from the header by default): Klipper's accelerometer record
+    (``#time,accel_x,accel_y,accel_z``, times printed to the microsecond: read as the uniform record they are) is
+    fitted as above when it holds a free decay; a resonance test's record (a sweep) and Klipper's resonance CSV
+    (``freq,psd_x,psd_y,psd_z,psd_xyz``) are answered from their spectrum (``spectrum``, ``peaks``). With
+    ``target=klipper|reprapfirmware|marlin``, ``recommendation`` holds the input shaper to set in that firmware
+    (``shaper``, ``max_acceleration``, ``remaining_vibration_percent``, ``smoothing``, ``firmware``), scored by
+    Klipper's calibration criteria over the measured spectrum, never worse than Klipper's own pick by them
+    (``klipper_calibration``), and robust over the frequency interval ``robust_over`` names."""
     if not _is_csv(request.headers.get("content-type")):
         if params.has_move() or request.query_params:
             name = next(iter(request.query_params), "displacement")
@@ -122,7 +131,7 @@ async def identify_mode(
         text,
         params,
         runner(settings, pool, threads),
-        max_rows=settings.max_samples,
+        max_rows=settings.identify_max_rows,
         threads=threads,
         deadline_s=settings.thread_deadline_s,
     )

@@ -3,7 +3,7 @@ record in CSV (modes with 95 % intervals, spectrum, quality, recommended design)
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -17,6 +17,7 @@ __all__ = [
     "IdentifyMeasurementResponse",
     "IdentifyRequest",
     "IdentifyResponse",
+    "IdentifySpectrumResponse",
     "MeasurementParams",
 ]
 
@@ -52,6 +53,31 @@ class MeasurementParams(BaseModel):
         max_length=64,
         description="The CSV column holding the known command the record responds to (when present): the fit "
         "starts where it last changes.",
+    )
+    format: Literal["auto", "generic", "klipper_raw", "klipper_psd"] = Field(
+        "auto",
+        description="The CSV's format: klipper_raw (#time,accel_x,accel_y,accel_z: ACCELEROMETER_MEASURE, or a "
+        "resonance test's raw_data), klipper_psd (freq,psd_x,psd_y,psd_z,psd_xyz: TEST_RESONANCES or "
+        "SHAPER_CALIBRATE), generic (a time column and signals); auto tells it from the header.",
+    )
+    target: Literal["klipper", "reprapfirmware", "marlin"] | None = Field(
+        None,
+        description="The firmware to recommend an input shaper for (recommendation.shaper, max_acceleration, "
+        "remaining_vibration_percent, smoothing, firmware), scored by Klipper's calibration criteria.",
+    )
+    square_corner_velocity: float = Field(
+        5.0,
+        ge=0.0,
+        le=1000.0,
+        description="mm/s: the printer's square_corner_velocity, which Klipper's smoothing and max_accel use "
+        "(its calibrate_shaper.py default 5). Accelerations are read in mm/s^2, Klipper's unit.",
+    )
+    frequency_tolerance: float | None = Field(
+        None,
+        ge=0.0,
+        le=0.5,
+        description="The share the resonances may differ from the measured ones (payload, position): the shaper "
+        "is made robust over f x [1 - tol, 1 + tol]. Default: the measurement's own uncertainty.",
     )
 
     def check(self) -> None:
@@ -132,14 +158,84 @@ class RecommendedCandidateOut(OutModel):
     reason: str | None
 
 
+class FirmwareShaperOut(OutModel):
+    type: str = Field(description="The firmware's own name of the shaper type (RepRapFirmware: ei2, ei3).")
+    frequency_hz: float
+    damping_ratio: float
+
+
+class KlipperCalibrationOut(OutModel):
+    type: str
+    frequency_hz: float
+    max_acceleration: float = Field(description="mm/s^2: the acceleration whose smoothing is 0.12 mm.")
+    remaining_vibration_percent: float
+    smoothing: float = Field(description="mm at 5000 mm/s^2.")
+    each_type: list[dict[str, Any]] = Field(description="Klipper's pick of each of its types.")
+
+
 class RecommendationOut(OutModel):
     plant: dict[str, Any] | None = Field(description="The plant designed for: the lowest identified mode.")
-    frequency_ratio_interval: list[float] | None = Field(description="Its 95 % interval of f_n over f_n.")
-    reason: str = Field(description="Why this design, or why none.")
+    frequency_ratio_interval: list[float] | None = Field(
+        description="The interval of f_true / f_measured the design or the shaper covers."
+    )
+    reason: str = Field(description="Why this design or shaper, or why none.")
     candidates: list[RecommendedCandidateOut]
+    target: str | None = Field(None, description="With target: the firmware.")
+    shaper: FirmwareShaperOut | None = Field(None, description="With target: the shaper to set.")
+    max_acceleration: float | None = Field(
+        None, description="mm/s^2: the largest acceleration whose smoothing stays within 0.12 mm (Klipper's rule)."
+    )
+    remaining_vibration_percent: float | None = Field(
+        None, description="Klipper's remaining vibrations over the measured spectrum, percent."
+    )
+    robust_remaining_vibration_percent: float | None = Field(
+        None, description="The same at its worst with the resonances shifted across frequency_ratio_interval."
+    )
+    smoothing: float | None = Field(None, description="mm at 5000 mm/s^2 and square_corner_velocity.")
+    robust_over: dict[str, Any] | None = Field(
+        None,
+        description="With target: the frequency_ratio_interval the shaper is robust over, and its source "
+        "(frequency_tolerance, the mode's 95 % interval, or the spectrum's resolution).",
+    )
+    klipper_calibration: KlipperCalibrationOut | None = Field(
+        None, description="The shaper Klipper's own calibration picks from the same spectrum (the reference)."
+    )
+    dominates_klipper: bool | None = Field(
+        None, description="No more remaining vibration and no lower max_acceleration than Klipper's pick."
+    )
+    firmware: dict[str, Any] | None = Field(
+        None, description="The firmware blocks, as an input-shaped design's design.firmware."
+    )
+
+
+class PeakOut(OutModel):
+    frequency_hz: float
+    damping_ratio_half_power: float = Field(description="The half-power width over twice the frequency.")
+    frequency_interval_hz: list[float] = Field(description="Half a frequency bin either side.")
+
+
+class PsdSpectrumOut(OutModel):
+    frequency_hz: list[float]
+    psd: list[float] = Field(description="Summed over the axes, (mm/s^2)^2/Hz.")
+    psd_normalized: list[float] = Field(description="Divided by f + 0.1 (and cut below 10 Hz), as Klipper scores.")
+    resolution_hz: float
+    window: str
+
+
+class IdentifySpectrumResponse(OutModel):
+    """A Klipper resonance CSV, or a raw resonance test (a sweep): the spectrum and its peaks."""
+
+    format: str
+    excitation: str = Field(description="spectrum (a PSD file) or sweep (a raw resonance test).")
+    spectrum: PsdSpectrumOut
+    peaks: list[PeakOut]
+    recommended: None
+    recommendation: RecommendationOut
+    warnings: list[str]
 
 
 class IdentifyMeasurementResponse(OutModel):
+    format: str = Field("generic", description="The record's format (klipper_raw or generic).")
     modes: list[ModalModeOut] = Field(description="Lowest frequency first.")
     spectrum: SpectrumOut
     quality: QualityOut

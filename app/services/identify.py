@@ -24,13 +24,17 @@ from app.schemas.identify import MeasurementParams
 from app.schemas.registry import REQUEST_SCHEMAS
 from app.schemas.simulate import check_sample_count
 from app.schemas.smoothers import IdentifyRequest
+from app.services import printer
 from app.services import profile as profiles
 from app.services.recommend import Move, MoveLimits, RunOne, plant_interval, recommend, recommendation_candidates
 from app.settings import Settings
 from models.errors import InvalidParameter
 from models.plants import FREQUENCY_MAX_HZ, FREQUENCY_MIN_HZ
+from optim.families.input_shaped.calibration import normalized
 from optim.families.smoother.smoothers import identify, tuned_duration_s, vibration_free_durations_s
+from optim.identification.excitation import excitation_of
 from optim.identification.modal import CONFIDENCE, IdentifiedMode, ModalIdentification, identify_modes
+from optim.identification.record import uniform_record
 from optim.identification.record_csv import parse_record_csv
 from optim.registry import FAMILIES
 from runtime.executor import Executor, InlineExecutor
@@ -149,10 +153,35 @@ def _measurement_body(result: ModalIdentification, samples: int) -> dict[str, An
     }
 
 
-def identify_record_csv(text: str, params: MeasurementParams, max_rows: int) -> tuple[ModalIdentification, int]:
-    """Parse and fit a CSV record (pure: no I/O); the identification and the record's sample count."""
+def identify_record_csv(
+    text: str, params: MeasurementParams, max_rows: int
+) -> tuple[ModalIdentification, int, dict[str, Any] | None, str]:
+    """Parse and fit a CSV record (pure: no I/O): the identification, the record's sample count, and the target's
+    shaper fields (None without a target), and its format. A Klipper resonance CSV or a sweep's record has no
+    free decay to fit: app.services.printer answers it (raised as its answer: _SpectrumAnswer)."""
+    fmt = printer.record_format(text, params)
+    if fmt == "klipper_psd":
+        raise _SpectrumAnswer(printer.psd_answer(text, params, max_rows))
     record = parse_record_csv(text, max_rows=max_rows, command_column=params.command_column)
-    return identify_modes(record, max_modes=params.max_modes, start_s=params.start_s), int(record.time_s.size)
+    if fmt == "klipper_raw" and record.command is None and params.start_s is None:
+        dt, signals, _ = uniform_record(record.time_s, np.atleast_2d(record.signals))
+        if excitation_of(signals, 1.0 / dt) == "sweep":
+            raise _SpectrumAnswer(printer.sweep_answer(record, fmt, params))
+    result = identify_modes(record, max_modes=params.max_modes, start_s=params.start_s)
+    shaper = None
+    if params.target is not None:
+        frequency, psd = printer.record_psd(record)
+        mode, _ = plant_interval(result.modes)
+        shaper = printer.shaper_recommendation(frequency, normalized(frequency, psd), params, [], mode)
+    return result, int(record.time_s.size), shaper, fmt
+
+
+class _SpectrumAnswer(Exception):
+    """Not an error: the answer of a record without a free decay, raised from the design thread."""
+
+    def __init__(self, body: dict[str, Any]) -> None:
+        super().__init__("a spectrum's answer")
+        self.body = body
 
 
 async def identify_csv(
@@ -170,8 +199,13 @@ async def identify_csv(
     recommendation."""
     params.check()
     # the fit, in the route's design threads (runtime.threads: bounded admission, deadline_s), or in-process
-    result, samples = await threads.run(identify_record_csv, text, params, max_rows, deadline_s=deadline_s)
-    body = _measurement_body(result, samples)
+    try:
+        result, samples, shaper, fmt = await threads.run(
+            identify_record_csv, text, params, max_rows, deadline_s=deadline_s
+        )
+    except _SpectrumAnswer as answer:
+        return answer.body
+    body = {"format": fmt, **_measurement_body(result, samples)}
     mode, interval = plant_interval(result.modes)
     plant = {"kind": "mode", "natural_frequency_hz": mode.natural_frequency_hz, "damping_ratio": mode.damping_ratio}
     recommendation: dict[str, Any] = {
@@ -179,28 +213,46 @@ async def identify_csv(
         "frequency_ratio_interval": list(interval),
         "reason": "",
         "candidates": [],
+        **(shaper or {}),
     }
     body["recommended"] = None
     body["recommendation"] = recommendation
+    await _recommend_design(body, result.modes, interval, params, run_one)
+    if shaper is not None:  # the shaper's reason, and the design's where a move was given
+        shaper_reason = recommendation.pop("shaper_reason")
+        move = f"; design: {recommendation['reason']}" if params.has_move() else ""
+        recommendation["reason"] = shaper_reason + move
+    return body
+
+
+async def _recommend_design(
+    body: dict[str, Any],
+    modes: tuple[IdentifiedMode, ...],
+    interval: tuple[float, float],
+    params: MeasurementParams,
+    run_one: RunOne | None,
+) -> None:
+    """``body["recommended"]`` and ``recommendation``'s candidates and reason: the fastest design for the move."""
+    recommendation = body["recommendation"]
     if not params.has_move():
         recommendation["reason"] = (
             "no move given: add displacement or target_velocity (and max_velocity, max_acceleration, max_jerk) "
             "as query parameters for a recommended design"
         )
-        return body
+        return
     if run_one is None:
         recommendation["reason"] = "no runner given: the candidates were not run"
-        return body
+        return
     move = Move(params.displacement, params.target_velocity)
     limits = MoveLimits(params.max_velocity, params.max_acceleration, params.max_jerk)
-    candidates = recommendation_candidates(result.modes, move, limits)
+    candidates = recommendation_candidates(modes, move, limits)
     chosen, outcomes = await recommend(candidates, run_one, interval)
     recommendation["candidates"] = outcomes
     if chosen is None:
         recommendation["reason"] = (
             "no candidate's 5 % band covers the interval within these limits (see candidates[].reason)"
         )
-        return body
+        return
     best = next(o for o, c in zip(outcomes, candidates, strict=True) if c is chosen)
     body["recommended"] = {
         "endpoint": chosen.endpoint,
@@ -216,4 +268,3 @@ async def identify_csv(
         f"the least settling time ({best['settling_time_s']:.6g} s) of the {covering} of {len(outcomes)} candidates "
         f"whose 5 % band covers the lowest mode's 95 % interval of f_n"
     )
-    return body

@@ -36,6 +36,7 @@ class PsdRecord:
     frequency_hz: NDArray[np.float64]
     psd: NDArray[np.float64]  # summed over the axes, (signal units)^2 / Hz
     axes: dict[str, NDArray[np.float64]]
+    normalized: bool  # written normalised to frequencies (SHAPER_CALIBRATE's file: it has the shapers' columns)
 
 
 def _header_names(text: str) -> list[str]:
@@ -47,27 +48,45 @@ def _header_names(text: str) -> list[str]:
 
 
 def detect_format(text: str) -> RecordFormat:
-    """The format of a CSV body from its header: ``freq`` then ``psd_*`` columns is Klipper's resonance CSV,
+    """The format of a CSV body from its header: ``freq`` then other columns is Klipper's resonance CSV,
     ``time,accel_x,accel_y,accel_z`` its accelerometer record, anything else generic."""
     names = _header_names(text)
-    if names[:1] == ["freq"] and any(name.startswith("psd_") for name in names[1:]):
+    if names[:1] == ["freq"] and len(names) > 1:
         return "klipper_psd"
     if tuple(names[:4]) == RAW_COLUMNS:
         return "klipper_raw"
     return "generic"
 
 
+def _without_shapers(text: str) -> tuple[str, bool]:
+    """The CSV without the shapers' columns Klipper appends (master: a ``shapers:`` column, empty, then one per
+    shaper; v0.13.0: the ``name(freq)`` columns alone), and whether it had any (the file is then SHAPER_CALIBRATE's,
+    its PSD normalised)."""
+    names = _header_names(text)
+    first = next((k for k, name in enumerate(names) if name == "shapers:" or "(" in name), None)
+    if first is None:
+        return text, False
+    lines = text.removeprefix("\ufeff").splitlines()
+    return "\n".join(",".join(line.split(",", first)[:first]) for line in lines), True
+
+
 def parse_psd_csv(text: str, *, max_rows: int) -> PsdRecord:
     """Klipper's resonance CSV (see the module): the frequency column and the PSD columns (the shapers' columns
     are the shapers Klipper tried: not read). The total is ``psd_xyz`` where given (Klipper's psd_sum), else the sum
     of the axes given. Every PSD must be >= 0 and the frequencies increase strictly (named by column and row)."""
+    text, normalized = _without_shapers(text)
     record = parse_record_csv(text, max_rows=max_rows, max_signals=64, command_column="")
     names = [name.lower() for name in record.names]
     columns = {name: record.signals[i] for i, name in enumerate(names)}
     axes = {name: columns[name] for name in PSD_AXES if name in columns}
     total = columns.get("psd_xyz")
     if total is None and not axes:
-        raise InvalidParameter("header", ",".join(record.names)[:80], "a PSD CSV needs psd_xyz or psd_x, psd_y, psd_z")
+        raise InvalidParameter(
+            "header",
+            ",".join(record.names)[:80],
+            "a PSD CSV needs psd_xyz or psd_x, psd_y, psd_z (a calibration CSV of several datasets, one column "
+            "each, is not read: send each dataset's own CSV)",
+        )
     for name, values in {**axes, **({"psd_xyz": total} if total is not None else {})}.items():
         negative = np.flatnonzero(values < 0)
         if negative.size:
@@ -76,4 +95,4 @@ def parse_psd_csv(text: str, *, max_rows: int) -> PsdRecord:
     if float(record.time_s[0]) < 0:
         raise InvalidParameter("freq[0]", float(record.time_s[0]), "frequencies must be >= 0 Hz")
     psd = total if total is not None else np.sum(np.vstack(list(axes.values())), axis=0)
-    return PsdRecord(np.asarray(record.time_s, float), np.asarray(psd, float), axes)
+    return PsdRecord(np.asarray(record.time_s, float), np.asarray(psd, float), axes, normalized)

@@ -50,7 +50,7 @@ def _lines(text: str, max_lines: int) -> list[str]:
         raise InvalidParameter(
             "body",
             f"{count} lines",
-            f"at most {max_lines} lines are accepted (VIBFREE_MAX_SAMPLES data rows and {MAX_EXTRA_LINES} blank "
+            f"at most {max_lines} lines are accepted (VIBFREE_IDENTIFY_MAX_ROWS data rows and {MAX_EXTRA_LINES} blank "
             "or comment lines)",
         )
     lines = text.split(newline)

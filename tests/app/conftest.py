@@ -19,7 +19,9 @@ from tests.runtime import pool_jobs
 # The wall-clock deadline is a last resort (issue 23: every answer is decided by caps in units of work): the
 # shared client's is 4 x 60 + 5 s, so that no verdict depends on the machine's load. The tests of the deadline
 # itself (tests/app/test_pool.py, test_fuzz.py, tests/optim/test_compare_timeouts.py) set their own.
-TEST_SETTINGS = Settings(workers=2, max_samples=5000, max_body_bytes=2 * 1024 * 1024, solve_time_limit_s=60.0)
+TEST_SETTINGS = Settings(
+    workers=2, max_samples=5000, identify_max_rows=40_000, max_body_bytes=2 * 1024 * 1024, solve_time_limit_s=60.0
+)
 
 
 def _add_test_routes(app) -> None:

@@ -107,7 +107,7 @@ def test_a_csv_body_is_refused_by_the_other_routes_and_other_media_types_by_iden
         ("time_s,accel_x\n0,1\n0.0005,1,2\n", "row[1]"),
         ("time_s,accel_x\n0,1\n0,2\n", "time_s[1]"),
         ("0,1\n0.0005,2\n", "header"),
-        ("time_s,accel_x\n" + "0,1\n" * (TEST_SETTINGS.max_samples + 1), "body"),
+        ("time_s,accel_x\n" + "0,1\n" * (TEST_SETTINGS.identify_max_rows + 1), "body"),
     ],
 )
 def test_bad_csv_is_a_422_naming_the_column_and_row(client, text, field):

@@ -172,7 +172,9 @@ def test_rounded_timestamps_are_a_uniform_record():
     printed = np.array([float(f"{x:.6f}") for x in t])
     dt, _, resampled = uniform_record(printed, np.sin(t)[None, :])
     assert not resampled and dt == pytest.approx(1 / rate, rel=1e-7)
-    lines = "\n".join(f"{x:.6f},{a:.3f},{b:.3f},{c:.3f}" for x, (a, b, c) in zip(t, free_vibration(t - t[0]).T))
+    lines = "\n".join(
+        f"{x:.6f},{a:.3f},{b:.3f},{c:.3f}" for x, (a, b, c) in zip(t, free_vibration(t - t[0]).T, strict=True)
+    )
     result = identify_modes(parse_record_csv("#time,accel_x,accel_y,accel_z\n" + lines, max_rows=20_000))
     assert not result.resampled and result.sample_rate_hz == pytest.approx(rate, rel=1e-7)
     assert not any("not uniform" in w for w in result.warnings)

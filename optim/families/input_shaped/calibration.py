@@ -61,6 +61,7 @@ class Scores:
     vibrations: Array  # remaining share, 0..1
     smoothing_mm: Array
     max_accel_mm_s2: Array
+    robust_vibrations: Array  # at their worst over the resonances shifted by ``evaluate``'s ratios (vibrations: 1)
 
     @property
     def score(self) -> Array:
@@ -123,12 +124,25 @@ def klipper_psd(time_s: Array, accel: Array) -> tuple[Array, Array]:
     return np.asarray(frequency, float), np.atleast_2d(np.asarray(psd, float))
 
 
-def normalized(frequency_hz: Array, psd: Array) -> Array:
-    """CalibrationData.normalize_to_frequencies: p / (f + 0.1), and below 10 Hz times e^(1 - (10 / (f + 0.1))^2)."""
-    out = psd / (frequency_hz + 0.1)
+def _normalization(frequency_hz: Array) -> Array:
+    """The factor normalize_to_frequencies multiplies a PSD by: 1 / (f + 0.1), below 10 Hz times
+    e^(1 - (10 / (f + 0.1))^2)."""
+    factor = 1.0 / (frequency_hz + 0.1)
     low = frequency_hz < NORMALIZE_BELOW_HZ
-    out[..., low] *= np.exp(1.0 - (NORMALIZE_BELOW_HZ / (frequency_hz[low] + 0.1)) ** 2)
-    return out
+    factor[low] *= np.exp(1.0 - (NORMALIZE_BELOW_HZ / (frequency_hz[low] + 0.1)) ** 2)
+    return factor
+
+
+def normalized(frequency_hz: Array, psd: Array) -> Array:
+    """CalibrationData.normalize_to_frequencies (see _normalization)."""
+    return np.asarray(psd * _normalization(frequency_hz), float)
+
+
+def denormalized(frequency_hz: Array, psd: Array) -> Array:
+    """A normalised PSD back to the measured one; 0 where the normalisation left nothing to recover (its factor
+    below 1e-300: the lowest bins, e^(1 - 10^4) at 0 Hz)."""
+    factor = _normalization(frequency_hz)
+    return np.asarray(np.where(factor > 1e-300, psd / np.where(factor > 1e-300, factor, 1.0), 0.0), float)
 
 
 # --- the criteria, vectorised over candidates (rows) --------------------------------------------------------------
@@ -139,19 +153,25 @@ def shaper_response(amplitudes: Array, times_s: Array, zeta: float, frequency_hz
     omega = 2.0 * math.pi * frequency_hz
     omega_d = omega * math.sqrt(1.0 - zeta * zeta)
     lag = times_s[:, -1:] - times_s  # (k, m)
-    weight = amplitudes[:, None, :] * np.exp(-zeta * omega[None, :, None] * lag[:, None, :])
-    phase = omega_d[None, :, None] * times_s[:, None, :]
-    s = np.sum(weight * np.sin(phase), axis=-1)
-    c = np.sum(weight * np.cos(phase), axis=-1)
-    return np.hypot(s, c) / np.sum(amplitudes, axis=1, keepdims=True)
+    exponent = -zeta * omega[None, :, None] * lag[:, None, :] + 1j * (omega_d[None, :, None] * times_s[:, None, :])
+    total = np.abs(np.sum(amplitudes[:, None, :] * np.exp(exponent), axis=-1))
+    return np.asarray(total / np.sum(amplitudes, axis=1, keepdims=True), float)
 
 
-def remaining_vibrations(response: Array, psd: Array) -> Array:
-    """The share of the PSD above p_max / 20 the shaper leaves (candidates,)."""
+def worst_vibrations(amplitudes: Array, times_s: Array, frequency_hz: Array, psd: Array) -> Array:
+    """The remaining vibrations at their worst over TEST_DAMPING_RATIOS. Only the bins above p_max / 20 are summed: a
+    shaper of positive amplitudes has V <= 1, so the others add 0 to both sums (the same number, 5-10x faster)."""
     threshold = float(np.max(psd)) / VIBRATION_REDUCTION
     every = float(np.sum(np.maximum(psd - threshold, 0.0)))
-    left = np.sum(np.maximum(response * psd - threshold, 0.0), axis=1)
-    return np.asarray(left / every if every > 0 else np.zeros_like(left), float)
+    above = psd > threshold
+    if not np.all(amplitudes >= 0):
+        above[:] = True
+    bins, p = frequency_hz[above], psd[above]
+    worst = np.zeros(amplitudes.shape[0])
+    for zeta in TEST_DAMPING_RATIOS:
+        left = np.sum(np.maximum(shaper_response(amplitudes, times_s, zeta, bins) * p - threshold, 0.0), axis=1)
+        worst = np.maximum(worst, left / every if every > 0 else 0.0)
+    return worst
 
 
 def _smoothing_terms(amplitudes: Array, times_s: Array, scv_mm_s: float) -> tuple[Array, Array, Array]:
@@ -182,9 +202,9 @@ def max_acceleration(amplitudes: Array, times_s: Array, scv_mm_s: float) -> Arra
 
 def candidate_frequencies(kind: str, low_hz: float | None = None, high_hz: float = MAX_SHAPER_FREQ_HZ) -> Array:
     """fit_shaper's grid: np.arange(min_freq, 150, 0.2) (end excluded), from ``low_hz`` where a firmware's
-    range starts higher."""
+    range starts higher; each frequency rounded to 1e-9 Hz (arange's sums drift: 42.19999999999993)."""
     start = max(MIN_FREQ_HZ.get(kind, MIN_FREQ_HZ["zv"]), low_hz or 0.0)
-    return np.arange(start, high_hz, FREQ_STEP_HZ)
+    return np.round(np.arange(start, high_hz, FREQ_STEP_HZ), 9)
 
 
 def evaluate(
@@ -194,17 +214,24 @@ def evaluate(
     psd: Array,
     scv_mm_s: float = DEFAULT_SCV_MM_S,
     candidates_hz: Array | None = None,
+    ratios: Sequence[float] = (),
     damping_ratio: float = SHAPER_DAMPING_RATIO,
 ) -> Scores:
     """Klipper's criteria for ``kind`` (built by ``impulses_of(kind, f, zeta)``) at each candidate frequency over
-    the PSD's bins up to 200 Hz."""
+    the PSD's bins up to 200 Hz; ``robust_vibrations`` also over the resonances shifted by each of ``ratios``
+    r = f_true / f_measured: the shaper's times scaled by r (V of times r T at f is V of T at r f, so the bins
+    sample the shifted PSD p(f / r) at r f: exact for the firmware's own shaper, Marlin's whole-sample delays
+    included)."""
     grid = candidate_frequencies(kind) if candidates_hz is None else candidates_hz
     keep = frequency_hz <= max(MAX_PSD_FREQ_HZ, float(grid[-1]) if grid.size else 0.0)
     bins, p = frequency_hz[keep], psd[keep]
     sequences = tuple(impulses_of(kind, float(f), damping_ratio) for f in grid)
-    a = np.array([s.amplitudes for s in sequences], dtype=float)
-    t = np.array([s.times_s for s in sequences], dtype=float)
-    vibrations = np.max([remaining_vibrations(shaper_response(a, t, z, bins), p) for z in TEST_DAMPING_RATIOS], axis=0)
+    a = np.array([s.amplitudes for s in sequences], dtype=float).reshape(grid.size, -1)
+    t = np.array([s.times_s for s in sequences], dtype=float).reshape(grid.size, -1)
+    vibrations = worst_vibrations(a, t, bins, p)
+    robust = vibrations
+    for ratio in ratios:
+        robust = np.maximum(robust, worst_vibrations(a, t * ratio, bins, p))
     return Scores(
         kind=kind,
         frequency_hz=np.asarray(grid, float),
@@ -213,6 +240,7 @@ def evaluate(
         vibrations=vibrations,
         smoothing_mm=smoothing_mm(a, t, SMOOTHING_ACCEL_MM_S2, scv_mm_s),
         max_accel_mm_s2=max_acceleration(a, t, scv_mm_s),
+        robust_vibrations=robust,
     )
 
 

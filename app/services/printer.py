@@ -1,0 +1,166 @@
+"""The identify use case for a printer's files: Klipper's resonance CSV and resonance tests, and the shaper to set in
+the firmware (``target``).
+
+- A record's format is told from its header (optim.identification.formats) unless ``format`` names it.
+- Klipper's resonance CSV (``klipper_psd``) and a raw record of a swept excitation (a resonance test: told by
+  optim.identification.excitation) are answered from their power spectral density: the spectrum, its peaks
+  (frequency, and a damping estimate from the half-power width), and with a ``target`` the firmware's shaper. The
+  free-decay fit (optim.identification.modal) does not apply to a sweep: a sweep's record is not fitted.
+- With a ``target`` every record's answer gets ``recommendation.shaper`` and its fields
+  (optim.families.input_shaped.firmware_pick): the PSD is Klipper's (computed from a raw record as Klipper does,
+  or read), normalised as Klipper normalises it, and the frequency interval the shaper is made robust over is
+  ``frequency_tolerance`` where given, else the identified mode's 95 % interval (a free decay), else the PSD's
+  resolution at its highest peak (half a bin either side).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from app.presenters import present
+from app.schemas.identify import MeasurementParams
+from optim.families.input_shaped import calibration as cal
+from optim.families.input_shaped.firmware_pick import each_type, firmware_pick, firmware_report
+from optim.identification.formats import PsdRecord, RecordFormat, detect_format, parse_psd_csv
+from optim.identification.modal import IdentifiedMode
+from optim.identification.record import Record
+from optim.identification.spectrum import Spectrum, spectral_peaks
+
+__all__ = ["psd_answer", "record_format", "record_psd", "shaper_recommendation", "sweep_answer"]
+
+KLIPPER_REFERENCE = "Klipper's resonance calibration criteria (klippy/extras/shaper_calibrate.py, 84104bbbd)"
+
+
+def record_format(text: str, params: MeasurementParams) -> RecordFormat:
+    return detect_format(text) if params.format == "auto" else params.format
+
+
+def record_psd(record: Record) -> tuple[np.ndarray, np.ndarray]:
+    """Klipper's PSD of a raw record (its signals summed, as psd_xyz) and the same normalised (calibration)."""
+    frequency, psd = cal.klipper_psd(np.asarray(record.time_s, float), np.atleast_2d(record.signals))
+    total = np.sum(psd, axis=0)
+    return frequency, total
+
+
+def _peaks(frequency: np.ndarray, psd: np.ndarray, max_modes: int) -> list[dict[str, Any]]:
+    resolution = float(frequency[1] - frequency[0]) if frequency.size > 1 else 0.0
+    spectrum = Spectrum(frequency, psd, resolution, 2 * (frequency.size - 1))
+    return [
+        {
+            "frequency_hz": f,
+            "damping_ratio_half_power": zeta,
+            "frequency_interval_hz": [f - resolution / 2, f + resolution / 2],
+        }
+        for f, zeta in spectral_peaks(spectrum, max_modes)
+    ]
+
+
+def _interval(
+    params: MeasurementParams, peaks: list[dict[str, Any]], mode: IdentifiedMode | None
+) -> tuple[tuple[float, float], str]:
+    if params.frequency_tolerance is not None:
+        tol = params.frequency_tolerance
+        return (1.0 - tol, 1.0 + tol), f"frequency_tolerance: +-{100 * tol:g} %"
+    if mode is not None:
+        lo, hi = mode.natural_frequency_ci_hz
+        f = mode.natural_frequency_hz
+        return (lo / f, hi / f), f"the 95 % interval of the {f:.4g} Hz mode's natural frequency"
+    if peaks:  # the lowest peak: half a bin is the largest share of its frequency
+        low = min(peaks, key=lambda p: p["frequency_hz"])
+        lo, hi = low["frequency_interval_hz"]
+        f = low["frequency_hz"]
+        return (lo / f, hi / f), f"the spectrum's resolution at its {f:.4g} Hz peak (half a bin either side)"
+    return (1.0, 1.0), "none: no peak to measure the frequency by"
+
+
+def shaper_recommendation(
+    frequency: np.ndarray,
+    psd_normalized: np.ndarray,
+    params: MeasurementParams,
+    peaks: list[dict[str, Any]],
+    mode: IdentifiedMode | None = None,
+) -> dict[str, Any]:
+    """``recommendation``'s fields for ``params.target`` (see the module)."""
+    assert params.target is not None
+    interval, source = _interval(params, peaks, mode)
+    choice = firmware_pick(frequency, psd_normalized, params.target, interval, params.square_corner_velocity)
+    pick, klipper = choice.pick, choice.klipper
+    reason = (
+        f"of the {params.target} shapers as fast as Klipper's pick ({klipper.kind} at {klipper.frequency_hz:.1f} Hz, "
+        f"max_accel {klipper.max_accel_mm_s2:.0f}) and leaving no more vibration, the one leaving least over the "
+        f"frequency interval {interval[0]:.4g}..{interval[1]:.4g} ({source})"
+    )
+    return {
+        "target": params.target,
+        "shaper": {
+            "type": choice.firmware_type,
+            "frequency_hz": pick.frequency_hz,
+            "damping_ratio": pick.scores.damping_ratio,
+        },
+        "max_acceleration": pick.max_accel_mm_s2,
+        "remaining_vibration_percent": 100.0 * pick.vibrations,
+        "robust_remaining_vibration_percent": 100.0 * choice.robust_vibrations,
+        "smoothing": pick.smoothing_mm,
+        "robust_over": {"frequency_ratio_interval": list(interval), "source": source},
+        "klipper_calibration": {
+            "type": klipper.kind,
+            "frequency_hz": klipper.frequency_hz,
+            "max_acceleration": klipper.max_accel_mm_s2,
+            "remaining_vibration_percent": 100.0 * klipper.vibrations,
+            "smoothing": klipper.smoothing_mm,
+            "each_type": each_type(choice.klipper_each),
+        },
+        "dominates_klipper": choice.dominates,
+        "firmware": present(firmware_report(pick, KLIPPER_REFERENCE)),
+        "shaper_reason": choice.note or reason,
+    }
+
+
+def _spectrum_body(frequency: np.ndarray, psd: np.ndarray, normalized: np.ndarray) -> dict[str, Any]:
+    return {
+        "frequency_hz": frequency,
+        "psd": psd,
+        "psd_normalized": normalized,
+        "resolution_hz": float(frequency[1] - frequency[0]) if frequency.size > 1 else 0.0,
+        "window": "kaiser(6), Klipper's segments",
+    }
+
+
+def _answer(
+    fmt: str, excitation: str, frequency: np.ndarray, psd: np.ndarray, normalized: np.ndarray, params: MeasurementParams
+) -> dict[str, Any]:
+    keep = frequency <= cal.MAX_PSD_FREQ_HZ
+    peaks = _peaks(frequency[keep], psd[keep], params.max_modes)
+    recommendation: dict[str, Any] = {"plant": None, "frequency_ratio_interval": None, "candidates": []}
+    if params.target is None:
+        recommendation["reason"] = "no target given: add target=klipper|reprapfirmware|marlin for the firmware's shaper"
+    else:
+        recommendation.update(shaper_recommendation(frequency, normalized, params, peaks))
+        recommendation["reason"] = recommendation.pop("shaper_reason")
+        recommendation["frequency_ratio_interval"] = recommendation["robust_over"]["frequency_ratio_interval"]
+    return {
+        "format": fmt,
+        "excitation": excitation,
+        "spectrum": _spectrum_body(frequency[keep], psd[keep], normalized[keep]),
+        "peaks": peaks,
+        "recommended": None,
+        "recommendation": recommendation,
+        "warnings": [],
+    }
+
+
+def psd_answer(text: str, params: MeasurementParams, max_rows: int) -> dict[str, Any]:
+    """The answer for Klipper's resonance CSV: normalised as Klipper normalises it unless it already is (a file
+    with shaper columns is SHAPER_CALIBRATE's, written normalised; TEST_RESONANCES writes none, raw)."""
+    record: PsdRecord = parse_psd_csv(text, max_rows=max_rows)
+    normalized = record.psd if record.normalized else cal.normalized(record.frequency_hz, record.psd)
+    raw = cal.denormalized(record.frequency_hz, record.psd) if record.normalized else record.psd
+    return _answer("klipper_psd", "spectrum", record.frequency_hz, raw, normalized, params)
+
+
+def sweep_answer(record: Record, fmt: str, params: MeasurementParams) -> dict[str, Any]:
+    """The answer for a raw record of a swept excitation: its Klipper PSD, peaks and the target's shaper."""
+    frequency, psd = record_psd(record)
+    return _answer(fmt, "sweep", frequency, psd, cal.normalized(frequency, psd), params)

@@ -1,0 +1,48 @@
+"""What excited a record: a free decay (a knock, a move's end) or a sweep (a resonance test), told from how its
+dominant frequency moves with time.
+
+The record is cut into segments of SEGMENT_S; each segment whose power stands SEGMENT_SNR above the record's
+quietest segments (its noise) gives the frequency of its spectral peak. A free vibration rings at its modes: the
+peak stays at one of them while the power decays. A swept excitation (Klipper's TEST_RESONANCES: a chirp from
+5 to 135 Hz at 1 Hz/s) moves the peak with the sweep: the peaks' frequency rises (or falls) with time, with a rank
+correlation above SWEEP_CORRELATION over at least MIN_SEGMENTS live segments.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.stats import spearmanr
+
+__all__ = ["Excitation", "excitation_of"]
+
+Excitation = Literal["free_decay", "sweep"]
+SEGMENT_S = 0.5
+MIN_SEGMENTS = 8
+SEGMENT_SNR = 4.0  # a live segment's power over the median of the quietest quarter's
+SWEEP_CORRELATION = 0.8
+LOW_HZ = 2.0  # peaks below this (gravity, drift, the sweeping overlay) are not looked at
+
+
+def excitation_of(signals: NDArray[np.float64], sample_rate_hz: float) -> Excitation:
+    """``sweep`` where the record's dominant frequency moves monotonically with time (see the module), else
+    ``free_decay``."""
+    n = int(SEGMENT_S * sample_rate_hz)
+    count = signals.shape[1] // n if n >= 16 else 0
+    if count < MIN_SEGMENTS:
+        return "free_decay"
+    segments = signals[:, : count * n].reshape(signals.shape[0], count, n)
+    segments = segments - np.mean(segments, axis=2, keepdims=True)
+    spectra = np.sum(np.abs(np.fft.rfft(segments * np.hanning(n), axis=2)) ** 2, axis=0)  # (count, bins)
+    frequency = np.fft.rfftfreq(n, 1.0 / sample_rate_hz)
+    spectra[:, frequency < LOW_HZ] = 0.0
+    power = np.sum(spectra, axis=1)
+    quiet = float(np.median(np.sort(power)[: max(1, count // 4)]))
+    live = power > SEGMENT_SNR * quiet if quiet > 0 else power > 0
+    if np.count_nonzero(live) < MIN_SEGMENTS:
+        return "free_decay"
+    peaks = frequency[np.argmax(spectra[live], axis=1)]
+    rank = spearmanr(np.flatnonzero(live), peaks).statistic
+    return "sweep" if np.isfinite(rank) and abs(float(rank)) >= SWEEP_CORRELATION else "free_decay"
