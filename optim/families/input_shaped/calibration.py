@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from models.errors import InvalidParameter
 from models.shapers import ImpulseSequence
 
 Array = NDArray[np.float64]
@@ -47,7 +48,8 @@ DEFAULT_SCV_MM_S = 5.0  # calibrate_shaper.py's --scv default (SHAPER_CALIBRATE 
 WINDOW_S = 0.5  # WINDOW_T_SEC: the Welch segment's target length
 KAISER_BETA = 6.0
 NORMALIZE_BELOW_HZ = 10.0  # 2 MIN_FREQ
-MAX_BINS = 8192  # PSD bins scored at most (units of work: candidates x bins x impulses)
+MAX_BINS = 1024  # PSD bins up to 200 Hz scored at most (0.2 Hz apart; Klipper's own are 1.6 Hz apart): units of work
+CHUNK_VALUES = 1 << 20  # candidates x bins x impulses evaluated at once (16 MiB of complex numbers)
 
 
 @dataclass(frozen=True)
@@ -61,7 +63,6 @@ class Scores:
     vibrations: Array  # remaining share, 0..1
     smoothing_mm: Array
     max_accel_mm_s2: Array
-    robust_vibrations: Array  # at their worst over the resonances shifted by ``evaluate``'s ratios (vibrations: 1)
 
     @property
     def score(self) -> Array:
@@ -118,7 +119,11 @@ def klipper_psd(time_s: Array, accel: Array) -> tuple[Array, Array]:
     fs = n / float(time_s[-1] - time_s[0])
     segment = 1 << int(fs * WINDOW_S - 1).bit_length()
     if n <= segment:
-        raise ValueError(f"{n} samples: Klipper's PSD needs more than one segment of {segment}")
+        raise InvalidParameter(
+            "body",
+            f"{n} samples",
+            f"Klipper's spectrum needs more than one segment of {segment} samples ({WINDOW_S} s)",
+        )
     window = np.kaiser(segment, KAISER_BETA)
     frequency, psd = welch(accel, fs=fs, window=window, noverlap=segment // 2, detrend="constant", axis=-1)
     return np.asarray(frequency, float), np.atleast_2d(np.asarray(psd, float))
@@ -168,9 +173,12 @@ def worst_vibrations(amplitudes: Array, times_s: Array, frequency_hz: Array, psd
         above[:] = True
     bins, p = frequency_hz[above], psd[above]
     worst = np.zeros(amplitudes.shape[0])
-    for zeta in TEST_DAMPING_RATIOS:
-        left = np.sum(np.maximum(shaper_response(amplitudes, times_s, zeta, bins) * p - threshold, 0.0), axis=1)
-        worst = np.maximum(worst, left / every if every > 0 else 0.0)
+    rows = max(1, CHUNK_VALUES // max(1, bins.size * amplitudes.shape[1]))
+    for first in range(0, amplitudes.shape[0], rows):  # chunks of candidates: bounded memory
+        a, t = amplitudes[first : first + rows], times_s[first : first + rows]
+        for zeta in TEST_DAMPING_RATIOS:
+            left = np.sum(np.maximum(shaper_response(a, t, zeta, bins) * p - threshold, 0.0), axis=1)
+            worst[first : first + rows] = np.maximum(worst[first : first + rows], left / every if every > 0 else 0.0)
     return worst
 
 
@@ -214,34 +222,58 @@ def evaluate(
     psd: Array,
     scv_mm_s: float = DEFAULT_SCV_MM_S,
     candidates_hz: Array | None = None,
-    ratios: Sequence[float] = (),
     damping_ratio: float = SHAPER_DAMPING_RATIO,
 ) -> Scores:
     """Klipper's criteria for ``kind`` (built by ``impulses_of(kind, f, zeta)``) at each candidate frequency over
-    the PSD's bins up to 200 Hz; ``robust_vibrations`` also over the resonances shifted by each of ``ratios``
-    r = f_true / f_measured: the shaper's times scaled by r (V of times r T at f is V of T at r f, so the bins
-    sample the shifted PSD p(f / r) at r f: exact for the firmware's own shaper, Marlin's whole-sample delays
-    included)."""
+    the PSD's bins up to 200 Hz."""
     grid = candidate_frequencies(kind) if candidates_hz is None else candidates_hz
-    keep = frequency_hz <= max(MAX_PSD_FREQ_HZ, float(grid[-1]) if grid.size else 0.0)
-    bins, p = frequency_hz[keep], psd[keep]
+    bins, p = scored_bins(frequency_hz, psd, float(grid[-1]) if grid.size else 0.0)
     sequences = tuple(impulses_of(kind, float(f), damping_ratio) for f in grid)
-    a = np.array([s.amplitudes for s in sequences], dtype=float).reshape(grid.size, -1)
-    t = np.array([s.times_s for s in sequences], dtype=float).reshape(grid.size, -1)
-    vibrations = worst_vibrations(a, t, bins, p)
-    robust = vibrations
-    for ratio in ratios:
-        robust = np.maximum(robust, worst_vibrations(a, t * ratio, bins, p))
+    a, t = _arrays(sequences)
     return Scores(
         kind=kind,
         frequency_hz=np.asarray(grid, float),
         damping_ratio=damping_ratio,
         impulses=sequences,
-        vibrations=vibrations,
+        vibrations=worst_vibrations(a, t, bins, p),
         smoothing_mm=smoothing_mm(a, t, SMOOTHING_ACCEL_MM_S2, scv_mm_s),
         max_accel_mm_s2=max_acceleration(a, t, scv_mm_s),
-        robust_vibrations=robust,
     )
+
+
+def scored_bins(frequency_hz: Array, psd: Array, top_candidate_hz: float = 0.0) -> tuple[Array, Array]:
+    """The bins fit_shaper scores: up to max(200 Hz, the highest candidate); at most MAX_BINS (a 422 beyond)."""
+    keep = frequency_hz <= max(MAX_PSD_FREQ_HZ, top_candidate_hz)
+    if np.count_nonzero(keep) > MAX_BINS:
+        raise InvalidParameter(
+            "body",
+            f"{np.count_nonzero(keep)} bins",
+            f"at most {MAX_BINS} PSD bins up to {MAX_PSD_FREQ_HZ:g} Hz are scored (Klipper's are 1.6 Hz apart)",
+        )
+    return frequency_hz[keep], psd[keep]
+
+
+def _arrays(sequences: Sequence[ImpulseSequence]) -> tuple[Array, Array]:
+    a = np.array([s.amplitudes for s in sequences], dtype=float).reshape(len(sequences), -1)
+    t = np.array([s.times_s for s in sequences], dtype=float).reshape(len(sequences), -1)
+    return a, t
+
+
+def robust_vibrations(
+    scores: Scores, indices: NDArray[np.intp], frequency_hz: Array, psd: Array, ratios: Sequence[float]
+) -> Array:
+    """The remaining vibrations of the candidates ``indices`` at their worst over the resonances shifted by each of
+    ``ratios`` r = f_true / f_measured (and unshifted): the shaper's times scaled by r (V of times r T at f is V of
+    T at r f, so the bins sample the shifted PSD p(f / r) at r f: exact for the firmware's own shaper, Marlin's
+    whole-sample delays included)."""
+    worst: Array = np.array(scores.vibrations[indices], dtype=float)
+    if indices.size == 0:
+        return worst
+    bins, p = scored_bins(frequency_hz, psd, float(scores.frequency_hz[-1]))
+    a, t = _arrays([scores.impulses[int(k)] for k in indices])
+    for ratio in ratios:
+        worst = np.maximum(worst, worst_vibrations(a, t * ratio, bins, p))
+    return worst
 
 
 # --- the picks ----------------------------------------------------------------------------------------------------

@@ -76,6 +76,18 @@ def _types(target: str) -> tuple[str, ...]:
     return {"reprapfirmware": tuple(_RRF), "marlin": _MARLIN}.get(target, _KLIPPER)
 
 
+def _target_scores(
+    target: str, klipper_types: list[cal.Scores], frequency_hz: np.ndarray, psd: np.ndarray, scv_mm_s: float
+) -> list[cal.Scores]:
+    """The target's types scored (Klipper's own reused: the same impulses on the same grid)."""
+    known = {s.kind: s for s in klipper_types} if target == "klipper" else {}
+    scores = [
+        known.get(k) or cal.evaluate(k, _builder(target, k), frequency_hz, psd, scv_mm_s, _grid(target, k))
+        for k in _types(target)
+    ]
+    return [s for s in scores if s.frequency_hz.size]
+
+
 def firmware_pick(
     frequency_hz: np.ndarray,
     psd: np.ndarray,
@@ -86,17 +98,15 @@ def firmware_pick(
     """The recommendation of the module's docstring for ``target`` over the (normalised) PSD."""
     klipper_types = [cal.evaluate(kind, klipper_impulses, frequency_hz, psd, scv_mm_s) for kind in cal.KLIPPER_TYPES]
     reference, each = cal.klipper_pick(klipper_types)
-    kinds = _types(target)
+    scores = _target_scores(target, klipper_types, frequency_hz, psd, scv_mm_s)
     ratios = np.linspace(*interval, ROBUST_POINTS).tolist() if interval[0] < interval[1] else []
-    scores = [
-        cal.evaluate(k, _builder(target, k), frequency_hz, psd, scv_mm_s, _grid(target, k), ratios) for k in kinds
-    ]
-    scores = [s for s in scores if s.frequency_hz.size]
     best: tuple[float, float, cal.Pick] | None = None
-    for s in scores:
-        ok = (s.max_accel_mm_s2 >= reference.max_accel_mm_s2 * (1 - 1e-12)) & (s.vibrations <= reference.vibrations)
-        for k in np.flatnonzero(ok):
-            key = (float(s.robust_vibrations[k]), -float(s.max_accel_mm_s2[k]))
+    for s in scores:  # only the candidates that qualify are shifted (each shift costs an evaluation)
+        ok = np.flatnonzero(
+            (s.max_accel_mm_s2 >= reference.max_accel_mm_s2 * (1 - 1e-12)) & (s.vibrations <= reference.vibrations)
+        )
+        for k, worst in zip(ok, cal.robust_vibrations(s, ok, frequency_hz, psd, ratios), strict=True):
+            key = (float(worst), -float(s.max_accel_mm_s2[k]))
             if best is None or key < best[:2]:
                 best = (*key, cal.Pick(s, int(k)))
     note = ""
@@ -106,7 +116,8 @@ def firmware_pick(
             f"no {target} shaper is both as fast as and no more vibrating than Klipper's pick ({reference.kind} at "
             f"{reference.frequency_hz:.1f} Hz): this is the {target} types' own pick by Klipper's rules"
         )
-        best = (float(own.scores.robust_vibrations[own.index]), -own.max_accel_mm_s2, own)
+        worst = cal.robust_vibrations(own.scores, np.array([own.index], dtype=np.intp), frequency_hz, psd, ratios)
+        best = (float(worst[0]), -own.max_accel_mm_s2, own)
     pick = best[2]
     return FirmwarePick(
         target=target,
