@@ -11,6 +11,7 @@ measurement gives the same shaper.
 from __future__ import annotations
 
 import numpy as np
+import orjson
 import pytest
 
 from optim.families.input_shaped import calibration as cal
@@ -129,3 +130,21 @@ def test_a_knock_is_fitted_and_its_interval_makes_the_shaper_robust(client):
 )
 def test_bad_printer_files_and_parameters_are_a_422_naming_the_field(client, text, params, field):
     assert_problem(client.post(URL, content=text, headers=CSV, params=params), 422, field)
+
+
+def test_vibfree_identify_target_prints_the_firmware_section(tmp_path, capsys, sweep):
+    """The issue's command: ``vibfree identify FILE --target klipper`` ends with the [input_shaper] section (and
+    names Klipper's own pick beside it); in-process, the same answer as the endpoint's."""
+    from vibfree import cli
+
+    record = tmp_path / "raw_data_x.csv"
+    record.write_text(raw_csv(sweep))
+    assert cli.main(["identify", str(record), "--target", "klipper", "--json", str(tmp_path / "answer.json")]) == 0
+    out = capsys.readouterr().out
+    answer = orjson.loads((tmp_path / "answer.json").read_bytes())
+    shaper = answer["recommendation"]["shaper"]
+    section = f"[input_shaper]\nshaper_type_x: {shaper['type']}\nshaper_freq_x: {shaper['frequency_hz']:g}\n"
+    assert section in out and out.rstrip().endswith("damping_ratio_x: 0.1")
+    assert "Klipper's calibration picks" in out
+    assert cli.main(["identify", str(record), "--target", "marlin"]) == 0
+    assert capsys.readouterr().out.rstrip().splitlines()[-1].startswith("M493 S1 X C")

@@ -37,6 +37,7 @@ from models.plants import Mode
 from models.shapers import ImpulseSequence
 from optim.families.input_shaped.firmware import (
     KLIPPER_MAX_DAMPING,
+    RRF_FREQUENCY_HZ,
     closest,
     curve_distance,
     fixed,
@@ -169,7 +170,7 @@ def test_a_40_hz_zvd_design_gives_the_documented_strings():
     rrf = block["reprapfirmware"]
     assert rrf["command"] == 'M593 P"zvd" F40 S0'
     params = _m593(rrf["command"])
-    assert params["P"] == '"zvd"' and 4.0 <= float(params["F"]) <= 1000.0 and 0.0 <= float(params["S"]) <= 0.99
+    assert params["P"] == '"zvd"' and RRF_FREQUENCY_HZ[0] <= float(params["F"]) <= 1000.0 and 0.0 <= float(params["S"]) <= 0.99
     # Marlin: the page's example form M493 S1 XY C2 A37, on X, with the damping at I's lower bound 0.01
     marlin = block["marlin"]
     assert marlin["command"] == "M493 S1 X C2 A40 I0.01"
@@ -179,11 +180,21 @@ def test_a_40_hz_zvd_design_gives_the_documented_strings():
 
 
 def _rrf_36(command: str) -> ImpulseSequence:
-    """The impulses RRF 3.6 applies for M593 P"custom" H.. T.. (individual H; cumulative T)."""
+    """The impulses RRF 3.6 applies for M593 P"custom" H.. T.. (individual H; cumulative T), as AxisShaper::Configure
+    reads them (3.6.0-beta.1): T's values are padded to 4 when one is given (GetFloatArray), and their count must
+    equal H's ("Number of delays must be same as number of amplitudes"); without T the delays are i x half the
+    damped period of F and S."""
     params = _m593(command)
     h = [float(x) for x in params["H"].split(":")]
-    t = [float(x) for x in params["T"].split(":")]
-    assert len(h) == len(t) <= 4 and sum(h) < 1.0 and all(np.diff([0.0, *t]) > 0)
+    if "T" in params:
+        t = [float(x) for x in params["T"].split(":")]
+        t = t * 4 if len(t) == 1 else t  # a single value is padded to the array's length
+        assert len(h) == len(t) <= 4, "Number of delays must be same as number of amplitudes"
+    else:
+        frequency, zeta = float(params["F"]), float(params.get("S", "0.05"))  # 3.6's default S is 0.05
+        assert RRF_FREQUENCY_HZ[0] <= frequency <= RRF_FREQUENCY_HZ[1] and 0.0 <= zeta <= 0.99
+        t = [0.5 * i / (frequency * math.sqrt(1.0 - zeta * zeta)) for i in range(1, len(h) + 1)]
+    assert sum(h) < 1.0 and all(np.diff([0.0, *t]) > 0)
     return ImpulseSequence(np.array([*h, 1.0 - sum(h)]), np.array([0.0, *t]))
 
 
@@ -298,7 +309,7 @@ def test_marlin_is_null_with_its_reason_where_it_cannot(design, reason):
 
 def test_rrf_is_null_outside_its_frequency_range():
     block = firmware_block(design_shaper("zvd", mode(2.0)))
-    assert block["reprapfirmware"] is None and "4 to 1000 Hz" in block["reprapfirmware_reason"]
+    assert block["reprapfirmware"] is None and "5.722 Hz (Duet 3" in block["reprapfirmware_reason"]
     assert block["klipper"]["section"].count("\n") == 4  # Klipper takes any frequency >= 0
 
 
@@ -337,3 +348,21 @@ def test_every_shaper_at_any_damping_and_frequency_gives_finite_settings(name):
                     assert math.isfinite(item["residual_percent"]) and math.isfinite(item["shaper_residual_percent"])
                     text = item.get("section") or item["command"]
                     assert "e-" not in text and "nan" not in text and "inf" not in text, text
+
+
+def test_rrf_f_range_is_the_step_clock_over_131070_and_a_zv_is_placed_by_f():
+    """RepRapFirmware's M593 F minimum is StepClockRate / (2 x 65535) (AxisShaper.cpp): 750 kHz on Duet 3, 5.72 Hz;
+    937.5 kHz on Duet 2, 7.15 Hz (the issue's F4.5 was refused on both). A ZV (two impulses) is P"custom" with H
+    and F only: 3.6 refuses a single T (padded to four delays)."""
+    assert RRF_FREQUENCY_HZ[0] == pytest.approx(5.7221, abs=1e-4)
+    low = firmware_report(design_shaper("zvd", mode(4.5, 0.0)))
+    assert low.reprapfirmware is None and "5.722 Hz (Duet 3; 7.153 Hz on Duet 2" in (low.reprapfirmware_reason or "")
+    duet3 = present(firmware_report(design_shaper("zvd", mode(6.5, 0.0))))["reprapfirmware"]
+    assert duet3["command"] == 'M593 P"zvd" F6.5 S0' and "needs a Duet 3 board" in duet3["note"]
+    design = design_shaper("zv", mode(40.0, 0.05))
+    rrf = present(firmware_report(design))["reprapfirmware"]
+    assert "T" not in _m593(rrf["command"]) and "T" in _m593(rrf["command_3_5"])
+    np.testing.assert_allclose(_rrf_36(rrf["command"]).times_s, design.impulses.times_s, rtol=1e-9)
+    np.testing.assert_allclose(_rrf_35(rrf["command_3_5"]).times_s, design.impulses.times_s, rtol=1e-9)
+    with pytest.raises(AssertionError, match="Number of delays"):  # the form 3.6.0-beta.1 refuses
+        _rrf_36('M593 P"custom" H0.5 T0.0125')

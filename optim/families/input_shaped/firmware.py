@@ -66,7 +66,10 @@ KLIPPER_DEFAULT_V_TOL = 1.0 / 20.0  # shaper_defs.SHAPER_VIBRATION_REDUCTION = 2
 # shaper_defs.INPUT_SHAPERS: the largest damping_ratio each type accepts
 KLIPPER_MAX_DAMPING = {"zv": 0.99, "mzv": 0.99, "zvd": 0.99, "ei": 0.4, "2hump_ei": 0.3, "3hump_ei": 0.2}
 RRF_MAX_IMPULSES = 5  # AxisShaper.h: MaxImpulses
-RRF_FREQUENCY_HZ = (4.0, 1000.0)  # M593 F: the minimum is 4 Hz on every board from 3.6.0; the maximum 1000 Hz
+# M593 F (AxisShaper.cpp, 3.4 to 3.6): from StepClockRate / (2 x 65535) to 1000 Hz. The step clock is 48 MHz / 64 =
+# 750 kHz on every Duet 3 (RepRapFirmware.h), 120 MHz / 128 = 937.5 kHz on Duet 2 and Maestro: 5.72 and 7.15 Hz.
+RRF_FREQUENCY_HZ = (750_000.0 / 131_070.0, 1000.0)
+RRF_DUET2_MIN_FREQUENCY_HZ = 937_500.0 / 131_070.0
 RRF_MAX_DAMPING = 0.99  # M593 S is limited to [0, 0.99]
 MARLIN_MODES = {"zv": 1, "zvd": 2, "zvdd": 3, "zvddd": 4, "ei": 5, "2hump_ei": 6, "3hump_ei": 7, "mzv": 8}
 MARLIN_FTM_FS_HZ = 1000.0  # FTM_FS, the trajectory rate (Configuration_adv.h default)

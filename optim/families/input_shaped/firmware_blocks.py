@@ -24,6 +24,7 @@ from optim.families.input_shaped.firmware import (
     MARLIN_VERSION,
     MARLIN_ZETA,
     RRF_DOCUMENTATION,
+    RRF_DUET2_MIN_FREQUENCY_HZ,
     RRF_FREQUENCY_HZ,
     RRF_MAX_DAMPING,
     RRF_MAX_IMPULSES,
@@ -207,18 +208,28 @@ def klipper_block(design: ShaperDesign, residual: ResidualPercent) -> KlipperSet
     )
 
 
-def _rrf_custom(impulses: ImpulseSequence) -> tuple[str, str, ImpulseSequence]:
+def _rrf_custom(impulses: ImpulseSequence) -> tuple[str | None, str, ImpulseSequence]:
     """M593 P"custom" for 3.6 (individual amplitudes H of all but the last, cumulative delays T of all but
-    the first) and for 3.4/3.5 (cumulative amplitudes, durations between impulses), and what 3.6 applies."""
+    the first) and for 3.4/3.5 (cumulative amplitudes, durations between impulses), and what 3.6 applies.
+
+    Two impulses in 3.6: a single T is padded to four values (GCodeBuffer::GetFloatArray), and RRF answers "Number
+    of delays must be same as number of amplitudes". Without T it delays the second impulse by half the damped
+    period of F and S, so F = 1 / (2 t_2) with S0 places it (None where that F is outside M593's range)."""
     a = [rounded(x) for x in impulses.amplitudes[:-1]]
     t = [rounded(x) for x in impulses.times_s[1:]]
     h36 = ":".join(fixed(x) for x in a)
-    t36 = ":".join(fixed(x) for x in t)
     cumulative = np.cumsum(impulses.amplitudes[:-1])
     h35 = ":".join(fixed(x) for x in cumulative)
     t35 = ":".join(fixed(x) for x in np.diff(impulses.times_s))
+    command_35 = f'M593 P"custom" H{h35} T{t35}'
+    if len(t) == 1:
+        frequency = rounded(0.5 / t[0])
+        applied = ImpulseSequence(np.array([a[0], 1.0 - a[0]]), np.array([0.0, 0.5 / frequency]))
+        low, high = RRF_FREQUENCY_HZ
+        command = f'M593 P"custom" F{fixed(frequency)} S0 H{h36}' if low <= frequency <= high else None
+        return command, command_35, applied
     applied = ImpulseSequence(np.array([*a, 1.0 - sum(a)]), np.array([0.0, *t]))
-    return f'M593 P"custom" H{h36} T{t36}', f'M593 P"custom" H{h35} T{t35}', applied
+    return f'M593 P"custom" H{h36} T{":".join(fixed(x) for x in t)}', command_35, applied
 
 
 def reprapfirmware_block(
@@ -231,7 +242,8 @@ def reprapfirmware_block(
     low, high = RRF_FREQUENCY_HZ
     if not low <= mode.natural_frequency_hz <= high:
         return None, (
-            f"M593 F takes {low:g} to {high:g} Hz (RRF 3.6); the design frequency is {mode.natural_frequency_hz:.6g} Hz"
+            f"M593 F takes {low:.4g} Hz (Duet 3; {RRF_DUET2_MIN_FREQUENCY_HZ:.4g} Hz on Duet 2 and Maestro: the step "
+            f"clock over 131070) to {high:g} Hz; the design frequency is {mode.natural_frequency_hz:.6g} Hz"
         )
     frequency, zeta = rounded(mode.natural_frequency_hz), min(rounded(mode.damping_ratio), RRF_MAX_DAMPING)
     options = valid_options(
@@ -245,9 +257,21 @@ def reprapfirmware_block(
         settings = FirmwareSettings(kind, frequency, zeta, options[kind])
     elif design.impulses.count <= RRF_MAX_IMPULSES:
         kind = "custom"
-        command, command_35, applied = _rrf_custom(design.impulses)
+        custom, command_35, applied = _rrf_custom(design.impulses)
+        if custom is None:
+            return None, (
+                f"two impulses {design.impulses.times_s[1]:.6g} s apart: RRF 3.6 places the second at half the "
+                f"damped period of F, and F = {0.5 / design.impulses.times_s[1]:.6g} Hz is outside {low:.4g} to "
+                f"{high:g} Hz (3.4 and 3.5 take {command_35})"
+            )
+        command = custom
         settings = FirmwareSettings(kind, frequency, zeta, applied)
         note = f"RRF's own {RRF_NAMES[design.name]} differs from the design here." if design.name in RRF_NAMES else None
+        if design.impulses.count == 2:
+            note = (
+                "RRF 3.6 pads a single T to four delays and refuses it: the second impulse is placed by F (half "
+                "the damped period of F with S0)."
+            )
     else:
         mapped = RRF_NAMES.get(design.name)
         kind = mapped if mapped in options else closest(options, design.impulses, mode)
@@ -256,6 +280,11 @@ def reprapfirmware_block(
         note = (
             f'the design has {design.impulses.count} impulses, more than the {RRF_MAX_IMPULSES} P"custom" takes: '
             f"{kind} is the nearest named type."
+        )
+    if frequency < RRF_DUET2_MIN_FREQUENCY_HZ:
+        note = (note or "") + (
+            f" F{fixed(frequency)} needs a Duet 3 board: Duet 2 and Maestro take F from "
+            f"{RRF_DUET2_MIN_FREQUENCY_HZ:.4g} Hz."
         )
     notes = [note or "", "" if kind == "custom" else _multi_mode_note(design)]
     block = ReprapFirmwareSettings(
