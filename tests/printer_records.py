@@ -101,3 +101,11 @@ def psd_csv(frequency_hz: Array, psd_axes: Array, max_freq_hz: float = 200.0, sh
         x, y, z = psd_axes[:, k]
         rows.append(f"{f:.1f},{x:.3e},{y:.3e},{z:.3e},{x + y + z:.3e}{cells}")
     return "freq,psd_x,psd_y,psd_z,psd_xyz" + shapers + "\n" + "\n".join(rows) + "\n"
+
+
+def rrf_csv(table: Array, rate_hz: float, overflows: int = 0) -> str:
+    """RepRapFirmware's accelerometer CSV (M956, Accelerometers.cpp): ``Sample,X,Y,Z``, samples numbered from 0,
+    accelerations in g to 3 decimals (10-bit resolution), and the last line ``Rate <samples/s>, overflows <n>``."""
+    g = table[:, 1:] / GRAVITY_MM_S2
+    body = "\n".join(f"{k},{x:.3f},{y:.3f},{z:.3f}" for k, (x, y, z) in enumerate(g))
+    return f"Sample,X,Y,Z\n{body}\nRate {round(rate_hz)}, overflows {overflows}\n"

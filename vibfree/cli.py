@@ -125,7 +125,7 @@ def _parser() -> argparse.ArgumentParser:
         choices=("klipper", "reprapfirmware", "marlin"),
         help="print the input shaper to set in this firmware (Klipper's [input_shaper] section, M593, M493)",
     )
-    identify.add_argument("--format", choices=("auto", "generic", "klipper_raw", "klipper_psd"))
+    identify.add_argument("--format", choices=("auto", "generic", "klipper_raw", "klipper_psd", "rrf_accelerometer"))
     identify.add_argument("--square-corner-velocity", type=float, help="mm/s, for smoothing and max_accel (5)")
     identify.add_argument(
         "--frequency-tolerance", type=float, help="make the shaper robust over f x [1 - tol, 1 + tol]"

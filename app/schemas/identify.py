@@ -54,11 +54,12 @@ class MeasurementParams(BaseModel):
         description="The CSV column holding the known command the record responds to (when present): the fit "
         "starts where it last changes.",
     )
-    format: Literal["auto", "generic", "klipper_raw", "klipper_psd"] = Field(
+    format: Literal["auto", "generic", "klipper_raw", "klipper_psd", "rrf_accelerometer"] = Field(
         "auto",
         description="The CSV's format: klipper_raw (#time,accel_x,accel_y,accel_z: ACCELEROMETER_MEASURE, or a "
         "resonance test's raw_data), klipper_psd (freq,psd_x,psd_y,psd_z,psd_xyz: TEST_RESONANCES or "
-        "SHAPER_CALIBRATE), generic (a time column and signals); auto tells it from the header.",
+        "SHAPER_CALIBRATE), rrf_accelerometer (Sample,X,Y,Z in g and a last line Rate <samples/s>, overflows <n>: "
+        "RepRapFirmware's M956), generic (a time column and signals); auto tells it from the header.",
     )
     target: Literal["klipper", "reprapfirmware", "marlin"] | None = Field(
         None,

@@ -12,6 +12,7 @@ API and the CLI call it.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -33,6 +34,7 @@ from models.plants import FREQUENCY_MAX_HZ, FREQUENCY_MIN_HZ
 from optim.families.input_shaped.calibration import normalized
 from optim.families.smoother.smoothers import identify, tuned_duration_s, vibration_free_durations_s
 from optim.identification.excitation import excitation_of
+from optim.identification.formats import parse_rrf_csv
 from optim.identification.modal import CONFIDENCE, IdentifiedMode, ModalIdentification, identify_modes
 from optim.identification.record import uniform_record
 from optim.identification.record_csv import parse_record_csv
@@ -153,27 +155,42 @@ def _measurement_body(result: ModalIdentification, samples: int) -> dict[str, An
     }
 
 
-def identify_record_csv(
-    text: str, params: MeasurementParams, max_rows: int
-) -> tuple[ModalIdentification, int, dict[str, Any] | None, str]:
-    """Parse and fit a CSV record (pure: no I/O): the identification, the record's sample count, and the target's
-    shaper fields (None without a target), and its format. A Klipper resonance CSV or a sweep's record has no
-    free decay to fit: app.services.printer answers it (raised as its answer: _SpectrumAnswer)."""
+@dataclass(frozen=True)
+class _Fitted:
+    """A CSV record's fit: the identification, its sample count, the target's shaper fields (None without one),
+    its format and the warnings of its parse."""
+
+    result: ModalIdentification
+    samples: int
+    shaper: dict[str, Any] | None
+    format: str
+    warnings: list[str]
+
+
+def identify_record_csv(text: str, params: MeasurementParams, max_rows: int) -> _Fitted:
+    """Parse and fit a CSV record (pure: no I/O). A Klipper resonance CSV, or a record of a swept excitation
+    (optim.identification.excitation), has no free decay to fit: app.services.printer answers it (raised as its
+    answer: _SpectrumAnswer)."""
     fmt = printer.record_format(text, params)
     if fmt == "klipper_psd":
         raise _SpectrumAnswer(printer.psd_answer(text, params, max_rows))
-    record = parse_record_csv(text, max_rows=max_rows, command_column=params.command_column)
-    if fmt == "klipper_raw" and record.command is None and params.start_s is None:
+    warnings: list[str] = []
+    if fmt == "rrf_accelerometer":
+        record, warnings = parse_rrf_csv(text, max_rows=max_rows)
+    else:
+        record = parse_record_csv(text, max_rows=max_rows, command_column=params.command_column)
+    if record.command is None and params.start_s is None:
         dt, signals, _ = uniform_record(record.time_s, np.atleast_2d(record.signals))
         if excitation_of(signals, 1.0 / dt) == "sweep":
-            raise _SpectrumAnswer(printer.sweep_answer(record, fmt, params))
+            answer = printer.sweep_answer(record, fmt, params)
+            raise _SpectrumAnswer({**answer, "warnings": [*warnings, *answer["warnings"]]})
     result = identify_modes(record, max_modes=params.max_modes, start_s=params.start_s)
     shaper = None
     if params.target is not None:
         frequency, psd = printer.record_psd(record)
         mode, _ = plant_interval(result.modes)
         shaper = printer.shaper_recommendation(frequency, normalized(frequency, psd), params, [], mode)
-    return result, int(record.time_s.size), shaper, fmt
+    return _Fitted(result, int(record.time_s.size), shaper, fmt, warnings)
 
 
 class _SpectrumAnswer(Exception):
@@ -200,12 +217,12 @@ async def identify_csv(
     params.check()
     # the fit, in the route's design threads (runtime.threads: bounded admission, deadline_s), or in-process
     try:
-        result, samples, shaper, fmt = await threads.run(
-            identify_record_csv, text, params, max_rows, deadline_s=deadline_s
-        )
+        fitted = await threads.run(identify_record_csv, text, params, max_rows, deadline_s=deadline_s)
     except _SpectrumAnswer as answer:
         return answer.body
-    body = {"format": fmt, **_measurement_body(result, samples)}
+    result, shaper = fitted.result, fitted.shaper
+    body = {"format": fitted.format, **_measurement_body(result, fitted.samples)}
+    body["warnings"] = [*fitted.warnings, *body["warnings"]]
     mode, interval = plant_interval(result.modes)
     plant = {"kind": "mode", "natural_frequency_hz": mode.natural_frequency_hz, "damping_ratio": mode.damping_ratio}
     recommendation: dict[str, Any] = {

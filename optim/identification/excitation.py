@@ -5,7 +5,8 @@ The record is cut into segments of SEGMENT_S; each segment whose power stands SE
 quietest segments (its noise) gives the frequency of its spectral peak. A free vibration rings at its modes: the
 peak stays at one of them while the power decays. A swept excitation (Klipper's TEST_RESONANCES: a chirp from
 5 to 135 Hz at 1 Hz/s) moves the peak with the sweep: the peaks' frequency rises (or falls) with time, with a rank
-correlation above SWEEP_CORRELATION over at least MIN_SEGMENTS live segments.
+correlation above SWEEP_CORRELATION over at least MIN_SEGMENTS live segments, through at least MIN_DISTINCT
+frequencies (a decay of several modes steps from one mode's to another's: few distinct peaks).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ SEGMENT_S = 0.5
 MIN_SEGMENTS = 8
 SEGMENT_SNR = 4.0  # a live segment's power over the median of the quietest quarter's
 SWEEP_CORRELATION = 0.8
+MIN_DISTINCT = 6  # distinct peak frequencies a sweep passes through (a decay shows at most its modes')
 LOW_HZ = 2.0  # peaks below this (gravity, drift, the sweeping overlay) are not looked at
 
 
@@ -44,5 +46,7 @@ def excitation_of(signals: NDArray[np.float64], sample_rate_hz: float) -> Excita
     if np.count_nonzero(live) < MIN_SEGMENTS:
         return "free_decay"
     peaks = frequency[np.argmax(spectra[live], axis=1)]
+    if np.unique(peaks).size < MIN_DISTINCT:
+        return "free_decay"
     rank = spearmanr(np.flatnonzero(live), peaks).statistic
     return "sweep" if np.isfinite(rank) and abs(float(rank)) >= SWEEP_CORRELATION else "free_decay"

@@ -16,7 +16,7 @@ import pytest
 
 from optim.families.input_shaped import calibration as cal
 from tests.app.test_errors import assert_problem
-from tests.printer_records import chirp, knock, psd_csv, raw_csv, raw_record
+from tests.printer_records import chirp, knock, psd_csv, raw_csv, raw_record, rrf_csv
 
 URL = "/v1/identify"
 CSV = {"content-type": "text/csv"}
@@ -148,3 +148,27 @@ def test_vibfree_identify_target_prints_the_firmware_section(tmp_path, capsys, s
     assert "Klipper's calibration picks" in out
     assert cli.main(["identify", str(record), "--target", "marlin"]) == 0
     assert capsys.readouterr().out.rstrip().splitlines()[-1].startswith("M493 S1 X C")
+
+
+def test_reprapfirmwares_accelerometer_csv_is_read_at_its_rate_in_mm_s2(client, sweep):
+    """M956's file: sample numbers, g to 3 decimals (1/256 g = 38 mm/s^2 steps, under the 150 mm/s^2 noise) and the
+    rate on its last line: a knock's modes within 0.5 %, a sweep answered from its spectrum, lost samples warned of,
+    a failed recording refused."""
+    rate = 1344.0  # a LIS3DH's rate
+    table = raw_record(knock(rate, 2.0), np.random.default_rng(4), rate_hz=rate)
+    body = _post(client, rrf_csv(table, rate, overflows=2), target="reprapfirmware")
+    assert body["format"] == "rrf_accelerometer" and body["quality"]["sample_rate_hz"] == pytest.approx(rate)
+    assert [m["natural_frequency_hz"] for m in body["modes"]] == pytest.approx([42.0, 71.0], rel=0.005)
+    assert any("overflowed 2 times" in w for w in body["warnings"])
+    assert body["recommendation"]["firmware"]["reprapfirmware"]["command"].startswith("M593 P")
+    spectrum = _post(client, rrf_csv(sweep, RATE_HZ))
+    assert (spectrum["format"], spectrum["excitation"]) == ("rrf_accelerometer", "sweep")
+    failed = "Sample,X,Y,Z\nFailed to collect data from accelerometer\n"
+    assert_problem(client.post(URL, content=failed, headers=CSV), 422, "body")
+
+
+def test_a_generic_record_of_a_sweep_is_not_fitted_as_a_free_decay(client, sweep):
+    text = "time_s,accel_x,accel_y\n" + "\n".join(f"{t - sweep[0, 0]:.6f},{x:.3f},{y:.3f}" for t, x, y, _ in sweep)
+    body = _post(client, text)
+    assert (body["format"], body["excitation"]) == ("generic", "sweep")
+    assert [p["frequency_hz"] for p in body["peaks"]] == pytest.approx([42.0, 71.0], abs=1.6)

@@ -170,7 +170,11 @@ def test_a_40_hz_zvd_design_gives_the_documented_strings():
     rrf = block["reprapfirmware"]
     assert rrf["command"] == 'M593 P"zvd" F40 S0'
     params = _m593(rrf["command"])
-    assert params["P"] == '"zvd"' and RRF_FREQUENCY_HZ[0] <= float(params["F"]) <= 1000.0 and 0.0 <= float(params["S"]) <= 0.99
+    assert (
+        params["P"] == '"zvd"'
+        and RRF_FREQUENCY_HZ[0] <= float(params["F"]) <= 1000.0
+        and 0.0 <= float(params["S"]) <= 0.99
+    )
     # Marlin: the page's example form M493 S1 XY C2 A37, on X, with the damping at I's lower bound 0.01
     marlin = block["marlin"]
     assert marlin["command"] == "M493 S1 X C2 A40 I0.01"
