@@ -1,4 +1,4 @@
-"""The design page at / and its static files (no build step, no CDN)."""
+"""The design page at /, the printer page at /printer, and their static files (no build step, no CDN)."""
 
 from __future__ import annotations
 
@@ -16,3 +16,9 @@ static = StaticFiles(directory=STATIC_DIR)
 @router.get("/")
 async def page() -> FileResponse:
     return FileResponse(STATIC_DIR / "index.html", media_type="text/html")
+
+
+@router.get("/printer")
+async def printer_page() -> FileResponse:
+    """A printer's accelerometer file to its firmware's input shaper (POST /v1/identify with a target)."""
+    return FileResponse(STATIC_DIR / "printer.html", media_type="text/html")

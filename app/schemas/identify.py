@@ -207,6 +207,11 @@ class RecommendationOut(OutModel):
     firmware: dict[str, Any] | None = Field(
         None, description="The firmware blocks, as an input-shaped design's design.firmware."
     )
+    response: dict[str, list[float]] | None = Field(
+        None,
+        description="With target: frequency_hz and psd_normalized (the spectrum scored, up to 200 Hz), and the "
+        "recommended and Klipper's shapers' V there, at its worst over the damping ratios 0.075, 0.1 and 0.15.",
+    )
 
 
 class PeakOut(OutModel):

@@ -30,6 +30,7 @@ from optim.identification.spectrum import Spectrum, spectral_peaks
 
 __all__ = ["psd_answer", "record_format", "record_psd", "shaper_recommendation", "sweep_answer"]
 
+FIRMWARE_NAMES = {"klipper": "Klipper", "reprapfirmware": "RepRapFirmware", "marlin": "Marlin"}
 KLIPPER_REFERENCE = "Klipper's resonance calibration criteria (klippy/extras/shaper_calibrate.py, 84104bbbd)"
 
 
@@ -85,12 +86,17 @@ def shaper_recommendation(
     """``recommendation``'s fields for ``params.target`` (see the module)."""
     assert params.target is not None
     interval, source = _interval(params, peaks, mode)
-    choice = firmware_pick(frequency, psd_normalized, params.target, interval, params.square_corner_velocity)
-    pick, klipper = choice.pick, choice.klipper
+    robust_first = params.frequency_tolerance is not None
+    choice = firmware_pick(
+        frequency, psd_normalized, params.target, interval, params.square_corner_velocity, robust_first
+    )
+    pick, reference, klipper = choice.pick, choice.reference, choice.klipper
+    quiet = "" if robust_first else " and leaving no more vibration"
     reason = (
-        f"of the {params.target} shapers as fast as Klipper's pick ({klipper.kind} at {klipper.frequency_hz:.1f} Hz, "
-        f"max_accel {klipper.max_accel_mm_s2:.0f}) and leaving no more vibration, the one leaving least over the "
-        f"frequency interval {interval[0]:.4g}..{interval[1]:.4g} ({source})"
+        f"{choice.note + '. ' if choice.note else ''}Of the {FIRMWARE_NAMES[params.target]} shapers as fast as "
+        f"{'Klipper' + chr(39) + 's' if reference is klipper else 'that'} pick ({reference.kind} at "
+        f"{reference.frequency_hz:.1f} Hz, max_accel {reference.max_accel_mm_s2:.0f} mm/s^2){quiet}, the one leaving "
+        f"least over the frequency interval {interval[0]:.4g}..{interval[1]:.4g} ({source})"
     )
     return {
         "target": params.target,
@@ -114,7 +120,20 @@ def shaper_recommendation(
         },
         "dominates_klipper": choice.dominates,
         "firmware": present(firmware_report(pick, KLIPPER_REFERENCE)),
-        "shaper_reason": choice.note or reason,
+        "response": _response(frequency, psd_normalized, pick, klipper),
+        "shaper_reason": reason,
+    }
+
+
+def _response(frequency: np.ndarray, psd_normalized: np.ndarray, pick: cal.Pick, klipper: cal.Pick) -> dict[str, Any]:
+    """What the page plots (Klipper's graph): the scored spectrum, and each shaper's V at its worst over the
+    printer's damping ratios, bin by bin."""
+    bins, p = cal.scored_bins(frequency, psd_normalized)
+    return {
+        "frequency_hz": bins,
+        "psd_normalized": p,
+        "recommended": cal.worst_response(pick.impulses, bins),
+        "klipper": cal.worst_response(klipper.impulses, bins),
     }
 
 

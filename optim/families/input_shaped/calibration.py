@@ -163,6 +163,13 @@ def shaper_response(amplitudes: Array, times_s: Array, zeta: float, frequency_hz
     return np.asarray(total / np.sum(amplitudes, axis=1, keepdims=True), float)
 
 
+def worst_response(impulses: ImpulseSequence, frequency_hz: Array) -> Array:
+    """A shaper's V at each frequency at its worst over TEST_DAMPING_RATIOS (Klipper's graph's shaper curves)."""
+    a = np.asarray(impulses.amplitudes, float)[None, :]
+    t = np.asarray(impulses.times_s, float)[None, :]
+    return np.asarray(np.max([shaper_response(a, t, z, frequency_hz)[0] for z in TEST_DAMPING_RATIOS], axis=0), float)
+
+
 def worst_vibrations(amplitudes: Array, times_s: Array, frequency_hz: Array, psd: Array) -> Array:
     """The remaining vibrations at their worst over TEST_DAMPING_RATIOS. Only the bins above p_max / 20 are summed: a
     shaper of positive amplitudes has V <= 1, so the others add 0 to both sums (the same number, 5-10x faster)."""

@@ -7,8 +7,8 @@ calibration picks on the same PSD. The recommendation is, of the target's candid
 reference's and whose remaining vibrations are no more than its, the one whose remaining vibrations at their worst
 over the identified frequency interval (the resonances shifted by ROBUST_POINTS ratios across it) are least, then
 the fastest: never worse than Klipper's pick by Klipper's own criteria, and robust where the measurement is
-uncertain. Where no candidate of the target qualifies (a firmware without Klipper's pick's type), the target's own
-pick by Klipper's rules, said so.
+uncertain. Where no candidate of the target qualifies (a firmware without Klipper's pick's type), the reference is
+the target's own pick by Klipper's rules instead, said so.
 """
 
 from __future__ import annotations
@@ -51,6 +51,8 @@ class FirmwarePick:
     firmware_type: str  # the firmware's own name of the pick's type (RRF: ei2, ei3)
     klipper: cal.Pick  # the reference: Klipper's calibration's pick
     klipper_each: tuple[cal.Pick, ...]  # Klipper's pick of each of its types
+    reference: cal.Pick  # what the pick is no worse than: Klipper's pick, else the target's own by Klipper's rules
+    candidates: tuple[cal.Scores, ...]  # the target's types, scored
     robust_vibrations: float  # the pick's remaining vibrations at their worst over the interval
     interval: tuple[float, float]  # frequency ratio f_true / f_measured the resonances were shifted over
     dominates: bool  # no more vibrations and no lower max_accel than Klipper's pick
@@ -88,36 +90,58 @@ def _target_scores(
     return [s for s in scores if s.frequency_hz.size]
 
 
+def _most_robust(
+    scores: list[cal.Scores],
+    reference: cal.Pick,
+    frequency_hz: np.ndarray,
+    psd: np.ndarray,
+    ratios: list[float],
+    robust_first: bool,
+) -> tuple[float, float, cal.Pick] | None:
+    """Of the candidates as fast as ``reference`` and (unless ``robust_first``) leaving no more vibrations: the one
+    leaving least over the ratios, then the fastest ((worst vibrations, -max_accel, pick)); None where none
+    qualifies. Only those are shifted (each shift costs an evaluation)."""
+    best: tuple[float, float, cal.Pick] | None = None
+    for s in scores:
+        quiet = s.vibrations <= reference.vibrations if not robust_first else np.ones(s.vibrations.size, dtype=bool)
+        ok = np.flatnonzero((s.max_accel_mm_s2 >= reference.max_accel_mm_s2 * (1 - 1e-12)) & quiet)
+        for k, worst in zip(ok, cal.robust_vibrations(s, ok, frequency_hz, psd, ratios), strict=True):
+            key = (float(worst), -float(s.max_accel_mm_s2[k]))
+            if best is None or key < best[:2]:
+                best = (*key, cal.Pick(s, int(k)))
+    return best
+
+
 def firmware_pick(
     frequency_hz: np.ndarray,
     psd: np.ndarray,
     target: str,
     interval: tuple[float, float] = (1.0, 1.0),
     scv_mm_s: float = cal.DEFAULT_SCV_MM_S,
+    robust_first: bool = False,
 ) -> FirmwarePick:
-    """The recommendation of the module's docstring for ``target`` over the (normalised) PSD."""
+    """The recommendation of the module's docstring for ``target`` over the (normalised) PSD; with
+    ``robust_first`` (an interval the user asked for), the least vibrations over it of the candidates as fast as
+    the reference, whatever they leave unshifted (then never worse than the reference over the interval)."""
     klipper_types = [cal.evaluate(kind, klipper_impulses, frequency_hz, psd, scv_mm_s) for kind in cal.KLIPPER_TYPES]
     reference, each = cal.klipper_pick(klipper_types)
     scores = _target_scores(target, klipper_types, frequency_hz, psd, scv_mm_s)
     ratios = np.linspace(*interval, ROBUST_POINTS).tolist() if interval[0] < interval[1] else []
-    best: tuple[float, float, cal.Pick] | None = None
-    for s in scores:  # only the candidates that qualify are shifted (each shift costs an evaluation)
-        ok = np.flatnonzero(
-            (s.max_accel_mm_s2 >= reference.max_accel_mm_s2 * (1 - 1e-12)) & (s.vibrations <= reference.vibrations)
-        )
-        for k, worst in zip(ok, cal.robust_vibrations(s, ok, frequency_hz, psd, ratios), strict=True):
-            key = (float(worst), -float(s.max_accel_mm_s2[k]))
-            if best is None or key < best[:2]:
-                best = (*key, cal.Pick(s, int(k)))
-    note = ""
-    if best is None:
-        own, _ = cal.klipper_pick(scores)
+    note, used = "", reference
+    matched = any(  # some candidate of the target is as fast as Klipper's pick and leaves no more vibrations
+        np.any((s.max_accel_mm_s2 >= reference.max_accel_mm_s2 * (1 - 1e-12)) & (s.vibrations <= reference.vibrations))
+        for s in scores
+    )
+    if not matched:  # the firmware's own pick by Klipper's rules is the reference instead (it qualifies)
+        used, _ = cal.klipper_pick(scores)
+        own = used
         note = (
-            f"no {target} shaper is both as fast as and no more vibrating than Klipper's pick ({reference.kind} at "
-            f"{reference.frequency_hz:.1f} Hz): this is the {target} types' own pick by Klipper's rules"
+            f"No {target} shaper is both as fast as and no more vibrating than Klipper's pick ({reference.kind} at "
+            f"{reference.frequency_hz:.1f} Hz): the reference is the {target} types' own pick by Klipper's rules "
+            f"({own.kind} at {own.frequency_hz:.1f} Hz)"
         )
-        worst = cal.robust_vibrations(own.scores, np.array([own.index], dtype=np.intp), frequency_hz, psd, ratios)
-        best = (float(worst[0]), -own.max_accel_mm_s2, own)
+    best = _most_robust(scores, used, frequency_hz, psd, ratios, robust_first)
+    assert best is not None  # (a candidate qualifies: the reference itself, or the one that matched it)
     pick = best[2]
     return FirmwarePick(
         target=target,
@@ -125,6 +149,8 @@ def firmware_pick(
         firmware_type=_RRF[pick.kind] if target == "reprapfirmware" else pick.kind,
         klipper=reference,
         klipper_each=tuple(each),
+        reference=used,
+        candidates=tuple(scores),
         robust_vibrations=best[0],
         interval=interval,
         dominates=pick.vibrations <= reference.vibrations
