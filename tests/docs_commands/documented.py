@@ -43,7 +43,7 @@ def identification_record_script() -> str:
         for b in blocks()
         if b.document == "docs/identification.md" and b.language == "sh"
         for c in commands(b.body, "sh")
-        if c.startswith("python3 - <<")
+        if c.startswith("python3 - <<'EOF'")  # (the record of the first example; the resonance test's is 'KLIPPER')
     ]
     return command.split("\n", 1)[1].rsplit("\n", 1)[0]
 

@@ -22,11 +22,13 @@ from tests.docs_commands.checks import (
     check_identify,
     check_identify_answer,
     check_identify_recommends,
+    check_klipper_section,
     check_mkdocs_build,
     check_mkdocs_serve,
     check_readyz_loop,
     check_recommended_design,
     check_record_written,
+    check_resonance_test_written,
     check_served,
     check_sweep_parquet,
     check_sweep_table,
@@ -97,6 +99,8 @@ COMMANDS: dict[str, Spec] = {
     "vibfree identify record.csv --displacement 0.05 --max-velocity 0.5 --max-acceleration 5": Run(
         check_identify_recommends
     ),
+    "python3 - <<'KLIPPER'": Run(check_resonance_test_written),
+    "vibfree identify raw_data_x.csv --target klipper": Run(check_klipper_section, needs=("python3 - <<'KLIPPER'",)),
     # docs/sweeps.md: a Dask cluster
     "pip install 'vibfree[dask]'": Exempt(
         "installs from the package index; tests/test_packaging.py checks the extra, the tests' environment has it"
