@@ -10,7 +10,7 @@ the firmware (``target``).
   (optim.families.input_shaped.firmware_pick): the PSD is Klipper's (computed from a raw record as Klipper does,
   or read), normalised as Klipper normalises it, and the frequency interval the shaper is made robust over is
   ``frequency_tolerance`` where given, else the identified mode's 95 % interval (a free decay), else the PSD's
-  resolution at its highest peak (half a bin either side).
+  resolution at its lowest peak (half a bin either side: the largest share of a peak's frequency).
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ def record_format(text: str, params: MeasurementParams) -> RecordFormat:
 
 
 def record_psd(record: Record) -> tuple[np.ndarray, np.ndarray]:
-    """Klipper's PSD of a raw record (its signals summed, as psd_xyz) and the same normalised (calibration)."""
+    """Klipper's PSD of a raw record, its signals' summed (as psd_xyz), not normalised."""
     frequency, psd = cal.klipper_psd(np.asarray(record.time_s, float), np.atleast_2d(record.signals))
     total = np.sum(psd, axis=0)
     return frequency, total
@@ -92,9 +92,10 @@ def shaper_recommendation(
     )
     pick, reference, klipper = choice.pick, choice.reference, choice.klipper
     quiet = "" if robust_first else " and leaving no more vibration"
+    whose = "Klipper's" if reference is klipper else "that"
     reason = (
         f"{choice.note + '. ' if choice.note else ''}Of the {FIRMWARE_NAMES[params.target]} shapers as fast as "
-        f"{'Klipper' + chr(39) + 's' if reference is klipper else 'that'} pick ({reference.kind} at "
+        f"{whose} pick ({reference.kind} at "
         f"{reference.frequency_hz:.1f} Hz, max_accel {reference.max_accel_mm_s2:.0f} mm/s^2){quiet}, the one leaving "
         f"least over the frequency interval {interval[0]:.4g}..{interval[1]:.4g} ({source})"
     )

@@ -249,8 +249,15 @@ def evaluate(
 
 
 def scored_bins(frequency_hz: Array, psd: Array, top_candidate_hz: float = 0.0) -> tuple[Array, Array]:
-    """The bins fit_shaper scores: up to max(200 Hz, the highest candidate); at most MAX_BINS (a 422 beyond)."""
+    """The bins fit_shaper scores: up to max(200 Hz, the highest candidate); at least 2 and some power there (else
+    there is nothing to shape), at most MAX_BINS (a 422 otherwise)."""
     keep = frequency_hz <= max(MAX_PSD_FREQ_HZ, top_candidate_hz)
+    if np.count_nonzero(keep) < 2 or not np.max(psd[keep], initial=0.0) > 0:
+        raise InvalidParameter(
+            "body",
+            f"{np.count_nonzero(keep)} bins",
+            f"the spectrum holds no power in 2 or more bins up to {MAX_PSD_FREQ_HZ:g} Hz: no vibration to shape",
+        )
     if np.count_nonzero(keep) > MAX_BINS:
         raise InvalidParameter(
             "body",
