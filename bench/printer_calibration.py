@@ -28,7 +28,7 @@ sys.path.insert(0, str(ROOT))
 
 from optim.families.input_shaped import calibration as cal  # noqa: E402
 from optim.families.input_shaped.firmware_pick import firmware_pick  # noqa: E402
-from optim.identification.spectrum import Spectrum, spectral_peaks  # noqa: E402
+from optim.identification.spectrum import psd_peaks  # noqa: E402
 from tests.printer_records import RATE_HZ, chirp, raw_record, toolhead  # noqa: E402
 
 COMMAND = chirp(RATE_HZ, 10.0, 140.0, hz_per_sec=2.0)
@@ -65,7 +65,7 @@ def main(count: int, klippy: str | None) -> None:
         accel_ratio.append(pick.max_accel_mm_s2 / reference.max_accel_mm_s2)
         better += pick.vibrations < reference.vibrations or pick.max_accel_mm_s2 > reference.max_accel_mm_s2
         resolution = float(frequency[1])
-        found = [f for f, _ in spectral_peaks(Spectrum(frequency, psd.sum(axis=0), resolution, 0), 4)]
+        found = [f for f, _ in psd_peaks(frequency, psd.sum(axis=0), 4)]
         for f, _, _ in modes:
             if found:
                 peak_bins.append(min(abs(p - f) for p in found) / resolution)

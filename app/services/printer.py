@@ -26,7 +26,7 @@ from optim.families.input_shaped.firmware_pick import each_type, firmware_pick, 
 from optim.identification.formats import PsdRecord, RecordFormat, detect_format, parse_psd_csv
 from optim.identification.modal import IdentifiedMode
 from optim.identification.record import Record
-from optim.identification.spectrum import Spectrum, spectral_peaks
+from optim.identification.spectrum import psd_peaks
 
 __all__ = ["psd_answer", "record_format", "record_psd", "shaper_recommendation", "sweep_answer"]
 
@@ -47,14 +47,13 @@ def record_psd(record: Record) -> tuple[np.ndarray, np.ndarray]:
 
 def _peaks(frequency: np.ndarray, psd: np.ndarray, max_modes: int) -> list[dict[str, Any]]:
     resolution = float(frequency[1] - frequency[0]) if frequency.size > 1 else 0.0
-    spectrum = Spectrum(frequency, psd, resolution, 2 * (frequency.size - 1))
     return [
         {
             "frequency_hz": f,
             "damping_ratio_half_power": zeta,
             "frequency_interval_hz": [f - resolution / 2, f + resolution / 2],
         }
-        for f, zeta in spectral_peaks(spectrum, max_modes)
+        for f, zeta in psd_peaks(frequency, psd, max_modes)
     ]
 
 

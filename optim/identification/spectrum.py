@@ -2,18 +2,26 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.signal import find_peaks, welch
 
-__all__ = ["MAX_SPECTRUM_POINTS", "Spectrum", "record_spectrum", "spectral_peaks"]
+__all__ = ["MAX_SPECTRUM_POINTS", "Spectrum", "psd_peaks", "record_spectrum", "spectral_peaks"]
 
 MAX_SPECTRUM_POINTS = 2049  # welch's one-sided spectrum of at most 4096-sample segments
 MAX_SEGMENT = 4096
 PEAK_FLOOR_FACTOR = 30.0  # a peak stands 15 dB above the spectrum's median (noise bins exceed it w.p. 1e-9)
 PEAK_RELATIVE = 1e-3  # and at most 30 dB below the highest peak
+# a measured spectrum's peak (a resonance test: the excitation spans the band, so its median is no noise floor)
+# rises 1.5 dB above its surroundings (3 or 5 dB missed modes) and above the highest / 20: on 60 of
+# bench/printer_calibration.py's resonance tests, a peak within 0.28 bins of a mode (median), no spurious peak, and
+# 3 of 90 modes missed (second modes weaker than the highest / 20: below what Klipper's criteria score)
+PSD_PEAK_PROMINENCE = 0.15  # decades of the PSD
+PSD_PEAK_RELATIVE = 1.0 / 20.0  # ... and stands above the highest one / 20, the part of the PSD Klipper scores
+PSD_PEAK_BAND_HZ = (10.0, 200.0)  # where a printer's resonances are looked for (Klipper scores up to 200 Hz)
 
 
 @dataclass(frozen=True)
@@ -73,5 +81,35 @@ def spectral_peaks(spectrum: Spectrum, max_modes: int) -> list[tuple[float, floa
         right = k + int(below_right[0]) if below_right.size else p.size - 1
         width = float(f[right] - f[left])
         zeta = float(np.clip(width / (2.0 * frequency), 0.002, 0.3)) if frequency > 0 else 0.05
+        out.append((frequency, zeta))
+    return out
+
+
+def psd_peaks(frequency_hz: NDArray[np.float64], psd: NDArray[np.float64], max_peaks: int) -> list[tuple[float, float]]:
+    """(frequency Hz, half-power damping estimate) of a measured PSD's most prominent peaks in PSD_PEAK_BAND_HZ,
+    lowest frequency first: each rising PSD_PEAK_PROMINENCE decades above its surroundings (find_peaks on log10)
+    and above the highest peak's PSD_PEAK_RELATIVE (the square-wave excitation's harmonics make bumps far below),
+    its frequency refined by a parabola through the log PSD of its three bins, its damping the half-power width
+    over twice the frequency (clipped to [0.002, 0.3]; the window widens a peak narrower than a few bins)."""
+    low, high = PSD_PEAK_BAND_HZ
+    band = (frequency_hz >= low) & (frequency_hz <= high)
+    f, p = frequency_hz[band], psd[band]
+    if f.size < 3 or not np.any(p > 0):
+        return []
+    logp = np.log10(np.maximum(p, np.max(p) * 1e-30))
+    found, props = find_peaks(
+        logp, prominence=PSD_PEAK_PROMINENCE, height=float(np.max(logp)) + math.log10(PSD_PEAK_RELATIVE)
+    )
+    strongest = np.sort(found[np.argsort(props["prominences"])[::-1][:max_peaks]])
+    df = float(f[1] - f[0])
+    out: list[tuple[float, float]] = []
+    for k in strongest:
+        a, b, c = logp[k - 1], logp[k], logp[k + 1]
+        denom = a - 2 * b + c
+        frequency = float(f[k] + (np.clip(0.5 * (a - c) / denom, -0.5, 0.5) if denom < 0 else 0.0) * df)
+        half = logp[k] - math.log10(2.0)
+        left = k - int(np.argmax(logp[k::-1] <= half)) if np.any(logp[k::-1] <= half) else 0
+        right = k + int(np.argmax(logp[k:] <= half)) if np.any(logp[k:] <= half) else f.size - 1
+        zeta = float(np.clip((f[right] - f[left]) / (2.0 * frequency), 0.002, 0.3))
         out.append((frequency, zeta))
     return out
