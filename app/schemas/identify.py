@@ -126,7 +126,10 @@ class QualityOut(OutModel):
     samples: int = Field(description="Samples in the record.")
     signals: list[str]
     fit_start_s: float = Field(description="Where the fitted free vibration starts.")
-    fit_start_source: str = Field(description="command_end, start_s or largest_excursion.")
+    fit_start_source: str = Field(
+        description="command_end, start_s, largest_excursion, or residual_at_noise (after the largest excursion, "
+        "where the fit's residual falls to the noise of the record's end: the excitation was still on before)."
+    )
     fit_samples: int
     r_squared: float = Field(description="Share of the (noise-weighted) variance the fit explains.")
     noise_rms: list[float] = Field(description="Per signal: the fit's residual rms (signal units).")

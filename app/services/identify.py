@@ -33,9 +33,10 @@ from models.errors import InvalidParameter
 from models.plants import FREQUENCY_MAX_HZ, FREQUENCY_MIN_HZ
 from optim.families.input_shaped.calibration import normalized
 from optim.families.smoother.smoothers import identify, tuned_duration_s, vibration_free_durations_s
+from optim.identification.decay_start import identify_free_decay
 from optim.identification.excitation import excitation_of
 from optim.identification.formats import parse_rrf_csv
-from optim.identification.modal import CONFIDENCE, IdentifiedMode, ModalIdentification, identify_modes
+from optim.identification.modal import CONFIDENCE, IdentifiedMode, ModalIdentification
 from optim.identification.record import uniform_record
 from optim.identification.record_csv import parse_record_csv
 from optim.registry import FAMILIES
@@ -184,7 +185,7 @@ def identify_record_csv(text: str, params: MeasurementParams, max_rows: int) -> 
         if excitation_of(signals, 1.0 / dt) == "sweep":
             answer = printer.sweep_answer(record, fmt, params)
             raise _SpectrumAnswer({**answer, "warnings": [*warnings, *answer["warnings"]]})
-    result = identify_modes(record, max_modes=params.max_modes, start_s=params.start_s)
+    result = identify_free_decay(record, max_modes=params.max_modes, start_s=params.start_s)
     shaper = None
     if params.target is not None:
         frequency, psd = printer.record_psd(record)
