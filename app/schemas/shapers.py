@@ -228,7 +228,11 @@ class MarlinOut(_FirmwareTargetOut):
     frequency_hz: float = Field(description="A: the design mode's undamped natural frequency, Hz.")
     damping_ratio: float = Field(description="I: the design mode's damping ratio, within M493's [0.01, 1].")
     vibration_tolerance: float | None = Field(description="Q: the EI types' tolerance (the design's); null otherwise.")
-    command: str = Field(description="The G-code line (S1 turns Fixed-Time Motion on).")
+    command: str = Field(description="The G-code line (S1 turns Fixed-Time Motion on), FTM V2 (M493 V answers FTM V2).")
+    command_v1: str = Field(
+        description="The same for a build before FTM V2 (Oct 2025; M493 V unknown): X<mode> selects X's shaper, "
+        "A, I and Q are X's (M493.cpp at 485fbf20, 2025-01-28)."
+    )
     note: str | None = Field(description="What differs from the design: the 1 ms delay grid, the damping bound.")
 
 
@@ -287,6 +291,7 @@ class FirmwareOut(OutModel):
                         "damping_ratio": 0.01,
                         "vibration_tolerance": None,
                         "command": "M493 S1 X C2 A40 I0.01",
+                        "command_v1": "M493 S1 X2 A40 I0.01",
                         "exact": False,
                         "residual_percent": 0.0136,
                         "shaper_residual_percent": 0.419,

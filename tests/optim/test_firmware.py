@@ -153,6 +153,17 @@ def _m493(command: str) -> dict[str, str]:
     return {part[0]: part[1:] for part in command.split()[1:]}
 
 
+def _m493_v1(command: str) -> dict[str, str]:
+    """Before FTM V2 (M493.cpp at 485fbf20): X<mode 0-8> selects X's shaper; A (Hz) within [FTM_MIN_SHAPE_FREQ,
+    FTM_FS / 2], I within [0.01, 1], Q within [0, 1] and only for an EI type (modes 5-7)."""
+    match = re.fullmatch(r"M493 S1 X([0-8]) A([0-9.]+) I([0-9.]+)( Q([0-9.]+))?", command)
+    assert match, command
+    mode, frequency, zeta = int(match[1]), float(match[2]), float(match[3])
+    assert 10.0 <= frequency <= 500.0 and 0.01 <= zeta <= 1.0
+    assert match[4] is None or (5 <= mode <= 7 and 0.0 <= float(match[5]) <= 1.0)
+    return {"C": match[1], "A": match[2], "I": match[3], **({"Q": match[5]} if match[4] else {})}
+
+
 def test_a_40_hz_zvd_design_gives_the_documented_strings():
     # The issue's acceptance: shaper_type_x: zvd and shaper_freq_x: 40, written exactly so.
     design = design_shaper("zvd", mode(40.0, 0.0))
@@ -178,6 +189,8 @@ def test_a_40_hz_zvd_design_gives_the_documented_strings():
     # Marlin: the page's example form M493 S1 XY C2 A37, on X, with the damping at I's lower bound 0.01
     marlin = block["marlin"]
     assert marlin["command"] == "M493 S1 X C2 A40 I0.01"
+    v2 = {key: value for key, value in _m493(marlin["command"]).items() if key in "CAIQ"}
+    assert _m493_v1(marlin["command_v1"]) == v2  # the same settings before FTM V2
     params = _m493(marlin["command"])
     assert params["C"] == "2" and 0.01 <= float(params["I"]) <= 1.0
     assert block["marlin_reason"] is None and block["reprapfirmware_reason"] is None
@@ -294,6 +307,7 @@ def test_marlin_ei_takes_the_designs_tolerance():
     marlin = firmware_block(design)["marlin"]
     params = _m493(marlin["command"])
     assert params["C"] == "5" and params["Q"] == "0.1" and 0.0 <= float(params["Q"]) <= 1.0
+    assert _m493_v1(marlin["command_v1"]) == {"C": "5", "A": "50", "I": params["I"], "Q": "0.1"}
 
 
 @pytest.mark.parametrize(

@@ -105,6 +105,7 @@ class MarlinSettings(Block):
     damping_ratio: float
     vibration_tolerance: float | None
     command: str
+    command_v1: str  # the same before FTM V2: X<mode> picks X's shaper (bugfix-2.1.x 485fbf20, 2025-01-28)
     exact: bool
     residual_percent: float
     shaper_residual_percent: float
@@ -321,10 +322,13 @@ def marlin_block(design: ShaperDesign, residual: ResidualPercent) -> tuple[Marli
     low, high = MARLIN_ZETA
     zeta = min(max(rounded(mode.damping_ratio), low), high)
     vtol = design.vibration_tolerance if design.name in ("ei", "2hump_ei", "3hump_ei") else None
-    command = f"M493 S1 {AXIS.upper()} C{MARLIN_MODES[design.name]} A{fixed(frequency)} I{fixed(zeta)}"
+    mode_code = MARLIN_MODES[design.name]
+    command = f"M493 S1 {AXIS.upper()} C{mode_code} A{fixed(frequency)} I{fixed(zeta)}"
+    command_v1 = f"M493 S1 {AXIS.upper()}{mode_code} A{fixed(frequency)} I{fixed(zeta)}"
     if vtol is not None:
         vtol = rounded(vtol)
         command += f" Q{fixed(vtol)}"
+        command_v1 += f" Q{fixed(vtol)}"
     impulses = marlin_impulses(design.name, frequency, zeta, KLIPPER_DEFAULT_V_TOL if vtol is None else vtol)
     settings = FirmwareSettings(design.name, frequency, zeta, impulses)
     notes = [
@@ -349,6 +353,7 @@ def marlin_block(design: ShaperDesign, residual: ResidualPercent) -> tuple[Marli
         damping_ratio=zeta,
         vibration_tolerance=vtol,
         command=command,
+        command_v1=command_v1,
         **_residuals(settings, design, residual),
         note=" ".join(notes),
     )
