@@ -159,6 +159,11 @@ def _answer(
         recommendation.update(shaper_recommendation(frequency, normalized, params, peaks))
         recommendation["reason"] = recommendation.pop("shaper_reason")
         recommendation["frequency_ratio_interval"] = recommendation["robust_over"]["frequency_ratio_interval"]
+    if params.has_move():
+        recommendation["reason"] += (
+            "; design: none for a spectrum (its modes are not fitted with 95 % intervals, which a design's band "
+            "must cover: send a free decay's record for that)"
+        )
     return {
         "format": fmt,
         "excitation": excitation,
