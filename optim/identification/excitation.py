@@ -1,8 +1,8 @@
 """What excited a record: a free decay (a knock, a move's end) or a sweep (a resonance test), told from how its
 dominant frequency moves with time.
 
-The record is cut into segments of SEGMENT_S; each segment whose power stands SEGMENT_SNR above the record's
-quietest segments (its noise) gives the frequency of its spectral peak. A free vibration rings at its modes: the
+The record is cut into segments of SEGMENT_S; each segment whose spectral peak stands SEGMENT_SNR above the
+segment's own median bin (a tone, not noise) gives the frequency of that peak. A free vibration rings at its modes: the
 peak stays at one of them while the power decays. A swept excitation (Klipper's TEST_RESONANCES: a chirp from
 5 to 135 Hz at 1 Hz/s) moves the peak with the sweep: the peaks' frequency rises (or falls) with time, with a rank
 correlation above SWEEP_CORRELATION over at least MIN_SEGMENTS live segments, through at least MIN_DISTINCT
@@ -22,7 +22,8 @@ __all__ = ["Excitation", "excitation_of"]
 Excitation = Literal["free_decay", "sweep"]
 SEGMENT_S = 0.5
 MIN_SEGMENTS = 8
-SEGMENT_SNR = 4.0  # a live segment's power over the median of the quietest quarter's
+SEGMENT_SNR = 30.0  # a live segment's peak bin over its median bin (15 dB: white noise's peak of ~500 bins stays
+# under 10, e^(-30) the chance a bin of it exceeds 30 x its mean)
 SWEEP_CORRELATION = 0.8
 MIN_DISTINCT = 6  # distinct peak frequencies a sweep passes through (a decay shows at most its modes')
 LOW_HZ = 2.0  # peaks below this (gravity, drift, the sweeping overlay) are not looked at
@@ -40,9 +41,9 @@ def excitation_of(signals: NDArray[np.float64], sample_rate_hz: float) -> Excita
     spectra = np.sum(np.abs(np.fft.rfft(segments * np.hanning(n), axis=2)) ** 2, axis=0)  # (count, bins)
     frequency = np.fft.rfftfreq(n, 1.0 / sample_rate_hz)
     spectra[:, frequency < LOW_HZ] = 0.0
-    power = np.sum(spectra, axis=1)
-    quiet = float(np.median(np.sort(power)[: max(1, count // 4)]))
-    live = power > SEGMENT_SNR * quiet if quiet > 0 else power > 0
+    peak = np.max(spectra, axis=1)
+    floor = np.median(spectra[:, frequency >= LOW_HZ], axis=1)
+    live = peak > SEGMENT_SNR * floor
     if np.count_nonzero(live) < MIN_SEGMENTS:
         return "free_decay"
     peaks = frequency[np.argmax(spectra[live], axis=1)]
