@@ -69,9 +69,11 @@ def _builder(target: str, kind: str) -> cal.ImpulsesOf:
 
 def _grid(target: str, kind: str) -> np.ndarray:
     """Klipper's candidates of the type within what the firmware's frequency parameter takes."""
-    low = {"reprapfirmware": RRF_FREQUENCY_HZ[0], "marlin": MARLIN_MIN_SHAPE_FREQ_HZ}.get(target, 0.0)
-    high = min(cal.MAX_SHAPER_FREQ_HZ, RRF_FREQUENCY_HZ[1] if target == "reprapfirmware" else MARLIN_FTM_FS_HZ / 2)
-    return cal.candidate_frequencies(kind, low, high)
+    low, high = {
+        "reprapfirmware": RRF_FREQUENCY_HZ,
+        "marlin": (MARLIN_MIN_SHAPE_FREQ_HZ, MARLIN_FTM_FS_HZ / 2),
+    }.get(target, (0.0, math.inf))
+    return cal.candidate_frequencies(kind, low, min(cal.MAX_SHAPER_FREQ_HZ, high))
 
 
 def _types(target: str) -> tuple[str, ...]:
