@@ -1,11 +1,11 @@
 """Klipper's own calibration on the synthetic resonance tests of tests/printer_records.py: the reference numbers of
 tests/optim/test_klipper_calibration.py, and how our pick compares with Klipper's.
 
-``python bench/klipper_reference.py KLIPPY_DIR`` (the ``klippy`` folder of a Klipper checkout, e.g. 84104bbbd:
-``git clone https://github.com/Klipper3d/klipper``; its shaper_calibrate.py needs only numpy) runs Klipper's
-``process_accelerometer_data``, ``normalize_to_frequencies`` and ``find_best_shaper`` (scv 5) on each seeded record
-and prints Klipper's pick beside ours (optim.families.input_shaped.calibration): its type, frequency, remaining
-vibrations, smoothing and max_accel, and the largest differences of the per-frequency arrays.
+``python bench/klipper_reference.py KLIPPY_DIR [MAX_SMOOTHING]`` (the ``klippy`` folder of a Klipper checkout, e.g.
+84104bbbd: ``git clone https://github.com/Klipper3d/klipper``; its shaper_calibrate.py needs only numpy) runs
+Klipper's ``process_accelerometer_data``, ``normalize_to_frequencies`` and ``find_best_shaper`` (scv 5, and
+max_smoothing in mm where given) on each seeded record and prints Klipper's pick of each type and its best beside
+ours (optim.families.input_shaped.calibration): type, frequency, remaining vibrations, smoothing and max_accel.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ from optim.families.input_shaped.firmware import klipper_impulses  # noqa: E402
 from tests.printer_records import RATE_HZ, chirp, raw_record  # noqa: E402
 
 SEEDS = (0, 1, 2)
+MAX_SMOOTHING: list[float | None] = [None]  # Klipper's max_smoothing (mm), as the command line sets it
 
 
 def sweep(seed: int) -> np.ndarray:
@@ -37,11 +38,11 @@ def ours(table: np.ndarray) -> tuple[cal.Pick, cal.Pick]:
     frequency, psd = cal.klipper_psd(table[:, 0], table[:, 1:].T)
     total = cal.normalized(frequency, psd.sum(axis=0))
     types = [cal.evaluate(kind, klipper_impulses, frequency, total) for kind in cal.KLIPPER_TYPES]
-    klipper, _ = cal.klipper_pick(types)
+    klipper, _ = cal.klipper_pick(types, MAX_SMOOTHING[0])
     return klipper, cal.dominating_pick(types, klipper)
 
 
-def main(klippy: str) -> None:
+def main(klippy: str, max_smoothing: float | None = None) -> None:
     sys.path.insert(0, klippy)
     calibrate = importlib.import_module("extras.shaper_calibrate")
     for seed in SEEDS:
@@ -49,7 +50,7 @@ def main(klippy: str) -> None:
         helper = calibrate.ShaperCalibrate(None)
         data = helper.process_accelerometer_data(f"seed{seed}", table)
         data.normalize_to_frequencies()
-        best, each = helper.find_best_shaper(data, scv=5.0)
+        best, each = helper.find_best_shaper(data, scv=5.0, max_smoothing=max_smoothing)
         mine, dominating = ours(table)
         for pick in each:
             print(
@@ -71,4 +72,5 @@ def main(klippy: str) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1])
+    MAX_SMOOTHING[0] = float(sys.argv[2]) if len(sys.argv) > 2 else None
+    main(sys.argv[1], MAX_SMOOTHING[0])

@@ -127,6 +127,7 @@ def _parser() -> argparse.ArgumentParser:
     )
     identify.add_argument("--format", choices=("auto", "generic", "klipper_raw", "klipper_psd", "rrf_accelerometer"))
     identify.add_argument("--square-corner-velocity", type=float, help="mm/s, for smoothing and max_accel (5)")
+    identify.add_argument("--max-smoothing", type=float, help="mm: Klipper's max_smoothing (0.05 or more)")
     identify.add_argument(
         "--frequency-tolerance", type=float, help="make the shaper robust over f x [1 - tol, 1 + tol]"
     )
@@ -228,6 +229,7 @@ def _identify(args: argparse.Namespace) -> int:
             ("target", args.target),
             ("format", args.format),
             ("square_corner_velocity", args.square_corner_velocity),
+            ("max_smoothing", args.max_smoothing),
             ("frequency_tolerance", args.frequency_tolerance),
         )
         if value is not None

@@ -73,6 +73,13 @@ class MeasurementParams(BaseModel):
         description="mm/s: the printer's square_corner_velocity, which Klipper's smoothing and max_accel use "
         "(its calibrate_shaper.py default 5). Accelerations are read in mm/s^2, Klipper's unit.",
     )
+    max_smoothing: float | None = Field(
+        None,
+        ge=0.05,
+        le=10.0,
+        description="mm: Klipper's max_smoothing ([resonance_tester], SHAPER_CALIBRATE MAX_SMOOTHING; at least "
+        "0.05 as there): Klipper's pick is made under it, and no shaper smoothing more is recommended.",
+    )
     frequency_tolerance: float | None = Field(
         None,
         ge=0.0,

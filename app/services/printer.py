@@ -87,7 +87,13 @@ def shaper_recommendation(
     interval, source = _interval(params, peaks, mode)
     robust_first = params.frequency_tolerance is not None
     choice = firmware_pick(
-        frequency, psd_normalized, params.target, interval, params.square_corner_velocity, robust_first
+        frequency,
+        psd_normalized,
+        params.target,
+        interval,
+        params.square_corner_velocity,
+        robust_first,
+        params.max_smoothing,
     )
     pick, reference, klipper = choice.pick, choice.reference, choice.klipper
     quiet = "" if robust_first else " and leaving no more vibration"

@@ -126,6 +126,7 @@ def test_a_knock_is_fitted_and_its_interval_makes_the_shaper_robust(client):
         ("freq,psd_xyz\n1.6,1\n3.1,2\n", {"target": "duet"}, "target"),
         ("freq,psd_xyz\n1.6,1\n3.1,2\n", {"square_corner_velocity": -1}, "square_corner_velocity"),
         ("freq,psd_xyz\n1.6,1\n3.1,2\n", {"frequency_tolerance": 0.9}, "frequency_tolerance"),
+        ("freq,psd_xyz\n1.6,1\n3.1,2\n", {"max_smoothing": 0.01}, "max_smoothing"),  # Klipper's minval 0.05
         ("freq,psd_xyz\n300,1\n400,2\n", {"target": "klipper"}, "body"),  # no bin up to 200 Hz
         ("freq,psd_xyz\n0,0\n1.6,0\n3.1,0\n", {"target": "klipper"}, "body"),  # no power: nothing to shape
     ],

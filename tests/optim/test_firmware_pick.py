@@ -74,3 +74,19 @@ def test_the_pick_is_the_most_robust_of_those_no_worse_than_its_reference(target
         reference.scores, np.array([reference.index], dtype=np.intp), FREQUENCY_HZ, spectrum(), ratios
     )
     assert choice.robust_vibrations <= reference_worst[0]
+
+
+@pytest.mark.parametrize("target", ["klipper", "reprapfirmware", "marlin"])
+def test_max_smoothing_bounds_the_pick_and_makes_klippers(target):
+    """Klipper's max_smoothing (0.09 mm here): its pick is fit_shaper's under it (as
+    tests/optim/test_klipper_calibration.py checks against Klipper's code), and no recommended shaper smooths more
+    (nor than that pick, where even it does)."""
+    limit = 0.09
+    choice = firmware_pick(FREQUENCY_HZ, spectrum(), target, (0.95, 1.05), max_smoothing_mm=limit)
+    types = [cal.evaluate(kind, klipper_impulses, FREQUENCY_HZ, spectrum()) for kind in cal.KLIPPER_TYPES]
+    klipper, _ = cal.klipper_pick(types, limit)
+    assert (choice.klipper.kind, choice.klipper.frequency_hz) == (klipper.kind, klipper.frequency_hz)
+    assert klipper.smoothing_mm <= limit
+    assert choice.pick.smoothing_mm <= max(limit, choice.reference.smoothing_mm)
+    unbounded = firmware_pick(FREQUENCY_HZ, spectrum(), target, (0.95, 1.05))
+    assert unbounded.klipper.smoothing_mm > limit  # (the bound binds: the check is not empty)

@@ -293,11 +293,25 @@ def robust_vibrations(
 # --- the picks ----------------------------------------------------------------------------------------------------
 
 
-def klipper_fit(scores: Scores) -> Pick:
+def scanned_from(scores: Scores, max_smoothing_mm: float | None) -> int:
+    """The lowest candidate fit_shaper looks at: it scans from the highest frequency down and, with
+    ``max_smoothing``, stops at the first (after the highest) whose smoothing exceeds it."""
+    if max_smoothing_mm is None or scores.frequency_hz.size < 2:
+        return 0
+    over = np.flatnonzero(scores.smoothing_mm[:-1] > max_smoothing_mm)
+    return int(over[-1]) + 1 if over.size else 0
+
+
+def klipper_fit(scores: Scores, max_smoothing_mm: float | None = None) -> Pick:
     """fit_shaper's choice for one type: the frequency of least vibrations (scanned from the highest: a tie keeps
-    the higher), then the one of least score among those within 1.1 x + 0.0005 of it (scanned from the lowest)."""
+    the higher), then the one of least score among those within 1.1 x + 0.0005 of it (scanned from the lowest).
+    With ``max_smoothing_mm``, where the scan stops early (scanned_from) the least vibrations found so far, with no
+    selection by score (as fit_shaper returns then)."""
     v, score = scores.vibrations, scores.score
-    best = int(v.size - 1 - np.argmin(v[::-1]))
+    first = scanned_from(scores, max_smoothing_mm)
+    best = first + int(v.size - first - 1 - np.argmin(v[first:][::-1]))
+    if first > 0:
+        return Pick(scores, best)
     selected = best
     for k in range(v.size):
         if v[k] < v[best] * 1.1 + 0.0005 and score[k] < score[selected]:
@@ -305,22 +319,22 @@ def klipper_fit(scores: Scores) -> Pick:
     return Pick(scores, selected)
 
 
-def klipper_pick(types: Sequence[Scores]) -> tuple[Pick, list[Pick]]:
+def klipper_pick(types: Sequence[Scores], max_smoothing_mm: float | None = None) -> tuple[Pick, list[Pick]]:
     """find_best_shaper's choice over the types in order (its rules without max_vibrations: a type wins on a
-    20 % better score, or a 5 % better score with 10 % less smoothing; then any of its frequencies with both fewer
-    vibrations and less smoothing; a zv winner gives way to the first type with 10 % fewer vibrations), and each
-    type's own pick."""
+    20 % better score, or a 5 % better score with 10 % less smoothing; then any of its frequencies fit_shaper
+    looked at with both fewer vibrations and less smoothing; a zv winner gives way to the first type with 10 % fewer
+    vibrations), and each type's own pick."""
     best: Pick | None = None
     each: list[Pick] = []
     for scores in types:
-        pick = klipper_fit(scores)
+        pick = klipper_fit(scores, max_smoothing_mm)
         if (
             best is None
             or pick.score * 1.2 < best.score
             or (pick.score * 1.05 < best.score and pick.smoothing_mm * 1.1 < best.smoothing_mm)
         ):
             best = pick
-        for k in range(scores.frequency_hz.size):
+        for k in range(scanned_from(scores, max_smoothing_mm), scores.frequency_hz.size):
             if scores.vibrations[k] < best.vibrations and scores.smoothing_mm[k] < best.smoothing_mm:
                 best = pick = Pick(scores, k)
         each.append(pick)

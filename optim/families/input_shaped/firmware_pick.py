@@ -18,6 +18,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
 from models.plants import Mode
 from models.shapers import ImpulseSequence
@@ -92,6 +93,20 @@ def _target_scores(
     return [s for s in scores if s.frequency_hz.size]
 
 
+def _qualifying(
+    s: cal.Scores, reference: cal.Pick, robust_first: bool, max_smoothing_mm: float | None
+) -> NDArray[np.bool_]:
+    """The candidates as fast as ``reference``, (unless ``robust_first``) leaving no more vibrations, and (with
+    ``max_smoothing_mm``) smoothing no more than it, or than the reference where even it does (fit_shaper keeps its
+    highest frequency whatever it smooths)."""
+    ok = s.max_accel_mm_s2 >= reference.max_accel_mm_s2 * (1 - 1e-12)
+    if not robust_first:
+        ok &= s.vibrations <= reference.vibrations
+    if max_smoothing_mm is not None:
+        ok &= s.smoothing_mm <= max(max_smoothing_mm, reference.smoothing_mm)
+    return ok
+
+
 def _most_robust(
     scores: list[cal.Scores],
     reference: cal.Pick,
@@ -99,14 +114,13 @@ def _most_robust(
     psd: np.ndarray,
     ratios: list[float],
     robust_first: bool,
+    max_smoothing_mm: float | None,
 ) -> tuple[float, float, cal.Pick] | None:
-    """Of the candidates as fast as ``reference`` and (unless ``robust_first``) leaving no more vibrations: the one
-    leaving least over the ratios, then the fastest ((worst vibrations, -max_accel, pick)); None where none
-    qualifies. Only those are shifted (each shift costs an evaluation)."""
+    """Of the candidates _qualifying: the one leaving least over the ratios, then the fastest ((worst vibrations,
+    -max_accel, pick)); None where none qualifies. Only those are shifted (each shift costs an evaluation)."""
     best: tuple[float, float, cal.Pick] | None = None
     for s in scores:
-        quiet = s.vibrations <= reference.vibrations if not robust_first else np.ones(s.vibrations.size, dtype=bool)
-        ok = np.flatnonzero((s.max_accel_mm_s2 >= reference.max_accel_mm_s2 * (1 - 1e-12)) & quiet)
+        ok = np.flatnonzero(_qualifying(s, reference, robust_first, max_smoothing_mm))
         for k, worst in zip(ok, cal.robust_vibrations(s, ok, frequency_hz, psd, ratios), strict=True):
             key = (float(worst), -float(s.max_accel_mm_s2[k]))
             if best is None or key < best[:2]:
@@ -121,28 +135,28 @@ def firmware_pick(
     interval: tuple[float, float] = (1.0, 1.0),
     scv_mm_s: float = cal.DEFAULT_SCV_MM_S,
     robust_first: bool = False,
+    max_smoothing_mm: float | None = None,
 ) -> FirmwarePick:
     """The recommendation of the module's docstring for ``target`` over the (normalised) PSD; with
     ``robust_first`` (an interval the user asked for), the least vibrations over it of the candidates as fast as
-    the reference, whatever they leave unshifted (then never worse than the reference over the interval)."""
+    the reference, whatever they leave unshifted (then never worse than the reference over the interval); with
+    ``max_smoothing_mm`` (Klipper's max_smoothing), Klipper's pick under it and no candidate smoothing more."""
     klipper_types = [cal.evaluate(kind, klipper_impulses, frequency_hz, psd, scv_mm_s) for kind in cal.KLIPPER_TYPES]
-    reference, each = cal.klipper_pick(klipper_types)
+    reference, each = cal.klipper_pick(klipper_types, max_smoothing_mm)
     scores = _target_scores(target, klipper_types, frequency_hz, psd, scv_mm_s)
     ratios = np.linspace(*interval, ROBUST_POINTS).tolist() if interval[0] < interval[1] else []
     note, used = "", reference
-    matched = any(  # some candidate of the target is as fast as Klipper's pick and leaves no more vibrations
-        np.any((s.max_accel_mm_s2 >= reference.max_accel_mm_s2 * (1 - 1e-12)) & (s.vibrations <= reference.vibrations))
-        for s in scores
-    )
+    # some candidate of the target is as fast as Klipper's pick and leaves no more vibrations
+    matched = any(np.any(_qualifying(s, reference, False, max_smoothing_mm)) for s in scores)
     if not matched:  # the firmware's own pick by Klipper's rules is the reference instead (it qualifies)
-        used, _ = cal.klipper_pick(scores)
+        used, _ = cal.klipper_pick(scores, max_smoothing_mm)
         own = used
         note = (
             f"No {target} shaper is both as fast as and no more vibrating than Klipper's pick ({reference.kind} at "
             f"{reference.frequency_hz:.1f} Hz): the reference is the {target} types' own pick by Klipper's rules "
             f"({own.kind} at {own.frequency_hz:.1f} Hz)"
         )
-    best = _most_robust(scores, used, frequency_hz, psd, ratios, robust_first)
+    best = _most_robust(scores, used, frequency_hz, psd, ratios, robust_first, max_smoothing_mm)
     assert best is not None  # (a candidate qualifies: the reference itself, or the one that matched it)
     pick = best[2]
     return FirmwarePick(
