@@ -42,6 +42,8 @@ function query() {
   const params = new URLSearchParams({ target: $("target").value });
   const scv = $("scv").value.trim();
   if (scv !== "") params.set("square_corner_velocity", scv);
+  const smoothing = $("max-smoothing").value.trim();
+  if (smoothing !== "") params.set("max_smoothing", smoothing);
   const tolerance = $("tolerance").value.trim();
   if (tolerance !== "") params.set("frequency_tolerance", String(Number(tolerance) / 100));
   return params;

@@ -47,6 +47,9 @@ def test_a_resonance_test_gives_the_section_to_paste_and_the_spectrum(page, tmp_
     page.get_by_label("Firmware", exact=True).select_option("marlin")
     page.get_by_role("button", name="Analyse").click()
     expect(setting).to_contain_text("M493 S1 X C", timeout=30_000)
+    page.get_by_label("Max smoothing (mm)").fill("0.01")  # under Klipper's 0.05: refused next to the field
+    page.get_by_role("button", name="Analyse").click()
+    expect(page.locator("#err-max_smoothing")).to_contain_text("max_smoothing", timeout=30_000)
 
 
 def test_a_bad_setting_is_shown_next_to_its_field(page, tmp_path):
