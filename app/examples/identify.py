@@ -40,3 +40,23 @@ def _csv_example() -> str:
 
 
 CSV_EXAMPLE = _csv_example()
+
+
+def _klipper_psd_example() -> str:
+    """Klipper's resonance CSV (TEST_RESONANCES' columns and number formats, its 3200 Hz accelerometer's 1.5625 Hz
+    bins up to 200 Hz) of an axis with modes at 42 Hz (zeta 0.07) and 71 Hz (zeta 0.10), as a resonance test
+    excites it: a chirp's acceleration, proportional to f, through the base-excited modes, on x and a twentieth of
+    it on y, plus a floor of 100 (mm/s^2)^2/Hz on every axis."""
+    f = np.arange(129) * 3200.0 / 2048.0
+    s = 2j * np.pi * f
+    h = np.zeros_like(s)
+    for fn, zeta, share in ((42.0, 0.07, 0.6), (71.0, 0.10, 0.4)):
+        w = 2 * np.pi * fn
+        h += share * (2 * zeta * w * s + w * w) / (s * s + 2 * zeta * w * s + w * w)
+    x = 2.0 * (f / 10.0) ** 2 * np.abs(h) ** 2 * (f >= 5.0) + 100.0
+    y, z = x / 20.0 + 100.0, np.full_like(f, 100.0)
+    rows = "\n".join(f"{a:.1f},{b:.3e},{c:.3e},{d:.3e},{b + c + d:.3e}" for a, b, c, d in zip(f, x, y, z, strict=True))
+    return "freq,psd_x,psd_y,psd_z,psd_xyz\n" + rows + "\n"
+
+
+KLIPPER_PSD_EXAMPLE = _klipper_psd_example()

@@ -20,7 +20,7 @@ from pydantic import ValidationError
 
 from app import problems
 from app.deps import PoolDep, SettingsDep, ThreadsDep
-from app.examples.identify import CSV_EXAMPLE
+from app.examples.identify import CSV_EXAMPLE, KLIPPER_PSD_EXAMPLE
 from app.examples.identify import EXAMPLES as IDENTIFY_EXAMPLES
 from app.json_bodies import JSONRoute
 from app.responses import NumpyJSONResponse
@@ -41,7 +41,16 @@ OPENAPI_BODY: dict[str, Any] = {
             "application/json": {"schema": IdentifyRequest.model_json_schema()},
             CSV_MEDIA_TYPE: {
                 "schema": {"type": "string"},
-                "example": CSV_EXAMPLE,
+                "examples": {
+                    "accelerometer_record": {
+                        "summary": "A free vibration measured by a three-axis accelerometer",
+                        "value": CSV_EXAMPLE,
+                    },
+                    "klipper_resonances": {
+                        "summary": "Klipper's resonance CSV (add ?target=klipper for its input shaper)",
+                        "value": KLIPPER_PSD_EXAMPLE,
+                    },
+                },
                 "description": "A header row, a time column (time_s, or the first column; seconds) and one or more "
                 "signal columns; a column named command (or command_column) is the known command.",
             },

@@ -173,7 +173,7 @@ def test_a_body_above_the_size_limit_is_a_413(client):
 
 def test_the_documented_csv_example_is_a_complete_record_that_fits(client):
     content = client.get("/openapi.json").json()["paths"][URL]["post"]["requestBody"]["content"]["text/csv"]
-    body = client.post(URL, content=content["example"], headers=CSV).json()
+    body = client.post(URL, content=content["examples"]["accelerometer_record"]["value"], headers=CSV).json()
     (mode,) = body["modes"]  # the example's 40 Hz, zeta 0.02 mode (app/examples/identify.py _csv_example)
     assert mode["natural_frequency_ci_hz"][0] <= 40.0 <= mode["natural_frequency_ci_hz"][1]
     assert mode["damping_ratio_ci"][0] <= 0.02 <= mode["damping_ratio_ci"][1]

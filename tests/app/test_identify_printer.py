@@ -175,3 +175,12 @@ def test_a_generic_record_of_a_sweep_is_not_fitted_as_a_free_decay(client, sweep
     body = _post(client, text)
     assert (body["format"], body["excitation"]) == ("generic", "sweep")
     assert [p["frequency_hz"] for p in body["peaks"]] == pytest.approx([42.0, 71.0], abs=1.6)
+
+
+def test_the_documented_klipper_csv_example_gives_a_shaper(client):
+    """The OpenAPI example (app/examples/identify.py: modes at 42 and 71 Hz) with target=klipper: both peaks, and a
+    shaper as fast and as quiet as Klipper's pick."""
+    content = client.get("/openapi.json").json()["paths"][URL]["post"]["requestBody"]["content"]["text/csv"]
+    body = _post(client, content["examples"]["klipper_resonances"]["value"], target="klipper")
+    assert [p["frequency_hz"] for p in body["peaks"]] == pytest.approx([42.0, 71.0], abs=1.6)
+    assert body["recommendation"]["dominates_klipper"] is True
