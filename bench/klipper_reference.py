@@ -21,6 +21,7 @@ sys.path.insert(0, str(ROOT))
 
 from optim.families.input_shaped import calibration as cal  # noqa: E402
 from optim.families.input_shaped.firmware import klipper_impulses  # noqa: E402
+from optim.families.input_shaped.firmware_pick import most_robust  # noqa: E402
 from tests.printer_records import RATE_HZ, chirp, raw_record  # noqa: E402
 
 SEEDS = (0, 1, 2)
@@ -39,7 +40,9 @@ def ours(table: np.ndarray) -> tuple[cal.Pick, cal.Pick]:
     total = cal.normalized(frequency, psd.sum(axis=0))
     types = [cal.evaluate(kind, klipper_impulses, frequency, total) for kind in cal.KLIPPER_TYPES]
     klipper, _ = cal.klipper_pick(types, MAX_SMOOTHING[0])
-    return klipper, cal.dominating_pick(types, klipper)
+    found = most_robust(types, klipper, frequency, total, [], robust_first=False, max_smoothing_mm=MAX_SMOOTHING[0])
+    assert found is not None  # (Klipper's pick itself qualifies)
+    return klipper, found[2]
 
 
 def main(klippy: str, max_smoothing: float | None = None) -> None:

@@ -39,7 +39,7 @@ def record_format(text: str, params: MeasurementParams) -> RecordFormat:
 
 
 def record_psd(record: Record) -> tuple[np.ndarray, np.ndarray]:
-    """Klipper's PSD of a raw record, its signals' summed (as psd_xyz), not normalised."""
+    """Klipper's PSD of a raw record, summed over its signals (as psd_xyz), not normalised."""
     frequency, psd = cal.klipper_psd(np.asarray(record.time_s, float), np.atleast_2d(record.signals))
     total = np.sum(psd, axis=0)
     return frequency, total

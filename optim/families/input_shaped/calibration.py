@@ -16,7 +16,7 @@ for a shaper of amplitudes A_i (sum D) and times T_i over a measured acceleratio
 
 Candidates: each type from its min_freq (shaper_defs.INPUT_SHAPERS) to 150 Hz (excluded) every 0.2 Hz, shaper
 damping 0.1. The arrays are evaluated once; Klipper's pick (``klipper_pick``: fit_shaper's and find_best_shaper's
-rules) and ours (``dominating_pick``) are read from them.
+rules) and the firmware's (optim.families.input_shaped.firmware_pick) are read from them.
 """
 
 from __future__ import annotations
@@ -342,19 +342,3 @@ def klipper_pick(types: Sequence[Scores], max_smoothing_mm: float | None = None)
     if best.kind == "zv":
         best = next((p for p in each if p.kind != "zv" and p.vibrations * 1.1 < best.vibrations), best)
     return best, each
-
-
-def dominating_pick(types: Sequence[Scores], reference: Pick) -> Pick:
-    """Of every candidate whose max_accel is at least the reference's: the fewest remaining vibrations, then the
-    highest max_accel (the reference itself qualifies when it is among them, so the pick is never worse by
-    either criterion; where it is not, any at least as fast)."""
-    best: Pick | None = None
-    for scores in types:
-        ok = np.flatnonzero(scores.max_accel_mm_s2 >= reference.max_accel_mm_s2 * (1 - 1e-12))
-        if ok.size == 0:
-            continue
-        order = np.lexsort((-scores.max_accel_mm_s2[ok], scores.vibrations[ok]))
-        pick = Pick(scores, int(ok[order[0]]))
-        if best is None or (pick.vibrations, -pick.max_accel_mm_s2) < (best.vibrations, -best.max_accel_mm_s2):
-            best = pick
-    return best or reference

@@ -35,7 +35,7 @@ from optim.families.input_shaped.firmware import (
 from optim.families.input_shaped.firmware_blocks import FirmwareReport, firmware_block
 from optim.families.input_shaped.shapers import ShaperDesign
 
-__all__ = ["ROBUST_POINTS", "TARGETS", "FirmwarePick", "firmware_pick", "pick_design"]
+__all__ = ["ROBUST_POINTS", "TARGETS", "FirmwarePick", "firmware_pick", "most_robust", "pick_design"]
 
 TARGETS = ("klipper", "reprapfirmware", "marlin")
 ROBUST_POINTS = 5  # resonance shifts evaluated across the interval (its ends and three between)
@@ -107,7 +107,7 @@ def _qualifying(
     return ok
 
 
-def _most_robust(
+def most_robust(
     scores: list[cal.Scores],
     reference: cal.Pick,
     frequency_hz: np.ndarray,
@@ -156,7 +156,7 @@ def firmware_pick(
             f"{reference.frequency_hz:.1f} Hz): the reference is the {target} types' own pick by Klipper's rules "
             f"({own.kind} at {own.frequency_hz:.1f} Hz)"
         )
-    best = _most_robust(scores, used, frequency_hz, psd, ratios, robust_first, max_smoothing_mm)
+    best = most_robust(scores, used, frequency_hz, psd, ratios, robust_first, max_smoothing_mm)
     assert best is not None  # (a candidate qualifies: the reference itself, or the one that matched it)
     pick = best[2]
     return FirmwarePick(
