@@ -147,13 +147,14 @@ def test_a_predicted_structure_is_certified_with_no_lp_and_the_search_alone_is_n
     # The predicted structure is certified with no LP. The search without the predicted structures and the repairs of
     # its answers (optim.families.time_optimal.repair) runs its LPs and is never shorter than the certified command
     # (weak duality: nothing shorter exists); measured before the grid's fractional levels were also made bang
-    # (minimum_time._Best.refine_grid, 2026-12-04) it was 0.13 %, 0.04 % and 0.15 % longer, uncertified; now the 60 Hz
+    # (candidates.Best.refine_grid, 2026-12-04) it was 0.13 %, 0.04 % and 0.15 % longer, uncertified; now the 60 Hz
     # search reaches the same command.
+    import optim.families.time_optimal.candidates as candidates
     import optim.families.time_optimal.minimum_time as minimum_time
 
     predicted = synthesize(FAMILIES["time_optimal"], problem, TimeOptimalOptions()).summary
     monkeypatch.setattr(minimum_time, "reversal_starts", lambda *_: [])
-    monkeypatch.setattr(minimum_time, "REPAIRS", 0)
+    monkeypatch.setattr(candidates, "REPAIRS", 0)
     searched = synthesize(FAMILIES["time_optimal"], problem, TimeOptimalOptions()).summary
     assert predicted.search.lp_solves == 0 and "certifies" in predicted.refinement
     assert searched.search.lp_solves > 0
@@ -264,13 +265,13 @@ def test_damped_newton_reaches_a_certified_structure_the_full_steps_miss(monkeyp
     # predicted structure converges and the search runs its LPs; its answer is never shorter than the certified one
     # (measured: 118.19229 ms, uncertified, before the grid's fractional levels were also made bang; now 118.19170,
     # the certified duration to 1e-9).
-    import optim.families.time_optimal.minimum_time as minimum_time
+    import optim.families.time_optimal.candidates as candidates
     import optim.families.time_optimal.refine as refine
 
     problem = Problem(ModePlant(28.5, 0.046), displacement=0.0374, limits=Limits(0.54, 14.4, 1290.0))
     damped = synthesize(FAMILIES["time_optimal"], problem, TimeOptimalOptions()).summary
     monkeypatch.setattr(refine, "DAMPING_HALVINGS", 1)
-    monkeypatch.setattr(minimum_time, "REPAIRS", 0)
+    monkeypatch.setattr(candidates, "REPAIRS", 0)
     full = synthesize(FAMILIES["time_optimal"], problem, TimeOptimalOptions()).summary
     assert damped.search.lp_solves == 0 and "certifies" in damped.refinement
     assert full.search.lp_solves > 0

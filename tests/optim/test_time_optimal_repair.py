@@ -11,7 +11,7 @@ import pytest
 from bench.lp_reference import GridMove
 from bench.time_optimal import product_of_modes
 from models.plants import ModePlant, TransferFunctionPlant
-from optim.families.time_optimal import minimum_time
+from optim.families.time_optimal import candidates
 from optim.families.time_optimal.certify import arc_states
 from optim.families.time_optimal.family import selected_modes, spec_of
 from optim.families.time_optimal.options import TimeOptimalOptions
@@ -134,7 +134,6 @@ def test_dips_at_the_coasts_end_bring_a_many_period_move_within_the_lp_reference
     # command 0.05 % shorter (measured: 473.8073 ms against the LP's 473.8002). Without them the search's answer was a
     # local optimum 0.1 % longer (474.2857 ms, with scipy's HiGHS 1.12, whose grid vertices the search then started
     # from); with HiGHS 1.16's vertices it is a notched command at 473.8246 ms, and the dips still shorten it.
-    import optim.families.time_optimal.minimum_time as minimum_time
 
     problem = Problem(ModePlant(201.6, 0.0138), displacement=0.4164, limits=Limits(1.2985, 8.486))
     w, zeta = 2 * math.pi * 201.6, 0.0138
@@ -143,7 +142,7 @@ def test_dips_at_the_coasts_end_bring_a_many_period_move_within_the_lp_reference
     assert "dips at its coast's end" in with_dips.refinement
     assert not reference.feasible(with_dips.duration_s / 1.0005, 800)
     assert reference.feasible(0.4742857 / 1.0005, 800)  # the check can fail: the earlier local optimum was over
-    monkeypatch.setattr(minimum_time, "MAX_DIPS", 0)
+    monkeypatch.setattr(candidates, "MAX_DIPS", 0)
     without = synthesize(FAMILIES["time_optimal"], problem, TimeOptimalOptions()).summary
     assert with_dips.duration_s < without.duration_s
 
@@ -152,7 +151,7 @@ def test_the_three_mode_move_is_certified_and_the_independent_lp_agrees() -> Non
     # bench/time_optimal.py's three-mode transfer function (5 Hz, zeta 0.02; 13 Hz, 0.05; 31 Hz, 0.03), 0.3 m within 1
     # m/s and 5 m/s^2. Until 2026-12-04 the search and its repairs ended at 504.3788 ms (sigma > 0 on 13.6 ms of the
     # long -A arc: certify.wrong_sign) and a +A notch there, refined, was certified at 504.3678 ms; now the grid's
-    # structure with its fractional levels made bang (minimum_time._Best.refine_grid) reaches the same command first.
+    # structure with its fractional levels made bang (candidates.Best.refine_grid) reaches the same command first.
     # The independent LP of bench/lp_reference.py on 1,600 steps finds a command at 504.3682 ms and none 1e-6 below
     # the certified duration.
     modes = [(5.0, 0.02), (13.0, 0.05), (31.0, 0.03)]
@@ -180,14 +179,14 @@ def test_a_chain_certifies_before_any_lp_what_the_search_certifies(
     monkeypatch: pytest.MonkeyPatch, plant: ModePlant, displacement: float, limits: Limits
 ) -> None:
     # Two held-jerk moves of bench/time_optimal_speed.py whose predicted structures are one repair short of the
-    # optimum's: the chain (minimum_time._Best.chain) repairs them where the multipliers say, and the certificate
+    # optimum's: the chain (candidates.Best.chain) repairs them where the multipliers say, and the certificate
     # proves the result with no LP solved. Without the chain, the grid search and its refinements find and certify
     # the same command (a second method): the durations agree to 1e-9 (the switching times' precision).
     problem = Problem(plant, displacement=displacement, limits=limits)
     chained = synthesize(FAMILIES["time_optimal"], problem, TimeOptimalOptions()).summary
     assert chained.search.lp_solves == 0 and "repaired where the multipliers say" in chained.refinement
     assert chained.lower_bound_s >= chained.duration_s * (1 - 2e-9)  # certified
-    monkeypatch.setattr(minimum_time, "CHAIN_REFINES", 0)
+    monkeypatch.setattr(candidates, "CHAIN_REFINES", 0)
     searched = synthesize(FAMILIES["time_optimal"], problem, TimeOptimalOptions()).summary
     assert searched.search.lp_solves > 0 and searched.lower_bound_s >= searched.duration_s * (1 - 2e-9)
     assert chained.duration_s == pytest.approx(searched.duration_s, rel=1e-9)

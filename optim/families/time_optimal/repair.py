@@ -33,12 +33,21 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from optim.families.time_optimal.certify import LEVEL_TOLERANCE, SECOND, arc_states, constraints, on_a_limit
+from optim.families.time_optimal.certify import (
+    LEVEL_TOLERANCE,
+    SECOND,
+    arc_states,
+    constraints,
+    on_a_limit,
+    wrong_sign,
+)
+from optim.families.time_optimal.shaped import as_start
 from optim.families.time_optimal.structures import Start
-from optim.families.time_optimal.types import Spec
+from optim.families.time_optimal.types import Arc, Spec
 
 DIP_WIDTH = 0.08  # of a period: each dip's -A and +A arcs start this long (SLSQP sizes them)
 NOTCH_SHARE = 0.1  # of the wrong-signed run: the notch's starting width (SLSQP sizes it)
+Where = tuple[int, float, float]  # certify.wrong_sign's answer: the arc, the first and the last time of its run
 
 
 def bang_start(spec: Spec, durations: Sequence[float], levels: Sequence[float]) -> Start | None:
@@ -139,3 +148,15 @@ def notched(
     out_d = [*durations[:arc], left, *widths, length - left - inner, *durations[arc + 1 :]]
     out_l = [*levels[:arc], *pieces, *levels[arc + 1 :]]
     return [float(d) for d in out_d], [float(v) for v in out_l], [False] * len(out_l)
+
+
+def next_repair(spec: Spec, arcs: tuple[Arc, ...], notching: bool) -> tuple[Start | None, Where | None]:
+    """The start of the next repair of ``arcs``: their off-limit arcs made bang (``bang_start``); else, with
+    ``notching``, a notch where the multipliers contradict them (``notched``), and that place (certify.wrong_sign:
+    None for the former); (None, None) where neither applies."""
+    durations, levels, _ = as_start(spec, arcs)
+    start = bang_start(spec, durations, levels)
+    if start is not None or not notching:
+        return start, None
+    where = wrong_sign(spec, arcs)
+    return (None if where is None else notched(spec, durations, levels, *where)), where

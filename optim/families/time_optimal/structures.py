@@ -61,7 +61,7 @@ def _held(durations: list[float], levels: list[float], ramp_s: float | None) -> 
     ]
 
 
-def _insertions(durations: list[float], levels: list[float], width: float, ramp_s: float | None) -> list[Shape]:
+def insertions(durations: list[float], levels: list[float], width: float, ramp_s: float | None) -> list[Shape]:
     """Every way to add one reversal of ``width`` (s): inside a bang arc (at its end, its start or its middle: the
     arc's change kept), at a switch between opposite bangs (Singh and Vadali's +1, -1, +1, -1 around it), or a notch
     in an arc at the limit one order below (a dip in a coast; with a held jerk, in an arc at +-max_acceleration)."""
@@ -98,12 +98,34 @@ def _reversal_time(durations: list[float], levels: list[float]) -> float:
     return max(late, default=0.0)
 
 
+def predicts(spec: Spec, rigid: RigidMove | None) -> bool:
+    """Whether the structures here apply: a rest-to-rest move with modes to cancel (derivative order 0), no band, no
+    torque limit, not in motion, and its rigid optimum of the spec's order."""
+    if rigid is None or rigid.order != spec.order or spec.derivative_order != 0:
+        return False
+    return not (spec.bands or spec.torque is not None or spec.in_motion or not spec.rest_to_rest or not spec.zero_poles)
+
+
+def _ramp_s(spec: Spec) -> float | None:
+    """The time the held derivative at its limit takes to bring the one below to its own limit (None: unlimited)."""
+    below = spec.max_acceleration if spec.order == 3 else spec.max_velocity  # the limit one order below the held
+    return None if below is None else below / spec.scale
+
+
+def mode_starts(spec: Spec, durations: list[float], levels: list[float], pole: complex) -> list[Start]:
+    """A command (``levels`` in the unit) with one reversal of REVERSALS damped periods of ``pole`` added, every
+    way ``insertions`` has, the shorter reversal's first."""
+    out: list[Start] = []
+    for fraction in REVERSALS:
+        width = fraction * 2 * math.pi / abs(pole.imag)
+        out += [(d, lv, [False] * len(lv)) for d, lv, _ in insertions(durations, levels, width, _ramp_s(spec))]
+    return out
+
+
 def reversal_starts(spec: Spec, rigid: RigidMove | None) -> list[Start]:
     """The rigid optimum with one reversal per zero-residual pole (its derivative order 0), shortest reversal first;
-    none where the structure is not predicted (a band, a torque limit, a move in motion, a derivative order)."""
-    if rigid is None or rigid.order != spec.order or spec.derivative_order != 0:
-        return []
-    if spec.bands or spec.torque is not None or spec.in_motion or not spec.rest_to_rest or not spec.zero_poles:
+    none where the structure is not predicted (``predicts``)."""
+    if rigid is None or not predicts(spec, rigid):
         return []
     kept = np.diff(rigid.edges_s) > 0.0  # Ruckig's phases of zero duration dropped, equal neighbours merged
     widths, unit = np.diff(rigid.edges_s)[kept], rigid.levels[kept] / spec.scale
@@ -113,8 +135,7 @@ def reversal_starts(spec: Spec, rigid: RigidMove | None) -> list[Start]:
     if np.any(np.abs(unit - np.round(unit)) > 1e-6):
         return []  # not a bang-coast-bang (none seen from Ruckig at rest-to-rest: a safeguard)
     levels = np.round(unit).tolist()
-    below = spec.max_acceleration if spec.order == 3 else spec.max_velocity  # the limit one order below the held
-    ramp_s = None if below is None else below / spec.scale
+    ramp_s = _ramp_s(spec)
     # Where a mode's vibration decays within the move only the last switches' residual is left to cancel: reversals
     # near the end first; else Singh and Vadali's around a switch first (the undamped optimum).
     decays = all(math.exp(pole.real * rigid.duration_s) < DECAYED for pole in spec.zero_poles)
@@ -131,7 +152,7 @@ def reversal_starts(spec: Spec, rigid: RigidMove | None) -> list[Start]:
             if len(shapes) > BEAM:  # with three or more modes only the BEAM most promising are expanded further
                 shapes = heapq.nsmallest(BEAM, shapes, key=rank)  # (as sorted(...)[:BEAM], in 1/10 of the time)
             width = fraction * 2 * math.pi / abs(pole.imag)
-            shapes = list(itertools.chain.from_iterable(_insertions(d, lv, width, ramp_s) for d, lv, _ in shapes))
+            shapes = list(itertools.chain.from_iterable(insertions(d, lv, width, ramp_s) for d, lv, _ in shapes))
         best = heapq.nsmallest(MAX_STARTS - len(starts), shapes, key=rank)
         starts += [(d, lv, [False] * len(lv)) for d, lv, _ in best]
     return starts
