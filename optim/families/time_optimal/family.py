@@ -189,7 +189,7 @@ def shaped_within_torque(problem: Problem, spec: Spec) -> tuple[Arc, ...] | None
         rigid = rigid_of(rigid_spec, shaper)  # the shaper's delays at the end velocities (a move in motion)
         if rigid is None:
             return None
-        arcs = shaped_arcs(rigid_spec, rigid, shaper)
+        arcs = shaped_arcs(rigid, shaper)
         over = excess(problem, spec, arcs)
         if not over and limits_met(problem, spec, arcs):
             return arcs

@@ -24,6 +24,7 @@ optimum where it is shorter.
 from __future__ import annotations
 
 import time
+from functools import partial
 
 import numpy as np
 from numpy.typing import NDArray
@@ -31,11 +32,12 @@ from numpy.typing import NDArray
 from models.errors import SolverFailed, SolverTimedOut
 from models.rigid_motion import RigidMove
 from optim.families.time_optimal.arcs import arcs_of
+from optim.families.time_optimal.by_modes import Proven, Relaxed, mode_by_mode
 from optim.families.time_optimal.candidates import Best, Found, LimitCheck, duration_s
 from optim.families.time_optimal.search import GridSearch, clip, project
 from optim.families.time_optimal.shaped import as_start, rigid_of, shaped_arcs, shapers
 from optim.families.time_optimal.structures import reversal_starts, three_switch_starts
-from optim.families.time_optimal.types import GridSolution, Solution, Spec
+from optim.families.time_optimal.types import Arc, GridSolution, Solution, Spec
 
 Array = NDArray[np.float64]
 FALLBACK_FINER = 4  # without an exact candidate, the grid optimum is sought again on steps this much shorter
@@ -44,6 +46,16 @@ PROBES = 3
 PROBE_FINER = 4  # the probe's grid is this much finer than the search's
 GUESS_MARGIN = 0.05  # the grid search starts this much above the shaped rigid optimum's duration
 CERTIFIED_GAP = 1e-9  # a certified answer's lower bound: its duration less this (the switching times' precision)
+BY_MODES = 3  # with this many modes or more, the proven command is also sought mode by mode before any LP
+NEAR = 1e-4  # no search where the answer is proven within this (relative) of the minimum (by_modes.Relaxed)
+TRY_NEAR = 1e-3  # ... tried where the relaxation's shaped command is within this of it (one SLSQP run, 10-70 ms)
+
+
+def _predicted(rigid: RigidMove | None, check_limits: LimitCheck | None, spec: Spec) -> Proven | None:
+    """The proven command of ``spec`` from its predicted structures (``Best.predicted``), or None."""
+    best = Best(spec, GridSearch(spec), check_limits)
+    best.predicted(reversal_starts(spec, rigid), "")
+    return None if best.found is None or best.proof is None else (best.found.arcs, best.proof)
 
 
 def shaped_rigid(best: Best) -> Found | None:
@@ -52,7 +64,7 @@ def shaped_rigid(best: Best) -> Found | None:
         rigid = rigid_of(best.spec, shaper)
         if rigid is None:
             continue
-        arcs = shaped_arcs(best.spec, rigid, shaper)
+        arcs = shaped_arcs(rigid, shaper)
         note = (
             f"the rigid time-optimal move (Ruckig) shaped by {shaper.count} positive impulses "
             "(no shorter command found)"
@@ -152,6 +164,78 @@ def _finer(best: Best, search: GridSearch, grid: GridSolution, finer: int) -> Gr
     return fine
 
 
+def _search(
+    best: Best,
+    search: GridSearch,
+    rigid: RigidMove | None,
+    held: list[tuple[Arc, ...]],
+    note: str,
+    relaxed: Relaxed | None,
+) -> GridSolution | None:
+    """The search where nothing is proven yet: the shaped rigid optimum, the grid optimum and its refinements, the
+    predicted commands ``held``, ``relaxed``'s command (offered late, with its own REPAIRS: a shorter best early
+    steers the search away from shorter commands, 824.6 against 818.3 ms on a three-mode move), the repairs and the
+    dips (see the module); the grid it used."""
+    spec = best.spec
+    shaped = shaped_rigid(best)
+    grid = _grid(search, shaped)
+    if spec.torque is None and not spec.bands and best.proof is None:
+        _refined(best, search, grid, rigid)
+    if grid is not None and best.proof is None:
+        grid = _grid_answer(best, search, grid)
+    for arcs in held if best.proof is None else []:
+        best.offer(arcs, "refined", note)
+    if held and best.proof is None:  # SLSQP from the shortest: its structure's optimum is often the certified one
+        shortest = min(held, key=duration_s)
+        best.refine_from(as_start(spec, shortest), " (from a predicted structure)")
+    if relaxed is not None and best.proof is None:  # with REPAIRS of its own
+        best.repairs = 0
+        _offer_relaxed(best, relaxed)
+    best.offer_repaired()
+    if best.proof is None:
+        best.with_dips()
+    best.last_repairs()
+    return grid
+
+
+def _by_modes(best: Best, rigid: RigidMove | None, check_limits: LimitCheck | None) -> Relaxed | None:
+    """With BY_MODES modes or more, the proven command sought mode by mode (optim.families.time_optimal.by_modes) and
+    offered; else the deepest proven lower modes' command shaped at the others (not offered yet)."""
+    if best.spec.torque is not None or best.spec.bands or len(best.spec.zero_poles) < BY_MODES:
+        return None
+    outcome = mode_by_mode(best.spec, rigid, best.accepts, partial(_predicted, rigid, check_limits))
+    if outcome.proven is not None:
+        arcs, proof = outcome.proven
+        best.offer(arcs, "refined", "found mode by mode (optim.families.time_optimal.by_modes)", proof)
+    return outcome.relaxed
+
+
+def _offer_relaxed(best: Best, relaxed: Relaxed) -> None:
+    """``relaxed``'s command offered as it is (and repaired), then refined with its levels free."""
+    best.offer(relaxed.arcs, "refined", relaxed.note())
+    best.refine_from(as_start(best.spec, relaxed.arcs), f" (from {relaxed.note()})")
+
+
+def _near(best: Best, relaxed: Relaxed) -> bool:
+    """Whether an answer within NEAR of ``relaxed``'s bound is found (offered; no search is needed then):
+    ``relaxed``'s command itself, or where it is within TRY_NEAR, it refined with its levels free, then repaired
+    (tried apart from ``best``: a shorter best early steers the search)."""
+    if duration_s(relaxed.arcs) * (1 - NEAR) <= relaxed.bound_s:
+        return best.offer(relaxed.arcs, "refined", relaxed.note())
+    if duration_s(relaxed.arcs) * (1 - TRY_NEAR) > relaxed.bound_s:
+        return False
+    trial = Best(best.spec, best.search, best.check_limits)
+    for attempt in range(2):
+        if attempt == 0:
+            trial.refine_from(as_start(best.spec, relaxed.arcs), f" (from {relaxed.note()})")
+        else:
+            trial.offer(relaxed.arcs, "refined", relaxed.note())  # (and repaired)
+        found = trial.found
+        if found is not None and found.duration_s * (1 - NEAR) <= relaxed.bound_s:
+            return best.offer(found.arcs, found.method, found.note)
+    return False
+
+
 def solve(spec: Spec, check_limits: LimitCheck | None = None, bound_spec: Spec | None = None) -> Solution:
     """The minimum-time command of ``spec`` (see the module's docstring). ``check_limits(arcs) -> bool`` tells
     whether a command meets the limits exactly (the caller's independent check); ``bound_spec`` is the problem
@@ -161,31 +245,26 @@ def solve(spec: Spec, check_limits: LimitCheck | None = None, bound_spec: Spec |
     best = Best(spec, search, check_limits)
     rigid = rigid_of(spec)
     exact = spec.torque is None and not spec.bands  # a torque limit or a band: the grid optimum (or the shaped one)
+    certifies = bound_spec is None or bound_spec is spec  # (a tightened limit's answers bound nothing of the problem)
+    relaxed = _by_modes(best, rigid, check_limits)  # first: all modes' predicted structures rarely converge
+    near = certifies and best.proof is None and relaxed is not None and _near(best, relaxed)
     note = "Newton on the switching times of the rigid optimum with reversal pulses"
-    held = best.predicted(reversal_starts(spec, rigid), note) if exact else []  # no LP where one is proven
-    shaped = None if best.proof is not None else shaped_rigid(best)  # a proven answer is never longer than it
-    grid = None if best.proof is not None else _grid(search, shaped)
-    if exact and best.proof is None:
-        _refined(best, search, grid, rigid)
-    if grid is not None and best.proof is None:
-        grid = _grid_answer(best, search, grid)
-    for arcs in held if best.proof is None else []:
-        best.offer(arcs, "refined", note)
-    if held and best.proof is None:  # SLSQP from the shortest: its structure's optimum is often the certified one
-        shortest = min(held, key=duration_s)
-        best.refine_from(as_start(spec, shortest), " (from a predicted structure)")
-    best.offer_repaired()
-    if best.proof is None:
-        best.with_dips()
-    best.last_repairs()
+    held = best.predicted(reversal_starts(spec, rigid), note) if exact and best.proof is None and not near else []
+    grid = None if best.proof is not None or near else _search(best, search, rigid, held, note, relaxed)
+    relaxed = relaxed if certifies else None
     found = best.found
     assert found is not None  # the shaped rigid optimum, or the grid's
-    if best.proof is not None and (bound_spec is None or bound_spec is spec):
+    if best.proof is not None and certifies:
         found = Found(found.arcs, found.method, f"{found.note}; {best.proof.describe()}")
         bound = found.duration_s * (1 - CERTIFIED_GAP)
         method = "the switching function's certificate (Pontryagin, optim.families.time_optimal.certify)"
+    elif near:
+        assert relaxed is not None
+        bound, method = relaxed.bound_s, relaxed.describe()
     else:
         bound, method = search.lower_bound(found.duration_s, bound_spec)
+        if relaxed is not None and relaxed.bound_s > bound:
+            bound, method = relaxed.bound_s, relaxed.describe()
     return Solution(
         arcs=found.arcs,
         order=spec.order,

@@ -86,10 +86,21 @@ def rigid_of(spec: Spec, shaper: ImpulseSequence = IDENTITY) -> RigidMove | None
         return None
 
 
-def shaped_arcs(spec: Spec, rigid: RigidMove, shaper: ImpulseSequence) -> tuple[Arc, ...]:
+def shaped_arcs(rigid: RigidMove, shaper: ImpulseSequence) -> tuple[Arc, ...]:
     """The rigid move convolved with the shaper, as arcs of the held derivative (absolute levels)."""
+    return _convolved(rigid.edges_s, rigid.levels, shaper)
+
+
+def shaped_command(arcs: tuple[Arc, ...], shaper: ImpulseSequence) -> tuple[Arc, ...]:
+    """A command (arcs of the held derivative) convolved with the shaper: its residual stays zero where it was (the
+    residual at a pole is the command's times the shaper's transform there) and it meets every limit it met."""
+    edges = np.array([0.0, *np.cumsum([a.duration_s for a in arcs]).tolist()])
+    return _convolved(edges, np.array([a.level for a in arcs]), shaper)
+
+
+def _convolved(edges: Array, levels: Array, shaper: ImpulseSequence) -> tuple[Arc, ...]:
+    """The piecewise-constant levels between ``edges`` convolved with the shaper's impulses, as arcs."""
     times, amplitudes = shaper.times_s, shaper.amplitudes
-    edges, levels = rigid.edges_s, rigid.levels
     breaks = np.unique(np.round((times[:, None] + edges[None, :]).ravel(), ROUND_S))
     mids = 0.5 * (breaks[:-1] + breaks[1:])
     index = np.searchsorted(edges, mids[None, :] - times[:, None], side="right") - 1  # (impulses, intervals)

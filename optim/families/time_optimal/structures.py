@@ -118,7 +118,8 @@ def mode_starts(spec: Spec, durations: list[float], levels: list[float], pole: c
     out: list[Start] = []
     for fraction in REVERSALS:
         width = fraction * 2 * math.pi / abs(pole.imag)
-        out += [(d, lv, [False] * len(lv)) for d, lv, _ in insertions(durations, levels, width, _ramp_s(spec))]
+        shapes = sorted(insertions(durations, levels, width, _ramp_s(spec)), key=lambda x: -_reversal_time(x[0], x[1]))
+        out += [(d, lv, [False] * len(lv)) for d, lv, _ in shapes]
     return out
 
 
