@@ -48,19 +48,25 @@ async def time_optimal_profile(
     hold: the grid optimum's structure, the shaped rigid optimum (Ruckig's rigid time-optimal move, jerk
     included, convolved with ZV per mode, and for a band with ZVs spread over it: exactly feasible, so the
     answer is never longer than that recipe and a move it shows feasible is never refused), the symmetric
-    three-switch structure and finer-grid probes, refined by SLSQP and a Newton polish. A band also keeps
+    three-switch structure and finer-grid probes, refined by SLSQP and a Newton polish. Before any LP, predicted
+    arc structures (the rigid optimum with reversal pulses; with two modes or more, the lower modes' proven
+    command with a reversal of the next) are solved by Newton, and one that Pontryagin's switching function proves
+    minimum-time is the answer with no search; where only the lower modes' command is proven, it bounds the answer
+    from below and a command within 1e-4 of that bound is the answer with no search. A band also keeps
     exactly zero residual at the nominal modes unless robustness.zero_residual_at_modes is false;
     lower_bound_s certifies the problem as asked.
 
-    design: duration_s; method ("refined": exact switching times, the shortest command found, not proven
-    globally optimal, lower_bound_s bounds the gap; "shaped_rigid": the shaped rigid optimum itself; "grid": the
-    optimum of a 4x finer search grid, with a band or a torque limit); rigid_duration_s (Ruckig's rigid minimum
-    within every limit, jerk included); lower_bound_s (a certificate: HiGHS proves infeasible a relaxation that
-    every command of that duration satisfies, by its step averages, or the motor's rigid minimum; no command at
-    all, on any grid, is shorter); arcs (start, duration, level, bang/coast/partial); robustness (requested,
-    achieved band and the worst V inside the request, by an independent dense check with models.sensitivity on
-    the exact command); modes cancelled; the grid (null when the grid search found nothing and the shaped rigid
-    optimum answers), the refinement and the search's LP counts. tradeoff: one row per half-width.
+    design: duration_s; method ("refined": exact switching times, the shortest command found, proven minimum-time
+    where lower_bound_method says so, else lower_bound_s bounds the gap; "shaped_rigid": the shaped rigid optimum
+    itself; "grid": the optimum of a 4x finer search grid, with a band or a torque limit); rigid_duration_s
+    (Ruckig's rigid minimum within every limit, jerk included); lower_bound_s (a certificate, lower_bound_method
+    says which: the switching function's (the duration itself: proven minimum-time), the proven minimum of the
+    lower modes alone (a relaxation), HiGHS proving infeasible a relaxation that every command of that duration
+    satisfies, by its step averages, or the motor's rigid minimum; no command at all, on any grid, is shorter);
+    arcs (start, duration, level, bang/coast/partial); robustness (requested, achieved band and the worst V inside
+    the request, by an independent dense check with models.sensitivity on the exact command); modes cancelled;
+    the grid (null when the grid search found nothing and the shaped rigid optimum answers), the refinement and
+    the search's LP counts. tradeoff: one row per half-width.
     solver: status, the design's method; solves, iterations and time count every LP of the design, its
     tightenings and its trade-off rows.
     Infeasible within max_duration_s is a 422 /problems/infeasible only where proven; a search that found

@@ -3,14 +3,20 @@
 Candidates, each refined to exact switching times (optim.families.time_optimal.refine) and kept only if it meets
 the limits exactly (the caller's check) and the bands on the dense check (optim.families.time_optimal.check):
 
-- first the predicted structures (optim.families.time_optimal.structures), by damped Newton: one that its
+- with two modes or more, first mode by mode (optim.families.time_optimal.by_modes): the lower modes' proven
+  command with a reversal of the next, by Newton; a proven one is the answer. Else the lower modes' proven minimum
+  bounds the answer from below, and where a command within NEAR of that bound is found (it shaped by ZV at the
+  modes above, Newton's shorter commands on the way, their refinement), that command is the answer with no search;
+- the predicted structures (optim.families.time_optimal.structures), by damped Newton: one that its
   certificate proves minimum-time (optim.families.time_optimal.certify) is the answer, with nothing else computed
   (a proven minimum is never longer than the shaped rigid optimum); the others are offered after the search;
 - the shaped rigid optimum (optim.families.time_optimal.shaped), as it is and refined: the recipe's answer,
   feasible by construction, so that no answer is longer and no move it shows feasible is refused;
 - the grid optimum's structure (optim.families.time_optimal.search), or its early-acting vertex's;
 - known structures: the symmetric three-switch bang-bang of Singh and Vadali (1993) for a held acceleration;
-- probes: the early-acting vertex of a grid PROBE_FINER times finer at the best duration found, refined.
+- probes: the early-acting vertex of a grid PROBE_FINER times finer at the best duration found, refined;
+- the lower modes' shaped command (by_modes.Relaxed), offered after the search (earlier, a shorter best steers the
+  search away from shorter commands).
 
 ``method`` of the answer: "refined" (exact switching times of a structure), "shaped_rigid" (the shaped rigid
 optimum itself: nothing shorter was found) or "grid" (the optimum of a grid FALLBACK_FINER times finer, where no
@@ -46,7 +52,7 @@ PROBES = 3
 PROBE_FINER = 4  # the probe's grid is this much finer than the search's
 GUESS_MARGIN = 0.05  # the grid search starts this much above the shaped rigid optimum's duration
 CERTIFIED_GAP = 1e-9  # a certified answer's lower bound: its duration less this (the switching times' precision)
-BY_MODES = 3  # with this many modes or more, the proven command is also sought mode by mode before any LP
+BY_MODES = 2  # with this many modes or more, the proven command is also sought mode by mode before any LP
 NEAR = 1e-4  # no search where the answer is proven within this (relative) of the minimum (by_modes.Relaxed)
 TRY_NEAR = 1e-3  # ... tried where the relaxation's shaped command is within this of it (one SLSQP run, 10-70 ms)
 
