@@ -107,7 +107,7 @@ class _Search:
             proof = certificate(spec, arcs)
             if proof is not None:
                 return (arcs, proof) if self.accepts(arcs) else None
-            if spec.zero_poles == self.spec.zero_poles and total < self.shortest_s and self.accepts(arcs):
+            if len(spec.zero_poles) == len(self.poles) and total < self.shortest_s and self.accepts(arcs):
                 self.shortest, self.shortest_s = arcs, total  # not proven, but a command of the spec
             start, _ = next_repair(spec, arcs, notching=True)
             if start is None:

@@ -54,7 +54,7 @@ GUESS_MARGIN = 0.05  # the grid search starts this much above the shaped rigid o
 CERTIFIED_GAP = 1e-9  # a certified answer's lower bound: its duration less this (the switching times' precision)
 BY_MODES = 2  # with this many modes or more, the proven command is also sought mode by mode before any LP
 NEAR = 1e-4  # no search where the answer is proven within this (relative) of the minimum (by_modes.Relaxed)
-TRY_NEAR = 1e-3  # ... tried where the relaxation's shaped command is within this of it (one SLSQP run, 10-70 ms)
+TRY_NEAR = 1e-3  # ... tried where the relaxation's command is within this of it (SLSQP and a repair, 10-70 ms)
 
 
 def _predicted(rigid: RigidMove | None, check_limits: LimitCheck | None, spec: Spec) -> Proven | None:
