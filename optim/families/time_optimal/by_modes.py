@@ -4,11 +4,12 @@ With three modes the predicted structures (optim.families.time_optimal.structure
 reversal per mode) converge on 2 of bench/time_optimal_speed.py's 20 three-mode moves, and the LP search then took
 100-500 ms a move. The minimum-time command with one more mode is often the one without it plus a reversal pulse of
 the added mode (structures.mode_starts, the latest first), or that with one to REPAIRS notches where the switching
-function says (repair.next_repair). So the k lowest modes' command is proven first (their predicted structures,
-else this from the k - 1 lowest), then the structures with a reversal of mode k + 1 are solved by Newton on the
-switching times and the multipliers (shooting.shoot; refine.newton where the structure has as many arcs as end
-conditions), each repaired at most REPAIRS times, until the certificate (optim.families.time_optimal.certify)
-proves one that meets the limits: 9 of the 20 three-mode moves, and 12 of its 20 two-mode moves (11 before).
+function says (repair.next_repair). So the modes are added the lowest first: the k lowest modes' structures with a
+reversal of mode k + 1 are solved by Newton on the switching times and the multipliers (shooting.shoot;
+refine.newton where the structure has as many arcs as end conditions), each repaired at most REPAIRS times, until
+the certificate (optim.families.time_optimal.certify) proves one that meets the limits, else the k + 1 lowest's own
+predicted structures are tried (the lowest mode's first); the first count of modes neither proves ends it. That
+proves 9 of the 20 three-mode moves, and 12 of its 20 two-mode moves (11 before).
 
 Where the k lowest modes' command is proven but not the whole spec's, that command is a relaxation's minimum (fewer
 end conditions): no command of the spec is shorter. Shaped by a ZV at each mode above the k lowest it is a command of
@@ -115,23 +116,33 @@ class _Search:
             durations, levels = start[0], start[1]
         return None
 
-    def lowest(self, count: int, predicted: bool) -> Proven | None:
-        """The proven command of the ``count`` lowest modes: their predicted structures (with ``predicted``), else
-        the ``count - 1`` lowest's with a reversal of the next."""
-        spec = replace(self.spec, zero_poles=tuple(self.poles[:count]))
-        found = self.predicted(spec) if predicted else None
-        below = self.lowest(count - 1, True) if found is None and count > 1 else None
-        if below is not None:
-            durations, levels, _ = as_start(spec, below[0])
-            zv = nominal_shaper(replace(spec, zero_poles=(self.poles[count - 1],)))
-            longest_s = sum(durations) + float(zv.times_s[-1])  # the command below, shaped: a command of spec
-            for more_d, more_l, _ in mode_starts(spec, durations, levels, self.poles[count - 1])[:STARTS]:
-                found = self.proven(spec, more_d, more_l, REPAIRS, longest_s * (1 + LONGER))
-                if found is not None:
-                    break
-        if found is not None and (self.deepest is None or self.deepest[0] < count):
-            self.deepest = (count, found)
-        return found
+    def added(self, spec: Spec, below: Proven) -> Proven | None:
+        """The proven command of ``spec`` from ``below`` (its modes but the highest, proven) with a reversal of the
+        highest mode: STARTS structures at most, the latest reversals first."""
+        durations, levels, _ = as_start(spec, below[0])
+        pole = self.poles[len(spec.zero_poles) - 1]
+        zv = nominal_shaper(replace(spec, zero_poles=(pole,)))
+        longest_s = sum(durations) + float(zv.times_s[-1])  # the command below, shaped: a command of spec
+        for more_d, more_l, _ in mode_starts(spec, durations, levels, pole)[:STARTS]:
+            found = self.proven(spec, more_d, more_l, REPAIRS, longest_s * (1 + LONGER))
+            if found is not None:
+                return found
+        return None
+
+    def upwards(self) -> Proven | None:
+        """The proven command of every mode, the lowest first: each count of the lowest modes from the count below
+        with a reversal of the next (``added``), else from its own predicted structures (the caller's for all the
+        modes: not here); None at the first count neither proves (no base for the next)."""
+        below: Proven | None = None
+        for count in range(1, len(self.poles) + 1):
+            spec = replace(self.spec, zero_poles=tuple(self.poles[:count]))
+            found = None if below is None else self.added(spec, below)
+            if found is None and count < len(self.poles):
+                found = self.predicted(spec)
+            if found is None:
+                return None
+            self.deepest, below = (count, found), found
+        return below
 
     def relaxed(self) -> Relaxed | None:
         """The deepest proven lower modes' command shaped at the modes above them (None: none proven)."""
@@ -158,5 +169,5 @@ def mode_by_mode(
     if rigid is None or len(spec.zero_poles) < 2 or not predicts(spec, rigid):
         return ByModes(None, None)
     search = _Search(spec, accepts, predicted)
-    proven = search.lowest(len(spec.zero_poles), predicted=False)
+    proven = search.upwards()
     return ByModes(proven, None if proven is not None else search.relaxed())
