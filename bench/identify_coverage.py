@@ -1,0 +1,117 @@
+"""Benchmark (issue 27's acceptance): free-decay identification of seeded knock records, in a printer's formats.
+
+``python bench/identify_coverage.py [N] [FORMAT ...]`` makes N (default 200) seeded knock records
+(tests/printer_records.py: a 2 x 4 ms pulse of 20,000 mm/s^2 at 0.1 s, then 0.9 s of rest, measured at 3200 Hz)
+of axes with one or two modes (the first at 20 to 120 Hz, the second 1.3 to 2.5 times higher up to 200 Hz, damping
+ratios 0.02 to 0.15; half the records have two) and white noise of std 0 to 30 % of the free decay's peak (after
+the pulse), printed in each FORMAT (``klipper_raw``, Klipper's accelerometer CSV; ``rrf_accelerometer``,
+RepRapFirmware's; default both), and identifies each as POST /v1/identify does
+(app.services.identify.identify_record_csv, no parameters). For each format it prints:
+
+- the modes missed (a refused record, or no identified mode within 5 % of a true one);
+- for the modes found, the relative errors of the natural frequency and the damping ratio (median, 95 %, max),
+  the share within the issue's 0.5 % and 15 %, and how often the 95 % intervals hold the truth (the issue: 90 %);
+- the first failures (seed, truth, estimate, noise share).
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from app.schemas.identify import MeasurementParams  # noqa: E402
+from app.services.identify import identify_record_csv  # noqa: E402
+from models.errors import InvalidParameter  # noqa: E402
+from tests.printer_records import RATE_HZ, knock, raw_csv, raw_record, rrf_csv, toolhead  # noqa: E402
+
+Modes = tuple[tuple[float, float, float], ...]
+PULSE_END_S = 0.108  # the knock's end (tests/printer_records.knock: 0.1 s + 2 x 4 ms)
+MATCH = 0.05  # an identified mode within this (relative) of a true one is its estimate
+
+
+def draw(rng: np.random.Generator) -> Modes:
+    """One or two modes (f Hz, zeta, share)."""
+    f1, z1 = float(rng.uniform(20.0, 120.0)), float(rng.uniform(0.02, 0.15))
+    if rng.random() < 0.5:
+        return ((f1, z1, 1.0),)
+    share = float(rng.uniform(0.2, 0.5))
+    f2, z2 = min(f1 * float(rng.uniform(1.3, 2.5)), 200.0), float(rng.uniform(0.02, 0.15))
+    return ((f1, z1, 1.0 - share), (f2, z2, share))
+
+
+def record(seed: int, fmt: str) -> tuple[Modes, float, str]:
+    """(the true modes, the noise's share of the decay's peak, the CSV text)."""
+    rng = np.random.default_rng(7000 + seed)
+    modes = draw(rng)
+    command = knock(RATE_HZ, 1.0)
+    peak = float(np.max(np.abs(toolhead(command, RATE_HZ, modes)[int(PULSE_END_S * RATE_HZ) :])))
+    share = float(rng.uniform(0.0, 0.3))
+    table = raw_record(command, rng, modes, noise_mm_s2=max(share * peak, 1e-9))
+    text = raw_csv(np.round(table, 6)) if fmt == "klipper_raw" else rrf_csv(table, RATE_HZ)
+    return modes, share, text
+
+
+def run(count: int, fmt: str) -> None:
+    f_err: list[float] = []
+    z_err: list[float] = []
+    covered_f = covered_z = missed = total = 0
+    failures: list[str] = []
+    began = time.perf_counter()
+    for seed in range(count):
+        modes, share, text = record(seed, fmt)
+        total += len(modes)
+        try:
+            found = identify_record_csv(text, MeasurementParams(), 600_000).result.modes
+        except InvalidParameter as exc:
+            missed += len(modes)
+            failures.append(f"#{seed} refused (noise {share:.2f}, modes {[round(m[0], 1) for m in modes]}): {exc}")
+            continue
+        for f, zeta, _ in modes:
+            near = min(found, key=lambda m: abs(m.natural_frequency_hz - f), default=None)
+            if near is None or abs(near.natural_frequency_hz - f) > MATCH * f:
+                missed += 1
+                failures.append(
+                    f"#{seed} {f:.2f} Hz missed (found {[round(m.natural_frequency_hz, 2) for m in found]})"
+                )
+                continue
+            f_err.append(abs(near.natural_frequency_hz / f - 1.0))
+            z_err.append(abs(near.damping_ratio / zeta - 1.0))
+            in_f = near.natural_frequency_ci_hz[0] <= f <= near.natural_frequency_ci_hz[1]
+            in_z = near.damping_ratio_ci[0] <= zeta <= near.damping_ratio_ci[1]
+            covered_f, covered_z = covered_f + in_f, covered_z + in_z
+            if not (in_f and in_z):
+                failures.append(
+                    f"#{seed} {f:.2f} Hz zeta {zeta:.4f}: {near.natural_frequency_hz:.3f} Hz zeta "
+                    f"{near.damping_ratio:.4f}, outside its interval (noise {share:.2f})"
+                )
+    ef, ez = np.array(f_err), np.array(z_err)
+    print(f"{fmt}: {count} records, {total} modes, {missed} missed, {time.perf_counter() - began:.0f} s")
+    if ef.size:
+        print(
+            f"  f error median {np.median(ef):.3%}, 95 % {np.quantile(ef, 0.95):.3%}, max {ef.max():.2%}; within 0.5 % "
+            f"{np.mean(ef <= 0.005):.1%}"
+        )
+        print(
+            f"  zeta error median {np.median(ez):.2%}, 95 % {np.quantile(ez, 0.95):.1%}, max {ez.max():.1%}; within "
+            f"15 % {np.mean(ez <= 0.15):.1%}"
+        )
+        print(f"  95 % intervals hold the truth: f {covered_f / ef.size:.1%}, zeta {covered_z / ez.size:.1%}")
+    for line in failures[:12]:
+        print("   " + line[:200])
+
+
+def main(argv: list[str]) -> int:
+    count = int(argv[0]) if argv else 200
+    for fmt in argv[1:] or ["klipper_raw", "rrf_accelerometer"]:
+        run(count, fmt)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
