@@ -105,9 +105,9 @@ def _residual_peak(
     modes_stats: list[tuple[float, float, float, float]],
     added: list[float],
 ) -> tuple[float, float] | None:
-    """A peak of the fit's residual (its spectrum over the decay: until the slowest mode falls to the noise) away
-    from the fitted modes and from the peaks already added: a mode the spectrum's peaks hid (two well-damped modes in
-    one wide peak), whose absence biases the others' fits."""
+    """A peak of the fit's residual (its spectrum over twice the time the slowest mode takes to fall to the noise)
+    away from the fitted modes and from the peaks already added: a mode the spectrum's peaks hid (two well-damped
+    modes in one wide peak), whose absence biases the others' fits."""
     fitted = damped_basis(t, params) @ coef
     res = (fitted - yw.T).T
     dt = float(t[1] - t[0])
@@ -188,9 +188,9 @@ def identify_modes(record: Record, *, max_modes: int = 4, start_s: float | None 
             modes_stats.append((s, w, snr, math.sqrt(energy)))
         weak = [k for k, stats in enumerate(modes_stats) if stats[3] < MIN_DETECTION_SNR]
         if not weak:
-            more = (
+            more = (  # (each residual peak once, at most max_modes of them: the work is bounded)
                 None
-                if len(peaks) >= max_modes
+                if len(peaks) >= max_modes or len(added) >= max_modes
                 else _residual_peak(t, y * weights[:, None], params, coef, modes_stats, added)
             )
             if more is None:

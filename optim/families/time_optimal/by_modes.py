@@ -70,7 +70,7 @@ class ByModes:
 
 MAX_SOLVES = 160  # Newton solves at most a design (0.1-1 ms each): the work is counted, not timed
 LONGER = 1e-9  # (relative) a solved command this much longer than one known is dropped: round-off
-STARTS = 12  # structures tried a mode added (the first reversal width's come first)
+STARTS = 12  # structures tried a mode added (structures.mode_starts: the shorter reversal's, the latest first)
 REPAIRS = 3  # notches where the multipliers say, after a structure's Newton, before the next structure
 
 
@@ -102,8 +102,10 @@ class _Search:
                 return None
             self.solves += 1
             arcs = _solved(spec, durations, levels)
-            total = None if arcs is None else sum(a.duration_s for a in arcs)
-            if arcs is None or total is None or total > longest_s:
+            if arcs is None:
+                return None
+            total = sum(a.duration_s for a in arcs)
+            if total > longest_s:
                 return None
             proof = certificate(spec, arcs)
             if proof is not None:
