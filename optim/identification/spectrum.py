@@ -64,25 +64,27 @@ def spectral_peaks(spectrum: Spectrum, max_modes: int) -> list[tuple[float, floa
     if peaks.size == 0:
         return []
     peaks = peaks[np.argsort(p[peaks])[::-1][:max_modes]]
-    out: list[tuple[float, float]] = []
-    df = spectrum.resolution_hz
-    logp = np.log(np.maximum(p, 1e-300))
-    for k in np.sort(peaks):
-        shift = 0.0
-        if 0 < k < p.size - 1:
-            a, b, c = logp[k - 1], logp[k], logp[k + 1]
-            denom = a - 2 * b + c
-            shift = float(np.clip(0.5 * (a - c) / denom, -0.5, 0.5)) if denom < 0 else 0.0
-        frequency = float(f[k] + shift * df)
-        half = p[k] / 2.0
-        below_left = np.flatnonzero(p[:k] <= half)
-        below_right = np.flatnonzero(p[k:] <= half)
-        left = int(below_left[-1]) if below_left.size else 0
-        right = k + int(below_right[0]) if below_right.size else p.size - 1
-        width = float(f[right] - f[left])
-        zeta = float(np.clip(width / (2.0 * frequency), 0.002, 0.3)) if frequency > 0 else 0.05
-        out.append((frequency, zeta))
-    return out
+    return [_peak_at(f, p, int(k), spectrum.resolution_hz) for k in np.sort(peaks)]
+
+
+def _peak_at(f: NDArray[np.float64], p: NDArray[np.float64], k: int, df: float) -> tuple[float, float]:
+    """(frequency Hz, half-power damping estimate) of the peak at bin ``k``: its frequency refined by a parabola
+    through the log PSD of its three bins, its damping the width where the PSD falls to half, over twice the
+    frequency (clipped to [0.002, 0.3])."""
+    shift = 0.0
+    if 0 < k < p.size - 1:
+        a, b, c = np.log(np.maximum(p[k - 1 : k + 2], 1e-300))
+        denom = a - 2 * b + c
+        shift = float(np.clip(0.5 * (a - c) / denom, -0.5, 0.5)) if denom < 0 else 0.0
+    frequency = float(f[k] + shift * df)
+    half = p[k] / 2.0
+    below_left = np.flatnonzero(p[:k] <= half)
+    below_right = np.flatnonzero(p[k:] <= half)
+    left = int(below_left[-1]) if below_left.size else 0
+    right = k + int(below_right[0]) if below_right.size else p.size - 1
+    width = float(f[right] - f[left])
+    zeta = float(np.clip(width / (2.0 * frequency), 0.002, 0.3)) if frequency > 0 else 0.05
+    return frequency, zeta
 
 
 def psd_peaks(frequency_hz: NDArray[np.float64], psd: NDArray[np.float64], max_peaks: int) -> list[tuple[float, float]]:
@@ -101,15 +103,4 @@ def psd_peaks(frequency_hz: NDArray[np.float64], psd: NDArray[np.float64], max_p
         logp, prominence=PSD_PEAK_PROMINENCE, height=float(np.max(logp)) + math.log10(PSD_PEAK_RELATIVE)
     )
     strongest = np.sort(found[np.argsort(props["prominences"])[::-1][:max_peaks]])
-    df = float(f[1] - f[0])
-    out: list[tuple[float, float]] = []
-    for k in strongest:
-        a, b, c = logp[k - 1], logp[k], logp[k + 1]
-        denom = a - 2 * b + c
-        frequency = float(f[k] + (np.clip(0.5 * (a - c) / denom, -0.5, 0.5) if denom < 0 else 0.0) * df)
-        half = logp[k] - math.log10(2.0)
-        left = k - int(np.argmax(logp[k::-1] <= half)) if np.any(logp[k::-1] <= half) else 0
-        right = k + int(np.argmax(logp[k:] <= half)) if np.any(logp[k:] <= half) else f.size - 1
-        zeta = float(np.clip((f[right] - f[left]) / (2.0 * frequency), 0.002, 0.3))
-        out.append((frequency, zeta))
-    return out
+    return [_peak_at(f, p, int(k), float(f[1] - f[0])) for k in strongest]

@@ -26,6 +26,7 @@ from dataclasses import dataclass, replace
 
 from models.rigid_motion import RigidMove
 from optim.families.time_optimal.arcs import merged
+from optim.families.time_optimal.candidates import duration_s
 from optim.families.time_optimal.certify import Certificate, certificate
 from optim.families.time_optimal.refine import newton
 from optim.families.time_optimal.repair import next_repair
@@ -104,7 +105,7 @@ class _Search:
             arcs = _solved(spec, durations, levels)
             if arcs is None:
                 return None
-            total = sum(a.duration_s for a in arcs)
+            total = duration_s(arcs)
             if total > longest_s:
                 return None
             proof = certificate(spec, arcs)
@@ -153,8 +154,8 @@ class _Search:
         count, (arcs, _) = self.deepest
         shaper = nominal_shaper(replace(self.spec, zero_poles=tuple(self.poles[count:])))
         shaped = shaped_command(arcs, shaper)
-        found = self.shortest if self.shortest_s < sum(a.duration_s for a in shaped) else None
-        return Relaxed(shaped if found is None else found, sum(a.duration_s for a in arcs), count, found is None)
+        found = self.shortest if self.shortest_s < duration_s(shaped) else None
+        return Relaxed(shaped if found is None else found, duration_s(arcs), count, found is None)
 
 
 def mode_by_mode(
