@@ -1,35 +1,84 @@
-"""Where a free decay starts when nothing says so: after the excitation, found by the fit's own residual.
+"""Where a free decay starts when nothing says so: after the excitation, found by the fits themselves.
 
 A record with neither a command column nor ``start_s`` is fitted from its largest excursion, which falls inside the
 excitation when the excitation lasts longer than a fraction of a period (a knock of 2 x 20 ms on a 42 Hz mode:
-43.06 Hz with zeta 0.31, its interval excluding the truth). The forced part is not a sum of damped sinusoids, so a
-fit that starts inside it leaves a residual well above the noise, while one that starts in the free decay leaves
-the noise alone. The noise is measured where the vibration is gone: the variance of the record's last TAIL share.
-The fit is started at the largest excursion, then every half period of the record's lowest spectral peak after it
-(at most STEPS more), and the first fit whose residual variance is within RESIDUAL_LIMIT times the tail's is the
-answer. Where none is, the largest excursion's fit is kept, with a warning. (A record that rings to its end has a
-tail louder than its noise: the first fit passes, as before.)
+43.06 Hz with zeta 0.31, its interval excluding the truth). The forced part is not a sum of damped sinusoids, so a fit
+that starts inside it is biased, while one that starts in the free decay is not. Two tests tell them apart:
+
+- the onset: ``ModalIdentification.onset_misfit``, the residual of the window's first 8 to 128 samples against the
+  noise (a misfit at level 1e-3 where it exceeds 1);
+- the agreement with the fit SHIFT samples later (a Hausman test): both are unbiased in a free decay, and the later
+  one, on fewer samples, is the noisier, so their difference has the variance of the later estimate less the
+  earlier's (Hausman 1978; at least MIN_VARIANCE_GAIN of the earlier's). Each mode's f_n and zeta must agree within
+  AGREE_Z of that standard deviation. A fit that a forced sample biases differs by far more than its own interval
+  while its onset still passes (knocks of bench/identify_coverage.py: 1.3 % on f from 6 samples inside a knock).
+
+The start is the earliest sample after the largest excursion whose fit passes both, found by doubling the offset
+(0, 1, 2, 4, ... samples, at most STEPS / 2 periods of the record's lowest spectral peak) and then bisecting between
+the last offset that failed and the first that passed (a start past the excitation passes, and so do later ones):
+about 2 log2 of that span fits, each made once, at most MAX_START_FITS. Where none passes, the largest excursion's
+fit is kept, with a warning.
+
+Ref: J. A. Hausman, Specification tests in econometrics, Econometrica 46 (1978) 1251-1271.
 """
 
 from __future__ import annotations
 
-import numpy as np
+import math
+from collections.abc import Callable
 
 from models.errors import InvalidParameter
 from optim.identification.modal import ModalIdentification, identify_modes
 from optim.identification.record import Record
 
-__all__ = ["RESIDUAL_LIMIT", "STEPS", "identify_free_decay"]
+__all__ = ["AGREE_Z", "MAX_START_FITS", "SHIFT", "STEPS", "identify_free_decay"]
 
-STEPS = 8  # half periods of the lowest spectral peak tried after the largest excursion (4 periods)
-TAIL = 0.2  # the record's last share, where the noise is measured
-# a free decay's fit leaves the noise: residual / tail variance 0.98 to 1.02 on the knocks of
-# tests/optim/test_decay_start.py; started inside the excitation, 1.8 to 14
-RESIDUAL_LIMIT = 1.1
+STEPS = 8  # half periods of the lowest spectral peak: the latest start tried after the largest excursion (4 periods)
+SHIFT = 8  # samples between a fit and the later one it must agree with
+AGREE_Z = 3.5  # standard deviations of their difference (two-sided 5e-4 per quantity)
+MIN_VARIANCE_GAIN = 0.1  # the later fit's variance exceeds the earlier's by at least this share of it
+MAX_START_FITS = 24  # fits the search makes at most (each of at most modal.MAX_FIT_VALUES values); beyond, none passes
 
 
-def _residual_ratio(fit: ModalIdentification, tail_variance: float) -> float:
-    return float(np.sum(np.square(fit.noise_rms))) / tail_variance if tail_variance > 0 else 1.0
+def _disagreement(early: ModalIdentification, late: ModalIdentification) -> float:
+    """The largest |difference| / its standard deviation, over the modes of ``early`` that ``late`` also holds
+    (within 5 %), of f_n and zeta (the module's Hausman test); 0 where no mode is shared."""
+    worst = 0.0
+    for mode in early.modes:
+        near = min(late.modes, key=lambda m: abs(m.natural_frequency_hz - mode.natural_frequency_hz))
+        if abs(near.natural_frequency_hz - mode.natural_frequency_hz) > 0.05 * mode.natural_frequency_hz:
+            continue
+        pairs = (
+            (mode.natural_frequency_hz, near.natural_frequency_hz, mode.natural_frequency_std_hz,
+             near.natural_frequency_std_hz),
+            (mode.damping_ratio, near.damping_ratio, mode.damping_ratio_std, near.damping_ratio_std),
+        )  # fmt: skip
+        for a, b, std_a, std_b in pairs:
+            variance = max(std_b * std_b - std_a * std_a, MIN_VARIANCE_GAIN * std_a * std_a)
+            worst = max(worst, abs(a - b) / math.sqrt(variance)) if variance > 0 else math.inf
+    return worst
+
+
+def _earliest_passing(passes: Callable[[int], ModalIdentification | None], last: int) -> ModalIdentification | None:
+    """The fit from the earliest offset in 0..``last`` that passes, by doubling (0, 1, 2, 4, ...) then bisection."""
+    failed, offset = -1, 0
+    found: tuple[int, ModalIdentification] | None = None
+    while offset <= last:
+        fit = passes(offset)
+        if fit is not None:
+            found = (offset, fit)
+            break
+        failed, offset = offset, max(1, 2 * offset)
+    if found is None:
+        return None
+    while found[0] - failed > 1:
+        mid = (failed + found[0]) // 2
+        fit = passes(mid)
+        if fit is None:
+            failed = mid
+        else:
+            found = (mid, fit)
+    return found[1]
 
 
 def identify_free_decay(record: Record, *, max_modes: int = 4, start_s: float | None = None) -> ModalIdentification:
@@ -38,30 +87,45 @@ def identify_free_decay(record: Record, *, max_modes: int = 4, start_s: float | 
     first = identify_modes(record, max_modes=max_modes, start_s=start_s)
     if start_s is not None or record.command is not None:
         return first
-    signals = np.atleast_2d(np.asarray(record.signals, float))
-    tail = signals[:, int((1.0 - TAIL) * signals.shape[1]) :]
-    tail_variance = float(np.sum(np.var(tail, axis=1)))
-    ratio = _residual_ratio(first, tail_variance)
-    if ratio <= RESIDUAL_LIMIT:
+    dt = 1.0 / first.sample_rate_hz
+    fits: dict[int, ModalIdentification | None] = {0: first}
+
+    def fit_at(offset: int) -> ModalIdentification | None:
+        if offset not in fits and len(fits) >= MAX_START_FITS:
+            return None  # (the work is bounded: counted in fits, never timed)
+        if offset not in fits:
+            try:
+                fits[offset] = identify_modes(
+                    record, max_modes=max_modes, start_s=first.window_start_s + (offset - 0.5) * dt
+                )
+            except InvalidParameter:  # (too little left, or no clear vibration from there: a later start may fit)
+                fits[offset] = None
+        return fits[offset]
+
+    def passes(offset: int) -> ModalIdentification | None:
+        fit = fit_at(offset)
+        if fit is None or fit.onset_misfit > 1.0:
+            return None
+        later = fit_at(offset + SHIFT)
+        return fit if later is None or _disagreement(fit, later) <= AGREE_Z else None
+
+    last = int(0.5 * STEPS / min(m.peak_frequency_hz for m in first.modes) / dt)
+    fit = _earliest_passing(passes, last)
+    if fit is first:
         return first
-    step_s = 0.5 / min(m.peak_frequency_hz for m in first.modes)
-    for k in range(1, STEPS + 1):
-        try:
-            fit = identify_modes(record, max_modes=max_modes, start_s=first.window_start_s + k * step_s)
-        except InvalidParameter:  # (too little left, or no clear vibration from there: a later start may fit)
-            continue
-        if _residual_ratio(fit, tail_variance) <= RESIDUAL_LIMIT:
-            note = (
-                f"the fit starts {fit.window_start_s - first.window_start_s:.4g} s after the largest excursion, where "
-                f"its residual falls to the record's noise (from the excursion it was {ratio:.3g} times the noise: "
-                "the excitation was still on)"
-            )
-            return ModalIdentification(
-                **{**vars(fit), "window_source": "residual_at_noise", "warnings": (*fit.warnings, note)}
-            )
+    if fit is not None:
+        note = (
+            f"the fit starts {fit.window_start_s - first.window_start_s:.4g} s after the largest excursion: from "
+            "there its first samples leave the noise alone and it agrees with the fit from "
+            f"{SHIFT} samples later (from the excursion, the excitation was still on)"
+        )
+        return ModalIdentification(
+            **{**vars(fit), "window_source": "residual_at_noise", "warnings": (*fit.warnings, note)}
+        )
     note = (
-        f"the fit's residual is {ratio:.3g} times the noise of the record's end, and so from every start up to "
-        f"{STEPS / 2:g} periods later: the excitation may still be on where the fit starts, or the record is no free "
-        "decay (give start_s, or the command as a column)"
+        f"no fit from the largest excursion up to {STEPS / 2:g} periods later leaves its first samples to the noise "
+        f"and agrees with the fit {SHIFT} samples later (from the excursion, its first samples' misfit is "
+        f"{first.onset_misfit:.3g} times the noise's bound): the excitation may still be on where the fit starts, or "
+        "the record is no free decay (give start_s, or the command as a column)"
     )
     return ModalIdentification(**{**vars(first), "warnings": (*first.warnings, note)})

@@ -37,12 +37,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.stats import chi2
 from scipy.stats import t as student_t
 
 from models.errors import InvalidParameter
 from optim.identification.damped_fit import damped_basis, fit_covariance, fit_damped_sinusoids, mode_statistics
 from optim.identification.record import Record, free_vibration_start, uniform_record
-from optim.identification.spectrum import Spectrum, record_spectrum, spectral_peaks
+from optim.identification.spectrum import MIN_SPAN, Spectrum, contrast_spectrum, decay_peaks, peak_at, record_spectrum
 
 __all__ = ["CONFIDENCE", "MAX_FIT_VALUES", "MAX_MODES", "IdentifiedMode", "ModalIdentification", "identify_modes"]
 
@@ -52,8 +53,18 @@ MIN_FIT_SAMPLES = 32
 # samples x signals the fit takes: its Jacobians hold ~800 B per value (6 modes), so 105 MiB at the peak here
 # (tracemalloc), where the 200000 rows x 16 signals a CSV may hold took 2.2 GB, and minutes, in the HTTP process.
 MAX_FIT_VALUES = 131_072
+ONSET_SPANS = (8, 16, 32, 64, 128)  # the window's first samples where a fit's misfit at its start is looked for
+ONSET_ALPHA = 1e-3  # their test's level (Bonferroni over spans and signals)
 LOW_R_SQUARED = 0.5  # below: a warning
-MIN_DETECTION_SNR = 10.0  # a mode's energy over the noise's, in rms (20 dB): weaker modes are dropped
+RESIDUAL_PEAK_RATIO = 10.0  # a residual's bin over its median tried as a mode (white noise's highest of ~1000 bins is
+# ~7 times its median); the refit keeps it only at MIN_DETECTION_SNR
+MIN_DETECTION_SNR = 10.0
+# a mode tried at a residual's peak is kept only below zeta 0.3 (s / w_d < 0.31): more damped, it dies within a period
+# and mimics the forced part of a fit started inside its excitation (a 93 Hz zeta 0.61 "mode" absorbed a knock's end)
+MAX_ADDED_DECAY = 0.3 / math.sqrt(1.0 - 0.3**2)
+# ... and with an energy at least 1e-3 of the strongest mode's (30 dB, spectrum.PEAK_RELATIVE: a noise-free record's
+# residual is rounding, which a mode "fits" far above its rms)
+MIN_ADDED_SHARE = math.sqrt(1e-3)  # a mode's energy over the noise's, in rms (20 dB): weaker modes are dropped
 FEW_PERIODS = 5.0
 NYQUIST_FRACTION = 0.8  # modes or spectral energy above 0.8 f_Nyquist: aliasing risk
 ALIAS_ENERGY_FRACTION = 0.01
@@ -94,31 +105,49 @@ class ModalIdentification:
     names: tuple[str, ...]
     alias_energy_fraction: float
     resampled: bool
+    onset_misfit: float  # the fit's residual over its first samples against the noise (see _onset_misfit): > 1, the
+    # fit starts inside the excitation
     warnings: tuple[str, ...] = field(default=())
 
 
+def _onset_misfit(residual: NDArray[np.float64]) -> float:
+    """The largest, over each signal and its first m samples (m in ONSET_SPANS), of sum residual^2 / noise variance
+    over chi^2_m's 1 - ONSET_ALPHA / tests quantile. A fit started inside its excitation leaves its misfit where the
+    forced motion was, at the window's start, where a residual over the whole window dilutes it; the fit's own
+    leverage, highest there, makes the white noise's statistic smaller than chi^2_m: above 1 is a misfit at level
+    ONSET_ALPHA. ``residual``: (signals, samples), each of unit noise variance."""
+    variance = np.maximum(np.mean(residual**2, axis=1), 1e-300)
+    cumulative = np.cumsum(residual**2, axis=1) / variance[:, None]
+    spans = [m for m in ONSET_SPANS if m <= residual.shape[1] // 4]
+    tests = max(1, len(spans) * residual.shape[0])
+    return max(
+        (float(np.max(cumulative[:, m - 1])) / float(chi2.isf(ONSET_ALPHA / tests, m)) for m in spans), default=0.0
+    )
+
+
 def _residual_peak(
-    t: NDArray[np.float64],
-    yw: NDArray[np.float64],
-    params: NDArray[np.float64],
-    coef: NDArray[np.float64],
-    modes_stats: list[tuple[float, float, float, float]],
-    added: list[float],
+    t: NDArray[np.float64], residual: NDArray[np.float64], near_hz: list[float]
 ) -> tuple[float, float] | None:
-    """A peak of the fit's residual (its spectrum over twice the time the slowest mode takes to fall to the noise)
-    away from the fitted modes and from the peaks already added: a mode the spectrum's peaks hid (two well-damped
-    modes in one wide peak), whose absence biases the others' fits."""
-    fitted = damped_basis(t, params) @ coef
-    res = (fitted - yw.T).T
-    dt = float(t[1] - t[0])
-    spans = [math.log(max(snr, 1.0)) / max(s, 1e-12) for s, _, snr, _ in modes_stats]
-    m = int(min(t.size, max(MIN_FIT_SAMPLES, 2.0 * max(spans) / dt)))
-    spectrum = record_spectrum(res[:, :m], 1.0 / dt)
-    near = [w / (2 * math.pi) for _, w, _, _ in modes_stats] + added
-    for f, zeta in spectral_peaks(spectrum, 4):
-        if all(abs(f - g) > 0.05 * g for g in near):
-            return (f, zeta)
-    return None
+    """The residual's strongest spectral bin over its span's median, among its spectra over its first n, n/2, ...
+    samples (optim.identification.spectrum.decay_peaks' spans), more than 5 % from ``near_hz`` (the modes fitted and
+    the peaks tried) and at least RESIDUAL_PEAK_RATIO over the median: where a mode the record's spectrum hid (two
+    well-damped modes in one wide peak, a weak mode under a strong one's skirt) would be; its absence biases the others'
+    fits with intervals that stay narrow. (frequency Hz, half-power damping estimate) or None."""
+    rate = 1.0 / float(t[1] - t[0])
+    best: tuple[float, tuple[float, float]] | None = None
+    length = residual.shape[1]
+    while length >= MIN_SPAN:
+        spectrum = contrast_spectrum(residual[:, :length], rate)
+        f, p = spectrum.frequency_hz, spectrum.psd
+        ratio = p / max(float(np.median(p)), 1e-300)
+        ratio[:2] = 0.0
+        for g in near_hz:
+            ratio[np.abs(f - g) <= 0.05 * g] = 0.0
+        k = int(np.argmax(ratio))
+        if ratio[k] >= RESIDUAL_PEAK_RATIO and (best is None or ratio[k] > best[0]):
+            best = (float(ratio[k]), peak_at(f, p, k, spectrum.resolution_hz))
+        length //= 2
+    return None if best is None else best[1]
 
 
 def identify_modes(record: Record, *, max_modes: int = 4, start_s: float | None = None) -> ModalIdentification:
@@ -153,13 +182,16 @@ def identify_modes(record: Record, *, max_modes: int = 4, start_s: float | None 
         )
     t = np.arange(n, dtype=np.float64) * dt
     spectrum = record_spectrum(window, rate)
-    peaks = spectral_peaks(spectrum, max_modes)
-    if not peaks:
-        raise InvalidParameter(
-            names[0] if len(names) == 1 else "signals",
-            f"{len(names)} signals",
-            "the spectrum shows no peak 15 dB above its noise floor: the record holds no clear vibration",
-        )
+    peaks = decay_peaks(window, rate, max_modes)
+    if not peaks:  # no peak 15 dB up: the strongest bin, if 10 dB up, is tried (the fit's detection SNR decides)
+        strongest = _residual_peak(t, window - np.mean(window, axis=1, keepdims=True), [])
+        if strongest is None:
+            raise InvalidParameter(
+                names[0] if len(names) == 1 else "signals",
+                f"{len(names)} signals",
+                "the spectrum shows no peak 10 dB above its noise floor: the record holds no clear vibration",
+            )
+        peaks = [strongest]
     scale = np.where(live, np.std(window, axis=1), 1.0)[:, None]
     y = (window - np.median(window, axis=1, keepdims=True)) / scale
     y = y[live]
@@ -186,12 +218,18 @@ def identify_modes(record: Record, *, max_modes: int = 4, start_s: float | None 
             # the mode's energy in the window over the noise variance: sum_t A^2 e^(-2 s t) / 2 / variance
             energy = 0.5 * snr**2 * float(np.sum(np.exp(np.clip(-2.0 * s * t, -700.0, 700.0))))
             modes_stats.append((s, w, snr, math.sqrt(energy)))
-        weak = [k for k, stats in enumerate(modes_stats) if stats[3] < MIN_DETECTION_SNR]
+        top_detection = max(stats[3] for stats in modes_stats)
+        weak = [
+            k
+            for k, (s, w, _, detection) in enumerate(modes_stats)
+            if detection < MIN_DETECTION_SNR
+            or (peaks[k][0] in added and (s > MAX_ADDED_DECAY * w or detection < MIN_ADDED_SHARE * top_detection))
+        ]
         if not weak:
-            more = (  # (each residual peak once, at most max_modes of them: the work is bounded)
-                None
-                if len(peaks) >= max_modes or len(added) >= max_modes
-                else _residual_peak(t, y * weights[:, None], params, coef, modes_stats, added)
+            residual = (y * weights[:, None]) - (damped_basis(t, params) @ coef).T
+            near = [w / (2 * math.pi) for _, w, _, _ in modes_stats] + added
+            more = (  # (each residual peak tried once, at most max_modes of them: the work is bounded)
+                None if len(peaks) >= max_modes or len(added) >= max_modes else _residual_peak(t, residual, near)
             )
             if more is None:
                 break
@@ -207,11 +245,13 @@ def identify_modes(record: Record, *, max_modes: int = 4, start_s: float | None 
                 "needed): no free vibration clearly above the noise",
             )
         dropped = peaks[weak[0]]
+        peaks = [p for i, p in enumerate(peaks) if i != weak[0]]
+        if dropped[0] in added:  # a residual's peak tried as a mode, and not one: no news
+            continue
         warnings.append(
             f"the spectral peak at {dropped[0]:.4g} Hz fits no mode clearly above the noise "
             f"(detection SNR {modes_stats[weak[0]][3]:.2g} < {MIN_DETECTION_SNR:g}): dropped"
         )
-        peaks = [p for i, p in enumerate(peaks) if i != weak[0]]
     fitted = damped_basis(t, params) @ coef
     res = fitted - (y * weights[:, None]).T
     yw = (y * weights[:, None]).T
@@ -290,6 +330,7 @@ def identify_modes(record: Record, *, max_modes: int = 4, start_s: float | None 
         names=names,
         alias_energy_fraction=alias,
         resampled=resampled,
+        onset_misfit=_onset_misfit(res.T),
         warnings=tuple(warnings),
     )
 

@@ -9,7 +9,17 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.signal import find_peaks, welch
 
-__all__ = ["MAX_SPECTRUM_POINTS", "Spectrum", "psd_peaks", "record_spectrum", "spectral_peaks"]
+__all__ = [
+    "MAX_SPECTRUM_POINTS",
+    "MIN_SPAN",
+    "Spectrum",
+    "contrast_spectrum",
+    "decay_peaks",
+    "peak_at",
+    "psd_peaks",
+    "record_spectrum",
+    "spectral_peaks",
+]
 
 MAX_SPECTRUM_POINTS = 2049  # welch's one-sided spectrum of at most 4096-sample segments
 MAX_SEGMENT = 4096
@@ -19,6 +29,7 @@ PEAK_RELATIVE = 1e-3  # and at most 30 dB below the highest peak
 # rises 1.5 dB above its surroundings (3 or 5 dB missed modes) and above the highest / 20: on 60 of
 # bench/printer_calibration.py's resonance tests, a peak within 0.28 bins of a mode (median), no spurious peak, and
 # 3 of 90 modes missed (second modes weaker than the highest / 20: below what Klipper's criteria score)
+MIN_SPAN = 64  # the shortest span of a free decay whose spectrum is searched for peaks (50 Hz bins at 3200 Hz)
 PSD_PEAK_PROMINENCE = 0.15  # decades of the PSD
 PSD_PEAK_RELATIVE = 1.0 / 20.0  # ... and stands above the highest one / 20, the part of the PSD Klipper scores
 PSD_PEAK_BAND_HZ = (10.0, 200.0)  # where a printer's resonances are looked for (Klipper scores up to 200 Hz)
@@ -45,6 +56,18 @@ def record_spectrum(signals: NDArray[np.float64], sample_rate_hz: float) -> Spec
     return Spectrum(np.asarray(frequency, float), np.asarray(total, float), sample_rate_hz / segment, segment)
 
 
+def contrast_spectrum(signals: NDArray[np.float64], sample_rate_hz: float) -> Spectrum:
+    """The largest, over the signals, of each one's Welch PSD (as ``record_spectrum``'s) over its own median: a peak's
+    height over its signal's noise floor. An accelerometer's axes carry noise alike but the vibration mostly on one;
+    their sum dilutes its peak by the others' noise (three axes: a peak 7.6 times the median of the sum is 20 times
+    that of its own axis)."""
+    segment = int(min(signals.shape[1], MAX_SEGMENT))
+    frequency, psd = welch(signals, fs=sample_rate_hz, window="boxcar", nperseg=segment, detrend="constant", axis=-1)
+    psd = np.atleast_2d(psd)
+    contrast = np.max(psd / np.maximum(np.median(psd, axis=1, keepdims=True), 1e-300), axis=0)
+    return Spectrum(np.asarray(frequency, float), np.asarray(contrast, float), sample_rate_hz / segment, segment)
+
+
 def spectral_peaks(spectrum: Spectrum, max_modes: int) -> list[tuple[float, float]]:
     """(frequency Hz, half-power damping estimate) of the strongest peaks, lowest frequency first.
 
@@ -64,10 +87,29 @@ def spectral_peaks(spectrum: Spectrum, max_modes: int) -> list[tuple[float, floa
     if peaks.size == 0:
         return []
     peaks = peaks[np.argsort(p[peaks])[::-1][:max_modes]]
-    return [_peak_at(f, p, int(k), spectrum.resolution_hz) for k in np.sort(peaks)]
+    return [peak_at(f, p, int(k), spectrum.resolution_hz) for k in np.sort(peaks)]
 
 
-def _peak_at(f: NDArray[np.float64], p: NDArray[np.float64], k: int, df: float) -> tuple[float, float]:
+def decay_peaks(signals: NDArray[np.float64], sample_rate_hz: float, max_modes: int) -> list[tuple[float, float]]:
+    """``spectral_peaks`` of a free decay's spectra over its first n, n/2, n/4, ... samples (down to MIN_SPAN), lowest
+    frequency first, at most ``max_modes``.
+
+    A well-damped mode rings for a few hundredths of a second of a record that lasts a second: in the whole record's
+    spectrum its wide peak lies under the noise of the rest (the peak over the floor falls as the span grows past the
+    decay), while the spectrum of the span where it rings shows it. Longer spans come first (finer bins); a shorter one
+    adds only the peaks farther than two of its bins from those already found."""
+    found: list[tuple[float, float]] = []
+    length = signals.shape[1]
+    while length >= MIN_SPAN and len(found) < max_modes:
+        spectrum = contrast_spectrum(signals[:, :length], sample_rate_hz)
+        for f, zeta in spectral_peaks(spectrum, max_modes):
+            if len(found) < max_modes and all(abs(f - g) > 2.0 * spectrum.resolution_hz for g, _ in found):
+                found.append((f, zeta))
+        length //= 2
+    return sorted(found)
+
+
+def peak_at(f: NDArray[np.float64], p: NDArray[np.float64], k: int, df: float) -> tuple[float, float]:
     """(frequency Hz, half-power damping estimate) of the peak at bin ``k``: its frequency refined by a parabola
     through the log PSD of its three bins, its damping the width where the PSD falls to half, over twice the
     frequency (clipped to [0.002, 0.3])."""
@@ -103,4 +145,4 @@ def psd_peaks(frequency_hz: NDArray[np.float64], psd: NDArray[np.float64], max_p
         logp, prominence=PSD_PEAK_PROMINENCE, height=float(np.max(logp)) + math.log10(PSD_PEAK_RELATIVE)
     )
     strongest = np.sort(found[np.argsort(props["prominences"])[::-1][:max_peaks]])
-    return [_peak_at(f, p, int(k), float(f[1] - f[0])) for k in strongest]
+    return [peak_at(f, p, int(k), float(f[1] - f[0])) for k in strongest]

@@ -1,9 +1,12 @@
-"""The free decay's start found by the fit's residual (optim.identification.decay_start), on knocks of
-tests/printer_records.py: the issue's axis (42 Hz zeta 0.07, 71 Hz zeta 0.10) at 3200 Hz with 150 mm/s^2 of noise,
-knocked by +a then -a for ``width`` each, from 0.1 s.
+"""The free decay's start found by the fits themselves (optim.identification.decay_start: the onset's misfit and the
+agreement with the fit 8 samples later), on knocks of tests/printer_records.py: the issue's axis (42 Hz zeta 0.07,
+71 Hz zeta 0.10) at 3200 Hz with 150 mm/s^2 of noise, knocked by +a then -a for ``width`` each, from 0.1 s.
 
 The truth is known: the excitation ends at 0.1 + 2 width s. From the largest excursion, the fit of a 2 x 4 ms knock
 starts after it; that of a 2 x 20 ms knock inside it (43.06 Hz, zeta 0.31 from seed 0: the issue's complaint).
+Measured with this module: the 2 x 20 ms and 2 x 30 ms knocks of seeds 0-3 start 4 samples (1.25 ms) before the
+knock's end, where the forced motion left is under both tests' noise: f within 0.07 % and every frequency interval
+holding the truth.
 """
 
 from __future__ import annotations
@@ -11,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from optim.identification import decay_start
 from optim.identification.decay_start import identify_free_decay
 from optim.identification.modal import identify_modes
 from optim.identification.record import Record
@@ -26,19 +30,21 @@ def _knock(width_s: float, seed: int) -> Record:
     return Record(table[:, 0], table[:, 1:].T, ("accel_x", "accel_y", "accel_z"))
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
-def test_a_long_knock_is_fitted_from_where_it_ends(seed):
-    record = _knock(0.02, seed)
+@pytest.mark.parametrize(("width", "seed"), [(0.02, 0), (0.02, 1), (0.02, 2), (0.03, 0)])
+def test_a_long_knock_is_fitted_from_where_it_ends(width, seed):
+    record = _knock(width, seed)
+    end_s = 0.1 + 2 * width
     inside = identify_modes(record)
-    assert inside.window_start_s - START_S < 0.14  # the largest excursion: inside the knock
+    assert inside.window_start_s - START_S < end_s - 0.005  # the largest excursion: well inside the knock
     fit = identify_free_decay(record)
-    assert fit.window_source == "residual_at_noise" and fit.window_start_s - START_S >= 0.14 - 1 / RATE_HZ
-    assert fit.window_start_s - START_S < 0.14 + 0.5 / 42.0 + 1 / RATE_HZ  # within the first half period's step
+    assert fit.window_source == "residual_at_noise"
+    # at most 2 ms before the end (the forced motion's last samples, under the tests' noise), within half a period
+    assert end_s - 0.002 <= fit.window_start_s - START_S < end_s + 0.5 / 42.0
     assert [m.natural_frequency_hz for m in fit.modes] == pytest.approx(TRUTH, rel=0.005)
     for mode, f in zip(fit.modes, TRUTH, strict=True):
         lo, hi = mode.natural_frequency_ci_hz
         assert lo <= f <= hi
-    assert any("residual falls to the record's noise" in w for w in fit.warnings)
+    assert any("agrees with the fit from 8 samples later" in w for w in fit.warnings)
 
 
 def test_a_free_decay_from_its_excursion_is_fitted_as_before():
@@ -49,8 +55,10 @@ def test_a_free_decay_from_its_excursion_is_fitted_as_before():
         assert [m.natural_frequency_hz for m in after.modes] == [m.natural_frequency_hz for m in before.modes]
 
 
-def test_where_no_start_fits_the_noise_the_answer_says_so():
-    """A 2 x 30 ms knock, seed 0: every fit but the first fails from the later starts (kept, with a warning)."""
-    fit = identify_free_decay(_knock(0.03, 0))
+def test_where_no_start_passes_the_answer_says_so(monkeypatch):
+    """Where no start passes (here every pair of fits made to disagree), the largest excursion's fit is kept, with a
+    warning."""
+    monkeypatch.setattr(decay_start, "AGREE_Z", -1.0)
+    fit = identify_free_decay(_knock(0.02, 0))
     assert fit.window_source == "largest_excursion"
     assert any("the excitation may still be on" in w for w in fit.warnings)
