@@ -2,7 +2,7 @@
 
 ``python bench/identify_coverage.py [N] [FIRST] [FORMAT ...]`` makes N (default 200) seeded knock records (seeds
 FIRST.., default 0; the rules were tuned on 0-199, 200-399 check them)
-(tests/printer_records.py: a 2 x 4 ms pulse of 20,000 mm/s^2 at 0.1 s, then 0.9 s of rest, measured at 3200 Hz)
+(tests/printer_records.knock_case: a 2 x 4 ms pulse of 20,000 mm/s^2 at 0.1 s, then 0.9 s of rest, measured at 3200 Hz)
 of axes with one or two modes (the first at 20 to 120 Hz, the second 1.3 to 2.5 times higher up to 200 Hz, damping
 ratios 0.02 to 0.15; half the records have two) and white noise of std 0 to 30 % of the free decay's peak (after
 the pulse), printed in each FORMAT (``klipper_raw``, Klipper's accelerometer CSV; ``rrf_accelerometer``,
@@ -30,33 +30,9 @@ sys.path.insert(0, str(ROOT))
 from app.schemas.identify import MeasurementParams  # noqa: E402
 from app.services.identify import identify_record_csv  # noqa: E402
 from models.errors import InvalidParameter  # noqa: E402
-from tests.printer_records import RATE_HZ, knock, raw_csv, raw_record, rrf_csv, toolhead  # noqa: E402
+from tests.printer_records import knock_case  # noqa: E402
 
-Modes = tuple[tuple[float, float, float], ...]
-PULSE_END_S = 0.108  # the knock's end (tests/printer_records.knock: 0.1 s + 2 x 4 ms)
 MATCH = 0.05  # an identified mode within this (relative) of a true one is its estimate
-
-
-def draw(rng: np.random.Generator) -> Modes:
-    """One or two modes (f Hz, zeta, share)."""
-    f1, z1 = float(rng.uniform(20.0, 120.0)), float(rng.uniform(0.02, 0.15))
-    if rng.random() < 0.5:
-        return ((f1, z1, 1.0),)
-    share = float(rng.uniform(0.2, 0.5))
-    f2, z2 = min(f1 * float(rng.uniform(1.3, 2.5)), 200.0), float(rng.uniform(0.02, 0.15))
-    return ((f1, z1, 1.0 - share), (f2, z2, share))
-
-
-def record(seed: int, fmt: str) -> tuple[Modes, float, str]:
-    """(the true modes, the noise's share of the decay's peak, the CSV text)."""
-    rng = np.random.default_rng(7000 + seed)
-    modes = draw(rng)
-    command = knock(RATE_HZ, 1.0)
-    peak = float(np.max(np.abs(toolhead(command, RATE_HZ, modes)[int(PULSE_END_S * RATE_HZ) :])))
-    share = float(rng.uniform(0.0, 0.3))
-    table = raw_record(command, rng, modes, noise_mm_s2=max(share * peak, 1e-9))
-    text = raw_csv(np.round(table, 6)) if fmt == "klipper_raw" else rrf_csv(table, RATE_HZ)
-    return modes, share, text
 
 
 def run(count: int, fmt: str, first: int = 0) -> None:
@@ -67,7 +43,7 @@ def run(count: int, fmt: str, first: int = 0) -> None:
     failures: list[str] = []
     began = time.perf_counter()
     for seed in range(first, first + count):
-        modes, share, text = record(seed, fmt)
+        modes, share, text = knock_case(seed, fmt)
         total += len(modes)
         try:
             found = identify_record_csv(text, MeasurementParams(), 600_000).result.modes

@@ -109,3 +109,32 @@ def rrf_csv(table: Array, rate_hz: float, overflows: int = 0) -> str:
     g = table[:, 1:] / GRAVITY_MM_S2
     body = "\n".join(f"{k},{x:.3f},{y:.3f},{z:.3f}" for k, (x, y, z) in enumerate(g))
     return f"Sample,X,Y,Z\n{body}\nRate {round(rate_hz)}, overflows {overflows}\n"
+
+
+Modes = tuple[tuple[float, float, float], ...]
+KNOCK_END_S = 0.108  # knock()'s end: 0.1 s + 2 x 4 ms
+
+
+def draw_modes(rng: np.random.Generator) -> Modes:
+    """One or two modes (f Hz, zeta, share), as issue 27's acceptance draws them: the first at 20-120 Hz, the second
+    (half the axes) 1.3-2.5 times higher up to 200 Hz, damping ratios 0.02-0.15."""
+    f1, z1 = float(rng.uniform(20.0, 120.0)), float(rng.uniform(0.02, 0.15))
+    if rng.random() < 0.5:
+        return ((f1, z1, 1.0),)
+    share = float(rng.uniform(0.2, 0.5))
+    f2, z2 = min(f1 * float(rng.uniform(1.3, 2.5)), 200.0), float(rng.uniform(0.02, 0.15))
+    return ((f1, z1, 1.0 - share), (f2, z2, share))
+
+
+def knock_case(seed: int, fmt: str) -> tuple[Modes, float, str]:
+    """Seeded knock record ``seed`` (a 2 x 4 ms knock at 0.1 s, 1 s at RATE_HZ, noise std 0-30 % of the free decay's
+    peak) printed as Klipper's (``klipper_raw``) or RepRapFirmware's (``rrf_accelerometer``) accelerometer CSV:
+    (the true modes, the noise's share of the decay's peak, the CSV text)."""
+    rng = np.random.default_rng(7000 + seed)
+    modes = draw_modes(rng)
+    command = knock(RATE_HZ, 1.0)
+    peak = float(np.max(np.abs(toolhead(command, RATE_HZ, modes)[int(KNOCK_END_S * RATE_HZ) :])))
+    share = float(rng.uniform(0.0, 0.3))
+    table = raw_record(command, rng, modes, noise_mm_s2=max(share * peak, 1e-9))
+    text = raw_csv(np.round(table, 6)) if fmt == "klipper_raw" else rrf_csv(table, RATE_HZ)
+    return modes, share, text

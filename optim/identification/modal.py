@@ -59,6 +59,10 @@ LOW_R_SQUARED = 0.5  # below: a warning
 RESIDUAL_PEAK_RATIO = 10.0  # a residual's bin over its median tried as a mode (white noise's highest of ~1000 bins is
 # ~7 times its median); the refit keeps it only at MIN_DETECTION_SNR
 MIN_DETECTION_SNR = 10.0
+# a component tried at a residual's peak is kept in the fit from this detection SNR (below MIN_DETECTION_SNR, not
+# reported as a mode): a mode left out biases the others by up to its own SNR in standard errors, one fitted to noise
+# only widens their intervals
+MIN_NUISANCE_SNR = 5.0
 # a mode tried at a residual's peak is kept only below zeta 0.3 (s / w_d < 0.31): more damped, it dies within a period
 # and mimics the forced part of a fit started inside its excitation (a 93 Hz zeta 0.61 "mode" absorbed a knock's end)
 MAX_ADDED_DECAY = 0.3 / math.sqrt(1.0 - 0.3**2)
@@ -222,8 +226,15 @@ def identify_modes(record: Record, *, max_modes: int = 4, start_s: float | None 
         weak = [
             k
             for k, (s, w, _, detection) in enumerate(modes_stats)
-            if detection < MIN_DETECTION_SNR
-            or (peaks[k][0] in added and (s > MAX_ADDED_DECAY * w or detection < MIN_ADDED_SHARE * top_detection))
+            if (detection < MIN_DETECTION_SNR and peaks[k][0] not in added)
+            or (
+                peaks[k][0] in added
+                and (
+                    detection < MIN_NUISANCE_SNR
+                    or s > MAX_ADDED_DECAY * w
+                    or detection < MIN_ADDED_SHARE * top_detection
+                )
+            )
         ]
         if not weak:
             residual = (y * weights[:, None]) - (damped_basis(t, params) @ coef).T
@@ -271,6 +282,12 @@ def identify_modes(record: Record, *, max_modes: int = 4, start_s: float | None 
     modes: list[IdentifiedMode] = []
     duration = n * dt
     for k, (s, w, snr, detection) in enumerate(modes_stats):
+        if detection < MIN_DETECTION_SNR:  # a residual's component kept in the fit, not reported as a mode
+            warnings.append(
+                f"a weak component at {w / (2 * math.pi):.4g} Hz (detection SNR {detection:.2g} < "
+                f"{MIN_DETECTION_SNR:g}) is fitted, so that it biases no mode, but not reported as a mode"
+            )
+            continue
         fn, zeta, std_fn, std_zeta = mode_statistics(s, w, cov[2 * k : 2 * k + 2, 2 * k : 2 * k + 2])
         if not all(math.isfinite(v) for v in (fn, zeta, std_fn, std_zeta)):
             raise InvalidParameter(
