@@ -16,8 +16,10 @@ that starts inside it is biased, while one that starts in the free decay is not.
 The start is the earliest sample after the largest excursion whose fit passes both, found by doubling the offset
 (0, 1, 2, 4, ... samples, at most STEPS / 2 periods of the record's lowest spectral peak) and then bisecting between
 the last offset that failed and the first that passed (a start past the excitation passes, and so do later ones):
-about 2 log2 of that span fits, each made once, at most MAX_START_FITS. Where none passes, the largest excursion's
-fit is kept, with a warning.
+about 2 log2 of that span fits, each made once, at most MAX_START_FITS, each on at most SEARCH_VALUES samples x
+signals from the excursion (a 13 s record took 155 s to search on all of it; its decay is gone after a second). The
+answer fits the whole record from the start found. Where none passes, the largest excursion's fit is kept, with a
+warning.
 
 Ref: J. A. Hausman, Specification tests in econometrics, Econometrica 46 (1978) 1251-1271.
 """
@@ -27,8 +29,10 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
+import numpy as np
+
 from models.errors import InvalidParameter
-from optim.identification.modal import ModalIdentification, identify_modes
+from optim.identification.modal import MIN_DETECTION_SNR, ModalIdentification, identify_modes
 from optim.identification.record import Record
 
 __all__ = ["AGREE_Z", "MAX_START_FITS", "SHIFT", "STEPS", "identify_free_decay"]
@@ -37,16 +41,23 @@ STEPS = 8  # half periods of the lowest spectral peak: the latest start tried af
 SHIFT = 8  # samples between a fit and the later one it must agree with
 AGREE_Z = 3.5  # standard deviations of their difference (two-sided 5e-4 per quantity)
 MIN_VARIANCE_GAIN = 0.1  # the later fit's variance exceeds the earlier's by at least this share of it
-MAX_START_FITS = 24  # fits the search makes at most (each of at most modal.MAX_FIT_VALUES values); beyond, none passes
+MAX_START_FITS = 24  # fits the search makes at most; beyond, none passes
+SEARCH_VALUES = (
+    24_576  # samples x signals each of its fits takes at most (8192 samples of three axes, 2.6 s at 3200 Hz)
+)
 
 
 def _disagreement(early: ModalIdentification, late: ModalIdentification) -> float:
     """The largest |difference| / its standard deviation, over the modes of ``early`` that ``late`` also holds
-    (within 5 %), of f_n and zeta (the module's Hausman test); 0 where no mode is shared."""
+    (within 5 %), of f_n and zeta (the module's Hausman test); infinite where a mode of ``early`` clear of the noise
+    (detection SNR twice the least reported) has none in ``late``: a mode does not vanish or move 5 % in SHIFT samples,
+    a fit absorbing the forced motion does (a "mode" sliding from 103 to 177 Hz as the start left a knock)."""
     worst = 0.0
     for mode in early.modes:
         near = min(late.modes, key=lambda m: abs(m.natural_frequency_hz - mode.natural_frequency_hz))
         if abs(near.natural_frequency_hz - mode.natural_frequency_hz) > 0.05 * mode.natural_frequency_hz:
+            if mode.detection_snr >= 2.0 * MIN_DETECTION_SNR:
+                return math.inf
             continue
         pairs = (
             (mode.natural_frequency_hz, near.natural_frequency_hz, mode.natural_frequency_std_hz,
@@ -57,6 +68,16 @@ def _disagreement(early: ModalIdentification, late: ModalIdentification) -> floa
             variance = max(std_b * std_b - std_a * std_a, MIN_VARIANCE_GAIN * std_a * std_a)
             worst = max(worst, abs(a - b) / math.sqrt(variance)) if variance > 0 else math.inf
     return worst
+
+
+def _part(record: Record, start_s: float, end_s: float) -> Record:
+    """The record's samples between ``start_s`` and ``end_s`` (the record itself where that is all of it after
+    ``start_s``), without its command (a record with a command is not searched)."""
+    time_s = np.asarray(record.time_s)
+    if end_s >= float(time_s[-1]):
+        return record
+    low, high = int(np.searchsorted(time_s, start_s)), int(np.searchsorted(time_s, end_s, side="right"))
+    return Record(time_s[low:high], np.atleast_2d(np.asarray(record.signals))[:, low:high], record.names)
 
 
 def _earliest_passing(passes: Callable[[int], ModalIdentification | None], last: int) -> ModalIdentification | None:
@@ -88,7 +109,11 @@ def identify_free_decay(record: Record, *, max_modes: int = 4, start_s: float | 
     if start_s is not None or record.command is not None:
         return first
     dt = 1.0 / first.sample_rate_hz
-    fits: dict[int, ModalIdentification | None] = {0: first}
+    signals = np.atleast_2d(np.asarray(record.signals))
+    span = max(SEARCH_VALUES // signals.shape[0], 4 * SHIFT)  # samples the search fits, from the excursion
+    last = min(int(0.5 * STEPS / min(m.peak_frequency_hz for m in first.modes) / dt), span // 2)
+    part = _part(record, first.window_start_s - 0.5 * dt, first.window_start_s + span * dt)
+    fits: dict[int, ModalIdentification | None] = {0: first} if part is record else {}
 
     def fit_at(offset: int) -> ModalIdentification | None:
         if offset not in fits and len(fits) >= MAX_START_FITS:
@@ -96,7 +121,7 @@ def identify_free_decay(record: Record, *, max_modes: int = 4, start_s: float | 
         if offset not in fits:
             try:
                 fits[offset] = identify_modes(
-                    record, max_modes=max_modes, start_s=first.window_start_s + (offset - 0.5) * dt
+                    part, max_modes=max_modes, start_s=first.window_start_s + (offset - 0.5) * dt
                 )
             except InvalidParameter:  # (too little left, or no clear vibration from there: a later start may fit)
                 fits[offset] = None
@@ -109,11 +134,12 @@ def identify_free_decay(record: Record, *, max_modes: int = 4, start_s: float | 
         later = fit_at(offset + SHIFT)
         return fit if later is None or _disagreement(fit, later) <= AGREE_Z else None
 
-    last = int(0.5 * STEPS / min(m.peak_frequency_hz for m in first.modes) / dt)
     fit = _earliest_passing(passes, last)
-    if fit is first:
+    if fit is first or (fit is not None and fit.window_start_s <= first.window_start_s + 0.5 * dt):
         return first
     if fit is not None:
+        if part is not record:  # the answer fits the whole record from the start found
+            fit = identify_modes(record, max_modes=max_modes, start_s=fit.window_start_s - 0.5 * dt)
         note = (
             f"the fit starts {fit.window_start_s - first.window_start_s:.4g} s after the largest excursion: from "
             "there its first samples leave the noise alone and it agrees with the fit from "

@@ -63,6 +63,7 @@ MIN_DETECTION_SNR = 10.0
 # reported as a mode): a mode left out biases the others by up to its own SNR in standard errors, one fitted to noise
 # only widens their intervals
 MIN_NUISANCE_SNR = 5.0
+MAX_REJECTED = 2  # residual peaks the fit may reject before the search stops (each costs a fit)
 # a mode tried at a residual's peak is kept only below zeta 0.3 (s / w_d < 0.31): more damped, it dies within a period
 # and mimics the forced part of a fit started inside its excitation (a 93 Hz zeta 0.61 "mode" absorbed a knock's end)
 MAX_ADDED_DECAY = 0.3 / math.sqrt(1.0 - 0.3**2)
@@ -206,10 +207,19 @@ def identify_modes(record: Record, *, max_modes: int = 4, start_s: float | None 
         )
     nyquist = rate / 2.0
     added: list[float] = []  # frequencies of residual peaks already added (each tried once)
+    rejected = 0  # of them, those the fit did not keep
+    fitted_before: dict[tuple[tuple[float, float], ...], tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
     while True:
-        try:
-            params, weights = fit_damped_sinusoids(t, y, peaks, nyquist)
+        try:  # (a fit from the same peaks is made once: a rejected residual peak goes back to the fit before it)
+            key = tuple(peaks)
+            if key not in fitted_before:
+                fitted_before[key] = fit_damped_sinusoids(t, y, peaks, nyquist)
+            params, weights = fitted_before[key]
         except (ValueError, np.linalg.LinAlgError, FloatingPointError) as exc:  # a degenerate record
+            if added and added[-1] in (p[0] for p in peaks):  # the residual's last peak: tried, and no mode
+                peaks = [p for p in peaks if p[0] != added[-1]]
+                rejected += 1
+                continue
             raise InvalidParameter(
                 "signals", f"{len(names)} signals", f"the fit failed on this record ({exc})"
             ) from None
@@ -240,7 +250,9 @@ def identify_modes(record: Record, *, max_modes: int = 4, start_s: float | None 
             residual = (y * weights[:, None]) - (damped_basis(t, params) @ coef).T
             near = [w / (2 * math.pi) for _, w, _, _ in modes_stats] + added
             more = (  # (each residual peak tried once, at most max_modes of them: the work is bounded)
-                None if len(peaks) >= max_modes or len(added) >= max_modes else _residual_peak(t, residual, near)
+                None
+                if len(peaks) >= max_modes or len(added) >= max_modes or rejected >= MAX_REJECTED
+                else _residual_peak(t, residual, near)
             )
             if more is None:
                 break
@@ -258,6 +270,7 @@ def identify_modes(record: Record, *, max_modes: int = 4, start_s: float | None 
         dropped = peaks[weak[0]]
         peaks = [p for i, p in enumerate(peaks) if i != weak[0]]
         if dropped[0] in added:  # a residual's peak tried as a mode, and not one: no news
+            rejected += 1
             continue
         warnings.append(
             f"the spectral peak at {dropped[0]:.4g} Hz fits no mode clearly above the noise "

@@ -25,8 +25,8 @@ from tests.printer_records import RATE_HZ, START_S, knock, raw_record
 TRUTH = (42.0, 71.0)
 
 
-def _knock(width_s: float, seed: int) -> Record:
-    table = np.round(raw_record(knock(RATE_HZ, 3.0, width_s=width_s), np.random.default_rng(seed)), 6)
+def _knock(width_s: float, seed: int, duration_s: float = 3.0) -> Record:
+    table = np.round(raw_record(knock(RATE_HZ, duration_s, width_s=width_s), np.random.default_rng(seed)), 6)
     return Record(table[:, 0], table[:, 1:].T, ("accel_x", "accel_y", "accel_z"))
 
 
@@ -62,3 +62,23 @@ def test_where_no_start_passes_the_answer_says_so(monkeypatch):
     fit = identify_free_decay(_knock(0.02, 0))
     assert fit.window_source == "largest_excursion"
     assert any("the excitation may still be on" in w for w in fit.warnings)
+
+
+def test_the_search_is_bounded_in_fits_and_in_values(monkeypatch):
+    """A 4 s record (12,800 samples x 3 axes) knocked for 2 x 20 ms: the search fits at most SEARCH_VALUES samples x
+    signals each, at most MAX_START_FITS times, besides the excursion's fit and the answer's on the whole record (a
+    13 s record took 155 s when each search fit took all of it); the answer is the truth's, as on 3 s records."""
+    calls: list[int] = []
+    real = decay_start.identify_modes
+
+    def counted(record, **kwargs):
+        calls.append(np.atleast_2d(record.signals).size)
+        return real(record, **kwargs)
+
+    monkeypatch.setattr(decay_start, "identify_modes", counted)
+    fit = identify_free_decay(_knock(0.02, 0, duration_s=4.0))
+    whole = 3 * round(4.0 * RATE_HZ)
+    assert calls[0] == calls[-1] == whole  # the excursion's fit, and the answer's
+    assert all(size <= decay_start.SEARCH_VALUES + 3 for size in calls[1:-1])  # (+ one sample's rounding)
+    assert len(calls) - 2 <= decay_start.MAX_START_FITS
+    assert [m.natural_frequency_hz for m in fit.modes] == pytest.approx(TRUTH, rel=0.005)
