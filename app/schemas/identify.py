@@ -144,7 +144,9 @@ class QualityOut(OutModel):
     degrees_of_freedom: int
     confidence: float
     t_quantile: float = Field(description="Student t quantile of the intervals.")
-    alias_energy_fraction: float = Field(description="Share of the spectrum's power above 0.8 f_Nyquist.")
+    alias_energy_fraction: float = Field(
+        description="Share of the spectrum's power above its noise floor (its median) that lies above 0.8 f_Nyquist."
+    )
     resampled: bool = Field(description="Whether the times were not uniform and the signals were interpolated.")
 
 
