@@ -220,6 +220,14 @@ def identify_modes(record: Record, *, max_modes: int = 4, start_s: float | None 
                 peaks = [p for p in peaks if p[0] != added[-1]]
                 rejected += 1
                 continue
+            if len(peaks) > 1:  # the two nearest peaks (one mode's peak split by the noise) fitted as one
+                k = int(np.argmin([peaks[i + 1][0] / peaks[i][0] for i in range(len(peaks) - 1)]))
+                warnings.append(
+                    f"the peaks at {peaks[k][0]:.4g} and {peaks[k + 1][0]:.4g} Hz could not be fitted as two modes "
+                    f"({exc}): fitted as one"
+                )
+                peaks = [p for i, p in enumerate(peaks) if i != k + 1]
+                continue
             raise InvalidParameter(
                 "signals", f"{len(names)} signals", f"the fit failed on this record ({exc})"
             ) from None
