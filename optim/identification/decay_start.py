@@ -42,9 +42,8 @@ SHIFT = 8  # samples between a fit and the later one it must agree with
 AGREE_Z = 3.5  # standard deviations of their difference (two-sided 5e-4 per quantity)
 MIN_VARIANCE_GAIN = 0.1  # the later fit's variance exceeds the earlier's by at least this share of it
 MAX_START_FITS = 24  # fits the search makes at most; beyond, none passes
-SEARCH_VALUES = (
-    24_576  # samples x signals each of its fits takes at most (8192 samples of three axes, 2.6 s at 3200 Hz)
-)
+# samples x signals each of its fits takes at most (8192 samples of three axes, 2.6 s at 3200 Hz)
+SEARCH_VALUES = 24_576
 
 
 def _disagreement(early: ModalIdentification, late: ModalIdentification) -> float:

@@ -18,10 +18,12 @@ The 95 % intervals are estimate +- t_(0.975, dof) standard errors (Student t, do
 parameters; for these records it equals the normal quantile 1.96 to 3 digits). They assume white noise and
 the model above; the record's quality (SNR, periods, sample rate, R^2) says how far that holds.
 
-Where the fit's residual still shows a spectral peak over the decay, away from the modes fitted (two well-damped
-modes in one wide peak of the record's spectrum), a mode starts there and the fit is run again (each residual peak
-once): a mode left out biases the others' fits with intervals that stay narrow (bench/identify_coverage.py: 25 of the
-34 intervals that missed the truth, on 200 knock records).
+The fit starts from the peaks of the decay's spectra over its first n, n/2, n/4, ... samples, each signal over its
+own noise (``spectrum.decay_peaks``): a well-damped decay rings for a small part of a long record. Where the fit's
+residual then shows a bin 10 dB over its median, away from the modes fitted, a component starts there and the fit
+runs again (each residual peak once, at most MAX_REJECTED rejected): it is kept in the fit from a detection SNR of 5,
+reported as a mode from 10, as the spectrum's peaks are. A mode left out biases the others' fits with intervals that
+stay narrow (bench/identify_coverage.py: 25 of the 34 intervals that missed the truth, on 200 knock records, before).
 
 The steps are ``optim.identification.record`` (the grid, the free vibration's start), ``.spectrum`` (Welch's
 spectrum, its peaks) and ``.damped_fit`` (the fit and its covariance); ``identify_modes`` runs them.
@@ -58,7 +60,7 @@ ONSET_ALPHA = 1e-3  # their test's level (Bonferroni over spans and signals)
 LOW_R_SQUARED = 0.5  # below: a warning
 RESIDUAL_PEAK_RATIO = 10.0  # a residual's bin over its median tried as a mode (white noise's highest of ~1000 bins is
 # ~7 times its median); the refit keeps it only at MIN_DETECTION_SNR
-MIN_DETECTION_SNR = 10.0
+MIN_DETECTION_SNR = 10.0  # a mode's energy over the noise's, in rms (20 dB): weaker modes are not reported
 # a component tried at a residual's peak is kept in the fit from this detection SNR (below MIN_DETECTION_SNR, not
 # reported as a mode): a mode left out biases the others by up to its own SNR in standard errors, one fitted to noise
 # only widens their intervals
@@ -69,7 +71,7 @@ MAX_REJECTED = 2  # residual peaks the fit may reject before the search stops (e
 MAX_ADDED_DECAY = 0.3 / math.sqrt(1.0 - 0.3**2)
 # ... and with an energy at least 1e-3 of the strongest mode's (30 dB, spectrum.PEAK_RELATIVE: a noise-free record's
 # residual is rounding, which a mode "fits" far above its rms)
-MIN_ADDED_SHARE = math.sqrt(1e-3)  # a mode's energy over the noise's, in rms (20 dB): weaker modes are dropped
+MIN_ADDED_SHARE = math.sqrt(1e-3)
 FEW_PERIODS = 5.0
 NYQUIST_FRACTION = 0.8  # modes or spectral energy above 0.8 f_Nyquist: aliasing risk
 ALIAS_ENERGY_FRACTION = 0.01

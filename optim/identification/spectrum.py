@@ -50,10 +50,16 @@ def record_spectrum(signals: NDArray[np.float64], sample_rate_hz: float) -> Spec
     The window is rectangular (boxcar), the practice for a free vibration that decays within the block
     (impact testing: a Hann window would weight the record's start, where the vibration is, by ~0 and hide
     the fast-decaying modes); the decay itself keeps the leakage low."""
+    frequency, psd, segment = _welch(signals, sample_rate_hz)
+    return Spectrum(frequency, np.sum(psd, axis=0), sample_rate_hz / segment, segment)
+
+
+def _welch(signals: NDArray[np.float64], sample_rate_hz: float) -> tuple[NDArray[np.float64], NDArray[np.float64], int]:
+    """(frequencies, Welch's PSD per signal (signals, bins), segment samples): segments of min(samples, 4096), half
+    overlap, mean removed, a rectangular window."""
     segment = int(min(signals.shape[1], MAX_SEGMENT))
     frequency, psd = welch(signals, fs=sample_rate_hz, window="boxcar", nperseg=segment, detrend="constant", axis=-1)
-    total = np.sum(np.atleast_2d(psd), axis=0)
-    return Spectrum(np.asarray(frequency, float), np.asarray(total, float), sample_rate_hz / segment, segment)
+    return np.asarray(frequency, float), np.atleast_2d(np.asarray(psd, float)), segment
 
 
 def contrast_spectrum(signals: NDArray[np.float64], sample_rate_hz: float) -> Spectrum:
@@ -61,11 +67,9 @@ def contrast_spectrum(signals: NDArray[np.float64], sample_rate_hz: float) -> Sp
     height over its signal's noise floor. An accelerometer's axes carry noise alike but the vibration mostly on one;
     their sum dilutes its peak by the others' noise (three axes: a peak 7.6 times the median of the sum is 20 times
     that of its own axis)."""
-    segment = int(min(signals.shape[1], MAX_SEGMENT))
-    frequency, psd = welch(signals, fs=sample_rate_hz, window="boxcar", nperseg=segment, detrend="constant", axis=-1)
-    psd = np.atleast_2d(psd)
+    frequency, psd, segment = _welch(signals, sample_rate_hz)
     contrast = np.max(psd / np.maximum(np.median(psd, axis=1, keepdims=True), 1e-300), axis=0)
-    return Spectrum(np.asarray(frequency, float), np.asarray(contrast, float), sample_rate_hz / segment, segment)
+    return Spectrum(frequency, contrast, sample_rate_hz / segment, segment)
 
 
 def spectral_peaks(spectrum: Spectrum, max_modes: int) -> list[tuple[float, float]]:
