@@ -143,7 +143,7 @@ def _residual_peak(
     rate = 1.0 / float(t[1] - t[0])
     best: tuple[float, tuple[float, float]] | None = None
     length = residual.shape[1]
-    while length >= MIN_SPAN:
+    while length == residual.shape[1] or length >= MIN_SPAN:  # (all of a short record)
         spectrum = contrast_spectrum(residual[:, :length], rate)
         f, p = spectrum.frequency_hz, spectrum.psd
         ratio = p / max(float(np.median(p)), 1e-300)

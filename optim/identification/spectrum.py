@@ -104,7 +104,7 @@ def decay_peaks(signals: NDArray[np.float64], sample_rate_hz: float, max_modes: 
     adds only the peaks farther than two of its bins from those already found."""
     found: list[tuple[float, float]] = []
     length = signals.shape[1]
-    while length >= MIN_SPAN and len(found) < max_modes:
+    while len(found) < max_modes and (length == signals.shape[1] or length >= MIN_SPAN):  # (all of a short record)
         spectrum = contrast_spectrum(signals[:, :length], sample_rate_hz)
         for f, zeta in spectral_peaks(spectrum, max_modes):
             if len(found) < max_modes and all(abs(f - g) > 2.0 * spectrum.resolution_hz for g, _ in found):
