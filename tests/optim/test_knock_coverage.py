@@ -14,11 +14,13 @@ What is asked, and why those numbers:
   67 records at 20-30 % noise were refused, at true SNRs up to 60). Here 1 of 60 is refused (at 12.6 and 10.4).
 - Coverage: of the 74 modes found (of 91), a 92 % rate (the bench's) gives 68 +- 2.3 covered; at least 84 % is
   asked of f_n and of zeta (about the bench's rate less 3 standard deviations of that count). Measured: 90.5 % and
-  90.5 %. Before the decay's own spectra, the residual's modes and the start's Hausman test, the rate was 78 %
-  (bench/identify_coverage.py): this fails it.
+  90.5 %.
 - Modes missed (none identified within 5 %, or their record refused) at most 20 % of the true modes: the weak second
-  modes (detection SNR under 10) that the fit may not claim. Measured: 17 of 91 (18.7 %; the bench: 11-16 %; before,
-  64 %, refusals included).
+  modes (detection SNR under 10) that the fit may not claim. Measured: 17 of 91 (18.7 %; the bench: 11-16 %).
+
+Before the decay's own spectra, the residual's components and the start's tests (23ce762), these seeds fail it: 33 of
+60 records refused and 58 of 91 modes missed; its intervals held 87.9 % (f_n) and 84.8 % (zeta) of the 33 modes it
+found, mostly the clear ones.
 """
 
 from __future__ import annotations
