@@ -30,9 +30,7 @@ sys.path.insert(0, str(ROOT))
 from app.schemas.identify import MeasurementParams  # noqa: E402
 from app.services.identify import identify_record_csv  # noqa: E402
 from models.errors import InvalidParameter  # noqa: E402
-from tests.printer_records import knock_case  # noqa: E402
-
-MATCH = 0.05  # an identified mode within this (relative) of a true one is its estimate
+from tests.printer_records import estimate_of, knock_case  # noqa: E402
 
 
 def run(count: int, fmt: str, first: int = 0) -> None:
@@ -52,8 +50,8 @@ def run(count: int, fmt: str, first: int = 0) -> None:
             failures.append(f"#{seed} refused (noise {share:.2f}, modes {[round(m[0], 1) for m in modes]}): {exc}")
             continue
         for f, zeta, _ in modes:
-            near = min(found, key=lambda m: abs(m.natural_frequency_hz - f), default=None)
-            if near is None or abs(near.natural_frequency_hz - f) > MATCH * f:
+            near = estimate_of(found, f)
+            if near is None:
                 missed += 1
                 failures.append(
                     f"#{seed} {f:.2f} Hz missed (found {[round(m.natural_frequency_hz, 2) for m in found]})"

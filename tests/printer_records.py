@@ -15,10 +15,13 @@ left out) and a short pulse (a knock) followed by free decay.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.signal import cont2discrete, lfilter, ss2tf
+
+from optim.identification.modal import IdentifiedMode
 
 Array = NDArray[np.float64]
 AXIS = ((42.0, 0.07, 0.6), (71.0, 0.10, 0.4))  # the issue's axis: (f_n Hz, zeta, share)
@@ -113,6 +116,13 @@ def rrf_csv(table: Array, rate_hz: float, overflows: int = 0) -> str:
 
 Modes = tuple[tuple[float, float, float], ...]
 KNOCK_END_S = 0.108  # knock()'s end: 0.1 s + 2 x 4 ms
+MATCH = 0.05  # an identified mode within this (relative) of a true one is its estimate
+
+
+def estimate_of(fitted: Sequence[IdentifiedMode], f_hz: float) -> IdentifiedMode | None:
+    """The identified mode nearest the true ``f_hz`` if within MATCH of it (its estimate), else None (missed)."""
+    near = min(fitted, key=lambda m: abs(m.natural_frequency_hz - f_hz), default=None)
+    return near if near is not None and abs(near.natural_frequency_hz - f_hz) <= MATCH * f_hz else None
 
 
 def draw_modes(rng: np.random.Generator) -> Modes:

@@ -45,7 +45,14 @@ from scipy.stats import t as student_t
 from models.errors import InvalidParameter
 from optim.identification.damped_fit import damped_basis, fit_covariance, fit_damped_sinusoids, mode_statistics
 from optim.identification.record import Record, free_vibration_start, uniform_record
-from optim.identification.spectrum import MIN_SPAN, Spectrum, contrast_spectrum, decay_peaks, peak_at, record_spectrum
+from optim.identification.spectrum import (
+    Spectrum,
+    contrast_spectrum,
+    decay_peaks,
+    decay_spans,
+    peak_at,
+    record_spectrum,
+)
 
 __all__ = ["CONFIDENCE", "MAX_FIT_VALUES", "MAX_MODES", "IdentifiedMode", "ModalIdentification", "identify_modes"]
 
@@ -142,8 +149,7 @@ def _residual_peak(
     fits with intervals that stay narrow. (frequency Hz, half-power damping estimate) or None."""
     rate = 1.0 / float(t[1] - t[0])
     best: tuple[float, tuple[float, float]] | None = None
-    length = residual.shape[1]
-    while length == residual.shape[1] or length >= MIN_SPAN:  # (all of a short record)
+    for length in decay_spans(residual.shape[1]):
         spectrum = contrast_spectrum(residual[:, :length], rate)
         f, p = spectrum.frequency_hz, spectrum.psd
         ratio = p / max(float(np.median(p)), 1e-300)
@@ -153,7 +159,6 @@ def _residual_peak(
         k = int(np.argmax(ratio))
         if ratio[k] >= RESIDUAL_PEAK_RATIO and (best is None or ratio[k] > best[0]):
             best = (float(ratio[k]), peak_at(f, p, k, spectrum.resolution_hz))
-        length //= 2
     return None if best is None else best[1]
 
 

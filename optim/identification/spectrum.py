@@ -15,6 +15,7 @@ __all__ = [
     "Spectrum",
     "contrast_spectrum",
     "decay_peaks",
+    "decay_spans",
     "peak_at",
     "psd_peaks",
     "record_spectrum",
@@ -103,14 +104,23 @@ def decay_peaks(signals: NDArray[np.float64], sample_rate_hz: float, max_modes: 
     decay), while the spectrum of the span where it rings shows it. Longer spans come first (finer bins); a shorter one
     adds only the peaks farther than two of its bins from those already found."""
     found: list[tuple[float, float]] = []
-    length = signals.shape[1]
-    while len(found) < max_modes and (length == signals.shape[1] or length >= MIN_SPAN):  # (all of a short record)
+    for length in decay_spans(signals.shape[1]):
+        if len(found) >= max_modes:
+            break
         spectrum = contrast_spectrum(signals[:, :length], sample_rate_hz)
         for f, zeta in spectral_peaks(spectrum, max_modes):
             if len(found) < max_modes and all(abs(f - g) > 2.0 * spectrum.resolution_hz for g, _ in found):
                 found.append((f, zeta))
-        length //= 2
     return sorted(found)
+
+
+def decay_spans(samples: int) -> list[int]:
+    """The spans whose spectra are searched from a free decay's start: ``samples``, then half as many, and so on down
+    to MIN_SPAN (``samples`` alone where it is shorter)."""
+    spans = [samples]
+    while spans[-1] // 2 >= MIN_SPAN:
+        spans.append(spans[-1] // 2)
+    return spans
 
 
 def peak_at(f: NDArray[np.float64], p: NDArray[np.float64], k: int, df: float) -> tuple[float, float]:

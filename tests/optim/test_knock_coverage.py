@@ -30,12 +30,11 @@ import numpy as np
 from app.schemas.identify import MeasurementParams
 from app.services.identify import identify_record_csv
 from models.errors import InvalidParameter
-from tests.printer_records import KNOCK_END_S, RATE_HZ, Modes, knock, knock_case, toolhead
+from tests.printer_records import KNOCK_END_S, RATE_HZ, Modes, estimate_of, knock, knock_case, toolhead
 
 SEEDS = range(400, 460)
 MIN_COVERED = 0.84
 MAX_MISSED = 0.20
-MATCH = 0.05
 CLEAR_SNR = 15.0
 
 
@@ -59,8 +58,8 @@ def test_knock_intervals_cover_the_truth_and_only_unclear_records_are_refused() 
             continue
         for f, zeta, _ in modes:
             total += 1
-            near = min(fitted, key=lambda m: abs(m.natural_frequency_hz - f))
-            if abs(near.natural_frequency_hz - f) > MATCH * f:
+            near = estimate_of(fitted, f)
+            if near is None:
                 continue
             found += 1
             covered_f += near.natural_frequency_ci_hz[0] <= f <= near.natural_frequency_ci_hz[1]

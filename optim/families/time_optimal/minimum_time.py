@@ -232,15 +232,19 @@ def _near(best: Best, relaxed: Relaxed) -> bool:
     if duration_s(relaxed.arcs) * (1 - TRY_NEAR) > relaxed.bound_s:
         return False
     trial = Best(best.spec, best.search, best.check_limits)
-    for attempt in range(2):
-        if attempt == 0:
-            trial.refine_from(as_start(best.spec, relaxed.arcs), f" (from {relaxed.note()})")
-        else:
-            trial.offer(relaxed.arcs, "refined", relaxed.note())  # (and repaired)
+
+    def near_found() -> bool:
         found = trial.found
-        if found is not None and found.duration_s * (1 - NEAR) <= relaxed.bound_s:
-            return best.offer(found.arcs, found.method, found.note)
-    return False
+        return found is not None and found.duration_s * (1 - NEAR) <= relaxed.bound_s
+
+    trial.refine_from(as_start(best.spec, relaxed.arcs), f" (from {relaxed.note()})")
+    if not near_found():
+        trial.offer(relaxed.arcs, "refined", relaxed.note())  # (and repaired)
+    if not near_found():
+        return False
+    found = trial.found
+    assert found is not None
+    return best.offer(found.arcs, found.method, found.note)
 
 
 def solve(spec: Spec, check_limits: LimitCheck | None = None, bound_spec: Spec | None = None) -> Solution:
