@@ -32,8 +32,17 @@ SKEW = 0.05  # share of x's acceleration seen on y
 START_S = 1234.5  # printer time: Klipper's records do not start at 0
 
 
-def chirp(rate_hz: float, f_start: float, f_end: float, accel_per_hz: float = 60.0, hz_per_sec: float = 1.0) -> Array:
-    """Klipper's pulse chirp sampled at ``rate_hz`` (each quarter period's level held over its samples)."""
+def chirp_switches(
+    f_start: float,
+    f_end: float,
+    accel_per_hz: float = 60.0,
+    hz_per_sec: float = 1.0,
+    sweeping_accel: float = 0.0,
+    sweeping_period: float = 1.2,
+) -> tuple[Array, Array, float]:
+    """Klipper's pulse chirp as (switch times from 0, the level from each, the end): a quarter period at +-accel_per_hz
+    f, f rising hz_per_sec per second, with the sweeping overlay (SweepingVibrationsTestGenerator) of
+    +-``sweeping_accel``: flips at P sqrt(2)/8, then P (sqrt(2)/8 + 1/4) later, then every P/2."""
     edges, levels = [0.0], []
     f, sign = f_start, 1.0
     while f <= f_end + 1e-6:
@@ -43,8 +52,26 @@ def chirp(rate_hz: float, f_start: float, f_end: float, accel_per_hz: float = 60
         levels += [sign * a, -sign * a]
         f += hz_per_sec / (2.0 * f)
         sign = -sign
-    t = np.arange(int(edges[-1] * rate_hz)) / rate_hz
-    return np.asarray(levels, float)[np.searchsorted(edges, t, side="right") - 1]
+    times, level, end = np.asarray(edges[:-1]), np.asarray(levels, float), edges[-1]
+    if sweeping_accel:
+        first = sweeping_period * math.sqrt(2.0) / 8.0
+        flips = [first, 2 * first + sweeping_period / 4.0]
+        while flips[-1] + sweeping_period / 2.0 < end:
+            flips.append(flips[-1] + sweeping_period / 2.0)
+        merged = np.sort(np.concatenate([times, flips]))
+        vibration = level[np.searchsorted(times, merged, side="right") - 1]
+        overlay = sweeping_accel * (-1.0) ** np.arange(1, len(flips) + 1)
+        level = vibration + np.concatenate([[sweeping_accel], overlay])[np.searchsorted(flips, merged, side="right")]
+        times = merged
+    return times, level, end
+
+
+def chirp(rate_hz: float, f_start: float, f_end: float, accel_per_hz: float = 60.0, hz_per_sec: float = 1.0) -> Array:
+    """Klipper's pulse chirp (chirp_switches, no overlay) sampled at ``rate_hz``: each sample holds the level at its
+    time."""
+    times, level, end = chirp_switches(f_start, f_end, accel_per_hz, hz_per_sec)
+    t = np.arange(int(end * rate_hz)) / rate_hz
+    return level[np.searchsorted(times, t, side="right") - 1]
 
 
 def knock(rate_hz: float, duration_s: float, accel_mm_s2: float = 20_000.0, width_s: float = 0.004) -> Array:
@@ -148,3 +175,52 @@ def knock_case(seed: int, fmt: str) -> tuple[Modes, float, str]:
     table = raw_record(command, rng, modes, noise_mm_s2=max(share * peak, 1e-9))
     text = raw_csv(np.round(table, 6)) if fmt == "klipper_raw" else rrf_csv(table, RATE_HZ)
     return modes, share, text
+
+
+SWEEP_MAX_HZ = 200.0  # FREQ_END of the seeded sweeps: every drawn mode (up to 200 Hz) is swept through
+SWEEPING_ACCEL = 400.0  # Klipper's sweeping_accel default
+
+
+def held_record(
+    switches: tuple[Array, Array, float],
+    rng: np.random.Generator,
+    modes: Modes = AXIS,
+    noise_mm_s2: float = NOISE_MM_S2,
+    rate_hz: float = RATE_HZ,
+) -> Array:
+    """raw_record's table for a command given by its switches (chirp_switches), the toolhead's acceleration exact at
+    the samples for switches between them (models.held_input, checked against an oversampled hold in
+    tests/models/test_held_input.py)."""
+    from models.held_input import base_excited_response
+
+    times, level, end = switches
+    n = int(end * rate_hz)
+    x = sum(share * base_excited_response(f, zeta, rate_hz, times, level, n) for f, zeta, share in modes)
+    noise = rng.normal(0.0, max(noise_mm_s2, 1e-9), (3, n))
+    t = START_S + np.arange(n) / rate_hz
+    return np.column_stack([t, x + noise[0], SKEW * x + noise[1], GRAVITY_MM_S2 + noise[2]])
+
+
+def sweep_table(seed: int) -> tuple[Modes, float, Array]:
+    """Seeded resonance test ``seed``: Klipper's test from 5 Hz to SWEEP_MAX_HZ at 1 Hz/s with its sweeping overlay
+    (held_record), at RATE_HZ, noise std 0-30 % of the response's peak: (the true modes, the noise's share, the record
+    as raw_record's table)."""
+    rng = np.random.default_rng(9000 + seed)
+    modes = draw_modes(rng)
+    switches = chirp_switches(5.0, SWEEP_MAX_HZ, sweeping_accel=SWEEPING_ACCEL)
+    noise_share = float(rng.uniform(0.0, 0.3))
+    clean = held_record(switches, np.random.default_rng(0), modes, 0.0)[:, 1]
+    table = held_record(switches, rng, modes, max(noise_share * float(np.max(np.abs(clean))), 1e-9))
+    return modes, noise_share, table
+
+
+def sweep_case(seed: int, fmt: str) -> tuple[Modes, float, str]:
+    """sweep_table(seed) as the raw record (``klipper_raw``) or as Klipper's resonance CSV of its PSD
+    (``klipper_psd``): (the true modes, the noise's share, the CSV text)."""
+    from optim.families.input_shaped.calibration import klipper_psd
+
+    modes, noise_share, table = sweep_table(seed)
+    if fmt == "klipper_raw":
+        return modes, noise_share, raw_csv(np.round(table, 6))
+    frequency, psd = klipper_psd(table[:, 0], table[:, 1:].T)
+    return modes, noise_share, psd_csv(frequency, psd)

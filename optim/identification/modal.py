@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -54,7 +55,15 @@ from optim.identification.spectrum import (
     record_spectrum,
 )
 
-__all__ = ["CONFIDENCE", "MAX_FIT_VALUES", "MAX_MODES", "IdentifiedMode", "ModalIdentification", "identify_modes"]
+__all__ = [
+    "CONFIDENCE",
+    "MAX_FIT_VALUES",
+    "MAX_MODES",
+    "FittedMode",
+    "IdentifiedMode",
+    "ModalIdentification",
+    "identify_modes",
+]
 
 CONFIDENCE = 0.95
 MAX_MODES = 6
@@ -82,6 +91,17 @@ MIN_ADDED_SHARE = math.sqrt(1e-3)
 FEW_PERIODS = 5.0
 NYQUIST_FRACTION = 0.8  # modes or spectral energy above 0.8 f_Nyquist: aliasing risk
 ALIAS_ENERGY_FRACTION = 0.01
+
+
+class FittedMode(Protocol):
+    """What a design needs of an identified mode (a free decay's IdentifiedMode, a spectrum's SpectralMode)."""
+
+    @property
+    def natural_frequency_hz(self) -> float: ...
+    @property
+    def damping_ratio(self) -> float: ...
+    @property
+    def natural_frequency_ci_hz(self) -> tuple[float, float]: ...
 
 
 @dataclass(frozen=True)
