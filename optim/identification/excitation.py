@@ -5,8 +5,9 @@ The record is cut into segments of SEGMENT_S; each segment whose spectral peak s
 segment's own median bin (a tone, not noise) gives the frequency of that peak. A free vibration rings at its modes: the
 peak stays at one of them while the power decays. A swept excitation (Klipper's TEST_RESONANCES: a chirp from
 5 to 135 Hz at 1 Hz/s) moves the peak with the sweep: the peaks' frequency rises (or falls) with time, with a rank
-correlation above SWEEP_CORRELATION over at least MIN_SEGMENTS live segments, through at least MIN_DISTINCT
-frequencies (a decay of several modes steps from one mode's to another's: few distinct peaks).
+correlation above SWEEP_CORRELATION over at least MIN_SEGMENTS live segments (their peaks' running median over
+RIDGE_MEDIAN segments: a segment whose peak is noise, where the sweep excites little, drops out), through at least
+MIN_DISTINCT frequencies (a decay of several modes steps from one mode's to another's: few distinct peaks).
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.signal import medfilt
 from scipy.stats import spearmanr
 
 __all__ = ["Excitation", "excitation_of"]
@@ -24,9 +26,12 @@ SEGMENT_S = 0.5
 MIN_SEGMENTS = 8
 SEGMENT_SNR = 30.0  # a live segment's peak bin over its median bin (15 dB: white noise's peak of ~500 bins stays
 # under 10, e^(-30) the chance a bin of it exceeds 30 x its mean)
-SWEEP_CORRELATION = 0.8
+SWEEP_CORRELATION = (
+    0.7  # (a run of segments where a harmonic of the square wave rings a higher mode stays off the ridge)
+)
 MIN_DISTINCT = 6  # distinct peak frequencies a sweep passes through (a decay shows at most its modes')
 LOW_HZ = 2.0  # peaks below this (gravity, drift, the sweeping overlay) are not looked at
+RIDGE_MEDIAN = 5  # live segments the peaks' running median spans
 
 
 def excitation_of(signals: NDArray[np.float64], sample_rate_hz: float) -> Excitation:
@@ -46,7 +51,7 @@ def excitation_of(signals: NDArray[np.float64], sample_rate_hz: float) -> Excita
     live = peak > SEGMENT_SNR * floor
     if np.count_nonzero(live) < MIN_SEGMENTS:
         return "free_decay"
-    peaks = frequency[np.argmax(spectra[live], axis=1)]
+    peaks = medfilt(frequency[np.argmax(spectra[live], axis=1)], RIDGE_MEDIAN)  # a segment's noise peak drops out
     if np.unique(peaks).size < MIN_DISTINCT:
         return "free_decay"
     rank = spearmanr(np.flatnonzero(live), peaks).statistic
