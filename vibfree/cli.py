@@ -45,6 +45,16 @@ SINGLE_THREADED_BLAS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THRE
 HTTP_TIMEOUT_S = 300.0
 
 
+SWEEP_OPTIONS = {  # the resonance test's settings (a sweep's or a resonance CSV's excitation): Klipper's names
+    "sweep_min_freq": "Hz: the resonance test's min_freq / FREQ_START (5)",
+    "sweep_max_freq": "Hz: its max_freq / FREQ_END (135; z 100)",
+    "sweep_hz_per_sec": "its hz_per_sec / HZ_PER_SEC (1)",
+    "sweep_accel_per_hz": "mm/s^2 per Hz: its accel_per_hz (60; z 15)",
+    "sweeping_accel": "mm/s^2: its sweeping_accel (400; z 50)",
+    "sweeping_period": "s: its sweeping_period (1.2; 0 for none)",
+}
+
+
 def one_blas_thread() -> None:
     """Default this process's BLAS libraries to one thread, as ``vibfree serve`` and the image do for the workers
     (an explicit setting wins); effective only before numpy loads them. A design's last bits, and so which local
@@ -131,6 +141,8 @@ def _parser() -> argparse.ArgumentParser:
     identify.add_argument(
         "--frequency-tolerance", type=float, help="make the shaper robust over f x [1 - tol, 1 + tol]"
     )
+    for name, meaning in SWEEP_OPTIONS.items():
+        identify.add_argument(f"--{name.replace('_', '-')}", type=float, help=meaning)
     move = identify.add_mutually_exclusive_group()
     move.add_argument("--displacement", type=float, help="the move to recommend a design for (rest-to-rest)")
     move.add_argument("--target-velocity", type=float, help="or the final speed (rest-to-velocity)")
@@ -231,6 +243,7 @@ def _identify(args: argparse.Namespace) -> int:
             ("square_corner_velocity", args.square_corner_velocity),
             ("max_smoothing", args.max_smoothing),
             ("frequency_tolerance", args.frequency_tolerance),
+            *((name, getattr(args, name)) for name in SWEEP_OPTIONS),
         )
         if value is not None
     }

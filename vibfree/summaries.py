@@ -65,7 +65,7 @@ def identify_summary(answer: dict[str, Any]) -> str:
             f"mode {precise(mode['natural_frequency_hz'])} Hz (95 %: {precise(lo)}..{precise(hi)} Hz), "
             f"zeta {precise(mode['damping_ratio'])} (95 %: {precise(zlo)}..{precise(zhi)})"
         )
-    for peak in answer.get("peaks") or []:
+    for peak in [] if answer.get("modes") else answer.get("peaks") or []:
         lo, hi = peak["frequency_interval_hz"]
         lines.append(
             f"peak {precise(peak['frequency_hz'])} Hz ({precise(lo)}..{precise(hi)} Hz), "

@@ -88,11 +88,43 @@ class MeasurementParams(BaseModel):
         "is made robust over f x [1 - tol, 1 + tol]. Default: the measurement's own uncertainty.",
     )
 
+    sweep_min_freq: float = Field(
+        5.0, ge=1.0, le=300.0, description="Hz: the resonance test's min_freq (FREQ_START; Klipper's default 5)."
+    )
+    sweep_max_freq: float = Field(
+        135.0,
+        ge=1.0,
+        le=300.0,
+        description="Hz: the resonance test's max_freq (FREQ_END; Klipper's default 135 for x and y, 100 for z). A "
+        "sweep's or a resonance CSV's modes are fitted with the test as the excitation (the test's settings: "
+        "sweep_*, sweeping_*).",
+    )
+    sweep_hz_per_sec: float = Field(
+        1.0, gt=0.0, le=2.0, description="The resonance test's hz_per_sec (HZ_PER_SEC; Klipper's default 1)."
+    )
+    sweep_accel_per_hz: float = Field(
+        60.0, gt=0.0, le=1e6, description="mm/s^2 per Hz: the test's accel_per_hz (ACCEL_PER_HZ; default 60, z 15)."
+    )
+    sweeping_accel: float = Field(
+        400.0, gt=0.0, le=1e6, description="mm/s^2: the test's sweeping_accel (SWEEPING_ACCEL; default 400, z 50)."
+    )
+    sweeping_period: float = Field(
+        1.2,
+        ge=0.0,
+        le=1e3,
+        description="s: the test's sweeping_period (SWEEPING_PERIOD; default 1.2; 0 for none, and for Klipper "
+        "releases before the sweeping test).",
+    )
+
     def check(self) -> None:
-        """At most one move (an InvalidParameter naming target_velocity otherwise)."""
+        """At most one move (an InvalidParameter naming target_velocity otherwise), and a test that sweeps up."""
         if self.displacement is not None and self.target_velocity is not None:
             raise InvalidParameter(
                 "target_velocity", self.target_velocity, "give at most one of displacement or target_velocity"
+            )
+        if self.sweep_max_freq < self.sweep_min_freq:
+            raise InvalidParameter(
+                "sweep_max_freq", self.sweep_max_freq, f"must be at least sweep_min_freq ({self.sweep_min_freq:g})"
             )
 
     def has_move(self) -> bool:
@@ -240,14 +272,41 @@ class PsdSpectrumOut(OutModel):
     window: str
 
 
+class SpectralModeOut(OutModel):
+    natural_frequency_hz: float
+    damping_ratio: float
+    natural_frequency_ci_hz: list[float] = Field(description="95 % interval [lo, hi]: estimate +- 1.96 SE.")
+    damping_ratio_ci: list[float] = Field(description="95 % interval [lo, hi] (lo clipped at 0).")
+    natural_frequency_std_hz: float = Field(description="Standard error of f_n (the whitened fit's covariance).")
+    damping_ratio_std: float
+    relative_gain: float = Field(description="The mode's gain over the lowest-started mode's.")
+    peak_frequency_hz: float = Field(description="Where the fit started: a PSD peak, or the bin of largest misfit.")
+
+
+class SweepFitOut(OutModel):
+    model: str = Field(description="What was fitted: the test's spectrum through the modes, per axis.")
+    test: dict[str, float] = Field(description="The resonance test's settings the model simulates.")
+    reduced_chi_squared: float | None = Field(
+        description="chi^2 / dof of the fit whitened by the spectrum's covariance: about 1 when the model holds."
+    )
+    bins: int = Field(description="PSD bins fitted per axis.")
+    segments: int = Field(description="Welch segments the PSD averages (the test's own for a CSV).")
+    simulations: int = Field(description="The test simulated through a mode (units of work).")
+
+
 class IdentifySpectrumResponse(OutModel):
-    """A Klipper resonance CSV, or a raw resonance test (a sweep): the spectrum and its peaks."""
+    """A Klipper resonance CSV, or a raw resonance test (a sweep): the spectrum, its peaks, and its modes fitted
+    with the test as the excitation."""
 
     format: str
     excitation: str = Field(description="spectrum (a PSD file) or sweep (a raw resonance test).")
     spectrum: PsdSpectrumOut
     peaks: list[PeakOut]
-    recommended: None
+    modes: list[SpectralModeOut] = Field(description="Lowest frequency first, with 95 % intervals.")
+    fit: SweepFitOut
+    recommended: RecommendedOut | None = Field(
+        description="The fastest design whose 5 % band covers the lowest mode's interval (null: see recommendation)."
+    )
     recommendation: RecommendationOut
     warnings: list[str]
 

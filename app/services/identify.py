@@ -11,7 +11,7 @@ API and the CLI call it.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -36,7 +36,7 @@ from optim.families.smoother.smoothers import identify, tuned_duration_s, vibrat
 from optim.identification.decay_start import identify_free_decay
 from optim.identification.excitation import excitation_of
 from optim.identification.formats import parse_rrf_csv
-from optim.identification.modal import CONFIDENCE, IdentifiedMode, ModalIdentification
+from optim.identification.modal import CONFIDENCE, FittedMode, IdentifiedMode, ModalIdentification
 from optim.identification.record import uniform_record
 from optim.identification.record_csv import parse_record_csv
 from optim.registry import FAMILIES
@@ -184,7 +184,8 @@ def identify_record_csv(text: str, params: MeasurementParams, max_rows: int) -> 
         dt, signals, _ = uniform_record(record.time_s, np.atleast_2d(record.signals))
         if excitation_of(signals, 1.0 / dt) == "sweep":
             answer = printer.sweep_answer(record, fmt, params)
-            raise _SpectrumAnswer({**answer, "warnings": [*warnings, *answer["warnings"]]})
+            answer.body["warnings"] = [*warnings, *answer.body["warnings"]]
+            raise _SpectrumAnswer(answer)
     result = identify_free_decay(record, max_modes=params.max_modes, start_s=params.start_s)
     shaper = None
     if params.target is not None:
@@ -197,9 +198,9 @@ def identify_record_csv(text: str, params: MeasurementParams, max_rows: int) -> 
 class _SpectrumAnswer(Exception):
     """Not an error: the answer of a record without a free decay, raised from the design thread."""
 
-    def __init__(self, body: dict[str, Any]) -> None:
+    def __init__(self, answer: printer.SpectrumAnswer) -> None:
         super().__init__("a spectrum's answer")
-        self.body = body
+        self.answer = answer
 
 
 async def identify_csv(
@@ -219,33 +220,49 @@ async def identify_csv(
     # the fit, in the route's design threads (runtime.threads: bounded admission, deadline_s), or in-process
     try:
         fitted = await threads.run(identify_record_csv, text, params, max_rows, deadline_s=deadline_s)
-    except _SpectrumAnswer as answer:
-        return answer.body
+    except _SpectrumAnswer as spectrum:
+        body, modes = spectrum.answer.body, spectrum.answer.modes
+        if modes:
+            await _design_for(body, modes, params, run_one, lead=body["recommendation"]["reason"])
+        elif params.has_move():
+            body["recommendation"]["reason"] += "; design: none (no mode was identified with a 95 % interval)"
+        return body
     result, shaper = fitted.result, fitted.shaper
     body = {"format": fitted.format, **_measurement_body(result, fitted.samples)}
     body["warnings"] = [*fitted.warnings, *body["warnings"]]
-    mode, interval = plant_interval(result.modes)
-    plant = {"kind": "mode", "natural_frequency_hz": mode.natural_frequency_hz, "damping_ratio": mode.damping_ratio}
-    recommendation: dict[str, Any] = {
-        "plant": plant,
-        "frequency_ratio_interval": list(interval),
-        "reason": "",
-        "candidates": [],
-        **(shaper or {}),
-    }
     body["recommended"] = None
-    body["recommendation"] = recommendation
-    await _recommend_design(body, result.modes, interval, params, run_one)
-    if shaper is not None:  # the shaper's reason, and the design's where a move was given
-        shaper_reason = recommendation.pop("shaper_reason")
-        move = f"; design: {recommendation['reason']}" if params.has_move() else ""
-        recommendation["reason"] = shaper_reason + move
+    body["recommendation"] = {"reason": "", "candidates": [], **(shaper or {})}
+    lead = body["recommendation"].pop("shaper_reason") if shaper is not None else None
+    await _design_for(body, result.modes, params, run_one, lead)
     return body
+
+
+async def _design_for(
+    body: dict[str, Any],
+    modes: Sequence[FittedMode],
+    params: MeasurementParams,
+    run_one: RunOne | None,
+    lead: str | None,
+) -> None:
+    """The recommendation's plant, interval, design and reason for the identified ``modes``; ``lead`` (the shaper's
+    reason, or a spectrum's note) comes first in the reason, followed by the design's where a move was given."""
+    recommendation = body["recommendation"]
+    mode, interval = plant_interval(modes)
+    recommendation["plant"] = {
+        "kind": "mode",
+        "natural_frequency_hz": mode.natural_frequency_hz,
+        "damping_ratio": mode.damping_ratio,
+    }
+    recommendation["frequency_ratio_interval"] = list(interval)
+    await _recommend_design(body, modes, interval, params, run_one)
+    if lead is not None:
+        move = f"; design: {recommendation['reason']}" if params.has_move() else ""
+        recommendation["reason"] = f"{lead}{move}"
 
 
 async def _recommend_design(
     body: dict[str, Any],
-    modes: tuple[IdentifiedMode, ...],
+    modes: Sequence[FittedMode],
     interval: tuple[float, float],
     params: MeasurementParams,
     run_one: RunOne | None,

@@ -4,17 +4,18 @@ the firmware (``target``).
 - A record's format is told from its header (optim.identification.formats) unless ``format`` names it.
 - Klipper's resonance CSV (``klipper_psd``) and a raw record of a swept excitation (a resonance test: told by
   optim.identification.excitation) are answered from their power spectral density: the spectrum, its peaks
-  (frequency, and a damping estimate from the half-power width), and with a ``target`` the firmware's shaper. The
-  free-decay fit (optim.identification.modal) does not apply to a sweep: a sweep's record is not fitted.
+  (frequency, and a damping estimate from the half-power width), and its modes with 95 % intervals, fitted with the
+  test (its settings in the query: sweep_*, sweeping_*) as the excitation (optim.identification.sweep_fit).
 - With a ``target`` every record's answer gets ``recommendation.shaper`` and its fields
   (optim.families.input_shaped.firmware_pick): the PSD is Klipper's (computed from a raw record as Klipper does,
   or read), normalised as Klipper normalises it, and the frequency interval the shaper is made robust over is
-  ``frequency_tolerance`` where given, else the identified mode's 95 % interval (a free decay), else the PSD's
-  resolution at its lowest peak (half a bin either side: the largest share of a peak's frequency).
+  ``frequency_tolerance`` where given, else the lowest identified mode's 95 % interval, else the PSD's resolution at
+  its lowest peak (half a bin either side: the largest share of a peak's frequency).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -24,11 +25,14 @@ from app.schemas.identify import MeasurementParams
 from optim.families.input_shaped import calibration as cal
 from optim.families.input_shaped.firmware_pick import each_type, firmware_pick, firmware_report
 from optim.identification.formats import PsdRecord, RecordFormat, detect_format, parse_psd_csv
-from optim.identification.modal import IdentifiedMode
-from optim.identification.record import Record
+from optim.identification.modal import FittedMode
+from optim.identification.record import Record, uniform_record
+from optim.identification.resonance_test import ResonanceTest
 from optim.identification.spectrum import psd_peaks
+from optim.identification.sweep_fit import SpectralMode, SweepIdentification, identify_sweep
+from optim.identification.sweep_spectrum import MeasuredSpectrum, csv_spectrum, record_spectrum
 
-__all__ = ["psd_answer", "record_format", "record_psd", "shaper_recommendation", "sweep_answer"]
+__all__ = ["SpectrumAnswer", "psd_answer", "record_format", "record_psd", "shaper_recommendation", "sweep_answer"]
 
 FIRMWARE_NAMES = {"klipper": "Klipper", "reprapfirmware": "RepRapFirmware", "marlin": "Marlin"}
 KLIPPER_REFERENCE = "Klipper's resonance calibration criteria (klippy/extras/shaper_calibrate.py, 84104bbbd)"
@@ -58,7 +62,7 @@ def _peaks(frequency: np.ndarray, psd: np.ndarray, max_modes: int) -> list[dict[
 
 
 def _interval(
-    params: MeasurementParams, peaks: list[dict[str, Any]], mode: IdentifiedMode | None
+    params: MeasurementParams, peaks: list[dict[str, Any]], mode: FittedMode | None
 ) -> tuple[tuple[float, float], str]:
     if params.frequency_tolerance is not None:
         tol = params.frequency_tolerance
@@ -80,7 +84,7 @@ def shaper_recommendation(
     psd_normalized: np.ndarray,
     params: MeasurementParams,
     peaks: list[dict[str, Any]],
-    mode: IdentifiedMode | None = None,
+    mode: FittedMode | None = None,
 ) -> dict[str, Any]:
     """``recommendation``'s fields for ``params.target`` (see the module)."""
     assert params.target is not None
@@ -153,44 +157,98 @@ def _spectrum_body(frequency: np.ndarray, psd: np.ndarray, normalized: np.ndarra
     }
 
 
+@dataclass(frozen=True)
+class SpectrumAnswer:
+    """A spectrum's answer body (the route's design is added by app.services.identify) and its modes."""
+
+    body: dict[str, Any]
+    modes: tuple[SpectralMode, ...]
+
+
+def resonance_test(params: MeasurementParams) -> ResonanceTest:
+    """The resonance test the query's sweep_* and sweeping_* describe."""
+    return ResonanceTest(
+        min_freq_hz=params.sweep_min_freq,
+        max_freq_hz=params.sweep_max_freq,
+        hz_per_sec=params.sweep_hz_per_sec,
+        accel_per_hz=params.sweep_accel_per_hz,
+        sweeping_accel_mm_s2=params.sweeping_accel,
+        sweeping_period_s=params.sweeping_period,
+    )
+
+
+def _fit_body(fit: SweepIdentification, test: ResonanceTest) -> dict[str, Any]:
+    return {
+        "model": "each axis's Welch PSD = gain x (the test through the modes' PSD) + noise floor, least squares "
+        "whitened by the PSD's covariance",
+        "test": {
+            "min_freq": test.min_freq_hz,
+            "max_freq": test.max_freq_hz,
+            "hz_per_sec": test.hz_per_sec,
+            "accel_per_hz": test.accel_per_hz,
+            "sweeping_accel": test.sweeping_accel_mm_s2,
+            "sweeping_period": test.sweeping_period_s,
+        },
+        "reduced_chi_squared": fit.reduced_chi_squared if fit.modes or fit.simulations else None,
+        "bins": fit.bins,
+        "segments": fit.segments,
+        "simulations": fit.simulations,
+    }
+
+
 def _answer(
-    fmt: str, excitation: str, frequency: np.ndarray, psd: np.ndarray, normalized: np.ndarray, params: MeasurementParams
-) -> dict[str, Any]:
+    fmt: str,
+    excitation: str,
+    frequency: np.ndarray,
+    psd: np.ndarray,
+    normalized: np.ndarray,
+    params: MeasurementParams,
+    measured: MeasuredSpectrum,
+) -> SpectrumAnswer:
     keep = frequency <= cal.MAX_PSD_FREQ_HZ
     peaks = _peaks(frequency[keep], psd[keep], params.max_modes)
+    test = resonance_test(params)
+    starts = [(p["frequency_hz"], p["damping_ratio_half_power"]) for p in peaks]
+    fit = identify_sweep(measured, test, starts, params.max_modes)
+    lowest = fit.modes[0] if fit.modes else None
     recommendation: dict[str, Any] = {"plant": None, "frequency_ratio_interval": None, "candidates": []}
     if params.target is None:
         recommendation["reason"] = "no target given: add target=klipper|reprapfirmware|marlin for the firmware's shaper"
     else:
-        recommendation.update(shaper_recommendation(frequency, normalized, params, peaks))
+        recommendation.update(shaper_recommendation(frequency, normalized, params, peaks, lowest))
         recommendation["reason"] = recommendation.pop("shaper_reason")
         recommendation["frequency_ratio_interval"] = recommendation["robust_over"]["frequency_ratio_interval"]
-    if params.has_move():
-        recommendation["reason"] += (
-            "; design: none for a spectrum (its modes are not fitted with 95 % intervals, which a design's band "
-            "must cover: send a free decay's record for that)"
-        )
-    return {
+    body = {
         "format": fmt,
         "excitation": excitation,
         "spectrum": _spectrum_body(frequency[keep], psd[keep], normalized[keep]),
         "peaks": peaks,
+        "modes": [present(m) for m in fit.modes],
+        "fit": _fit_body(fit, test),
         "recommended": None,
         "recommendation": recommendation,
-        "warnings": [],
+        "warnings": list(fit.warnings),
     }
+    return SpectrumAnswer(body, fit.modes)
 
 
-def psd_answer(text: str, params: MeasurementParams, max_rows: int) -> dict[str, Any]:
+def psd_answer(text: str, params: MeasurementParams, max_rows: int) -> SpectrumAnswer:
     """The answer for Klipper's resonance CSV: normalised as Klipper normalises it unless it already is (a file
-    with shaper columns is SHAPER_CALIBRATE's, written normalised; TEST_RESONANCES writes none, raw)."""
+    with shaper columns is SHAPER_CALIBRATE's, written normalised; TEST_RESONANCES writes none, raw). Its modes are
+    fitted to the file's axes as written (psd_x, psd_y, psd_z; psd_xyz alone where they are not given)."""
     record: PsdRecord = parse_psd_csv(text, max_rows=max_rows)
     normalized = record.psd if record.normalized else cal.normalized(record.frequency_hz, record.psd)
     raw = cal.denormalized(record.frequency_hz, record.psd) if record.normalized else record.psd
-    return _answer("klipper_psd", "spectrum", record.frequency_hz, raw, normalized, params)
+    written = np.vstack(list(record.axes.values())) if record.axes else record.psd[None, :]
+    ones = np.ones_like(record.frequency_hz)
+    factor = cal.normalized(record.frequency_hz, ones) if record.normalized else ones
+    measured = csv_spectrum(record.frequency_hz, written, factor, resonance_test(params))
+    return _answer("klipper_psd", "spectrum", record.frequency_hz, raw, normalized, params, measured)
 
 
-def sweep_answer(record: Record, fmt: str, params: MeasurementParams) -> dict[str, Any]:
-    """The answer for a raw record of a swept excitation: its Klipper PSD, peaks and the target's shaper."""
+def sweep_answer(record: Record, fmt: str, params: MeasurementParams) -> SpectrumAnswer:
+    """The answer for a raw record of a swept excitation: its Klipper PSD, peaks, modes and the target's shaper."""
     frequency, psd = record_psd(record)
-    return _answer(fmt, "sweep", frequency, psd, cal.normalized(frequency, psd), params)
+    dt, signals, _ = uniform_record(record.time_s, np.atleast_2d(record.signals))
+    measured = record_spectrum(signals, 1.0 / dt, resonance_test(params))
+    return _answer(fmt, "sweep", frequency, psd, cal.normalized(frequency, psd), params, measured)

@@ -28,7 +28,7 @@ from typing import Any, NamedTuple
 from app.family_names import endpoint_of
 from models.errors import DomainError, InvalidParameter, PoolUnavailable
 from optim.families.input_shaped.shapers import CATALOGUE_NAMES
-from optim.identification.modal import IdentifiedMode
+from optim.identification.modal import FittedMode
 
 __all__ = [
     "Move",
@@ -72,7 +72,7 @@ class RecommendationCandidate(NamedTuple):
 RunOne = Callable[[str, dict[str, Any]], Awaitable[Mapping[str, Any]]]
 
 
-def plant_interval(modes: Sequence[IdentifiedMode]) -> tuple[IdentifiedMode, tuple[float, float]]:
+def plant_interval(modes: Sequence[FittedMode]) -> tuple[FittedMode, tuple[float, float]]:
     """The mode designed for (the lowest) and its 95 % interval of f_n as ratios to its estimate."""
     if not modes:
         raise InvalidParameter("modes", "none", "no identified mode to design for")
@@ -93,7 +93,7 @@ def _label(family: str, request: Mapping[str, Any]) -> str:
 
 
 def recommendation_candidates(
-    modes: Sequence[IdentifiedMode], move: Move, limits: MoveLimits
+    modes: Sequence[FittedMode], move: Move, limits: MoveLimits
 ) -> list[RecommendationCandidate]:
     """(family, endpoint, request body) of every design to try for the lowest mode's interval (see the module)."""
     if (move.displacement is None) == (move.target_velocity is None):

@@ -46,6 +46,12 @@ function query() {
   if (smoothing !== "") params.set("max_smoothing", smoothing);
   const tolerance = $("tolerance").value.trim();
   if (tolerance !== "") params.set("frequency_tolerance", String(Number(tolerance) / 100));
+  const test = { "sweep-min": "sweep_min_freq", "sweep-max": "sweep_max_freq", "sweep-rate": "sweep_hz_per_sec",
+    "sweeping-period": "sweeping_period" };
+  for (const [id, name] of Object.entries(test)) {
+    const value = $(id).value.trim();
+    if (value !== "") params.set(name, value);
+  }
   return params;
 }
 
@@ -105,6 +111,12 @@ function row(label, values) {
   return tr;
 }
 
+function digits(width, least) {
+  // decimals enough for an interval of this width to show (two significant digits of it), at least `least`
+  if (!(width > 0)) return least;
+  return Math.max(least, Math.min(6, Math.ceil(-Math.log10(width)) + 1));
+}
+
 function show(body) {
   const recommendation = body.recommendation;
   $("printer-results").hidden = false;
@@ -123,11 +135,14 @@ function show(body) {
   for (const mode of body.modes || []) {
     const li = document.createElement("li");
     const [lo, hi] = mode.natural_frequency_ci_hz;
-    li.textContent = `${fixed(mode.natural_frequency_hz, 2)} Hz (95 %: ${fixed(lo, 2)} to ${fixed(hi, 2)} Hz), `
-      + `damping ratio ${fixed(mode.damping_ratio, 4)}`;
+    const [zlo, zhi] = mode.damping_ratio_ci;
+    const f = digits(hi - lo, 2);
+    const z = digits(zhi - zlo, 4);
+    li.textContent = `${fixed(mode.natural_frequency_hz, f)} Hz (95 %: ${fixed(lo, f)} to ${fixed(hi, f)} Hz), `
+      + `damping ratio ${fixed(mode.damping_ratio, z)} (95 %: ${fixed(zlo, z)} to ${fixed(zhi, z)})`;
     resonances.appendChild(li);
   }
-  for (const peak of body.peaks || []) {
+  for (const peak of (body.modes || []).length ? [] : body.peaks || []) {
     const li = document.createElement("li");
     li.textContent = `${fixed(peak.frequency_hz, 1)} Hz peak, damping ratio about `
       + `${fixed(peak.damping_ratio_half_power, 3)} (half-power width)`;

@@ -16,18 +16,23 @@ import pytest
 
 from optim.families.input_shaped import calibration as cal
 from tests.app.test_errors import assert_problem
-from tests.printer_records import chirp, knock, psd_csv, raw_csv, raw_record, rrf_csv
+from tests.printer_records import AXIS, chirp_switches, held_record, knock, psd_csv, raw_csv, raw_record, rrf_csv
 
 URL = "/v1/identify"
 CSV = {"content-type": "text/csv"}
 RATE_HZ = 1600.0
 
 
+FLAT_PSD = "freq,psd_xyz\n" + "\n".join(f"{k * 1.5625:.1f},1e3" for k in range(1, 128)) + "\n"  # Klipper's bins
+SWEEP = {"sweep_min_freq": 35.0, "sweep_max_freq": 80.0, "sweep_hz_per_sec": 2.0, "sweeping_period": 0.0}
+
+
 @pytest.fixture(scope="module")
 def sweep() -> np.ndarray:
-    """A 25-95 Hz resonance test at 5 Hz/s (14 s, 22,400 rows)."""
-    command = chirp(RATE_HZ, 25.0, 95.0, hz_per_sec=5.0)
-    return np.round(raw_record(command, np.random.default_rng(7), rate_hz=RATE_HZ), 6)
+    """A 35-80 Hz resonance test at 2 Hz/s (Klipper's fastest) without the sweeping overlay (SWEEP: 22.5 s, 36,000
+    rows)."""
+    switches = chirp_switches(35.0, 80.0, hz_per_sec=2.0)
+    return np.round(held_record(switches, np.random.default_rng(7), rate_hz=RATE_HZ), 6)
 
 
 def _post(client, text: str, **params) -> dict:
@@ -37,12 +42,17 @@ def _post(client, text: str, **params) -> dict:
 
 
 def test_a_resonance_test_is_answered_from_its_spectrum_with_klippers_shaper(client, sweep):
-    body = _post(client, raw_csv(sweep), target="klipper")
+    body = _post(client, raw_csv(sweep), target="klipper", **SWEEP)
     assert (body["format"], body["excitation"]) == ("klipper_raw", "sweep")
-    assert "modes" not in body  # a sweep has no free decay to fit (the issue's 43.47 Hz / zeta 0.0087)
     peaks = [p["frequency_hz"] for p in body["peaks"]]
     assert peaks == pytest.approx([42.0, 71.0], abs=1.6)  # within a 1.5625 Hz bin
+    # the modes fitted with the test as the excitation (the issue's 43.47 Hz / zeta 0.0087 was a free-decay fit)
+    for mode, (f, zeta, _) in zip(body["modes"], AXIS, strict=True):
+        assert mode["natural_frequency_ci_hz"][0] <= f <= mode["natural_frequency_ci_hz"][1]
+        assert mode["damping_ratio_ci"][0] <= zeta <= mode["damping_ratio_ci"][1]
+    assert body["warnings"] == [] and body["fit"]["reduced_chi_squared"] < 1.5
     recommendation = body["recommendation"]
+    assert "95 % interval of the 42" in recommendation["robust_over"]["source"]
     shaper, klipper = recommendation["shaper"], recommendation["klipper_calibration"]
     assert recommendation["dominates_klipper"] is True
     assert recommendation["remaining_vibration_percent"] <= klipper["remaining_vibration_percent"]
@@ -68,9 +78,9 @@ def test_klippers_resonance_csv_gives_the_raw_records_shaper(client, sweep):
     """The same measurement as Klipper's TEST_RESONANCES CSV (raw PSD, frequencies printed to 0.1 Hz, values to
     4 digits) and as SHAPER_CALIBRATE's (normalised, with the shapers' columns): the same shaper, its figures within
     the printing's rounding."""
-    raw = _post(client, raw_csv(sweep), target="klipper")["recommendation"]
+    raw = _post(client, raw_csv(sweep), target="klipper", **SWEEP)["recommendation"]
     frequency, psd = cal.klipper_psd(sweep[:, 0], sweep[:, 1:].T)
-    resonances = _post(client, psd_csv(frequency, psd), target="klipper")
+    resonances = _post(client, psd_csv(frequency, psd), target="klipper", **SWEEP)
     calibration = _post(
         client, psd_csv(frequency, cal.normalized(frequency, psd), shapers=",shapers:,zv(60.0),mzv(42.0)"),
         target="klipper",
@@ -82,6 +92,11 @@ def test_klippers_resonance_csv_gives_the_raw_records_shaper(client, sweep):
         assert recommendation["shaper"]["frequency_hz"] == pytest.approx(raw["shaper"]["frequency_hz"], abs=0.41)
         vibrations = recommendation["remaining_vibration_percent"]
         assert vibrations == pytest.approx(raw["remaining_vibration_percent"], abs=0.5)
+    # the file's modes, fitted with the test as the excitation, hold the truth (its rows printed to 4 digits and
+    # 0.1 Hz: the intervals count both)
+    for mode, (f, zeta, _) in zip(resonances["modes"], AXIS, strict=True):
+        assert mode["natural_frequency_ci_hz"][0] <= f <= mode["natural_frequency_ci_hz"][1]
+        assert mode["damping_ratio_ci"][0] <= zeta <= mode["damping_ratio_ci"][1]
     # normalised before printing, or after from frequencies printed to 0.1 Hz: 1 / (f + 0.1) differs by up to
     # 0.05 / 10.1 = 0.5 % from 10 Hz (below, Klipper's cut e^(1 - (10 / (f + 0.1))^2) magnifies it), plus 5e-4
     above = np.array(resonances["spectrum"]["frequency_hz"]) >= 10.0
@@ -99,6 +114,21 @@ def test_each_firmware_gets_its_own_types_and_strings(client, sweep):
     for answer in (rrf, marlin):  # each says whether it matches Klipper's pick by both criteria, and why not
         if not answer["dominates_klipper"]:
             assert "Klipper's pick" in answer["reason"]
+
+
+def test_a_resonance_csv_with_a_move_gets_a_design_for_its_lowest_modes_interval(client, sweep):
+    """A spectrum's modes now carry 95 % intervals: with a move, the recommended design covers the lowest one's,
+    as a free decay's does (tests/app/test_identify_api.py), and the reason gives the shaper's, then the design's."""
+    frequency, psd = cal.klipper_psd(sweep[:, 0], sweep[:, 1:].T)
+    move = {"displacement": 0.05, "max_velocity": 0.5, "max_acceleration": 5.0}
+    body = _post(client, psd_csv(frequency, psd), target="klipper", **SWEEP, **move)
+    recommended, low = body["recommended"], body["modes"][0]
+    assert recommended is not None, body["recommendation"]["reason"]
+    f = low["natural_frequency_hz"]
+    assert recommended["frequency_ratio_interval"] == pytest.approx([c / f for c in low["natural_frequency_ci_hz"]])
+    assert body["recommendation"]["plant"]["natural_frequency_hz"] == f
+    reason = body["recommendation"]["reason"]
+    assert "Of the Klipper shapers" in reason and "; design: " in reason
 
 
 def test_a_knock_is_fitted_and_its_interval_makes_the_shaper_robust(client):
@@ -129,6 +159,9 @@ def test_a_knock_is_fitted_and_its_interval_makes_the_shaper_robust(client):
         ("freq,psd_xyz\n1.6,1\n3.1,2\n", {"max_smoothing": 0.01}, "max_smoothing"),  # Klipper's minval 0.05
         ("freq,psd_xyz\n300,1\n400,2\n", {"target": "klipper"}, "body"),  # no bin up to 200 Hz
         ("freq,psd_xyz\n0,0\n1.6,0\n3.1,0\n", {"target": "klipper"}, "body"),  # no power: nothing to shape
+        ("freq,psd_xyz\n1.6,1\n3.1,2\n", {"sweep_min_freq": 50, "sweep_max_freq": 40}, "sweep_max_freq"),
+        ("freq,psd_xyz\n1.6,1\n3.1,2\n", {"sweep_hz_per_sec": 3}, "sweep_hz_per_sec"),  # Klipper's maxval 2
+        (FLAT_PSD, {"sweep_min_freq": 1, "sweep_max_freq": 300, "sweep_hz_per_sec": 0.1}, "sweep_hz_per_sec"),
     ],
 )
 def test_bad_printer_files_and_parameters_are_a_422_naming_the_field(client, text, params, field):
