@@ -10,8 +10,8 @@ the pulse), printed in each FORMAT (``klipper_raw``, Klipper's accelerometer CSV
 RepRapFirmware's), and seeded resonance tests (tests/printer_records.sweep_case: Klipper's test from 5 to 200 Hz at
 1 Hz/s with its sweeping overlay, noise std 0 to 30 % of the response's peak, the same modes' draw) as the raw record
 (``sweep_raw``) or as Klipper's resonance CSV (``sweep_psd``); default all four. Each is identified as
-POST /v1/identify does (app.services.identify.identify_csv; sweep_max_freq=200 for the sweeps). For each format it
-prints:
+POST /v1/identify does (app.services.identify.identify_csv; sweep_max_freq=200 for the CSV, the raw record's band
+read off it). For each format it prints:
 
 - the modes missed (a refused record, or no identified mode within 5 % of a true one);
 - for the modes found, the relative errors of the natural frequency and the damping ratio (median, 95 %, max),
@@ -65,7 +65,8 @@ def identified(seed: int, fmt: str) -> tuple[tuple[tuple[float, float, float], .
     sweep's peaks scored into PEAKS)."""
     if fmt in SWEEPS:
         modes, share, text = sweep_case(seed, SWEEPS[fmt])
-        params = MeasurementParams(sweep_max_freq=SWEEP_MAX_HZ)
+        # a raw record's band and rate are read off it; a CSV's are stated (its FREQ_END)
+        params = MeasurementParams(**({"sweep_max_freq": SWEEP_MAX_HZ} if fmt == "sweep_psd" else {}))
     else:
         modes, share, text = knock_case(seed, fmt)
         params = MeasurementParams()

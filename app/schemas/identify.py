@@ -285,7 +285,11 @@ class SpectralModeOut(OutModel):
 
 class SweepFitOut(OutModel):
     model: str = Field(description="What was fitted: the test's spectrum through the modes, per axis.")
-    test: dict[str, float] = Field(description="The resonance test's settings the model simulates.")
+    test: dict[str, float] = Field(
+        description="The resonance test the model simulates: min_freq, max_freq, hz_per_sec, accel_per_hz, "
+        "sweeping_accel, sweeping_period (as stated, else Klipper's defaults, else read off a raw record), and start_s "
+        "(where it starts in a raw record, from its ridge; 0 for a CSV)."
+    )
     reduced_chi_squared: float | None = Field(
         description="chi^2 / dof of the fit whitened by the spectrum's covariance: about 1 when the model holds."
     )

@@ -15,7 +15,7 @@ the firmware (``target``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -24,10 +24,11 @@ from app.presenters import present
 from app.schemas.identify import MeasurementParams
 from optim.families.input_shaped import calibration as cal
 from optim.families.input_shaped.firmware_pick import each_type, firmware_pick, firmware_report
+from optim.identification.excitation import sweep_band
 from optim.identification.formats import PsdRecord, RecordFormat, detect_format, parse_psd_csv
 from optim.identification.modal import FittedMode
 from optim.identification.record import Record, uniform_record
-from optim.identification.resonance_test import ResonanceTest
+from optim.identification.resonance_test import ResonanceTest, overlay_amplitude
 from optim.identification.spectrum import psd_peaks
 from optim.identification.sweep_fit import SpectralMode, SweepIdentification, identify_sweep
 from optim.identification.sweep_spectrum import MeasuredSpectrum, csv_spectrum, record_spectrum
@@ -35,6 +36,7 @@ from optim.identification.sweep_spectrum import MeasuredSpectrum, csv_spectrum, 
 __all__ = ["SpectrumAnswer", "psd_answer", "record_format", "record_psd", "shaper_recommendation", "sweep_answer"]
 
 FIRMWARE_NAMES = {"klipper": "Klipper", "reprapfirmware": "RepRapFirmware", "marlin": "Marlin"}
+BAND_FIELDS = ("sweep_min_freq", "sweep_max_freq", "sweep_hz_per_sec")
 KLIPPER_REFERENCE = "Klipper's resonance calibration criteria (klippy/extras/shaper_calibrate.py, 84104bbbd)"
 
 
@@ -188,6 +190,7 @@ def _fit_body(fit: SweepIdentification, test: ResonanceTest) -> dict[str, Any]:
             "accel_per_hz": test.accel_per_hz,
             "sweeping_accel": test.sweeping_accel_mm_s2,
             "sweeping_period": test.sweeping_period_s,
+            "start_s": test.start_s,
         },
         "reduced_chi_squared": fit.reduced_chi_squared if fit.modes or fit.simulations else None,
         "bins": fit.bins,
@@ -204,10 +207,11 @@ def _answer(
     normalized: np.ndarray,
     params: MeasurementParams,
     measured: MeasuredSpectrum,
+    test: ResonanceTest,
+    notes: list[str],
 ) -> SpectrumAnswer:
     keep = frequency <= cal.MAX_PSD_FREQ_HZ
     peaks = _peaks(frequency[keep], psd[keep], params.max_modes)
-    test = resonance_test(params)
     starts = [(p["frequency_hz"], p["damping_ratio_half_power"]) for p in peaks]
     fit = identify_sweep(measured, test, starts, params.max_modes)
     lowest = fit.modes[0] if fit.modes else None
@@ -227,7 +231,7 @@ def _answer(
         "fit": _fit_body(fit, test),
         "recommended": None,
         "recommendation": recommendation,
-        "warnings": list(fit.warnings),
+        "warnings": [*notes, *fit.warnings],
     }
     return SpectrumAnswer(body, fit.modes)
 
@@ -242,13 +246,66 @@ def psd_answer(text: str, params: MeasurementParams, max_rows: int) -> SpectrumA
     written = np.vstack(list(record.axes.values())) if record.axes else record.psd[None, :]
     ones = np.ones_like(record.frequency_hz)
     factor = cal.normalized(record.frequency_hz, ones) if record.normalized else ones
-    measured = csv_spectrum(record.frequency_hz, written, factor, resonance_test(params))
-    return _answer("klipper_psd", "spectrum", record.frequency_hz, raw, normalized, params, measured)
+    test = resonance_test(params)
+    measured = csv_spectrum(record.frequency_hz, written, factor, test)
+    return _answer("klipper_psd", "spectrum", record.frequency_hz, raw, normalized, params, measured, test, [])
+
+
+def _snapped(value: float, step: float, within: float) -> float:
+    """``value`` on the nearest multiple of ``step`` if within ``within`` of it (the round settings people type),
+    else to 3 significant digits."""
+    nearest = round(value / step) * step
+    return round(nearest, 6) if abs(value - nearest) <= within else float(f"{value:.3g}")
+
+
+def _test_in_record(params: MeasurementParams, signals: np.ndarray, rate_hz: float) -> tuple[ResonanceTest, list[str]]:
+    """The query's test, its unstated band and rate read off the record's ridge (excitation.sweep_band) and snapped to
+    round settings (0.05 Hz/s within 0.5 %, 1 Hz within 0.3 Hz), where it starts in the record (where the ridge
+    passes its start: Klipper's accelerometer runs before the test's first move), and, sweeping_period unstated,
+    whether the record holds the sweeping overlay (resonance_test.overlay_amplitude: under half the expected
+    amplitude, it is fitted without)."""
+    test = resonance_test(params)
+    line = sweep_band(signals, rate_hz)
+    if line is None:
+        return test, []
+    at_start, at_end, slope = line
+    stated = params.model_fields_set
+    read: list[str] = []
+    if "sweep_hz_per_sec" not in stated:
+        test = replace(test, hz_per_sec=_snapped(slope, 0.05, 0.005 * slope))
+        read.append(f"{test.hz_per_sec:g} Hz/s")
+    if "sweep_min_freq" not in stated and at_start > test.min_freq_hz + 1.0:  # FREQ_START above the default
+        test = replace(test, min_freq_hz=_snapped(at_start, 1.0, 0.3))
+        read.append(f"from {test.min_freq_hz:g} Hz")
+    if "sweep_max_freq" not in stated:
+        test = replace(test, max_freq_hz=min(max(_snapped(at_end, 1.0, 0.3), test.min_freq_hz), 300.0))
+        read.append(f"to {test.max_freq_hz:g} Hz")
+    test = replace(test, start_s=(test.min_freq_hz - at_start) / test.hz_per_sec)
+    notes = []
+    if read:
+        notes.append(
+            f"the test's settings read off the record's ridge: {', '.join(read)}, starting {test.start_s:.3g} s into "
+            f"the record (state {', '.join(BAND_FIELDS)} to set them)"
+        )
+    if "sweeping_period" not in stated and test.sweeping_period_s > 0.0:
+        amplitude, error = overlay_amplitude(signals, rate_hz, test)
+        if amplitude < 0.5 * test.sweeping_accel_mm_s2:  # Klipper before the sweeping test, or SWEEPING_PERIOD=0
+            test = replace(test, sweeping_period_s=0.0)
+            notes.append(
+                f"no sweeping overlay in the record ({amplitude:.3g} +- {error:.2g} mm/s^2 of the "
+                f"{resonance_test(params).sweeping_accel_mm_s2:g} expected): fitted without it (state sweeping_period "
+                "to set it)"
+            )
+    if abs(slope / test.hz_per_sec - 1.0) > 0.05:
+        notes.append(f"the record's ridge rises {slope:.3g} Hz/s, not the {test.hz_per_sec:g} stated")
+    return test, notes
 
 
 def sweep_answer(record: Record, fmt: str, params: MeasurementParams) -> SpectrumAnswer:
-    """The answer for a raw record of a swept excitation: its Klipper PSD, peaks, modes and the target's shaper."""
+    """The answer for a raw record of a swept excitation: its Klipper PSD, peaks, modes and the target's shaper, the
+    test placed in the record by its ridge (_test_in_record)."""
     frequency, psd = record_psd(record)
     dt, signals, _ = uniform_record(record.time_s, np.atleast_2d(record.signals))
-    measured = record_spectrum(signals, 1.0 / dt, resonance_test(params))
-    return _answer(fmt, "sweep", frequency, psd, cal.normalized(frequency, psd), params, measured)
+    test, notes = _test_in_record(params, signals, 1.0 / dt)
+    measured = record_spectrum(signals, 1.0 / dt, test)
+    return _answer(fmt, "sweep", frequency, psd, cal.normalized(frequency, psd), params, measured, test, notes)

@@ -15,7 +15,7 @@ samples), ``command_samples`` its level at each sample's time.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -29,6 +29,7 @@ __all__ = [
     "check_test",
     "command_samples",
     "command_switches",
+    "overlay_amplitude",
     "vibration_levels",
 ]
 
@@ -46,6 +47,7 @@ class ResonanceTest:
     accel_per_hz: float = 60.0  # accel_per_hz / ACCEL_PER_HZ (mm/s^2 per Hz)
     sweeping_accel_mm_s2: float = 400.0  # sweeping_accel / SWEEPING_ACCEL
     sweeping_period_s: float = 1.2  # sweeping_period / SWEEPING_PERIOD (0: none)
+    start_s: float = 0.0  # where the test starts in its record (Klipper's dwell before it)
 
     @property
     def duration_s(self) -> float:
@@ -107,9 +109,12 @@ def command_samples(test: ResonanceTest, rate_hz: float) -> NDArray[np.float64]:
     return command
 
 
-def command_switches(test: ResonanceTest, rate_hz: float) -> tuple[NDArray[np.float64], NDArray[np.float64], int]:
-    """The test's command as (switch times from 0 (the first is 0), the level from each, the samples at ``rate_hz``
-    the test lasts): the vibration's quarter periods and the overlay's flips merged."""
+def command_switches(
+    test: ResonanceTest, rate_hz: float, samples: int = 0
+) -> tuple[NDArray[np.float64], NDArray[np.float64], int]:
+    """The test's command in a record as (switch times from the record's start (the first is 0), the level from each,
+    the samples simulated): the vibration's quarter periods and the overlay's flips merged, at rest before the test
+    (which starts at ``test.start_s``) and after it; ``samples`` the record's (0: to the test's end)."""
     check_test(test, rate_hz)
     ends, levels = vibration_levels(test)
     flips = np.empty(0)
@@ -120,5 +125,35 @@ def command_switches(test: ResonanceTest, rate_hz: float) -> tuple[NDArray[np.fl
     times = np.union1d(np.concatenate([[0.0], ends[:-1]]), flips[flips < ends[-1]])
     middle = np.concatenate([(times[:-1] + times[1:]) / 2.0, [(times[-1] + ends[-1]) / 2.0]])  # off every switch
     vibration = levels[np.minimum(np.searchsorted(ends, middle, side="right"), levels.size - 1)]
-    level: NDArray[np.float64] = vibration + _sweeping(test, middle)
-    return times, level, int(ends[-1] * rate_hz)
+    level = np.concatenate([vibration + _sweeping(test, middle), [0.0]])  # at rest from the end
+    times = np.concatenate([times, [ends[-1]]]) + test.start_s
+    before = np.searchsorted(times, 0.0, side="right") - 1  # the switch in force at the record's start
+    if before < 0:
+        times, level = np.concatenate([[0.0], times]), np.concatenate([[0.0], level])
+    else:
+        times, level = np.concatenate([[0.0], times[before + 1 :]]), level[before:]
+    count = samples if samples > 0 else int((ends[-1] + test.start_s) * rate_hz)
+    return times, np.asarray(level, float), max(count, 1)
+
+
+def overlay_amplitude(signals: NDArray[np.float64], rate_hz: float, test: ResonanceTest) -> tuple[float, float]:
+    """(the sweeping overlay's amplitude in the record, mm/s^2, its standard error): each signal's least-squares
+    projection on the overlay's +-1 pattern during the test (at rest the toolhead's acceleration follows the command:
+    the modes pass the slow square wave at unit gain), their root sum of squares (the accelerometer's axes see the
+    motion's projections), the error from each residual's variance over the samples. Klipper before the sweeping test,
+    or SWEEPING_PERIOD=0, leaves no overlay: an amplitude within a few standard errors of 0."""
+    if test.sweeping_period_s <= 0.0:
+        return 0.0, 0.0
+    pattern_test = replace(test, sweeping_accel_mm_s2=1.0, start_s=0.0)
+    times = np.arange(np.atleast_2d(signals).shape[1]) / rate_hz - test.start_s
+    inside = (times >= 0.0) & (times < test.duration_s)
+    pattern = np.where(inside, _sweeping(pattern_test, np.maximum(times, 0.0)), 0.0)
+    centred = np.atleast_2d(signals) - np.mean(np.atleast_2d(signals), axis=1, keepdims=True)
+    norm = float(pattern @ pattern)
+    if norm == 0.0:
+        return 0.0, 0.0
+    amplitudes = centred @ pattern / norm
+    residual = centred - np.outer(amplitudes, pattern)
+    errors = np.sqrt(np.var(residual, axis=1) / norm)
+    amplitude = float(np.sqrt(np.sum(amplitudes**2)))
+    return amplitude, float(np.sqrt(np.sum((amplitudes * errors) ** 2)) / max(amplitude, 1e-300))

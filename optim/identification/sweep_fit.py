@@ -96,7 +96,7 @@ class _ModeSpectra:
     kept; ``simulations`` counts the work."""
 
     def __init__(self, test: ResonanceTest, spectrum: MeasuredSpectrum) -> None:
-        self.switches = command_switches(test, spectrum.rate_hz)
+        self.switches = command_switches(test, spectrum.rate_hz, spectrum.samples)
         self.rate_hz = spectrum.rate_hz
         self.segment = spectrum.segment
         self.bins = np.rint(spectrum.frequency_hz * spectrum.segment / spectrum.rate_hz).astype(int)

@@ -38,6 +38,7 @@ class MeasuredSpectrum:
     segments: int  # K: the segments averaged
     rounding_variance: Array  # (axes, bins): a CSV's rounding, else zeros
     frequency_scale_std: float = 0.0  # relative: a CSV's bin spacing, read from frequencies printed to 0.1 Hz
+    samples: int = 0  # the record's samples (the model simulates as many); 0 for a CSV: the test's own
 
 
 def window_correlation(
@@ -86,7 +87,8 @@ def record_spectrum(signals: Array, rate_hz: float, test: ResonanceTest) -> Meas
     keep = _fitted_bins(frequency, test, rate_hz, segment)
     parts = [welch_segments(np.asarray(s, float), segment, rate_hz)[:, keep] for s in np.atleast_2d(signals)]
     psd = np.array([np.mean(np.abs(p) ** 2, axis=0) for p in parts])
-    return MeasuredSpectrum(frequency[keep], psd, rate_hz, segment, parts[0].shape[0], np.zeros_like(psd))
+    count = np.atleast_2d(signals).shape[1]
+    return MeasuredSpectrum(frequency[keep], psd, rate_hz, segment, parts[0].shape[0], np.zeros_like(psd), 0.0, count)
 
 
 def csv_spectrum(

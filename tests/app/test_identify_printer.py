@@ -74,6 +74,30 @@ def test_a_resonance_test_is_answered_from_its_spectrum_with_klippers_shaper(cli
     assert cal.max_acceleration(a, t, 5.0)[0] == pytest.approx(recommendation["max_acceleration"], rel=1e-12)
 
 
+def test_a_resonance_tests_settings_are_read_off_its_record_when_not_stated(client, sweep):
+    """The fixture's test (35-80 Hz at 2 Hz/s, no sweeping overlay) sent with no settings: its band and rate are read
+    off the record's ridge, the overlay's absence is seen, and the modes' intervals hold the truth."""
+    body = _post(client, raw_csv(sweep))
+    ridge, overlay = body["warnings"]
+    assert "read off the record's ridge: 2 Hz/s, from 35 Hz, to 80 Hz" in ridge and "sweep_max_freq" in ridge
+    assert "no sweeping overlay" in overlay
+    test = body["fit"]["test"]
+    assert (test["min_freq"], test["max_freq"], test["hz_per_sec"], test["sweeping_period"]) == (35, 80, 2, 0)
+    assert abs(test["start_s"]) < 0.05  # the record starts with the test: where the ridge passes 35 Hz
+    for mode, (f, zeta, _) in zip(body["modes"], AXIS, strict=True):
+        assert mode["natural_frequency_ci_hz"][0] <= f <= mode["natural_frequency_ci_hz"][1]
+        assert mode["damping_ratio_ci"][0] <= zeta <= mode["damping_ratio_ci"][1]
+    stated = _post(client, raw_csv(sweep), **SWEEP)  # stated, the statement is used, and nothing is read
+    assert stated["warnings"] == [] and stated["fit"]["test"]["hz_per_sec"] == 2.0
+    # Klipper's accelerometer starts before the test's first move: 0.5 s of rest (noise only) before it
+    rest = np.column_stack([sweep[0, 0] - 0.5 + np.arange(800) / RATE_HZ, np.zeros((800, 3)) + [0.0, 0.0, 9806.65]])
+    rest[:, 1:] += np.random.default_rng(8).normal(0.0, 150.0, (800, 3))
+    late = _post(client, raw_csv(np.round(np.vstack([rest, sweep]), 6)), **SWEEP)
+    assert late["fit"]["test"]["start_s"] == pytest.approx(0.5, abs=0.05) and late["warnings"] == []
+    for mode, (f, _, _) in zip(late["modes"], AXIS, strict=True):
+        assert mode["natural_frequency_ci_hz"][0] <= f <= mode["natural_frequency_ci_hz"][1]
+
+
 def test_klippers_resonance_csv_gives_the_raw_records_shaper(client, sweep):
     """The same measurement as Klipper's TEST_RESONANCES CSV (raw PSD, frequencies printed to 0.1 Hz, values to
     4 digits) and as SHAPER_CALIBRATE's (normalised, with the shapers' columns): the same shaper, its figures within

@@ -8,9 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from optim.identification.excitation import MIN_DISTINCT, excitation_of
+from optim.identification.excitation import MIN_DISTINCT, excitation_of, sweep_band
 from tests.optim.test_identification_modal import accelerometer_record
-from tests.printer_records import RATE_HZ, chirp, knock, raw_record
+from tests.printer_records import RATE_HZ, chirp, chirp_switches, held_record, knock, raw_record, sweep_table
 
 
 @pytest.mark.parametrize(("start", "end", "rate"), [(5.0, 135.0, 1.0), (25.0, 95.0, 5.0), (95.0, 25.0, -5.0)])
@@ -47,3 +47,17 @@ def test_a_sweep_of_constant_power_is_a_sweep():
     t = np.arange(int(12 * RATE_HZ)) / RATE_HZ
     phase = 2 * math.pi * np.cumsum(20.0 + 5.0 * t) / RATE_HZ
     assert excitation_of(np.cos(phase)[None, :], RATE_HZ) == "sweep"
+
+
+def test_a_sweeps_band_and_rate_are_read_off_its_ridge():
+    """Klipper's test from 5 to 200 Hz at 1 Hz/s (tests/printer_records.sweep_table, noise up to 30 %), and 35-80 Hz
+    at 2 Hz/s: the Theil-Sen line through the ridge at the record's ends gives the band within a ridge bin (2 Hz at
+    0.5 s segments, its median within 1 Hz) and the rate to 1 %."""
+    for seed in range(4):
+        _, _, table = sweep_table(seed)
+        start, end, rate = sweep_band(table[:, 1:].T, RATE_HZ)
+        assert (start, end, rate) == pytest.approx((5.0, 200.0, 1.0), abs=1.0, rel=0.01)
+    table = held_record(chirp_switches(35.0, 80.0, hz_per_sec=2.0), np.random.default_rng(1), rate_hz=1600.0)
+    assert sweep_band(table[:, 1:].T, 1600.0) == pytest.approx((35.0, 80.0, 2.0), abs=1.0, rel=0.01)
+    falling = raw_record(chirp(RATE_HZ, 25.0, 95.0, hz_per_sec=5.0)[::-1], np.random.default_rng(1))
+    assert sweep_band(falling[:, 1:].T, RATE_HZ) is None  # not Klipper's test: no band read

@@ -4,6 +4,7 @@ tests/printer_records.chirp_switches (written separately from the same source) a
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -28,14 +29,17 @@ def test_the_sweeping_overlay_flips_where_klipper_flips_it():
     flips = np.setdiff1d(times, bare)
     first = 1.2 * math.sqrt(2.0) / 8.0  # sweeping_period x accel_fraction
     assert flips[:3] == pytest.approx([first, first + 1.2 * (math.sqrt(2.0) / 8.0 + 0.25), 2 * first + 0.3 + 0.6])
-    overlay = level - bare_level[np.searchsorted(bare, times, side="right") - 1]
+    overlay = (level - bare_level[np.searchsorted(bare, times, side="right") - 1])[:-1]  # the last: at rest
     assert overlay[0] == pytest.approx(400.0) and np.unique(np.round(overlay)).tolist() == [-400.0, 400.0]
+    assert level[-1] == 0.0 == bare_level[-1]
 
 
 @pytest.mark.parametrize("sweeping_period", [0.0, 1.2, 0.37])
 def test_the_switches_match_an_implementation_written_apart(sweeping_period):
     test = ResonanceTest(min_freq_hz=5.0, max_freq_hz=60.0, sweeping_period_s=sweeping_period)
     times, level, samples = command_switches(test, 3200.0)
+    assert level[-1] == 0.0 and times[-1] == pytest.approx(samples / 3200.0, abs=1 / 3200.0)  # at rest after
+    times, level = times[:-1], level[:-1]
     other, other_level, end = chirp_switches(
         5.0, 60.0, sweeping_accel=400.0 * (sweeping_period > 0), sweeping_period=sweeping_period
     )
@@ -52,3 +56,17 @@ def test_a_test_too_long_to_simulate_is_refused_naming_the_rate():
     with pytest.raises(InvalidParameter, match="at most") as caught:
         command_switches(ResonanceTest(min_freq_hz=1.0, max_freq_hz=300.0, hz_per_sec=0.1), 3200.0)
     assert caught.value.field == "sweep_hz_per_sec"
+
+
+def test_the_test_starts_where_the_record_says():
+    """A test starting 0.3 s into its record is the same switches 0.3 s later, at rest before; one that started
+    0.3 s before the record holds at the record's start the level in force then."""
+    test = ResonanceTest(max_freq_hz=20.0)
+    times, level, _ = command_switches(test, 1000.0)
+    late, late_level, late_samples = command_switches(replace(test, start_s=0.3), 1000.0, samples=30_000)
+    assert late[0] == 0.0 and late_level[0] == 0.0 and late_samples == 30_000
+    assert late[1:] == pytest.approx(times + 0.3) and late_level[1:] == pytest.approx(level)
+    early, early_level, _ = command_switches(replace(test, start_s=-0.3), 1000.0)
+    inside = np.searchsorted(times, 0.3, side="right")
+    assert early[0] == 0.0 and early_level[0] == level[inside - 1]
+    assert early[1:] == pytest.approx(times[inside:] - 0.3) and early_level[1:] == pytest.approx(level[inside:])
