@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -93,25 +92,21 @@ NYQUIST_FRACTION = 0.8  # modes or spectral energy above 0.8 f_Nyquist: aliasing
 ALIAS_ENERGY_FRACTION = 0.01
 
 
-class FittedMode(Protocol):
-    """What a design needs of an identified mode (a free decay's IdentifiedMode, a spectrum's SpectralMode)."""
-
-    @property
-    def natural_frequency_hz(self) -> float: ...
-    @property
-    def damping_ratio(self) -> float: ...
-    @property
-    def natural_frequency_ci_hz(self) -> tuple[float, float]: ...
-
-
 @dataclass(frozen=True)
-class IdentifiedMode:
+class FittedMode:
+    """A mode's estimate with its 95 % intervals: what a design needs of it (a free decay's IdentifiedMode and a
+    spectrum's SpectralMode add what each fit knows)."""
+
     natural_frequency_hz: float
     damping_ratio: float
     natural_frequency_ci_hz: tuple[float, float]
     damping_ratio_ci: tuple[float, float]
     natural_frequency_std_hz: float
     damping_ratio_std: float
+
+
+@dataclass(frozen=True)
+class IdentifiedMode(FittedMode):
     damped_frequency_hz: float
     decay_rate_1_s: float
     peak_frequency_hz: float  # the Welch peak that started the fit

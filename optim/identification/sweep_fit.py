@@ -42,6 +42,7 @@ from scipy.stats import f as fisher
 from scipy.stats import norm
 
 from models.held_input import base_excited_response
+from optim.identification.modal import FittedMode
 from optim.identification.resonance_test import ResonanceTest, check_test, command_switches
 from optim.identification.sweep_spectrum import MeasuredSpectrum, welch_segments, window_correlation
 
@@ -66,13 +67,7 @@ CONFIDENCE = 0.95
 
 
 @dataclass(frozen=True)
-class SpectralMode:
-    natural_frequency_hz: float
-    damping_ratio: float
-    natural_frequency_ci_hz: tuple[float, float]
-    damping_ratio_ci: tuple[float, float]
-    natural_frequency_std_hz: float
-    damping_ratio_std: float
+class SpectralMode(FittedMode):
     relative_gain: float  # s_i: the mode's gain over the first mode's
     peak_frequency_hz: float  # where the fit started (a PSD peak, or the bin added)
 
