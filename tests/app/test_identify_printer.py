@@ -90,8 +90,8 @@ def test_a_resonance_tests_settings_are_read_off_its_record_when_not_stated(clie
     stated = _post(client, raw_csv(sweep), **SWEEP)  # stated, the statement is used, and nothing is read
     assert stated["warnings"] == [] and stated["fit"]["test"]["hz_per_sec"] == 2.0
     # Klipper's accelerometer starts before the test's first move: 0.5 s of rest (noise only) before it
-    rest = np.column_stack([sweep[0, 0] - 0.5 + np.arange(800) / RATE_HZ, np.zeros((800, 3)) + [0.0, 0.0, 9806.65]])
-    rest[:, 1:] += np.random.default_rng(8).normal(0.0, 150.0, (800, 3))
+    rest = np.column_stack([sweep[0, 0] - 0.5 + np.arange(800) / RATE_HZ, np.zeros((800, 3))])
+    rest[:, 1:] += np.random.default_rng(8).normal(0.0, 150.0, (800, 3)) + np.array([0.0, 0.0, 9806.65])
     late = _post(client, raw_csv(np.round(np.vstack([rest, sweep]), 6)), **SWEEP)
     assert late["fit"]["test"]["start_s"] == pytest.approx(0.5, abs=0.05) and late["warnings"] == []
     for mode, (f, _, _) in zip(late["modes"], AXIS, strict=True):
