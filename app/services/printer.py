@@ -28,7 +28,7 @@ from optim.identification.excitation import sweep_band
 from optim.identification.formats import PsdRecord, RecordFormat, detect_format, parse_psd_csv
 from optim.identification.modal import FittedMode
 from optim.identification.record import Record, uniform_record
-from optim.identification.resonance_test import ResonanceTest, overlay_amplitude
+from optim.identification.resonance_test import ResonanceTest, overlay_amplitude, start_in_record
 from optim.identification.spectrum import psd_peaks
 from optim.identification.sweep_fit import SpectralMode, SweepIdentification, identify_sweep
 from optim.identification.sweep_spectrum import MeasuredSpectrum, csv_spectrum, record_spectrum
@@ -260,8 +260,9 @@ def _snapped(value: float, step: float, within: float) -> float:
 
 def _test_in_record(params: MeasurementParams, signals: np.ndarray, rate_hz: float) -> tuple[ResonanceTest, list[str]]:
     """The query's test, its unstated band and rate read off the record's ridge (excitation.sweep_band) and snapped to
-    round settings (0.05 Hz/s within 0.5 %, 1 Hz within 0.3 Hz), where it starts in the record (where the ridge
-    passes its start: Klipper's accelerometer runs before the test's first move), and, sweeping_period unstated,
+    round settings (0.05 Hz/s within 0.5 %, 1 Hz within 0.3 Hz), where it starts in the record
+    (resonance_test.start_in_record: Klipper's accelerometer runs before the test's first move), and, sweeping_period
+    unstated,
     whether the record holds the sweeping overlay (resonance_test.overlay_amplitude: under half the expected
     amplitude, it is fitted without)."""
     test = resonance_test(params)
@@ -280,7 +281,7 @@ def _test_in_record(params: MeasurementParams, signals: np.ndarray, rate_hz: flo
     if "sweep_max_freq" not in stated:
         test = replace(test, max_freq_hz=min(max(_snapped(at_end, 1.0, 0.3), test.min_freq_hz), 300.0))
         read.append(f"to {test.max_freq_hz:g} Hz")
-    test = replace(test, start_s=(test.min_freq_hz - at_start) / test.hz_per_sec)
+    test = replace(test, start_s=start_in_record(signals, rate_hz, test))
     notes = []
     if read:
         notes.append(

@@ -19,6 +19,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.signal import fftconvolve
 
 from models.errors import InvalidParameter
 
@@ -30,6 +31,7 @@ __all__ = [
     "command_samples",
     "command_switches",
     "overlay_amplitude",
+    "start_in_record",
     "vibration_levels",
 ]
 
@@ -157,3 +159,18 @@ def overlay_amplitude(signals: NDArray[np.float64], rate_hz: float, test: Resona
     errors = np.sqrt(np.var(residual, axis=1) / norm)
     amplitude = float(np.sqrt(np.sum(amplitudes**2)))
     return amplitude, float(np.sqrt(np.sum((amplitudes * errors) ** 2)) / max(amplitude, 1e-300))
+
+
+def start_in_record(signals: NDArray[np.float64], rate_hz: float, test: ResonanceTest) -> float:
+    """Where the test starts in its record, s: the lag that best aligns the record with the test's sampled command
+    (the largest sum over the signals of their squared cross-correlations, refined by a parabola; a chirp's
+    correlation is one sharp peak). The modes delay the response near their resonances, by a few milliseconds at
+    Klipper's rates: the ridge's line (excitation.sweep_band) is 30 times coarser."""
+    command = command_samples(replace(test, start_s=0.0), rate_hz)
+    centred = np.atleast_2d(signals) - np.mean(np.atleast_2d(signals), axis=1, keepdims=True)
+    score = np.sum([fftconvolve(row, command[::-1], mode="full") ** 2 for row in centred], axis=0)
+    k = int(np.clip(np.argmax(score), 1, score.size - 2))
+    before, at, after = score[k - 1], score[k], score[k + 1]
+    curvature = before - 2.0 * at + after
+    shift = 0.5 * (before - after) / curvature if curvature < 0.0 else 0.0
+    return float((k + shift - (command.size - 1)) / rate_hz)
