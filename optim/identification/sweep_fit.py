@@ -50,7 +50,7 @@ __all__ = ["SpectralMode", "SweepIdentification", "identify_sweep"]
 
 Array = NDArray[np.float64]
 WEIGHTINGS = 3
-MODEL_ERROR = 1e-3  # of the PSD: the model's own error (the test's phase against Klipper's segments)
+MODEL_ERROR = 2e-3  # of the PSD: the model's own error (the test's phase against Klipper's segments)
 ROUGH_ERROR = 0.1  # the first pass's diagonal weights: 10 % of the PSD and of its median
 ALPHA = 1e-3
 MATCH = 0.05  # an added mode is at least this (relative) from the others
