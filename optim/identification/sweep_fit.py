@@ -18,6 +18,8 @@ The Welch estimate's covariance, for white noise of floor n_a and the determinis
 
     Cov(P(F), P(F')) = (1/K) [ g_a mean_k 2 Re(Y_kF* Y_kF' c_(F-F')) n_a + n_a^2 |c_(F-F')|^2 ]
 
+plus the same terms between half-overlapping segments k and k + 1, with e_m (the window times itself half a segment
+on) and a sign (-1)^F in place of c_m (checked against a Monte-Carlo of the estimate in tests/optim/test_sweep_fit.py),
 plus, for a CSV, the variance of its 4 significant digits (uniform rounding: step^2 / 12), and a model error of
 MODEL_ERROR of the PSD. The fit is generalised least squares whitened by that covariance's Cholesky factor, the
 covariance re-estimated from the fit (WEIGHTINGS passes, the first with rough diagonal weights); the intervals come
@@ -83,7 +85,7 @@ class SweepIdentification:
 
 
 class _OutOfWork(Exception):
-    """MAX_SIMULATIONS spent: the fit under way is no optimum."""
+    """MAX_SIMULATIONS, or a pass's evaluations, spent: the fit under way is no optimum."""
 
 
 class _ModeSpectra:
@@ -218,6 +220,8 @@ def _fit(spectra: _ModeSpectra, spectrum: MeasuredSpectrum, starts: list[tuple[f
         coefs, _ = _projection(y, spectrum, whiteners)
         whiteners = _whiteners(spectrum, y, coefs)
     assert solution is not None
+    if solution.status == 0:  # its evaluations spent: no optimum
+        raise _OutOfWork
     y = spectra.combined(x, n)
     coefs, residual = _projection(y, spectrum, whiteners)
     chi2 = float(residual @ residual)
@@ -314,7 +318,10 @@ def identify_sweep(
     try:
         fit = _fit(spectra, spectrum, starts, x0)
     except _OutOfWork:
-        reason = f"the fit did not converge within {MAX_SIMULATIONS} simulations of the test: no mode is reported"
+        reason = (
+            f"the fit did not converge within its work ({MAX_SIMULATIONS} simulations of the test, "
+            f"{MAX_EVALUATIONS_PER_PARAMETER} evaluations per parameter and pass): no mode is reported"
+        )
         count = spectrum.frequency_hz.size
         return SweepIdentification((), math.nan, count, spectrum.segments, MAX_SIMULATIONS, (*warnings, reason))
     for _ in range(MAX_ADDED):
@@ -324,7 +331,7 @@ def identify_sweep(
         try:
             richer = _fit(spectra, spectrum, [*starts, start], _with_mode(fit.x, len(starts), start))
         except _OutOfWork:
-            warnings.append(f"a mode at {start[0]:.4g} Hz was not tried to the end ({MAX_SIMULATIONS} simulations)")
+            warnings.append(f"a mode at {start[0]:.4g} Hz was not tried to the end (its work spent)")
             break
         if not _better(richer, fit):
             break
