@@ -43,8 +43,8 @@ SERVE_FLAGS = (
 # the pool's rows equal a Dask worker's (whose nanny sets the same) bit for bit.
 SINGLE_THREADED_BLAS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 HTTP_TIMEOUT_S = 300.0
-
-
+IDENTIFY_QUERY = ("displacement", "target_velocity", "max_velocity", "max_acceleration", "max_jerk", "target",
+                  "format", "square_corner_velocity", "max_smoothing", "frequency_tolerance")  # fmt: skip
 SWEEP_OPTIONS = {  # the resonance test's settings (a sweep's or a resonance CSV's excitation): Klipper's names
     "sweep_min_freq": "Hz: the resonance test's min_freq / FREQ_START (5)",
     "sweep_max_freq": "Hz: its max_freq / FREQ_END (135; z 100)",
@@ -230,23 +230,8 @@ def _compare(args: argparse.Namespace) -> int:
 
 def _identify(args: argparse.Namespace) -> int:
     record = Path(args.record).read_bytes()
-    query = {
-        name: value
-        for name, value in (
-            ("displacement", args.displacement),
-            ("target_velocity", args.target_velocity),
-            ("max_velocity", args.max_velocity),
-            ("max_acceleration", args.max_acceleration),
-            ("max_jerk", args.max_jerk),
-            ("target", args.target),
-            ("format", args.format),
-            ("square_corner_velocity", args.square_corner_velocity),
-            ("max_smoothing", args.max_smoothing),
-            ("frequency_tolerance", args.frequency_tolerance),
-            *((name, getattr(args, name)) for name in SWEEP_OPTIONS),
-        )
-        if value is not None
-    }
+    names = (*IDENTIFY_QUERY, *SWEEP_OPTIONS)
+    query = {name: getattr(args, name) for name in names if getattr(args, name) is not None}
     if args.url:
         answer = orjson.loads(_post(args.url, "/v1/identify", record, query, content_type="text/csv"))
     else:

@@ -71,7 +71,7 @@ def excitation_of(signals: NDArray[np.float64], sample_rate_hz: float) -> Excita
     """``sweep`` where the record's dominant frequency moves monotonically with time (see the module), else
     ``free_decay``."""
     times, peaks = _ridge(signals, sample_rate_hz)
-    if np.unique(peaks).size < MIN_DISTINCT:
+    if np.unique(np.round(peaks * SEGMENT_S)).size < MIN_DISTINCT:  # distinct bins (1 / SEGMENT_S apart)
         return "free_decay"
     rank = spearmanr(times, peaks).statistic
     return "sweep" if np.isfinite(rank) and abs(float(rank)) >= SWEEP_CORRELATION else "free_decay"

@@ -158,14 +158,17 @@ def check_resonance_test_written(ran: Ran) -> None:
     ok(ran)
     assert ran.written == {"raw_data_x.csv"}, ran.written
     header, *rows = (ran.cwd / "raw_data_x.csv").read_text().splitlines()
-    assert header == "#time,accel_x,accel_y,accel_z" and len(rows) == 14 * 3200, (header, len(rows))
+    assert header == "#time,accel_x,accel_y,accel_z" and len(rows) == int(22.5 * 3200), (header, len(rows))
 
 
 def check_klipper_section(ran: Ran) -> None:
-    # the documented output: the two peaks, Klipper's pick and the section (mzv at 42.2 Hz on this axis)
+    # the documented output: the two modes, their 95 % intervals holding the script's 42 and 71 Hz, Klipper's pick
+    # and the section (mzv at 42.2 Hz on this axis)
     ok(ran)
-    peaks = [float(f) for f in re.findall(r"^peak (\S+) Hz", ran.stdout, re.M)]
-    assert [round(f) for f in peaks] == [42, 72], ran
+    modes = re.findall(r"^mode \S+ Hz \(95 %: (\S+)\.\.(\S+) Hz\)", ran.stdout, re.M)
+    assert len(modes) == 2 and all(
+        float(lo) <= f <= float(hi) for (lo, hi), f in zip(modes, (42.0, 71.0), strict=True)
+    ), ran
     assert "Klipper's calibration picks mzv at 42.2 Hz" in ran.stdout, ran
     assert ran.stdout.endswith("[input_shaper]\nshaper_type_x: mzv\nshaper_freq_x: 42.2\ndamping_ratio_x: 0.1\n"), ran
 
