@@ -181,6 +181,26 @@ SWEEP_MAX_HZ = 200.0  # FREQ_END of the seeded sweeps: every drawn mode (up to 2
 SWEEPING_ACCEL = 400.0  # Klipper's sweeping_accel default
 
 
+def held_response(switches: tuple[Array, Array, float], modes: Modes = AXIS, rate_hz: float = RATE_HZ) -> Array:
+    """The toolhead's acceleration for a command given by its switches (chirp_switches), exact at the samples for
+    switches between them (models.held_input, checked against an oversampled hold in
+    tests/models/test_held_input.py)."""
+    from models.held_input import base_excited_response
+
+    times, level, end = switches
+    n = int(end * rate_hz)
+    return sum(
+        (share * base_excited_response(f, zeta, rate_hz, times, level, n) for f, zeta, share in modes), np.zeros(n)
+    )
+
+
+def with_noise(x: Array, rng: np.random.Generator, noise_mm_s2: float = NOISE_MM_S2, rate_hz: float = RATE_HZ) -> Array:
+    """raw_record's table for the toolhead's acceleration ``x``."""
+    noise = rng.normal(0.0, max(noise_mm_s2, 1e-9), (3, x.size))
+    t = START_S + np.arange(x.size) / rate_hz
+    return np.column_stack([t, x + noise[0], SKEW * x + noise[1], GRAVITY_MM_S2 + noise[2]])
+
+
 def held_record(
     switches: tuple[Array, Array, float],
     rng: np.random.Generator,
@@ -188,30 +208,19 @@ def held_record(
     noise_mm_s2: float = NOISE_MM_S2,
     rate_hz: float = RATE_HZ,
 ) -> Array:
-    """raw_record's table for a command given by its switches (chirp_switches), the toolhead's acceleration exact at
-    the samples for switches between them (models.held_input, checked against an oversampled hold in
-    tests/models/test_held_input.py)."""
-    from models.held_input import base_excited_response
-
-    times, level, end = switches
-    n = int(end * rate_hz)
-    x = sum(share * base_excited_response(f, zeta, rate_hz, times, level, n) for f, zeta, share in modes)
-    noise = rng.normal(0.0, max(noise_mm_s2, 1e-9), (3, n))
-    t = START_S + np.arange(n) / rate_hz
-    return np.column_stack([t, x + noise[0], SKEW * x + noise[1], GRAVITY_MM_S2 + noise[2]])
+    """raw_record's table for a command given by its switches (held_response)."""
+    return with_noise(held_response(switches, modes, rate_hz), rng, noise_mm_s2, rate_hz)
 
 
 def sweep_table(seed: int) -> tuple[Modes, float, Array]:
     """Seeded resonance test ``seed``: Klipper's test from 5 Hz to SWEEP_MAX_HZ at 1 Hz/s with its sweeping overlay
-    (held_record), at RATE_HZ, noise std 0-30 % of the response's peak: (the true modes, the noise's share, the record
-    as raw_record's table)."""
+    (held_response), at RATE_HZ, noise std 0-30 % of the response's peak: (the true modes, the noise's share, the
+    record as raw_record's table)."""
     rng = np.random.default_rng(9000 + seed)
     modes = draw_modes(rng)
-    switches = chirp_switches(5.0, SWEEP_MAX_HZ, sweeping_accel=SWEEPING_ACCEL)
+    x = held_response(chirp_switches(5.0, SWEEP_MAX_HZ, sweeping_accel=SWEEPING_ACCEL), modes)
     noise_share = float(rng.uniform(0.0, 0.3))
-    clean = held_record(switches, np.random.default_rng(0), modes, 0.0)[:, 1]
-    table = held_record(switches, rng, modes, max(noise_share * float(np.max(np.abs(clean))), 1e-9))
-    return modes, noise_share, table
+    return modes, noise_share, with_noise(x, rng, max(noise_share * float(np.max(np.abs(x))), 1e-9))
 
 
 def sweep_case(seed: int, fmt: str) -> tuple[Modes, float, str]:

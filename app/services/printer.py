@@ -291,12 +291,11 @@ def _test_in_record(params: MeasurementParams, signals: np.ndarray, rate_hz: flo
     if "sweeping_period" not in stated and test.sweeping_period_s > 0.0:
         amplitude, error = overlay_amplitude(signals, rate_hz, test)
         if amplitude < 0.5 * test.sweeping_accel_mm_s2:  # Klipper before the sweeping test, or SWEEPING_PERIOD=0
-            test = replace(test, sweeping_period_s=0.0)
             notes.append(
                 f"no sweeping overlay in the record ({amplitude:.3g} +- {error:.2g} mm/s^2 of the "
-                f"{resonance_test(params).sweeping_accel_mm_s2:g} expected): fitted without it (state sweeping_period "
-                "to set it)"
+                f"{test.sweeping_accel_mm_s2:g} expected): fitted without it (state sweeping_period to set it)"
             )
+            test = replace(test, sweeping_period_s=0.0)
     if abs(slope / test.hz_per_sec - 1.0) > 0.05:
         notes.append(f"the record's ridge rises {slope:.3g} Hz/s, not the {test.hz_per_sec:g} stated")
     return test, notes

@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -62,6 +63,7 @@ __all__ = [
     "IdentifiedMode",
     "ModalIdentification",
     "identify_modes",
+    "interval_fields",
 ]
 
 CONFIDENCE = 0.95
@@ -103,6 +105,16 @@ class FittedMode:
     damping_ratio_ci: tuple[float, float]
     natural_frequency_std_hz: float
     damping_ratio_std: float
+
+
+def interval_fields(f_hz: float, std_hz: float, zeta: float, std_zeta: float, quantile: float) -> dict[str, Any]:
+    """FittedMode's intervals and standard errors: estimate +- quantile x standard error (zeta's low end at 0)."""
+    return {
+        "natural_frequency_ci_hz": (f_hz - quantile * std_hz, f_hz + quantile * std_hz),
+        "damping_ratio_ci": (max(zeta - quantile * std_zeta, 0.0), zeta + quantile * std_zeta),
+        "natural_frequency_std_hz": std_hz,
+        "damping_ratio_std": std_zeta,
+    }
 
 
 @dataclass(frozen=True)
@@ -345,10 +357,7 @@ def identify_modes(record: Record, *, max_modes: int = 4, start_s: float | None 
         mode = IdentifiedMode(
             natural_frequency_hz=fn,
             damping_ratio=max(zeta, 0.0),
-            natural_frequency_ci_hz=(fn - quantile * std_fn, fn + quantile * std_fn),
-            damping_ratio_ci=(max(zeta - quantile * std_zeta, 0.0), zeta + quantile * std_zeta),
-            natural_frequency_std_hz=std_fn,
-            damping_ratio_std=std_zeta,
+            **interval_fields(fn, std_fn, zeta, std_zeta, quantile),
             damped_frequency_hz=fd,
             decay_rate_1_s=s,
             peak_frequency_hz=peaks[k][0],

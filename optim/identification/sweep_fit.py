@@ -44,7 +44,7 @@ from scipy.stats import f as fisher
 from scipy.stats import norm
 
 from models.held_input import base_excited_response
-from optim.identification.modal import FittedMode
+from optim.identification.modal import FittedMode, interval_fields
 from optim.identification.resonance_test import ResonanceTest, check_test, command_switches
 from optim.identification.sweep_spectrum import MeasuredSpectrum, welch_segments, window_correlation
 
@@ -282,10 +282,7 @@ def _modes(fit: _Fit, starts: list[tuple[float, float]], scale_std: float) -> tu
             SpectralMode(
                 natural_frequency_hz=f,
                 damping_ratio=zeta,
-                natural_frequency_ci_hz=(f - quantile * sf, f + quantile * sf),
-                damping_ratio_ci=(max(zeta - quantile * sz, 0.0), zeta + quantile * sz),
-                natural_frequency_std_hz=sf,
-                damping_ratio_std=sz,
+                **interval_fields(f, sf, zeta, sz, quantile),
                 relative_gain=gain,
                 peak_frequency_hz=f0,
             )
