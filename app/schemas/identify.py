@@ -96,8 +96,8 @@ class MeasurementParams(BaseModel):
         ge=1.0,
         le=300.0,
         description="Hz: the resonance test's max_freq (FREQ_END; Klipper's default 135 for x and y, 100 for z). A "
-        "sweep's or a resonance CSV's modes are fitted with the test as the excitation (the test's settings: "
-        "sweep_*, sweeping_*).",
+        "sweep's or a resonance CSV's modes are fitted with the test as the excitation, set by the sweep and "
+        "sweeping parameters; those not given are read off a raw record, and are Klipper's defaults for a CSV.",
     )
     sweep_hz_per_sec: float = Field(
         1.0, gt=0.0, le=2.0, description="The resonance test's hz_per_sec (HZ_PER_SEC; Klipper's default 1)."
