@@ -1,0 +1,173 @@
+"""A program's moves laid end to end: each axis's command over the whole cycle, what its load does, and the
+residual vibration at every stop (optim.programs).
+
+An axis without a plant table is time-invariant: its load is models.simulation's exact response to the whole
+cycle's command, and a stop's residual is the free vibration left at the stop's end (the command rests there
+until the next move), carried over from earlier moves included. An axis with a table is simulated on its true
+plant, the mode following the coordinate at every instant (models.varying_mode, DOP853 at 1e-12): an
+independent check of designs made for the plant at each stop.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from models.commands import MIN_STEP_S, PiecewiseCommand
+from models.plants import Plant
+from models.simulation import simulate
+from models.varying_mode import deflection, free_amplitude
+from optim.problem import TAIL_PERIODS, nice_period
+from optim.programs.moves import MoveDesign
+from optim.programs.tables import mode_function
+from optim.programs.types import Program
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class AxisCycle:
+    """One axis over the cycle: its exact command, its samples (profile and load), and its residual at each stop
+    (load units), by ``method`` ("exact": the time-invariant closed form; "varying": the true plant integrated)."""
+
+    name: str
+    command: PiecewiseCommand
+    time_s: Array
+    profile: Array  # (4, samples): position, velocity, acceleration, jerk
+    load: Array  # (3, samples): position, velocity, acceleration
+    stop_residuals: Array  # one per move, at its end
+    method: str
+
+
+def move_starts(program: Program, designs: Sequence[MoveDesign]) -> Array:
+    """Each move's start in the cycle, and the cycle's end last: the moves and their dwells end to end."""
+    spans = [d.duration_s + m.dwell_s for d, m in zip(designs, program.moves, strict=True)]
+    return np.concatenate(([0.0], np.cumsum(spans)))
+
+
+def cycle_command(program: Program, designs: Sequence[MoveDesign], i: int, starts: Array) -> PiecewiseCommand:
+    """Axis i's command over the cycle: each move's command where the axis moves, rest between, a breakpoint at
+    every move's start and end (where the stops' residuals are read)."""
+    pieces = [(float(starts[k]), c) for k, d in enumerate(designs) if (c := d.axes[i].command) is not None]
+    degree = max((c.degree for _, c in pieces), default=0)
+    orders = min((c.continuous_orders for _, c in pieces), default=0)
+    times: list[Array] = []
+    rows: list[Array] = []
+    position = program.start[i]
+    marks = sorted({*starts.tolist(), *(float(s) + d.duration_s for s, d in zip(starts, designs, strict=False))})
+    cursor = 0
+    for offset, command in pieces:
+        for mark in marks[cursor:]:  # the rests before this piece
+            if mark >= offset - MIN_STEP_S:
+                break
+            times.append(np.array([mark]))
+            rows.append(_rest(position, degree))
+            cursor += 1
+        derivatives = np.zeros((degree + 1, command.time_s.size))
+        derivatives[: command.degree + 1] = command.derivatives
+        times.append(command.time_s + offset)
+        rows.append(derivatives)
+        position = float(command.derivatives[0, -1])
+        while cursor < len(marks) and marks[cursor] <= offset + float(command.time_s[-1]) + MIN_STEP_S:
+            cursor += 1
+    for mark in marks[cursor:]:
+        times.append(np.array([mark]))
+        rows.append(_rest(position, degree))
+    t = np.concatenate(times)
+    d = np.concatenate(rows, axis=1)
+    keep = np.append(np.diff(t) > MIN_STEP_S, True)  # of two breakpoints at one instant, the later's values
+    return PiecewiseCommand(t[keep], d[:, keep], orders)
+
+
+def _rest(position: float, degree: int) -> Array:
+    column = np.zeros((degree + 1, 1))
+    column[0, 0] = position
+    return column
+
+
+def _grid(program: Program, end_s: float, tail_s: float) -> Array:
+    period = program.sample_period_s or nice_period(end_s + tail_s)
+    count = int((end_s + tail_s) / period) + 1
+    return np.arange(count, dtype=float) * period
+
+
+def axis_cycle(program: Program, designs: Sequence[MoveDesign], i: int, starts: Array, tail_s: float) -> AxisCycle:
+    """Axis i's command, samples and stop residuals over the cycle (see the module's docstring)."""
+    axis = program.axes[i]
+    command = cycle_command(program, designs, i, starts)
+    stop_ends = np.array([float(s) + d.duration_s for s, d in zip(starts, designs, strict=False)])
+    grid = _grid(program, float(starts[-1]), tail_s)
+    t = np.unique(np.concatenate((grid, stop_ends)))
+    profile = command.evaluate_at_instants(t, 4)
+    if axis.table is None:
+        sampled = PiecewiseCommand(t, command.evaluate_at_instants(t, command.degree + 1), command.continuous_orders)
+        residuals = np.array([stop_residual(axis.plant, command, float(end)) for end in stop_ends])
+        response = simulate(axis.plant, sampled)
+        load = np.vstack((response.load_position, response.load_velocity, response.load_acceleration))
+        return AxisCycle(axis.name, command, t, profile, load, residuals, "exact")
+    table = axis.table
+    coordinate = cycle_command(program, designs, program.axis_index(table.coordinate), starts)
+    position, mode_at_coordinate = position_function(coordinate), mode_function(table)
+
+    def mode_of_time(time: float) -> tuple[float, float]:
+        return mode_at_coordinate(position(time))
+
+    solved = deflection(command, mode_of_time, t, coordinate.time_s)
+    modes = [mode_of_time(float(s)) for s in stop_ends]
+    at = np.searchsorted(t, stop_ends)
+    residuals = free_amplitude(
+        solved.deflection[at], solved.rate[at], np.array([m[0] for m in modes]), np.array([m[1] for m in modes])
+    )
+    omega = np.array([mode_of_time(float(x))[0] for x in t])
+    zeta = np.array([mode_of_time(float(x))[1] for x in t])
+    accel = -2.0 * zeta * omega * solved.rate - omega * omega * solved.deflection
+    load = np.vstack((profile[0] + solved.deflection, profile[1] + solved.rate, accel))
+    return AxisCycle(axis.name, command, t, profile, load, residuals, "varying")
+
+
+def stop_residual(plant: Plant, command: PiecewiseCommand, end_s: float) -> float:
+    """The load's free vibration at ``end_s``, where the command rests (a stop): the residual amplitude of the
+    command up to there, the rest of the cycle cut off (a breakpoint where the next move starts at once carries
+    that move's first jump, which the free state there includes)."""
+    keep = command.time_s < end_s - MIN_STEP_S
+    position = float(command.evaluate_at_instants(np.array([end_s]), 1)[0, 0])
+    times = np.append(command.time_s[keep], end_s)
+    derivatives = np.hstack((command.derivatives[:, keep], _rest(position, command.degree)))
+    response = simulate(plant, PiecewiseCommand(times, derivatives, command.continuous_orders))
+    return float(np.sum(response.free_amplitudes(times.size - 1, 0)[response.modal.oscillatory]))
+
+
+def position_function(command: PiecewiseCommand) -> Callable[[float], float]:
+    """t -> the command's position, in plain float arithmetic (right-continuous, as ``evaluate``)."""
+    times = command.time_s.tolist()
+    scaled = (command.derivatives / np.array([math.factorial(n) for n in range(command.degree + 1)])[:, None]).T
+    rows: list[list[float]] = [row[::-1] for row in scaled.tolist()]
+
+    def position(t: float) -> float:
+        k = bisect.bisect_right(times, t) - 1
+        if k < 0:
+            return float(rows[0][-1])
+        tau = t - times[k]
+        out = 0.0
+        for c in rows[k]:
+            out = out * tau + c
+        return out
+
+    return position
+
+
+def tail_s(program: Program, designs: Sequence[MoveDesign]) -> float:
+    """How long the samples run past the cycle: TAIL_PERIODS periods of the slowest mode at the last stop."""
+    periods = [m.natural_period_s for a in designs[-1].axes for m in a.plant.modes()]
+    return TAIL_PERIODS * max(periods, default=0.0)
+
+
+def cycle(program: Program, designs: Sequence[MoveDesign]) -> tuple[Array, tuple[AxisCycle, ...]]:
+    starts = move_starts(program, designs)
+    tail = tail_s(program, designs)
+    return starts, tuple(axis_cycle(program, designs, i, starts, tail) for i in range(len(program.axes)))

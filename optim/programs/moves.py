@@ -1,0 +1,264 @@
+"""One move of a program: every axis's command from its stop to the next (optim.programs).
+
+- ``straight_line``: one path parameter s from 0 to the move's length L = |target - stop|; axis i follows
+  stop_i + u_i s (u = (target - stop) / L), so each limit of the path is the least of the moving axes' limits
+  over |u_i|, and the path's plant holds every moving axis's modes (a transfer function whose poles are theirs:
+  the family cancels them all, and each axis, driven by u_i times the path's command, is left still).
+- ``synchronized``: each axis its own design; the faster ones averaged with themselves delayed (a convolution with
+  two half impulses, ``stretched``), so that every axis starts and arrives together. Each stretched command is a
+  convex combination of the design, so it keeps its limits, and its residual at each mode is the design's times
+  the two impulses' transform: zero where the design's was.
+- ``independent``: each axis its own design from the move's start; the move lasts as long as the slowest.
+
+An axis whose plant is a table over a coordinate is designed for the plant at the stop, robust over the band
+of frequencies the coordinate passes through during the move (time-optimal only); ``still_at_stop`` false gives
+the rigid time-optimal move (Ruckig), nothing cancelled.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from models.commands import MIN_STEP_S, PiecewiseCommand
+from models.errors import InvalidParameter
+from models.plants import Plant, TransferFunctionPlant
+from optim.families.time_optimal.options import Robustness, TimeOptimalOptions
+from optim.family import SolverSummary
+from optim.problem import MIN_MOVE, Limits, Problem
+from optim.programs.tables import frequency_range_hz, plant_at
+from optim.programs.types import Program
+from optim.registry import FAMILIES
+from optim.results import Block
+from optim.synthesis import synthesize
+
+SAME_TIME_RTOL = 1e-12  # an axis this close to the move's duration is not stretched
+BAND_MIN_SPREAD = 1e-9  # a mode that changes less than this (relative) over the move is taken as constant
+
+
+@dataclass(frozen=True)
+class RigidReport(Block):
+    """The design block of a move that need not leave the load still: Ruckig's rigid optimum."""
+
+    method: str
+    duration_s: float
+
+
+@dataclass(frozen=True)
+class PathReport(Block):
+    """A straight line's path parameter: its length, each axis's share u_i and the limits projected on it."""
+
+    length: float
+    direction: dict[str, float]
+    max_velocity: float | None
+    max_acceleration: float | None
+    max_jerk: float | None
+    modes_hz: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class AxisMove:
+    """One axis's part of a move: its command (absolute positions, time from the move's start; None: it stays),
+    the plant it was designed for, the family's design block and the band designed over."""
+
+    axis: str
+    command: PiecewiseCommand | None
+    plant: Plant
+    summary: Block | None
+    solver: SolverSummary | None
+    band_hz: tuple[float, float] | None
+    stretched_from_s: float | None = None  # synchronized: the design's own duration before it was stretched
+
+
+@dataclass(frozen=True)
+class MoveDesign:
+    index: int
+    duration_s: float
+    axes: tuple[AxisMove, ...]
+    path: PathReport | None
+    warnings: tuple[str, ...]
+
+
+def coordinate_span(program: Program, k: int, coordinate: str) -> tuple[float, float]:
+    """Where the coordinate axis starts and ends move ``k``."""
+    j = program.axis_index(coordinate)
+    return program.stop(k)[j], program.moves[k].target[j]
+
+
+def plant_of(program: Program, i: int, k: int) -> tuple[Plant, tuple[float, float] | None]:
+    """Axis i's plant at the end of move k, and the band of its mode's frequency over the move (None: constant)."""
+    axis = program.axes[i]
+    if axis.table is None:
+        return axis.plant, None
+    a, b = coordinate_span(program, k, axis.table.coordinate)
+    plant = plant_at(axis.table, b)
+    low, high = frequency_range_hz(axis.table, min(a, b), max(a, b))
+    return plant, (low, high) if high > low * (1.0 + BAND_MIN_SPREAD) else None
+
+
+def _problem(program: Program, plant: Plant, move: float, limits: Limits) -> Problem:
+    return Problem(
+        plant=plant,
+        displacement=move,
+        limits=limits,
+        settling=program.settling,
+        solver=program.solver,
+        max_samples=program.max_samples,
+    )
+
+
+def _designed(
+    program: Program, problem: Problem, band: tuple[float, float] | None, still: bool
+) -> tuple[PiecewiseCommand, Block | None, SolverSummary | None, tuple[str, ...]]:
+    """The command from position 0 (exact where the family has it), the design block, the solver's summary and
+    the warnings: the family's design, or the rigid optimum where the load need not be still."""
+    if not still:
+        lim = problem.limits
+        rigid = problem.rigid_move(lim.max_velocity, lim.max_acceleration, lim.max_jerk)
+        command = PiecewiseCommand.from_held_steps(
+            rigid.edges_s, [*(math.copysign(1.0, problem.move) * rigid.levels), 0.0], rigid.order
+        )
+        return command, RigidReport("rigid_time_optimal", rigid.duration_s), None, ()
+    family = FAMILIES[program.family]
+    notes: tuple[str, ...] = ()
+    if family.name == "time_optimal":
+        options = TimeOptimalOptions(robustness=None if band is None else Robustness(frequency_range_hz=band))
+    else:
+        options = family.default_options(problem)
+        if band is not None:
+            notes = (f"{family.name} designs for the plant at the stop; its mode changes by {band} Hz during the move",)
+    result = synthesize(family, problem, options)
+    command = result.design.command if result.design.command is not None else result.run.command
+    return command, result.summary, result.solver, (*notes, *result.warnings)
+
+
+def _absolute(command: PiecewiseCommand, start: float, scale: float = 1.0) -> PiecewiseCommand:
+    """``start + scale * command`` (a command from position 0)."""
+    derivatives = command.derivatives * scale
+    derivatives[0] += start
+    return PiecewiseCommand(command.time_s.copy(), derivatives, command.continuous_orders)
+
+
+def stretched(command: PiecewiseCommand, end_s: float) -> PiecewiseCommand:
+    """(p(t) + p(t - delta)) / 2 with delta = end_s - p's end: the same move ending at ``end_s``. Both halves
+    start from p's start at rest; the result is exact (every breakpoint of both kept)."""
+    delta = end_s - float(command.time_s[-1])
+    times = np.sort(np.concatenate((command.time_s, command.time_s + delta)))
+    times = times[np.concatenate(([True], np.diff(times) > MIN_STEP_S))]  # a breakpoint of both halves once
+    orders = command.degree + 1
+    # each instant on the piece of its nearest breakpoint (t + delta - delta is t only to round-off)
+    rows = 0.5 * (command.evaluate_at_instants(times, orders) + command.evaluate_at_instants(times - delta, orders))
+    return PiecewiseCommand(times, rows, command.continuous_orders)
+
+
+def design_move(program: Program, k: int) -> MoveDesign:
+    """Every axis's command for move ``k`` (see the module's docstring); fields named ``moves[k]...``."""
+    move = program.moves[k]
+    start = program.stop(k)
+    deltas = [b - a for a, b in zip(start, move.target, strict=True)]
+    for i, d in enumerate(deltas):
+        if d != 0.0 and abs(d) < MIN_MOVE:
+            raise InvalidParameter(
+                f"moves[{k}].target.{program.axes[i].name}",
+                move.target[i],
+                f"moves the axis by {abs(d):.3g}: a move is 0 or at least {MIN_MOVE:g}",
+            )
+    moving = [i for i, d in enumerate(deltas) if d != 0.0]
+    if move.coordination == "straight_line" and len(moving) > 1:
+        return _straight(program, k, moving, deltas)
+    designs: dict[int, AxisMove] = {}
+    warnings: list[str] = []
+    for i in moving:
+        axis = program.axes[i]
+        plant, band = plant_of(program, i, k)
+        problem = _problem(program, plant, deltas[i], axis.limits)
+        command, summary, solver, notes = _designed(program, problem, band, move.still_at_stop)
+        designs[i] = AxisMove(axis.name, _absolute(command, start[i]), plant, summary, solver, band)
+        warnings += [f"{axis.name}: {note}" for note in notes]
+    duration = max((_end_s(a) for a in designs.values()), default=0.0)
+    if move.coordination == "synchronized":
+        for i, axis_move in designs.items():
+            own = _end_s(axis_move)
+            if own < duration * (1.0 - SAME_TIME_RTOL):
+                assert axis_move.command is not None
+                designs[i] = replace(axis_move, command=stretched(axis_move.command, duration), stretched_from_s=own)
+    axes = tuple(designs.get(i) or _staying(program, i, k) for i in range(len(program.axes)))
+    return MoveDesign(k, duration, axes, None, tuple(warnings))
+
+
+def _end_s(axis_move: AxisMove) -> float:
+    return 0.0 if axis_move.command is None else float(axis_move.command.time_s[-1])
+
+
+def _staying(program: Program, i: int, k: int) -> AxisMove:
+    plant, _ = plant_of(program, i, k)
+    return AxisMove(program.axes[i].name, None, plant, None, None, None)
+
+
+def path_limits(program: Program, moving: list[int], direction: list[float]) -> Limits:
+    """Each limit of the path parameter: the least over the moving axes of limit_i / |u_i| (None: no axis has it)."""
+
+    def least(name: str) -> float | None:
+        values = [
+            getattr(program.axes[i].limits, name) / abs(direction[i])
+            for i in moving
+            if getattr(program.axes[i].limits, name) is not None
+        ]
+        return min(values) if values else None
+
+    return Limits(least("max_velocity"), least("max_acceleration"), least("max_jerk"))
+
+
+def path_plant(plants: list[Plant]) -> TransferFunctionPlant:
+    """A transfer function whose modes are every plant's (each distinct (w, zeta) once): w_1^2 ... w_n^2 over the
+    product of s^2 + 2 zeta w s + w^2, a unit static gain. Only its poles matter: the family cancels them."""
+    modes = sorted({(m.natural_frequency_rad_s, m.damping_ratio) for p in plants for m in p.modes()})
+    denominator = np.array([1.0])
+    gain = 1.0
+    for omega, zeta in modes:
+        denominator = np.polymul(denominator, [1.0, 2.0 * zeta * omega, omega * omega])
+        gain *= omega * omega
+    return TransferFunctionPlant(numerator=(gain,), denominator=tuple(float(c) for c in denominator))
+
+
+def _straight(program: Program, k: int, moving: list[int], deltas: list[float]) -> MoveDesign:
+    move = program.moves[k]
+    start = program.stop(k)
+    length = math.sqrt(sum(deltas[i] ** 2 for i in moving))
+    direction = [d / length for d in deltas]
+    limits = path_limits(program, moving, direction)
+    plants_bands = {i: plant_of(program, i, k) for i in moving}
+    bands = [b for _, b in plants_bands.values() if b is not None]
+    band = (min(b[0] for b in bands), max(b[1] for b in bands)) if bands else None
+    plant = path_plant([p for p, _ in plants_bands.values()])
+    problem = _problem(program, plant, length, limits)
+    try:
+        command, summary, solver, notes = _designed(program, problem, band, move.still_at_stop)
+    except InvalidParameter as exc:
+        raise InvalidParameter(f"moves[{k}].{exc.field}" if exc.field else f"moves[{k}]", exc.value, exc.rule) from None
+    names = program.names
+    path = PathReport(
+        length,
+        {names[i]: direction[i] for i in moving},
+        limits.max_velocity,
+        limits.max_acceleration,
+        limits.max_jerk,
+        tuple(m.natural_frequency_hz for m in plant.modes()),
+    )
+    axes = tuple(
+        AxisMove(
+            names[i],
+            _absolute(command, start[i], direction[i]),
+            plants_bands[i][0],
+            summary,
+            solver,
+            plants_bands[i][1],
+        )
+        if i in plants_bands
+        else _staying(program, i, k)
+        for i in range(len(names))
+    )
+    warnings = tuple(f"path: {note}" for note in notes)
+    return MoveDesign(k, float(command.time_s[-1]), axes, path, warnings)

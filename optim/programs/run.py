@@ -1,0 +1,139 @@
+"""A machine program designed and checked: every move's design (optim.programs.moves), the cycle laid end to end
+and simulated (optim.programs.cycle), and per move its duration, its settling and each axis's metrics.
+
+``design_moves`` and ``assemble`` are separate so that a caller can design the moves where it likes (a pool, Dask:
+each move starts from rest at a stop, so they are independent) and assemble them here; ``solve_program`` does both
+in the calling process.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from models.commands import PiecewiseCommand
+from models.errors import InvalidParameter
+from optim.problem import TAIL_PERIODS, Problem, nice_period
+from optim.programs.cycle import AxisCycle, cycle
+from optim.programs.moves import MoveDesign, design_move
+from optim.programs.types import Program, check_axes, check_moves
+from optim.results import MetricsReport
+from optim.synthesis import limit_violations, simulated_metrics
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class AxisOutcome:
+    """One axis in one move: its design's metrics (simulated on the plant it was designed for, from rest at the
+    stop), the residual at the stop in the cycle (carried vibration included; the true plant for a table) and
+    that residual over the axis's move."""
+
+    metrics: MetricsReport | None
+    stop_residual_amplitude: float
+    stop_residual_fraction: float | None
+
+
+@dataclass(frozen=True)
+class MoveOutcome:
+    design: MoveDesign
+    start_s: float
+    settling_time_s: float | None
+    axes: tuple[AxisOutcome, ...]
+
+
+@dataclass(frozen=True)
+class ProgramResult:
+    program: Program
+    cycle_time_s: float
+    moves: tuple[MoveOutcome, ...]
+    axes: tuple[AxisCycle, ...]
+    warnings: tuple[str, ...]
+
+
+def check_program(program: Program) -> None:
+    """What the core refuses before designing (a 422 naming the field): see types.check_axes and check_moves, and
+    each table's range holding the positions its coordinate goes to."""
+    check_axes(program.axes)
+    check_moves(program)
+    for i, axis in enumerate(program.axes):
+        if axis.limits.max_torque_nm is not None:
+            raise InvalidParameter(
+                f"axes[{i}].limits.max_torque_nm",
+                axis.limits.max_torque_nm,
+                "programs take velocity, acceleration and jerk limits (a torque limit is not projected on a path)",
+            )
+        if axis.table is None:
+            continue
+        j = program.axis_index(axis.table.coordinate)
+        low, high = axis.table.low, axis.table.high
+        name = program.axes[j].name
+        for field, value in (
+            ("start", program.start[j]),
+            *((f"moves[{k}].target", m.target[j]) for k, m in enumerate(program.moves)),
+        ):
+            if not low <= value <= high:
+                raise InvalidParameter(
+                    f"{field}.{name}",
+                    value,
+                    f"is outside axes[{i}].plant_table's range [{low:g}, {high:g}] (the "
+                    f"plant of axis {axis.name} is known there only)",
+                )
+
+
+def design_moves(program: Program) -> tuple[MoveDesign, ...]:
+    return tuple(design_move(program, k) for k in range(len(program.moves)))
+
+
+def assemble(program: Program, designs: Sequence[MoveDesign]) -> ProgramResult:
+    """The cycle of the designed moves: the commands end to end, simulated, and each move's figures."""
+    starts, axes = cycle(program, designs)
+    warnings: list[str] = []
+    moves = []
+    for k, design in enumerate(designs):
+        outcomes = []
+        settling: list[float | None] = []
+        for i, axis_move in enumerate(design.axes):
+            delta = abs(program.moves[k].target[i] - program.stop(k)[i])
+            report = None
+            if axis_move.command is not None:
+                report = _metrics(program, k, i, design)
+                settling.append(report.metrics.settling.time_s)
+                violations = limit_violations(program.axes[i].limits, report.metrics)
+                if violations:  # a defect: every design is within its limits (the pipeline checks each)
+                    raise AssertionError(f"moves[{k}] axis {axis_move.axis}: {'; '.join(violations)}")
+            residual = float(axes[i].stop_residuals[k])
+            outcomes.append(AxisOutcome(report, residual, residual / delta if delta else None))
+        still = program.moves[k].still_at_stop
+        settled = None if any(s is None for s in settling) else max((s for s in settling if s is not None), default=0.0)
+        moves.append(MoveOutcome(design, float(starts[k]), settled if still else None, tuple(outcomes)))
+        warnings += [f"moves[{k}]: {w}" for w in design.warnings]
+    return ProgramResult(program, float(starts[-1]), tuple(moves), axes, tuple(warnings))
+
+
+def _metrics(program: Program, k: int, i: int, design: MoveDesign) -> MetricsReport:
+    """Axis i's command in move k simulated on the plant it was designed for, from rest at the stop, sampled
+    as a family endpoint samples its design (settling is checked at the samples)."""
+    axis_move = design.axes[i]
+    assert axis_move.command is not None
+    command = axis_move.command
+    problem = Problem(
+        plant=axis_move.plant,
+        displacement=program.moves[k].target[i] - program.stop(k)[i],
+        limits=program.axes[i].limits,
+        settling=program.settling,
+    )
+    end = float(command.time_s[-1])
+    horizon = end + TAIL_PERIODS * problem.slowest_period_s
+    shifted = command.derivatives.copy()
+    shifted[0] -= program.stop(k)[i]  # the move from 0, as its problem states it
+    relative = PiecewiseCommand(command.time_s, shifted, command.continuous_orders)
+    return simulated_metrics(problem, relative.resampled(nice_period(horizon), end_s=horizon))
+
+
+def solve_program(program: Program) -> ProgramResult:
+    check_program(program)
+    return assemble(program, design_moves(program))

@@ -1,0 +1,206 @@
+"""Machine programs (optim.programs): the three coordinations against designs made apart, the cycle's stops
+against closed forms, the plant tables, and the inputs refused."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from models.errors import InvalidParameter
+from models.plants import ModePlant, TransferFunctionPlant, TwoInertiaPlant
+from models.simulation import simulate
+from models.varying_mode import deflection
+from optim.families.time_optimal.options import TimeOptimalOptions
+from optim.problem import Limits, Problem
+from optim.programs import PlantTable, Program, ProgramAxis, ProgramMove, TablePoint, positions, solve_program
+from optim.programs.moves import stretched
+from optim.programs.tables import mode_function, plant_at
+from optim.registry import FAMILIES
+from optim.synthesis import synthesize
+
+X = ProgramAxis("x", ModePlant(5.0, 0.05), Limits(1.0, 4.0))
+Y = ProgramAxis("y", ModePlant(7.0, 0.02), Limits(0.8, 3.0))
+TIME_OPTIMAL = FAMILIES["time_optimal"]
+
+
+def _design(plant: ModePlant | TransferFunctionPlant, move: float, limits: Limits) -> np.ndarray:
+    """The single-axis time-optimal design's exact command, made apart (the family endpoint's pipeline)."""
+    result = synthesize(TIME_OPTIMAL, Problem(plant, move, limits=limits), TimeOptimalOptions())
+    assert result.design.command is not None
+    return result.design.command
+
+
+def _program(*moves: ProgramMove, axes: tuple[ProgramAxis, ...] = (X, Y)) -> Program:
+    return Program(axes, (0.0, 0.0), moves)
+
+
+def test_a_straight_line_is_the_single_axis_design_on_its_path_parameter() -> None:
+    """The path: L = |(0.3, 0.1)|, u = (0.3, 0.1) / L, each limit the least of limit_i / |u_i|, a plant whose
+    poles are both axes' (built here from the modes' quadratics); axis i's command is u_i times the path's, to
+    1e-9 of the move (round-off: the same design, scaled)."""
+    result = solve_program(_program(ProgramMove((0.3, 0.1), "straight_line")))
+    length = math.hypot(0.3, 0.1)
+    u = (0.3 / length, 0.1 / length)
+    limits = Limits(min(1.0 / u[0], 0.8 / u[1]), min(4.0 / u[0], 3.0 / u[1]))
+    wx, wy = 2 * math.pi * 5.0, 2 * math.pi * 7.0
+    den = np.polymul([1.0, 2 * 0.05 * wx, wx * wx], [1.0, 2 * 0.02 * wy, wy * wy])
+    path = _design(TransferFunctionPlant((wx * wx * wy * wy,), tuple(den)), length, limits)
+    move = result.moves[0]
+    assert move.design.duration_s == pytest.approx(float(path.time_s[-1]), rel=1e-12)
+    for i, axis in enumerate(move.design.axes):
+        assert axis.command is not None
+        t = np.linspace(0.0, move.design.duration_s, 997)
+        for m in range(4):
+            got = axis.command.evaluate_at_instants(t, 4)[m]
+            want = u[i] * path.evaluate_at_instants(t, 4)[m]
+            assert np.max(np.abs(got - want)) <= 1e-9 * max(1.0, float(np.max(np.abs(want)))), (i, m)
+        # each axis's limits hold on its own share (the path's are the tightest)
+        assert axis.command.max_abs(1) <= (1.0, 0.8)[i] * (1 + 1e-9)
+        assert axis.command.max_abs(2) <= (4.0, 3.0)[i] * (1 + 1e-9)
+    assert max(a.stop_residual_fraction or 0.0 for a in move.axes) < 1e-12
+
+
+def test_synchronized_axes_start_and_arrive_together_within_their_limits_and_still() -> None:
+    """Each axis's own design (made apart here); the faster one is (p(t) + p(t - delta)) / 2 (evaluated here from
+    the design), so both end at the slower's duration; limits and a zero residual hold (exact simulation)."""
+    result = solve_program(_program(ProgramMove((0.3, 0.05), "synchronized")))
+    own = [_design(ModePlant(5.0, 0.05), 0.3, X.limits), _design(ModePlant(7.0, 0.02), 0.05, Y.limits)]
+    ends = [float(c.time_s[-1]) for c in own]
+    move = result.moves[0]
+    assert move.design.duration_s == pytest.approx(max(ends), rel=1e-12)
+    slow, fast = (0, 1) if ends[0] > ends[1] else (1, 0)
+    delta = ends[slow] - ends[fast]
+    t = np.linspace(-0.01, max(ends) + 0.01, 1501)
+    got = move.design.axes[fast].command
+    assert got is not None and float(got.time_s[-1]) == pytest.approx(max(ends), rel=1e-12)
+    want = 0.5 * (own[fast].evaluate(0, t) + own[fast].evaluate(0, t - delta))
+    assert np.max(np.abs(got.evaluate(0, t) - want)) <= 1e-12
+    for i, axis in enumerate((X, Y)):
+        command = move.design.axes[i].command
+        assert command is not None
+        assert command.max_abs(1) <= axis.limits.max_velocity * (1 + 1e-9)  # type: ignore[operator]
+        assert command.max_abs(2) <= axis.limits.max_acceleration * (1 + 1e-9)  # type: ignore[operator]
+        assert move.axes[i].stop_residual_fraction is not None and move.axes[i].stop_residual_fraction < 1e-12
+
+
+def test_independent_axes_keep_their_own_designs_and_the_cycle_adds_moves_and_dwells() -> None:
+    """Each axis's command is its single-axis design (to round-off); the cycle time is the sum of each move's
+    longest axis and its dwell."""
+    result = solve_program(
+        _program(ProgramMove((0.3, 0.05), "independent", 0.25), ProgramMove((0.0, 0.0), "independent", 0.1))
+    )
+    first = [_design(ModePlant(5.0, 0.05), 0.3, X.limits), _design(ModePlant(7.0, 0.02), 0.05, Y.limits)]
+    back = [_design(ModePlant(5.0, 0.05), -0.3, X.limits), _design(ModePlant(7.0, 0.02), -0.05, Y.limits)]
+    for i in range(2):
+        command = result.moves[0].design.axes[i].command
+        assert command is not None
+        assert np.array_equal(command.time_s, first[i].time_s)
+        assert np.max(np.abs(command.derivatives - first[i].derivatives)) <= 1e-12
+    durations = [max(float(c.time_s[-1]) for c in pair) for pair in (first, back)]
+    assert result.cycle_time_s == pytest.approx(durations[0] + 0.25 + durations[1] + 0.1, rel=1e-12)
+    assert [m.start_s for m in result.moves] == pytest.approx([0.0, durations[0] + 0.25], rel=1e-12)
+
+
+def test_a_stop_where_the_load_need_not_be_still_rings_on_into_the_next() -> None:
+    """Move 0 is the rigid optimum (nothing cancelled), its residual the closed form of its free vibration; X then
+    rests while Y moves: X's residual at the next stop is the first decayed by exp(-zeta w t) over the dwell and the
+    second move (a damped mode's free amplitude sqrt(A^2 + B^2) decays exactly so)."""
+    result = solve_program(
+        _program(ProgramMove((0.3, 0.0), "independent", 0.2, still_at_stop=False), ProgramMove((0.3, 0.1)))
+    )
+    first, second = result.moves
+    rigid = Problem(X.plant, 0.3, limits=X.limits).rigid_move(1.0, 4.0, None)
+    assert first.design.duration_s == pytest.approx(rigid.duration_s, rel=1e-12)
+    alone = simulate(X.plant, first.design.axes[0].command)  # type: ignore[arg-type]
+    a0 = float(np.sum(alone.free_amplitudes(alone.time_s.size - 1, 0)[alone.modal.oscillatory]))
+    assert first.axes[0].stop_residual_amplitude == pytest.approx(a0, rel=1e-9)
+    assert a0 > 1e-3
+    decay = math.exp(-0.05 * 2 * math.pi * 5.0 * (0.2 + second.design.duration_s))
+    assert second.axes[0].stop_residual_amplitude == pytest.approx(a0 * decay, rel=1e-9)
+    assert second.axes[1].stop_residual_fraction is not None and second.axes[1].stop_residual_fraction < 1e-12
+
+
+def test_the_varying_mode_is_the_exact_response_when_the_mode_is_constant() -> None:
+    """models.varying_mode's DOP853 against models.simulation's closed form (load - motor) on a jerk-limited
+    design: 1e-9 of the largest deflection (the integrator's tolerance is 1e-12, its error accumulates)."""
+    command = _design(ModePlant(7.0, 0.02), 0.2, Limits(0.8, 3.0, 60.0))
+    sampled = command.resampled(1e-3, end_s=float(command.time_s[-1]) + 0.5)  # the corners kept: exact
+    t = sampled.time_s
+    exact = simulate(ModePlant(7.0, 0.02), sampled)
+    want = exact.load_position - sampled.derivative(0)
+    got = deflection(command, lambda _t: (2 * math.pi * 7.0, 0.02), t, np.array([]))
+    assert np.max(np.abs(got.deflection - want)) <= 1e-9 * float(np.max(np.abs(want)))
+
+
+def test_a_table_interpolates_each_parameter_linearly() -> None:
+    """plant_at: a mode's frequency and damping ratio halfway are the points' means; mode_function (plain floats)
+    is plant_at's mode to round-off, two_inertia's w = sqrt(k / J_L) of the interpolated k and J_L."""
+    table = PlantTable("x", (TablePoint(0.0, ModePlant(10.0, 0.02)), TablePoint(0.4, ModePlant(14.0, 0.04))))
+    half = plant_at(table, 0.2)
+    assert half.natural_frequency_hz == pytest.approx(12.0) and half.damping_ratio == pytest.approx(0.03)  # type: ignore[attr-defined]
+    two = PlantTable(
+        "y",
+        (
+            TablePoint(-1.0, TwoInertiaPlant(1e-3, 2e-3, 50.0, 0.01)),
+            TablePoint(1.0, TwoInertiaPlant(1e-3, 6e-3, 80.0, 0.03)),
+        ),
+    )
+    for table_ in (table, two):
+        f = mode_function(table_)
+        for c in np.linspace(table_.low, table_.high, 7):
+            mode = plant_at(table_, float(c)).modes()[0]
+            assert f(float(c)) == pytest.approx((mode.natural_frequency_rad_s, mode.damping_ratio), rel=1e-12)
+    k, j = 0.75 * 50.0 + 0.25 * 80.0, 0.75 * 2e-3 + 0.25 * 6e-3
+    assert mode_function(two)(-0.5)[0] == pytest.approx(math.sqrt(k / j), rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("program", "field"),
+    [
+        (Program((X, replace(Y, name="x")), (0.0, 0.0), (ProgramMove((0.1, 0.1)),)), "axes[1].name"),
+        (
+            Program(
+                (X, replace(Y, table=PlantTable("x", (TablePoint(0.0, Y.plant), TablePoint(0.0, Y.plant))))),
+                (0.0, 0.0),
+                (ProgramMove((0.1, 0.1)),),
+            ),
+            "axes[1].plant_table.points[1].at",
+        ),
+        (
+            Program(
+                (X, replace(Y, table=PlantTable("x", (TablePoint(0.0, Y.plant), TablePoint(0.2, Y.plant))))),
+                (0.0, 0.0),
+                (ProgramMove((0.1, 0.1)), ProgramMove((0.3, 0.1))),
+            ),
+            "moves[1].target.x",
+        ),
+        (
+            Program((X, replace(Y, table=PlantTable("z", (TablePoint(0.0, Y.plant),)))), (0.0, 0.0), ()),
+            "axes[1].plant_table.coordinate",
+        ),
+    ],
+)
+def test_bad_programs_are_refused_naming_the_field_and_index(program: Program, field: str) -> None:
+    with pytest.raises(InvalidParameter) as caught:
+        solve_program(program)
+    assert caught.value.field == field
+
+
+def test_targets_need_one_position_per_axis() -> None:
+    with pytest.raises(InvalidParameter) as caught:
+        positions({"x": 0.1}, ("x", "y"), "moves[3].target")
+    assert caught.value.field == "moves[3].target" and "missing axes y" in caught.value.rule
+    with pytest.raises(InvalidParameter) as caught:
+        positions({"x": 0.1, "y": 0.0, "z": 1.0}, ("x", "y"), "start")
+    assert "unknown axes z" in caught.value.rule
+
+
+def test_stretched_keeps_a_command_s_end_state() -> None:
+    command = _design(ModePlant(7.0, 0.02), 0.2, Limits(0.8, 3.0, 60.0))
+    longer = stretched(command, float(command.time_s[-1]) + 0.123)
+    assert float(longer.time_s[-1]) == pytest.approx(float(command.time_s[-1]) + 0.123, rel=1e-12)
+    assert float(longer.derivatives[0, -1]) == pytest.approx(0.2, rel=1e-12)
+    assert np.max(np.abs(longer.derivatives[1:, -1])) <= 1e-12
