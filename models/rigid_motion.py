@@ -104,3 +104,58 @@ def rigid_move(
     keep = phases > 0.0
     edges = np.concatenate(([0.0], np.cumsum(phases[keep]))) * tau
     return RigidMove(edges, held[keep], order)
+
+
+def synchronized_moves(
+    moves: list[float],
+    max_velocity: list[float | None],
+    max_acceleration: list[float | None],
+    max_jerk: list[float | None],
+) -> list[RigidMove | None]:
+    """Ruckig's time-synchronized rigid optimum of several axes from rest to rest (one DoF per axis, its own
+    limits, every axis arriving when the slowest can): a RigidMove per moving axis, None for an axis that stays.
+    Each axis runs on its move scaled to 1 and all on one time scale (the slowest axis's own), so that the
+    numbers stay near 1 (as ``rigid_move``); the profiles are scaled back exactly. Every moving axis needs an
+    acceleration or a jerk limit; held jerk if any axis has a jerk limit (the others' then jerk-impulsive: they
+    are given a jerk limit of 1e9 times their own time scale's)."""
+    from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
+
+    moving = [i for i, d in enumerate(moves) if d != 0.0]
+    if not moving:
+        return [None] * len(moves)
+    order = 3 if any(max_jerk[i] is not None for i in moving) else 2
+    scales = []
+    for i in moving:
+        a, j, d = max_acceleration[i], max_jerk[i], abs(moves[i])
+        if a is None and j is None:
+            raise ValueError("every moving axis needs an acceleration or a jerk limit")
+        scales.append(math.sqrt(d / a) if a is not None else (d / j) ** (1 / 3))  # type: ignore[operator]
+    tau = max(scales)
+    n = len(moving)
+    given = InputParameter(n)
+    given.current_position = [0.0] * n
+    given.target_position = [math.copysign(1.0, moves[i]) for i in moving]
+
+    def scaled(limits: list[float | None], power: int, absent: float) -> list[float]:
+        return [absent if (v := limits[i]) is None else v * tau**power / abs(moves[i]) for i in moving]
+
+    given.max_velocity = scaled(max_velocity, 1, math.inf)
+    given.max_acceleration = scaled(max_acceleration, 2, math.inf)
+    given.max_jerk = scaled(max_jerk, 3, 1e9 if order == 3 else math.inf)
+    trajectory = Trajectory(n)
+    try:
+        status = Ruckig(n).calculate(given, trajectory)
+    except RuckigError as exc:
+        raise ValueError(f"Ruckig found no synchronized move: {str(exc).strip().splitlines()[0]}") from None
+    if status not in (Result.Working, Result.Finished):
+        raise ValueError(f"Ruckig found no synchronized move ({status})")
+    out: list[RigidMove | None] = [None] * len(moves)
+    for k, i in enumerate(moving):
+        profile = trajectory.profiles[0][k]
+        phases = np.asarray(profile.t, dtype=float)
+        unit = abs(moves[i])
+        held = np.asarray(profile.j if order == 3 else profile.a[:-1], dtype=float) * unit / tau**order
+        keep = phases > 0.0
+        edges = np.concatenate(([0.0], np.cumsum(phases[keep]))) * tau
+        out[i] = RigidMove(edges, held[keep], order)
+    return out

@@ -19,10 +19,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from models.commands import MIN_STEP_S, PiecewiseCommand
+from models.errors import InvalidParameter
 from models.plants import Plant
 from models.simulation import simulate
 from models.varying_mode import deflection, free_amplitude
-from optim.problem import TAIL_PERIODS, nice_period
+from optim.problem import DEFAULT_SAMPLES, TAIL_PERIODS, nice_period
 from optim.programs.moves import MoveDesign
 from optim.programs.tables import mode_function
 from optim.programs.types import Program
@@ -42,6 +43,7 @@ class AxisCycle:
     load: Array  # (3, samples): position, velocity, acceleration
     stop_residuals: Array  # one per move, at its end
     method: str
+    period_s: float  # the samples' grid (the stops' ends added to it)
 
 
 def move_starts(program: Program, designs: Sequence[MoveDesign]) -> Array:
@@ -90,10 +92,17 @@ def _rest(position: float, degree: int) -> Array:
     return column
 
 
-def _grid(program: Program, end_s: float, tail_s: float) -> Array:
-    period = program.sample_period_s or nice_period(end_s + tail_s)
+def _grid(program: Program, end_s: float, tail_s: float) -> tuple[Array, float]:
+    room = max(2, program.max_samples // len(program.axes) - len(program.moves) - 1)  # the stops' ends added
+    period = program.sample_period_s or nice_period(end_s + tail_s, min(DEFAULT_SAMPLES, room))
     count = int((end_s + tail_s) / period) + 1
-    return np.arange(count, dtype=float) * period
+    if (count + len(program.moves)) * len(program.axes) > program.max_samples:
+        raise InvalidParameter(
+            "sample_period_s",
+            period,
+            f"{count} samples for each of {len(program.axes)} axes exceed the cap of {program.max_samples}",
+        )
+    return np.arange(count, dtype=float) * period, period
 
 
 def axis_cycle(program: Program, designs: Sequence[MoveDesign], i: int, starts: Array, tail_s: float) -> AxisCycle:
@@ -101,7 +110,7 @@ def axis_cycle(program: Program, designs: Sequence[MoveDesign], i: int, starts: 
     axis = program.axes[i]
     command = cycle_command(program, designs, i, starts)
     stop_ends = np.array([float(s) + d.duration_s for s, d in zip(starts, designs, strict=False)])
-    grid = _grid(program, float(starts[-1]), tail_s)
+    grid, period = _grid(program, float(starts[-1]), tail_s)
     t = np.unique(np.concatenate((grid, stop_ends)))
     profile = command.evaluate_at_instants(t, 4)
     if axis.table is None:
@@ -109,7 +118,7 @@ def axis_cycle(program: Program, designs: Sequence[MoveDesign], i: int, starts: 
         residuals = np.array([stop_residual(axis.plant, command, float(end)) for end in stop_ends])
         response = simulate(axis.plant, sampled)
         load = np.vstack((response.load_position, response.load_velocity, response.load_acceleration))
-        return AxisCycle(axis.name, command, t, profile, load, residuals, "exact")
+        return AxisCycle(axis.name, command, t, profile, load, residuals, "exact", period)
     table = axis.table
     coordinate = cycle_command(program, designs, program.axis_index(table.coordinate), starts)
     position, mode_at_coordinate = position_function(coordinate), mode_function(table)
@@ -127,7 +136,7 @@ def axis_cycle(program: Program, designs: Sequence[MoveDesign], i: int, starts: 
     zeta = np.array([mode_of_time(float(x))[1] for x in t])
     accel = -2.0 * zeta * omega * solved.rate - omega * omega * solved.deflection
     load = np.vstack((profile[0] + solved.deflection, profile[1] + solved.rate, accel))
-    return AxisCycle(axis.name, command, t, profile, load, residuals, "varying")
+    return AxisCycle(axis.name, command, t, profile, load, residuals, "varying", period)
 
 
 def stop_residual(plant: Plant, command: PiecewiseCommand, end_s: float) -> float:

@@ -18,21 +18,23 @@ the rigid time-optimal move (Ruckig), nothing cancelled.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
 from models.commands import MIN_STEP_S, PiecewiseCommand
 from models.errors import InvalidParameter
-from models.plants import Plant, TransferFunctionPlant
+from models.plants import ModePlant, Plant, TransferFunctionPlant
 from optim.families.time_optimal.options import Robustness, TimeOptimalOptions
-from optim.family import SolverSummary
+from optim.family import Design, SolverSummary
 from optim.problem import MIN_MOVE, Limits, Problem
 from optim.programs.tables import frequency_range_hz, plant_at
 from optim.programs.types import Program
 from optim.registry import FAMILIES
 from optim.results import Block
-from optim.synthesis import synthesize
+from optim.synthesis import evaluate, synthesize
 
 SAME_TIME_RTOL = 1e-12  # an axis this close to the move's duration is not stretched
 BAND_MIN_SPREAD = 1e-9  # a mode that changes less than this (relative) over the move is taken as constant
@@ -70,6 +72,9 @@ class AxisMove:
     solver: SolverSummary | None
     band_hz: tuple[float, float] | None
     stretched_from_s: float | None = None  # synchronized: the design's own duration before it was stretched
+    effective: bool = False  # designed for an effective mode that leaves the true, varying plant still
+    design: Design | None = None  # the family's design (a nearby move's redesign starts from it)
+    own: PiecewiseCommand | None = None  # the axis's own command before synchronization (absolute)
 
 
 @dataclass(frozen=True)
@@ -87,9 +92,18 @@ def coordinate_span(program: Program, k: int, coordinate: str) -> tuple[float, f
     return program.stop(k)[j], program.moves[k].target[j]
 
 
-def plant_of(program: Program, i: int, k: int) -> tuple[Plant, tuple[float, float] | None]:
-    """Axis i's plant at the end of move k, and the band of its mode's frequency over the move (None: constant)."""
+Effective = Mapping[int, tuple[float, float]]  # axis -> (w rad/s, zeta) the design is made for instead
+
+
+def plant_of(
+    program: Program, i: int, k: int, effective: Effective | None = None
+) -> tuple[Plant, tuple[float, float] | None]:
+    """Axis i's plant at the end of move k, and the band of its mode's frequency over the move (None: constant);
+    where ``effective`` names the axis, a mode of that frequency and damping ratio instead, and no band."""
     axis = program.axes[i]
+    if effective is not None and i in effective:
+        omega, zeta = effective[i]
+        return ModePlant(omega / (2.0 * math.pi), zeta), None
     if axis.table is None:
         return axis.plant, None
     a, b = coordinate_span(program, k, axis.table.coordinate)
@@ -109,29 +123,50 @@ def _problem(program: Program, plant: Plant, move: float, limits: Limits) -> Pro
     )
 
 
+class NoNearbyDesign(ArithmeticError):
+    """A design asked from a previous one's structure does not exist (a grid answer, or Newton diverged): the
+    designs would not change smoothly with the mode, which optim.programs.varying relies on."""
+
+
+@dataclass(frozen=True)
+class Designed:
+    """One design from position 0: its command (exact where the family has it), block, solver summary, warnings
+    and the family's ``Design`` (None for the rigid move)."""
+
+    command: PiecewiseCommand
+    summary: Block | None
+    solver: SolverSummary | None
+    notes: tuple[str, ...]
+    design: Design | None
+
+
 def _designed(
-    program: Program, problem: Problem, band: tuple[float, float] | None, still: bool
-) -> tuple[PiecewiseCommand, Block | None, SolverSummary | None, tuple[str, ...]]:
-    """The command from position 0 (exact where the family has it), the design block, the solver's summary and
-    the warnings: the family's design, or the rigid optimum where the load need not be still."""
+    program: Program, problem: Problem, band: tuple[float, float] | None, still: bool, previous: Design | None = None
+) -> Designed:
+    """The family's design, from ``previous``'s structure where the family can (``redesign``: a nearby problem), or
+    the rigid optimum where the load need not be still."""
     if not still:
         lim = problem.limits
         rigid = problem.rigid_move(lim.max_velocity, lim.max_acceleration, lim.max_jerk)
         command = PiecewiseCommand.from_held_steps(
             rigid.edges_s, [*(math.copysign(1.0, problem.move) * rigid.levels), 0.0], rigid.order
         )
-        return command, RigidReport("rigid_time_optimal", rigid.duration_s), None, ()
+        return Designed(command, RigidReport("rigid_time_optimal", rigid.duration_s), None, (), None)
     family = FAMILIES[program.family]
     notes: tuple[str, ...] = ()
     if family.name == "time_optimal":
-        options = TimeOptimalOptions(robustness=None if band is None else Robustness(frequency_range_hz=band))
+        options: Any = TimeOptimalOptions(robustness=None if band is None else Robustness(frequency_range_hz=band))
     else:
         options = family.default_options(problem)
         if band is not None:
             notes = (f"{family.name} designs for the plant at the stop; its mode changes by {band} Hz during the move",)
-    result = synthesize(family, problem, options)
+    redesign = getattr(family, "redesign", None)
+    nearby = None if previous is None or redesign is None else redesign(problem, options, previous)
+    if previous is not None and nearby is None:
+        raise NoNearbyDesign(f"{family.name} has no design of this move near the previous one")
+    result = synthesize(family, problem, options) if nearby is None else evaluate(family, problem, nearby)
     command = result.design.command if result.design.command is not None else result.run.command
-    return command, result.summary, result.solver, (*notes, *result.warnings)
+    return Designed(command, result.summary, result.solver, (*notes, *result.warnings), result.design)
 
 
 def _absolute(command: PiecewiseCommand, start: float, scale: float = 1.0) -> PiecewiseCommand:
@@ -153,8 +188,12 @@ def stretched(command: PiecewiseCommand, end_s: float) -> PiecewiseCommand:
     return PiecewiseCommand(times, rows, command.continuous_orders)
 
 
-def design_move(program: Program, k: int) -> MoveDesign:
-    """Every axis's command for move ``k`` (see the module's docstring); fields named ``moves[k]...``."""
+def design_move(
+    program: Program, k: int, effective: Effective | None = None, previous: MoveDesign | None = None
+) -> MoveDesign:
+    """Every axis's command for move ``k`` (see the module's docstring); fields named ``moves[k]...``. With
+    ``effective``, those axes are designed for the modes given; with ``previous`` (this move's design for other
+    effective modes), the axes not in ``effective`` keep their designs and the others start from theirs."""
     move = program.moves[k]
     start = program.stop(k)
     deltas = [b - a for a, b in zip(start, move.target, strict=True)]
@@ -167,23 +206,31 @@ def design_move(program: Program, k: int) -> MoveDesign:
             )
     moving = [i for i, d in enumerate(deltas) if d != 0.0]
     if move.coordination == "straight_line" and len(moving) > 1:
-        return _straight(program, k, moving, deltas)
+        return _straight(program, k, moving, deltas, effective, previous)
     designs: dict[int, AxisMove] = {}
     warnings: list[str] = []
+    chosen = effective or {}
     for i in moving:
         axis = program.axes[i]
-        plant, band = plant_of(program, i, k)
+        if previous is not None and i not in chosen and previous.axes[i].own is not None:
+            designs[i] = replace(previous.axes[i], command=previous.axes[i].own, stretched_from_s=None)
+            continue
+        plant, band = plant_of(program, i, k, effective)
         problem = _problem(program, plant, deltas[i], axis.limits)
-        command, summary, solver, notes = _designed(program, problem, band, move.still_at_stop)
-        designs[i] = AxisMove(axis.name, _absolute(command, start[i]), plant, summary, solver, band)
-        warnings += [f"{axis.name}: {note}" for note in notes]
+        prior = None if previous is None else previous.axes[i].design
+        done = _designed(program, problem, band, move.still_at_stop, prior)
+        own = _absolute(done.command, start[i])
+        designs[i] = AxisMove(
+            axis.name, own, plant, done.summary, done.solver, band, None, i in chosen, done.design, own
+        )
+        warnings += [f"{axis.name}: {note}" for note in done.notes]
     duration = max((_end_s(a) for a in designs.values()), default=0.0)
     if move.coordination == "synchronized":
         for i, axis_move in designs.items():
-            own = _end_s(axis_move)
-            if own < duration * (1.0 - SAME_TIME_RTOL):
+            own_s = _end_s(axis_move)
+            if own_s < duration * (1.0 - SAME_TIME_RTOL):
                 assert axis_move.command is not None
-                designs[i] = replace(axis_move, command=stretched(axis_move.command, duration), stretched_from_s=own)
+                designs[i] = replace(axis_move, command=stretched(axis_move.command, duration), stretched_from_s=own_s)
     axes = tuple(designs.get(i) or _staying(program, i, k) for i in range(len(program.axes)))
     return MoveDesign(k, duration, axes, None, tuple(warnings))
 
@@ -223,19 +270,27 @@ def path_plant(plants: list[Plant]) -> TransferFunctionPlant:
     return TransferFunctionPlant(numerator=(gain,), denominator=tuple(float(c) for c in denominator))
 
 
-def _straight(program: Program, k: int, moving: list[int], deltas: list[float]) -> MoveDesign:
+def _straight(
+    program: Program,
+    k: int,
+    moving: list[int],
+    deltas: list[float],
+    effective: Effective | None,
+    previous: MoveDesign | None,
+) -> MoveDesign:
     move = program.moves[k]
     start = program.stop(k)
     length = math.sqrt(sum(deltas[i] ** 2 for i in moving))
     direction = [d / length for d in deltas]
     limits = path_limits(program, moving, direction)
-    plants_bands = {i: plant_of(program, i, k) for i in moving}
+    plants_bands = {i: plant_of(program, i, k, effective) for i in moving}
     bands = [b for _, b in plants_bands.values() if b is not None]
     band = (min(b[0] for b in bands), max(b[1] for b in bands)) if bands else None
     plant = path_plant([p for p, _ in plants_bands.values()])
     problem = _problem(program, plant, length, limits)
+    prior = None if previous is None else previous.axes[moving[0]].design
     try:
-        command, summary, solver, notes = _designed(program, problem, band, move.still_at_stop)
+        done = _designed(program, problem, band, move.still_at_stop, prior)
     except InvalidParameter as exc:
         raise InvalidParameter(f"moves[{k}].{exc.field}" if exc.field else f"moves[{k}]", exc.value, exc.rule) from None
     names = program.names
@@ -247,18 +302,14 @@ def _straight(program: Program, k: int, moving: list[int], deltas: list[float]) 
         limits.max_jerk,
         tuple(m.natural_frequency_hz for m in plant.modes()),
     )
-    axes = tuple(
-        AxisMove(
-            names[i],
-            _absolute(command, start[i], direction[i]),
-            plants_bands[i][0],
-            summary,
-            solver,
-            plants_bands[i][1],
-        )
-        if i in plants_bands
-        else _staying(program, i, k)
-        for i in range(len(names))
-    )
-    warnings = tuple(f"path: {note}" for note in notes)
-    return MoveDesign(k, float(command.time_s[-1]), axes, path, warnings)
+    chosen = effective or {}
+    axes = []
+    for i in range(len(names)):
+        if i not in plants_bands:
+            axes.append(_staying(program, i, k))
+            continue
+        own = _absolute(done.command, start[i], direction[i])
+        p, b = plants_bands[i]
+        axes.append(AxisMove(names[i], own, p, done.summary, done.solver, b, None, i in chosen, done.design, own))
+    warnings = tuple(f"path: {note}" for note in done.notes)
+    return MoveDesign(k, float(done.command.time_s[-1]), tuple(axes), path, warnings)

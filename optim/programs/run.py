@@ -18,8 +18,10 @@ from models.commands import PiecewiseCommand
 from models.errors import InvalidParameter
 from optim.problem import TAIL_PERIODS, Problem, nice_period
 from optim.programs.cycle import AxisCycle, cycle
-from optim.programs.moves import MoveDesign, design_move
+from optim.programs.moves import MoveDesign
+from optim.programs.tables import check_kinds
 from optim.programs.types import Program, check_axes, check_moves
+from optim.programs.varying import VaryingFit, design_varying
 from optim.results import MetricsReport
 from optim.synthesis import limit_violations, simulated_metrics
 
@@ -43,6 +45,7 @@ class MoveOutcome:
     start_s: float
     settling_time_s: float | None
     axes: tuple[AxisOutcome, ...]
+    varying: VaryingFit | None = None
 
 
 @dataclass(frozen=True)
@@ -68,6 +71,7 @@ def check_program(program: Program) -> None:
             )
         if axis.table is None:
             continue
+        check_kinds(axis.table, f"axes[{i}].plant_table")
         j = program.axis_index(axis.table.coordinate)
         low, high = axis.table.low, axis.table.high
         name = program.axes[j].name
@@ -84,12 +88,18 @@ def check_program(program: Program) -> None:
                 )
 
 
-def design_moves(program: Program) -> tuple[MoveDesign, ...]:
-    return tuple(design_move(program, k) for k in range(len(program.moves)))
+def design_one(program: Program, k: int) -> tuple[MoveDesign, VaryingFit | None]:
+    """Move k's design (module-level: a worker process or a Dask worker runs it)."""
+    return design_varying(program, k)
 
 
-def assemble(program: Program, designs: Sequence[MoveDesign]) -> ProgramResult:
+def design_moves(program: Program) -> tuple[tuple[MoveDesign, VaryingFit | None], ...]:
+    return tuple(design_one(program, k) for k in range(len(program.moves)))
+
+
+def assemble(program: Program, designed: Sequence[tuple[MoveDesign, VaryingFit | None]]) -> ProgramResult:
     """The cycle of the designed moves: the commands end to end, simulated, and each move's figures."""
+    designs = [d for d, _ in designed]
     starts, axes = cycle(program, designs)
     warnings: list[str] = []
     moves = []
@@ -109,7 +119,8 @@ def assemble(program: Program, designs: Sequence[MoveDesign]) -> ProgramResult:
             outcomes.append(AxisOutcome(report, residual, residual / delta if delta else None))
         still = program.moves[k].still_at_stop
         settled = None if any(s is None for s in settling) else max((s for s in settling if s is not None), default=0.0)
-        moves.append(MoveOutcome(design, float(starts[k]), settled if still else None, tuple(outcomes)))
+        fit = designed[k][1]
+        moves.append(MoveOutcome(design, float(starts[k]), settled if still else None, tuple(outcomes), fit))
         warnings += [f"moves[{k}]: {w}" for w in design.warnings]
     return ProgramResult(program, float(starts[-1]), tuple(moves), axes, tuple(warnings))
 

@@ -19,8 +19,10 @@ import numpy as np
 from models.errors import DomainError, Infeasible, InvalidParameter, SolverFailed, SolverTimedOut
 from models.simulation import simulate
 from optim.families.time_optimal import Arc, Solution, Spec, Torque, command_of, solve
-from optim.families.time_optimal.arcs import exact_peaks
+from optim.families.time_optimal.arcs import exact_peaks, merged
+from optim.families.time_optimal.certify import certificate
 from optim.families.time_optimal.options import Robustness, TimeOptimalOptions, bands_of
+from optim.families.time_optimal.refine import newton
 from optim.families.time_optimal.report import (
     TimeOptimalExtras,
     TimeOptimalReport,
@@ -318,6 +320,46 @@ class TimeOptimalFamily(BaseFamily):
         report = SolverSummary.of_tally(solution.method, counts)
         block = design_report(problem, spec, options, solution, arcs, chosen)
         return Design(command, block, (*notes, *extra), report, detail=detail)
+
+    def redesign(self, problem: Problem, options: TimeOptimalOptions, previous: Design) -> Design | None:
+        """The design of ``problem`` from ``previous``'s arc structure (a design of a nearby problem: another mode,
+        the same limits and move) by Newton on its switching times (refine.newton), in milliseconds; None where
+        there is no such structure (a band, a grid answer), Newton does not converge or a limit breaks. Its lower
+        bound is the switching function's certificate where it proves the command minimum-time, else the rigid
+        floor (optim.programs' effective modes: many nearby designs)."""
+        detail = previous.detail
+        if not isinstance(detail, _TimeOptimalDetail) or options.robustness:
+            return None
+        chosen, _ = selected_modes(problem, options)
+        spec = spec_of(problem, options, chosen)
+        arcs = detail.solution.arcs
+        if len(chosen) != len(detail.modes) or spec.order != detail.solution.order:
+            return None
+        refined = newton(spec, [a.duration_s for a in arcs], [a.level / spec.scale for a in arcs])
+        if refined is None or not limits_met(problem, spec, refined.arcs) or excess(problem, spec, refined.arcs):
+            return None
+        total = sum(a.duration_s for a in refined.arcs)
+        proof = certificate(spec, merged(refined.arcs))
+        solution = replace(
+            detail.solution,
+            arcs=refined.arcs,
+            duration_s=total,
+            lower_bound_s=total if proof is not None else spec.floor_s,
+            lower_bound_method=proof.describe()
+            if proof is not None
+            else "kinematic floor (the rigid time-optimal move)",
+            method="refined",
+            refinement="Newton on a nearby design's switching times",
+            lp_solves=0,
+            lp_iterations=0,
+            notes=(),
+        )
+        sign = math.copysign(1.0, problem.move)
+        signed = tuple(replace(a, level=sign * a.level) for a in refined.arcs)
+        command = command_of(signed, spec.order, spec.rest_to_rest, tuple(sign * v for v in spec.start_state()))
+        block = design_report(problem, spec, options, solution, signed, chosen)
+        summary = SolverSummary("refined", 0, 0.0, 0)
+        return Design(command, block, (), summary, detail=_TimeOptimalDetail(solution, chosen, None, None))
 
     def _tradeoff(
         self, problem: Problem, options: TimeOptimalOptions, chosen: tuple[int, ...]

@@ -1,0 +1,162 @@
+"""Moves whose plant changes while they run: a design that leaves the true, position-dependent plant still.
+
+An axis whose mode follows a coordinate that moves during the move is a linear time-varying system: no design
+for a fixed plant leaves it exactly still (a band design bounds its residual, typically to 1e-4 of the move).
+Its residual where the move ends is linear in the command, and the family's command for a fixed mode (w, zeta)
+depends smoothly on (w, zeta): so there is an effective mode, near the modes the move passes through, whose
+design leaves the varying plant with no residual. It is found by Newton's method on the residuals of every such
+axis at once (the deflection and its rate over w, by models.varying_mode, relative to the axis's move), the
+Jacobian by finite differences; each evaluation designs the whole move (the path, or every axis and the
+synchronization), so limits hold by construction. Bounded in work: at most MAX_ITERATIONS Newton steps.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from models.commands import PiecewiseCommand
+from models.varying_mode import deflection
+from optim.programs.cycle import position_function
+from optim.programs.moves import Effective, MoveDesign, NoNearbyDesign, design_move, plant_of
+from optim.programs.tables import mode_function
+from optim.programs.types import Program
+
+Array = NDArray[np.float64]
+MAX_ITERATIONS = 8
+CONVERGED = 1e-11  # of the axis's move: the residual left (the integration's own error is about 1e-15 of it)
+STEP_RELATIVE = 1e-6  # the finite differences' step in w (relative) and in zeta (absolute, times 0.1)
+MIN_ZETA, MAX_ZETA = 0.0, 0.9
+
+
+@dataclass(frozen=True)
+class VaryingFit:
+    """How the effective modes were found: the Newton steps, the designs made, the residual left (of the move)."""
+
+    iterations: int
+    designs: int
+    residual: float
+    converged: bool
+
+
+def varying_axes(program: Program, k: int) -> list[int]:
+    """The axes that move in move k on a table whose coordinate moves too (their plant changes during the move)."""
+    out = []
+    start, target = program.stop(k), program.moves[k].target
+    for i, axis in enumerate(program.axes):
+        if axis.table is None or start[i] == target[i]:
+            continue
+        j = program.axis_index(axis.table.coordinate)
+        if start[j] != target[j]:
+            out.append(i)
+    return out
+
+
+def residuals(program: Program, k: int, design: MoveDesign, axes: list[int]) -> Array:
+    """Each axis's deflection where the move ends and its rate over w there, relative to the axis's move, on the
+    true plant (from rest at the stop)."""
+    out = []
+    start = program.stop(k)
+    for i in axes:
+        table = program.axes[i].table
+        command = design.axes[i].command
+        assert table is not None and command is not None
+        j = program.axis_index(table.coordinate)
+        coordinate = design.axes[j].command
+        mode_of_time = _mode_of_time(mode_function(table), coordinate, start[j])
+        end = design.duration_s
+        solved = deflection(command, mode_of_time, np.array([0.0, end]), np.array([]))
+        omega = mode_of_time(end)[0]
+        scale = abs(program.moves[k].target[i] - start[i])
+        out += [solved.deflection[-1] / scale, solved.rate[-1] / (omega * scale)]
+    return np.array(out)
+
+
+class _Moves:
+    """Move k designed for given effective modes of ``axes``, each design from the last one's structure (its
+    ``redesign``), with the residuals it leaves on the true plant; counts the designs."""
+
+    def __init__(self, program: Program, k: int, axes: list[int]) -> None:
+        self.program, self.k, self.axes = program, k, axes
+        self.last: MoveDesign | None = None
+        self.designs = 0
+
+    def __call__(self, point: Array) -> tuple[MoveDesign, Array]:
+        self.designs += 1
+        effective: Effective = {i: (float(point[2 * n]), float(point[2 * n + 1])) for n, i in enumerate(self.axes)}
+        design = design_move(self.program, self.k, effective, self.last)
+        return design, residuals(self.program, self.k, design, self.axes)
+
+
+def _mode_of_time(
+    mode: Callable[[float], tuple[float, float]], coordinate: PiecewiseCommand | None, rest: float
+) -> Callable[[float], tuple[float, float]]:
+    """t -> the mode where the coordinate is at t (its command, or ``rest`` where it stays)."""
+    if coordinate is None:
+        fixed = mode(rest)
+        return lambda _t: fixed
+    place = position_function(coordinate)
+    return lambda t: mode(place(t))
+
+
+def design_varying(program: Program, k: int) -> tuple[MoveDesign, VaryingFit | None]:
+    """Move k's design, with every varying axis designed for its effective mode (see the module's docstring);
+    the band design (with a warning) where Newton does not converge or the family's designs do not follow the
+    mode smoothly (a grid answer); unchanged where no axis varies or the load need not be still."""
+    axes = varying_axes(program, k)
+    if not axes or not program.moves[k].still_at_stop:
+        return design_move(program, k), None
+    start = []
+    for i in axes:
+        mode = plant_of(program, i, k)[0].modes()[0]  # the plant at the stop: the first guess
+        start += [mode.natural_frequency_rad_s, mode.damping_ratio]
+    moves = _Moves(program, k, axes)
+    worst = math.inf
+    try:
+        point = np.array(start)
+        design, r = moves(point)
+        moves.last = design
+        for iteration in range(MAX_ITERATIONS + 1):
+            worst = float(np.max(np.abs(r)))
+            if worst <= CONVERGED:
+                return design, VaryingFit(iteration, moves.designs, worst, True)
+            if iteration == MAX_ITERATIONS:
+                break
+            step = _newton_step(moves, point, r)
+            if step is None:
+                break
+            point = step
+            design, r = moves(point)
+            moves.last = design
+    except NoNearbyDesign:
+        pass
+    note = (
+        f"the plant changes during the move and no effective mode left it still within {MAX_ITERATIONS} Newton "
+        f"steps{'' if math.isinf(worst) else f' ({worst:.2g} of the move left)'}: the design for the plant at the "
+        "stop, robust over the band"
+    )
+    base = design_move(program, k)
+    return replace(base, warnings=(*base.warnings, note)), VaryingFit(MAX_ITERATIONS, moves.designs + 1, worst, False)
+
+
+def _newton_step(moves: _Moves, point: Array, r: Array) -> Array | None:
+    """The next effective modes: Newton's step, the Jacobian by forward differences (one design per unknown);
+    None where it leaves the modes' domain."""
+    jacobian = np.empty((r.size, point.size))
+    for c in range(point.size):
+        step = STEP_RELATIVE * point[c] if c % 2 == 0 else 0.1 * STEP_RELATIVE
+        moved = point.copy()
+        moved[c] += step
+        jacobian[:, c] = (moves(moved)[1] - r) / step
+    out = point + np.linalg.lstsq(jacobian, -r, rcond=None)[0]
+    out[1::2] = np.clip(out[1::2], MIN_ZETA, MAX_ZETA)
+    if not np.all(np.isfinite(out)) or np.any(out[0::2] <= 0.0):
+        return None
+    return out
+
+
+__all__ = ["VaryingFit", "design_varying"]

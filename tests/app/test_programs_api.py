@@ -1,0 +1,102 @@
+"""POST /v1/programs over HTTP: the answer's blocks against the core and closed forms, the CSV cam table, the
+NDJSON progress and the inputs refused (a 422 naming the field and index)."""
+
+from __future__ import annotations
+
+import copy
+import io
+from typing import Any
+
+import numpy as np
+import orjson
+import pytest
+from fastapi.testclient import TestClient
+
+from app.examples.programs import EXAMPLES
+
+LINE = EXAMPLES["straight_line"]["value"]
+
+
+def test_the_straight_line_example_is_still_at_every_stop_and_adds_up(client: TestClient) -> None:
+    """Every stop's residual is round-off (the designs cancel every mode; exact simulation); the cycle time is the
+    moves and dwells end to end; the path's limits are the axes' over |u_i| (u = (3, 1) / sqrt(10))."""
+    answer = client.post("/v1/programs", json=LINE)
+    assert answer.status_code == 200, answer.text
+    body = answer.json()
+    moves = body["moves"]
+    assert body["cycle_time_s"] == pytest.approx(sum(m["duration_s"] + m["dwell_s"] for m in moves), rel=1e-12)
+    assert moves[1]["start_s"] == pytest.approx(moves[0]["duration_s"] + 0.2, rel=1e-12)
+    u = np.array([3.0, 1.0]) / np.sqrt(10.0)
+    assert moves[0]["path"]["max_velocity"] == pytest.approx(min(1.0 / u[0], 0.8 / u[1]), rel=1e-12)
+    assert moves[0]["path"]["length"] == pytest.approx(np.hypot(0.3, 0.1), rel=1e-12)
+    limits = {a["name"]: a["limits"] for a in LINE["axes"]}
+    for move in moves:
+        for name, axis in move["axes"].items():
+            assert axis["stop_residual_fraction"] < 1e-12
+            for quantity in ("velocity", "acceleration"):  # each axis within its own limits (1e-9: round-off)
+                assert axis["metrics"][f"peak_{quantity}"] <= limits[name][f"max_{quantity}"] * (1 + 1e-9)
+    # the profile ends at the last stop and the recipes are all there, none shorter than a time-optimal cycle
+    # of synchronized moves would allow by more than the straight line's price (both modes on one path)
+    assert body["axes"]["x"]["profile"]["position"][-1] == pytest.approx(0.0, abs=1e-12)
+    assert [r["method"] for r in body["comparison"]] == ["ruckig_zv", "ruckig_zvd", "klipper_mzv", "klipper_ei"]
+    assert all(r["cycle_time_ratio"] > 0.9 for r in body["comparison"])
+
+
+def test_the_cam_table_is_the_profile_on_a_uniform_grid(client: TestClient) -> None:
+    """format=csv: time_s = k * period exactly, one column per axis, each the JSON profile's position where the
+    two grids meet (the profile's samples are the same exact commands)."""
+    table = client.post("/v1/programs?format=csv", json=LINE)
+    assert table.status_code == 200 and table.headers["content-type"].startswith("text/csv")
+    lines = table.text.splitlines()
+    assert lines[0].startswith("# machine program") and lines[1] == "time_s,x,y"
+    values = np.loadtxt(io.StringIO("\n".join(lines[2:])), delimiter=",")
+    period = float(values[1, 0] - values[0, 0])
+    assert np.allclose(values[:, 0], np.arange(values.shape[0]) * period, rtol=0, atol=1e-12)
+    profile = client.post("/v1/programs", json=LINE).json()["axes"]
+    for column, name in ((1, "x"), (2, "y")):
+        t = np.asarray(profile[name]["profile"]["time_s"])
+        p = np.asarray(profile[name]["profile"]["position"])
+        common, a, b = np.intersect1d(np.round(values[:, 0], 12), np.round(t, 12), return_indices=True)
+        assert common.size > 100
+        assert np.max(np.abs(values[a, column] - p[b])) <= 1e-12
+
+
+def test_ndjson_reports_each_move_then_the_program(client: TestClient) -> None:
+    answer = client.post("/v1/programs?format=ndjson", json=LINE)
+    assert answer.status_code == 200 and answer.headers["content-type"].startswith("application/x-ndjson")
+    lines = [orjson.loads(x) for x in answer.content.splitlines()]
+    assert [x["line"] for x in lines] == ["move", "move", "program"]
+    assert sorted(x["index"] for x in lines[:2]) == [0, 1] and lines[-1]["cycle_time_s"] > 0
+
+
+def _with(change: Any) -> dict[str, Any]:
+    body = copy.deepcopy(LINE)
+    change(body)
+    return body
+
+
+def _table(body: dict[str, Any], ats: list[float]) -> None:
+    body["axes"][1]["plant_table"] = {
+        "coordinate": "x",
+        "points": [{"at": a, "plant": {"kind": "mode", "natural_frequency_hz": 7.0 + a}} for a in ats],
+    }
+    del body["axes"][1]["plant"]
+
+
+@pytest.mark.parametrize(
+    ("change", "field", "words"),
+    [
+        (lambda b: b["axes"][1].update(name="x"), "axes[1].name", "names axes[0]"),
+        (lambda b: b["moves"][0]["target"].pop("y"), "moves[0].target", "missing axes y"),
+        (lambda b: b["moves"][1]["target"].update(z=0.0), "moves[1].target", "unknown axes z"),
+        (lambda b: b["start"].update(z=0.0), "start", "unknown axes z"),
+        (lambda b: _table(b, [0.0, 0.2, 0.1]), "axes[1].plant_table.points[2].at", "strictly increasing"),
+        (lambda b: _table(b, [0.0, 0.2]), "moves[0].target.x", "outside axes[1].plant_table's range"),
+        (lambda b: b["axes"][0].pop("plant"), "axes[0].plant", "plant or plant_table"),
+    ],
+)
+def test_bad_programs_are_a_422_naming_the_field(client: TestClient, change: Any, field: str, words: str) -> None:
+    answer = client.post("/v1/programs", json=_with(change))
+    assert answer.status_code == 422, answer.text
+    problem = answer.json()
+    assert problem["field"] == field and words in problem["detail"], problem
