@@ -173,6 +173,18 @@ def identify(record: str | bytes, *, settings: Settings | None = None, **params:
     return answer
 
 
+def program(request: Mapping[str, Any] | str | bytes, *, settings: Settings | None = None) -> dict[str, Any]:
+    """A machine program (several axes, a cycle of moves), as ``POST /v1/programs`` (its JSON answer); the moves
+    are designed here, one after the other."""
+    from app.schemas.programs import ProgramIn
+    from app.services import programs as program_service
+
+    body = _validate(ProgramIn, request)
+    here = InlineExecutor()
+    answer, _ = _run(program_service.answer(body, settings or get_settings(), here, here))
+    return answer
+
+
 @dataclass(frozen=True)
 class Sweep:
     """A design sweep's NDJSON lines, as ``POST /v1/sweeps`` streams them (``line``: row, check, summary)."""

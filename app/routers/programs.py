@@ -17,13 +17,16 @@ from app.json_bodies import JSONRoute
 from app.responses import CSV_MEDIA_TYPE, NumpyJSONResponse, csv_rows, wants_csv
 from app.schemas.programs import ProgramIn, ProgramOut
 from app.services import programs as use_case
+from optim.programs import Program
 
 router = APIRouter(prefix="/v1", tags=["programs"], route_class=JSONRoute)
 NDJSON = "application/x-ndjson"
 
 
-async def _lines(body: ProgramIn, settings: SettingsDep, pool: PoolDep, threads: ThreadsDep) -> AsyncIterator[bytes]:
-    async for line in use_case.progress(body, settings, pool, threads):
+async def _lines(
+    body: ProgramIn, program: Program, settings: SettingsDep, pool: PoolDep, threads: ThreadsDep
+) -> AsyncIterator[bytes]:
+    async for line in use_case.progress(body, program, settings, pool, threads):
         yield orjson.dumps(line, option=orjson.OPT_SERIALIZE_NUMPY) + b"\n"
 
 
@@ -38,7 +41,8 @@ async def _lines(body: ProgramIn, settings: SettingsDep, pool: PoolDep, threads:
                 NDJSON: {"schema": {"type": "string"}},
             },
             "description": "JSON (default); format=csv: the cam table, one column per axis; format=ndjson: a `move` "
-            "line per move as it is designed, then the `program` line (the JSON answer).",
+            "line per move as it is designed, then the `program` line (the JSON answer), or a `problem` line (the "
+            "problem+json) where a move has no design.",
         },
         **problems.responses(413, 422, 503, 504),
     },
@@ -69,7 +73,8 @@ async def program(
     ZVD at each stop's true modes, and by Klipper's mzv and ei at one frequency per axis, each run through the same
     checks. format=csv: the cam table (time_s and each axis's motor position at t_k = k * period exactly)."""
     if format == "ndjson" or (format is None and NDJSON in request.headers.get("accept", "")):
-        return StreamingResponse(_lines(body, settings, pool, threads), media_type=NDJSON)
+        program = await use_case.program_of(body, settings, pool)  # a bad program is a 422 before the lines
+        return StreamingResponse(_lines(body, program, settings, pool, threads), media_type=NDJSON)
     answer, result = await use_case.answer(body, settings, pool, threads)
     if format == "csv" or (format is None and wants_csv(request)):
         columns, values, period = use_case.cam_table(result)

@@ -13,11 +13,14 @@ from typing import Any
 
 import anyio.to_thread
 import numpy as np
+import orjson
 
+from app import problems
 from app.presenters import present
 from app.schemas.programs import ProgramIn
 from app.services.sweeps import capacity_of
 from app.settings import Settings
+from models.errors import DomainError
 from optim import sweeps as engine
 from optim.programs import Program, ProgramResult, assemble, check_program
 from optim.programs.compare import RecipeRow, compare
@@ -88,10 +91,21 @@ async def answer(
 
 
 async def progress(
-    body: ProgramIn, settings: Settings, pool: Executor, threads: Executor
+    body: ProgramIn, program: Program, settings: Settings, pool: Executor, threads: Executor
 ) -> AsyncIterator[dict[str, Any]]:
-    """NDJSON lines: a ``move`` line per move as its design finishes, then the ``program`` line (the answer)."""
-    program = await program_of(body, settings, pool)
+    """NDJSON lines for a checked program (``program_of``, before the answer starts): a ``move`` line per move as
+    its design finishes, then the ``program`` line (the answer); a move without a design ends the lines with a
+    ``problem`` line (the problem+json the JSON answer would be)."""
+    try:
+        async for line in _progress(body, program, settings, pool, threads):
+            yield line
+    except DomainError as exc:
+        yield {"line": "problem", **orjson.loads(problems.domain_problem(exc).body)}
+
+
+async def _progress(
+    body: ProgramIn, program: Program, settings: Settings, pool: Executor, threads: Executor
+) -> AsyncIterator[dict[str, Any]]:
     found: dict[int, Designed] = {}
     async for k, done, seconds in designed_moves(program, pool, settings):
         found[k] = done

@@ -17,15 +17,16 @@ the rigid time-optimal move (Ruckig), nothing cancelled.
 
 from __future__ import annotations
 
+import contextlib
 import math
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from models.commands import MIN_STEP_S, PiecewiseCommand
-from models.errors import InvalidParameter
+from models.errors import Infeasible, InvalidParameter, NotApplicable
 from models.plants import ModePlant, Plant, TransferFunctionPlant
 from optim.families.time_optimal.options import Robustness, TimeOptimalOptions
 from optim.family import Design, SolverSummary
@@ -123,6 +124,18 @@ def _problem(program: Program, plant: Plant, move: float, limits: Limits) -> Pro
     )
 
 
+@contextlib.contextmanager
+def named(field: str) -> Iterator[None]:
+    """A design's error named by the program's field it comes from (``moves[k].target.x``: the axis's move there;
+    ``moves[k]``: a straight line), its own field after it in the rule."""
+    try:
+        yield
+    except InvalidParameter as exc:
+        raise InvalidParameter(field, exc.value, f"{exc.field}: {exc.rule}" if exc.field else exc.rule) from None
+    except (Infeasible, NotApplicable) as exc:
+        raise type(exc)(f"{field}: {exc.reason}", field) from None
+
+
 class NoNearbyDesign(ArithmeticError):
     """A design asked from a previous one's structure does not exist (a grid answer, or Newton diverged): the
     designs would not change smoothly with the mode, which optim.programs.varying relies on."""
@@ -218,7 +231,8 @@ def design_move(
         plant, band = plant_of(program, i, k, effective)
         problem = _problem(program, plant, deltas[i], axis.limits)
         prior = None if previous is None else previous.axes[i].design
-        done = _designed(program, problem, band, move.still_at_stop, prior)
+        with named(f"moves[{k}].target.{axis.name}"):
+            done = _designed(program, problem, band, move.still_at_stop, prior)
         own = _absolute(done.command, start[i])
         designs[i] = AxisMove(
             axis.name, own, plant, done.summary, done.solver, band, None, i in chosen, done.design, own
@@ -289,10 +303,8 @@ def _straight(
     plant = path_plant([p for p, _ in plants_bands.values()])
     problem = _problem(program, plant, length, limits)
     prior = None if previous is None else previous.axes[moving[0]].design
-    try:
+    with named(f"moves[{k}]"):
         done = _designed(program, problem, band, move.still_at_stop, prior)
-    except InvalidParameter as exc:
-        raise InvalidParameter(f"moves[{k}].{exc.field}" if exc.field else f"moves[{k}]", exc.value, exc.rule) from None
     names = program.names
     path = PathReport(
         length,
