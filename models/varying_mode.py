@@ -51,15 +51,35 @@ def free_amplitude(
     return np.asarray(np.hypot(deflection, (rate + zeta * omega_rad_s * deflection) / damped), dtype=float)
 
 
+def free_states(
+    state: NDArray[np.float64], omega_rad_s: float, zeta: float, dt_s: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """(e, e') a time dt after (e0, e0') = ``state`` on a mode that does not change and a motor at rest: the free
+    damped vibration, e = exp(-sigma t)(A cos w_d t + B sin w_d t), in closed form (shape (2, dt.size))."""
+    sigma = zeta * omega_rad_s
+    damped = omega_rad_s * math.sqrt(1.0 - zeta * zeta)
+    a, b = state[0], (state[1] + sigma * state[0]) / damped
+    decay, c, s = np.exp(-sigma * dt_s), np.cos(damped * dt_s), np.sin(damped * dt_s)
+    e = decay * (a * c + b * s)
+    rate = decay * ((b * damped - sigma * a) * c - (a * damped + sigma * b) * s)
+    return np.vstack((e, rate))
+
+
 def deflection(
-    command: PiecewiseCommand, mode_of_time: ModeOfTime, time_s: NDArray[np.float64], breaks_s: NDArray[np.float64]
+    command: PiecewiseCommand,
+    mode_of_time: ModeOfTime,
+    time_s: NDArray[np.float64],
+    breaks_s: NDArray[np.float64],
+    still_s: tuple[tuple[float, float], ...] = (),
 ) -> Deflection:
     """The deflection at the instants ``time_s`` (increasing) of the mode driven by ``command``, from rest at
     ``time_s[0]`` (the motor at rest there, the load still), its parameters ``mode_of_time(t)``; ``breaks_s``:
-    where the mode's parameters have corners (the command's breakpoints are added)."""
+    where the mode's parameters have corners (the command's breakpoints are added). On the intervals of ``still_s``
+    the motor and the mode do not change (the dwells at a machine's stops): there the free vibration is carried in
+    closed form (``free_states``), so that their length costs no integration."""
     t = np.asarray(time_s, dtype=float)
     start_s, end_s = float(t[0]), float(t[-1])
-    cuts = np.concatenate(([start_s, end_s], command.time_s, breaks_s))
+    cuts = np.concatenate(([start_s, end_s], command.time_s, breaks_s, [x for pair in still_s for x in pair]))
     cuts = np.unique(cuts[(cuts >= start_s) & (cuts <= end_s)])
     w_end = mode_of_time(end_s)[0]
     atol = 1e-3 * RTOL * max(command.max_abs(2), 1e-300) / (w_end * w_end)  # of the deflection a'' causes
@@ -69,6 +89,12 @@ def deflection(
     for a, b in itertools.pairwise(cuts):
         lo, hi = np.searchsorted(t, a, side="left"), np.searchsorted(t, b, side="left")  # the instants in [a, b)
         wanted = np.append(t[lo:hi], b)  # and the piece's end, where the next starts
+        if any(u <= a and b <= v for u, v in still_s):
+            w, zeta = mode_of_time(float(a))
+            states = free_states(state, w, zeta, wanted - a)
+            out[:, lo:hi] = states[:, :-1]
+            state = states[:, -1]
+            continue
         # each piece is smooth (motor'' one polynomial on it): the integrator never steps across a corner
         solution = solve_ivp(
             _equation(command, mode_of_time, float(a)),

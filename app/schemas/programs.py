@@ -190,10 +190,11 @@ class AxisSeriesOut(OutModel):
 
 class RecipeRowOut(OutModel):
     method: str
-    cycle_time_s: float
-    cycle_time_ratio: float = Field(description="The recipe's cycle time over the program's.")
-    max_stop_residual_fraction: float = Field(description="The largest residual it leaves at a still stop.")
+    cycle_time_s: float | None = Field(description="null: the recipe has no answer here (reason).")
+    cycle_time_ratio: float | None = Field(description="The recipe's cycle time over the program's.")
+    max_stop_residual_fraction: float | None = Field(description="The largest residual it leaves at a still stop.")
     description: str
+    reason: str | None = Field(None, description="Why the recipe has no answer (Ruckig refused the limits).")
 
 
 class ProgramOut(OutModel):

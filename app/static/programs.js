@@ -124,7 +124,7 @@ function show(answer) {
   for (const row of answer.comparison) {
     const tr = document.createElement("tr");
     cell(tr, row.method, "row");
-    cell(tr, fixed(row.cycle_time_s, 4));
+    cell(tr, row.cycle_time_s === null ? row.reason : fixed(row.cycle_time_s, 4));
     cell(tr, fixed(row.cycle_time_ratio, 3));
     cell(tr, sci(row.max_stop_residual_fraction));
     tbody.appendChild(tr);

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from models.commands import PiecewiseCommand
+from models.errors import DomainError
 from models.plants import Plant
 from models.rigid_motion import synchronized_moves
 from models.shapers import ImpulseSequence, convolve, shape_command, zv_family
@@ -35,10 +36,11 @@ Shaper = Callable[[int, int], ImpulseSequence]  # (move, axis) -> the axis's sha
 @dataclass(frozen=True)
 class RecipeRow(Block):
     method: str
-    cycle_time_s: float
-    cycle_time_ratio: float  # this recipe's cycle time over the program's
-    max_stop_residual_fraction: float  # the largest residual any stop is left with, of the axis's move there
+    cycle_time_s: float | None  # None: the recipe has no answer (``reason``)
+    cycle_time_ratio: float | None  # this recipe's cycle time over the program's
+    max_stop_residual_fraction: float | None  # the largest residual any still stop is left with, of its move
     description: str
+    reason: str | None = None
 
 
 def _per_mode(plant: Plant, derivatives: int) -> ImpulseSequence:
@@ -115,8 +117,12 @@ def compare(program: Program, cycle_time_s: float) -> tuple[RecipeRow, ...]:
     """One row per recipe (RECIPES), run through the program's own cycle and checks."""
     rows = []
     for name, (make, description) in RECIPES.items():
-        designs = recipe_moves(program, make(program))
-        starts, axes = cycle(program, designs)
+        try:
+            designs = recipe_moves(program, make(program))
+            starts, axes = cycle(program, designs)
+        except (ValueError, DomainError) as exc:  # Ruckig refuses the limits; the true plant's simulation is too long
+            rows.append(RecipeRow(name, None, None, None, description, str(exc)))
+            continue
         worst = 0.0
         for k, move in enumerate(program.moves):
             for i, axis in enumerate(axes):

@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from models.commands import MIN_STEP_S, PiecewiseCommand
-from models.errors import InvalidParameter
+from models.errors import InvalidParameter, SolverFailed
 from models.plants import Plant
 from models.simulation import simulate
 from models.varying_mode import deflection, free_amplitude
@@ -27,6 +27,7 @@ from optim.problem import DEFAULT_SAMPLES, TAIL_PERIODS, nice_period
 from optim.programs.moves import MoveDesign
 from optim.programs.tables import mode_function
 from optim.programs.types import Program
+from optim.solver import SolverReport
 
 Array = NDArray[np.float64]
 
@@ -126,7 +127,11 @@ def axis_cycle(program: Program, designs: Sequence[MoveDesign], i: int, starts: 
     def mode_of_time(time: float) -> tuple[float, float]:
         return mode_at_coordinate(position(time))
 
-    solved = deflection(command, mode_of_time, t, coordinate.time_s)
+    still = tuple((float(end), float(start)) for end, start in zip(stop_ends, starts[1:], strict=True) if start > end)
+    try:
+        solved = deflection(command, mode_of_time, t, coordinate.time_s, (*still, (float(starts[-1]), float(t[-1]))))
+    except ArithmeticError as exc:  # DOP853 failed (it does not on a mode and a piecewise-polynomial command)
+        raise SolverFailed(SolverReport("integration_failed", 0, 0.0), str(exc)) from None
     modes = [mode_of_time(float(s)) for s in stop_ends]
     at = np.searchsorted(t, stop_ends)
     residuals = free_amplitude(
@@ -176,7 +181,28 @@ def tail_s(program: Program, designs: Sequence[MoveDesign]) -> float:
     return TAIL_PERIODS * max(periods, default=0.0)
 
 
+MAX_VARYING_PERIODS = 20_000  # periods of a table's fastest mode integrated per cycle, at most (about 10 s)
+
+
+def check_varying_work(program: Program, designs: Sequence[MoveDesign]) -> None:
+    """Bound the true plant's integration in units of work: the moves' durations (dwells are carried in closed
+    form) times the fastest frequency of any table, at most MAX_VARYING_PERIODS; else a 422 naming ``moves``."""
+    tables = [a.table for a in program.axes if a.table is not None]
+    if not tables:
+        return
+    fastest = max(p.plant.modes()[0].natural_frequency_hz for table in tables for p in table.points)
+    periods = sum(d.duration_s for d in designs) * fastest * len(tables)
+    if periods > MAX_VARYING_PERIODS:
+        raise InvalidParameter(
+            "moves",
+            len(program.moves),
+            f"the moves last {periods:.3g} periods of the tables' modes in all: the true plant's simulation takes at "
+            f"most {MAX_VARYING_PERIODS} (fewer or shorter moves)",
+        )
+
+
 def cycle(program: Program, designs: Sequence[MoveDesign]) -> tuple[Array, tuple[AxisCycle, ...]]:
+    check_varying_work(program, designs)
     starts = move_starts(program, designs)
     tail = tail_s(program, designs)
     return starts, tuple(axis_cycle(program, designs, i, starts, tail) for i in range(len(program.axes)))

@@ -76,6 +76,7 @@ class AxisMove:
     effective: bool = False  # designed for an effective mode that leaves the true, varying plant still
     design: Design | None = None  # the family's design (a nearby move's redesign starts from it)
     own: PiecewiseCommand | None = None  # the axis's own command before synchronization (absolute)
+    second: Design | None = None  # a stretched axis's delayed half, where designed for a mode of its own
 
 
 @dataclass(frozen=True)
@@ -93,7 +94,9 @@ def coordinate_span(program: Program, k: int, coordinate: str) -> tuple[float, f
     return program.stop(k)[j], program.moves[k].target[j]
 
 
-Effective = Mapping[int, tuple[float, float]]  # axis -> (w rad/s, zeta) the design is made for instead
+# axis -> (w rad/s, zeta) the design is made for instead; a synchronized axis that is stretched may give a second
+# pair, for the delayed half of its command (each half then leaves the true plant what the other cancels)
+Effective = Mapping[int, tuple[float, ...]]
 
 
 def plant_of(
@@ -103,7 +106,7 @@ def plant_of(
     where ``effective`` names the axis, a mode of that frequency and damping ratio instead, and no band."""
     axis = program.axes[i]
     if effective is not None and i in effective:
-        omega, zeta = effective[i]
+        omega, zeta = effective[i][:2]
         return ModePlant(omega / (2.0 * math.pi), zeta), None
     if axis.table is None:
         return axis.plant, None
@@ -189,16 +192,18 @@ def _absolute(command: PiecewiseCommand, start: float, scale: float = 1.0) -> Pi
     return PiecewiseCommand(command.time_s.copy(), derivatives, command.continuous_orders)
 
 
-def stretched(command: PiecewiseCommand, end_s: float) -> PiecewiseCommand:
-    """(p(t) + p(t - delta)) / 2 with delta = end_s - p's end: the same move ending at ``end_s``. Both halves
-    start from p's start at rest; the result is exact (every breakpoint of both kept)."""
-    delta = end_s - float(command.time_s[-1])
-    times = np.sort(np.concatenate((command.time_s, command.time_s + delta)))
+def stretched(command: PiecewiseCommand, end_s: float, late: PiecewiseCommand | None = None) -> PiecewiseCommand:
+    """(p(t) + q(t - delta)) / 2 with q = ``late`` (default p) and delta = end_s - q's end: the same move (p and q
+    are moves between the same positions) ending at ``end_s``. Both halves start at rest; the result is exact
+    (every breakpoint of both kept)."""
+    second = command if late is None else late
+    delta = end_s - float(second.time_s[-1])
+    times = np.sort(np.concatenate((command.time_s, second.time_s + delta)))
     times = times[np.concatenate(([True], np.diff(times) > MIN_STEP_S))]  # a breakpoint of both halves once
-    orders = command.degree + 1
+    orders = max(command.degree, second.degree) + 1
     # each instant on the piece of its nearest breakpoint (t + delta - delta is t only to round-off)
-    rows = 0.5 * (command.evaluate_at_instants(times, orders) + command.evaluate_at_instants(times - delta, orders))
-    return PiecewiseCommand(times, rows, command.continuous_orders)
+    rows = 0.5 * (command.evaluate_at_instants(times, orders) + second.evaluate_at_instants(times - delta, orders))
+    return PiecewiseCommand(times, rows, min(command.continuous_orders, second.continuous_orders))
 
 
 def design_move(
@@ -244,7 +249,18 @@ def design_move(
             own_s = _end_s(axis_move)
             if own_s < duration * (1.0 - SAME_TIME_RTOL):
                 assert axis_move.command is not None
-                designs[i] = replace(axis_move, command=stretched(axis_move.command, duration), stretched_from_s=own_s)
+                late, second = None, None
+                if len(chosen.get(i, ())) == 4:  # the delayed half designed for a mode of its own
+                    omega, zeta = chosen[i][2:]
+                    half = _problem(
+                        program, ModePlant(omega / (2.0 * math.pi), zeta), deltas[i], program.axes[i].limits
+                    )
+                    prior = None if previous is None else previous.axes[i].second
+                    with named(f"moves[{k}].target.{axis_move.axis}"):
+                        done = _designed(program, half, None, move.still_at_stop, prior)
+                    late, second = _absolute(done.command, start[i]), done.design
+                command = stretched(axis_move.command, duration, late)
+                designs[i] = replace(axis_move, command=command, stretched_from_s=own_s, second=second)
     axes = tuple(designs.get(i) or _staying(program, i, k) for i in range(len(program.axes)))
     return MoveDesign(k, duration, axes, None, tuple(warnings))
 

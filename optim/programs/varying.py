@@ -31,6 +31,9 @@ MAX_ITERATIONS = 8
 CONVERGED = 1e-11  # of the axis's move: the residual left (the integration's own error is about 1e-15 of it)
 STEP_RELATIVE = 1e-6  # the finite differences' step in w (relative) and in zeta (absolute, times 0.1)
 MIN_ZETA, MAX_ZETA = 0.0, 0.9
+HALVINGS = 4  # a Newton step is halved at most this often before the search gives up
+MAX_STEP = 0.2  # of a frequency, at most, in one step
+MAX_ZETA_STEP = 0.05  # of a damping ratio, at most, in one step
 
 
 @dataclass(frozen=True)
@@ -82,13 +85,27 @@ class _Moves:
 
     def __init__(self, program: Program, k: int, axes: list[int]) -> None:
         self.program, self.k, self.axes = program, k, axes
+        # per axis two unknowns: (w, zeta), or for a synchronized axis that is stretched its two halves' w (each
+        # half sees the plant at other times: a mode each), their zeta held at ``zetas``' (the plant's at the stop)
+        self.split = [False] * len(axes)
+        self.zetas = [0.0] * len(axes)
         self.last: MoveDesign | None = None
         self.designs = 0
 
+    def frequency(self, size: int) -> NDArray[np.bool_]:
+        """Which unknowns are frequencies (the others damping ratios)."""
+        return np.array([c % 2 == 0 or self.split[c // 2] for c in range(size)])
+
+    def effective(self, point: Array) -> Effective:
+        out: dict[int, tuple[float, ...]] = {}
+        for n, i in enumerate(self.axes):
+            a, b = float(point[2 * n]), float(point[2 * n + 1])
+            out[i] = (a, self.zetas[n], b, self.zetas[n]) if self.split[n] else (a, b)
+        return out
+
     def __call__(self, point: Array) -> tuple[MoveDesign, Array]:
         self.designs += 1
-        effective: Effective = {i: (float(point[2 * n]), float(point[2 * n + 1])) for n, i in enumerate(self.axes)}
-        design = design_move(self.program, self.k, effective, self.last)
+        design = design_move(self.program, self.k, self.effective(point), self.last)
         return design, residuals(self.program, self.k, design, self.axes)
 
 
@@ -104,36 +121,32 @@ def _mode_of_time(
 
 
 def design_varying(program: Program, k: int) -> tuple[MoveDesign, VaryingFit | None]:
-    """Move k's design, with every varying axis designed for its effective mode (see the module's docstring);
-    the band design (with a warning) where Newton does not converge or the family's designs do not follow the
-    mode smoothly (a grid answer); unchanged where no axis varies or the load need not be still."""
+    """Move k's design, with every varying axis designed for its effective mode (see the module's docstring): one
+    mode an axis first, and where a synchronized axis is stretched and that fails, one for each of its halves;
+    the band design (with a warning) where neither converges or the family's designs do not follow the mode
+    smoothly (a grid answer); unchanged where no axis varies or the load need not be still."""
     axes = varying_axes(program, k)
     if not axes or not program.moves[k].still_at_stop:
         return design_move(program, k), None
-    start = []
+    start: list[float] = []
     for i in axes:
         mode = plant_of(program, i, k)[0].modes()[0]  # the plant at the stop: the first guess
         start += [mode.natural_frequency_rad_s, mode.damping_ratio]
     moves = _Moves(program, k, axes)
-    worst = math.inf
-    try:
-        point = np.array(start)
-        design, r = moves(point)
-        moves.last = design
-        for iteration in range(MAX_ITERATIONS + 1):
-            worst = float(np.max(np.abs(r)))
-            if worst <= CONVERGED:
-                return design, VaryingFit(iteration, moves.designs, worst, True)
-            if iteration == MAX_ITERATIONS:
-                break
-            step = _newton_step(moves, point, r)
-            if step is None:
-                break
-            point = step
-            design, r = moves(point)
-            moves.last = design
-    except NoNearbyDesign:
-        pass
+    moves.zetas = start[1::2]
+    worst, stretched = math.inf, False
+    for split in (False, True):
+        if split and not stretched:
+            break
+        moves.split, moves.last = [split] * len(axes), None
+        try:
+            found, residual, stretched_axes = _search(moves, start)
+        except NoNearbyDesign:
+            break
+        stretched = stretched or any(stretched_axes)
+        if found is not None:
+            return found
+        worst = min(worst, residual)
     note = (
         f"the plant changes during the move and no effective mode left it still within {MAX_ITERATIONS} Newton "
         f"steps{'' if math.isinf(worst) else f' ({worst:.2g} of the move left)'}: the design for the plant at the "
@@ -143,18 +156,61 @@ def design_varying(program: Program, k: int) -> tuple[MoveDesign, VaryingFit | N
     return replace(base, warnings=(*base.warnings, note)), VaryingFit(MAX_ITERATIONS, moves.designs + 1, worst, False)
 
 
+def _search(moves: _Moves, start: list[float]) -> tuple[tuple[MoveDesign, VaryingFit] | None, float, list[bool]]:
+    """Newton from the modes at the stop (``moves.split``: a stretched axis's two halves' frequencies instead of
+    its frequency and damping ratio): the design and its fit where it converges, the residual left, and which axes
+    were stretched."""
+    axes = moves.axes
+    point = np.array(start)
+    design, r = moves(point)
+    stretched = [design.axes[i].stretched_from_s is not None for i in axes]
+    moves.split = [s and split for s, split in zip(stretched, moves.split, strict=True)]
+    if any(moves.split):
+        point = np.array(
+            [v for n in range(len(axes)) for v in (start[2 * n], start[2 * n + (0 if moves.split[n] else 1)])]
+        )
+        design, r = moves(point)
+    moves.last = design
+    worst = float(np.max(np.abs(r)))
+    for iteration in range(MAX_ITERATIONS + 1):
+        worst = float(np.max(np.abs(r)))
+        if worst <= CONVERGED:
+            return (design, VaryingFit(iteration, moves.designs, worst, True)), worst, stretched
+        if iteration == MAX_ITERATIONS:
+            break
+        target = _newton_step(moves, point, r)
+        if target is None:
+            break
+        reach = np.where(moves.frequency(point.size), MAX_STEP * np.abs(point), MAX_ZETA_STEP)
+        for _ in range(HALVINGS + 1):  # backtracking: a step that does not lower the residual, or whose design is
+            trial = point + np.clip(target - point, -reach, reach)  # not near the last one's, is halved
+            try:
+                trial_design, trial_r = moves(trial)
+            except NoNearbyDesign:
+                trial_r = None
+            if trial_r is not None and np.max(np.abs(trial_r)) < worst:
+                break
+            target = 0.5 * (point + target)
+        else:
+            break
+        point, design, r = trial, trial_design, trial_r
+        moves.last = design
+    return None, worst, stretched
+
+
 def _newton_step(moves: _Moves, point: Array, r: Array) -> Array | None:
     """The next effective modes: Newton's step, the Jacobian by forward differences (one design per unknown);
     None where it leaves the modes' domain."""
+    frequency = moves.frequency(point.size)
     jacobian = np.empty((r.size, point.size))
     for c in range(point.size):
-        step = STEP_RELATIVE * point[c] if c % 2 == 0 else 0.1 * STEP_RELATIVE
+        step = STEP_RELATIVE * point[c] if frequency[c] else 0.1 * STEP_RELATIVE
         moved = point.copy()
         moved[c] += step
         jacobian[:, c] = (moves(moved)[1] - r) / step
     out = point + np.linalg.lstsq(jacobian, -r, rcond=None)[0]
-    out[1::2] = np.clip(out[1::2], MIN_ZETA, MAX_ZETA)
-    if not np.all(np.isfinite(out)) or np.any(out[0::2] <= 0.0):
+    out[~frequency] = np.clip(out[~frequency], MIN_ZETA, MAX_ZETA)
+    if not np.all(np.isfinite(out)) or np.any(out[frequency] <= 0.0):
         return None
     return out
 

@@ -204,3 +204,76 @@ def test_stretched_keeps_a_command_s_end_state() -> None:
     assert float(longer.time_s[-1]) == pytest.approx(float(command.time_s[-1]) + 0.123, rel=1e-12)
     assert float(longer.derivatives[0, -1]) == pytest.approx(0.2, rel=1e-12)
     assert np.max(np.abs(longer.derivatives[1:, -1])) <= 1e-12
+
+
+TABLE_Y = replace(
+    Y,
+    table=PlantTable(
+        "x", (TablePoint(0.0, ModePlant(7.0 * 0.85, 0.02)), TablePoint(0.4, ModePlant(7.0 * 1.15, 0.02)))
+    ),
+)
+
+
+def test_a_plant_that_changes_during_the_move_is_left_still_by_its_effective_mode() -> None:
+    """Y's mode follows X by +-15 %: the band design alone leaves 1e-3 or so of the move on the true plant; the
+    effective modes' designs (a stretched axis: one for each half) leave 1e-11 (Newton's target) by the move's own
+    integration, and below 1e-10 by the cycle's (the whole cycle from its start, DOP853 through it)."""
+    program = Program(
+        (X, TABLE_Y),
+        (0.0, 0.0),
+        (ProgramMove((0.3, 0.1), "synchronized", 0.2), ProgramMove((0.1, 0.0), "straight_line")),
+    )
+    result = solve_program(program)
+    for move in result.moves:
+        assert move.varying is not None and move.varying.converged, move.varying
+        assert move.varying.residual <= 1e-11
+        assert move.design.axes[1].effective
+        assert move.axes[1].stop_residual_fraction is not None and move.axes[1].stop_residual_fraction < 1e-10
+    assert result.axes[1].method == "varying"
+    assert result.moves[0].design.axes[1].second is not None  # Y is stretched: its delayed half has its own mode
+    from optim.programs.moves import design_move
+    from optim.programs.varying import residuals
+
+    band = design_move(program, 0)  # the plant at the stop, robust over the band it passes through
+    assert band.axes[1].band_hz is not None
+    assert np.max(np.abs(residuals(program, 0, band, [1]))) > 1e-4
+
+
+def test_where_no_effective_mode_is_found_the_band_design_and_its_residual_are_reported(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Where Newton does not converge (here: no step allowed), the answer is the band design, a warning says so,
+    and the residual the cycle reports is its true one."""
+    import optim.programs.varying as varying
+
+    monkeypatch.setattr(varying, "MAX_ITERATIONS", 0)
+    program = Program((X, TABLE_Y), (0.0, 0.0), (ProgramMove((0.3, 0.1), "independent"),))
+    result = solve_program(program)
+    move = result.moves[0]
+    assert move.varying is not None and not move.varying.converged
+    assert move.design.axes[1].band_hz is not None and not move.design.axes[1].effective
+    assert any("no effective mode left it still" in w for w in result.warnings)
+    assert move.axes[1].stop_residual_fraction is not None and move.axes[1].stop_residual_fraction > 1e-6
+
+
+def test_a_dwell_is_carried_in_closed_form_as_the_integration_would() -> None:
+    """models.varying_mode.free_states over a still interval against DOP853 through it: 1e-10 of the deflection."""
+    command = _design(ModePlant(7.0, 0.02), 0.2, Limits(0.8, 3.0, 60.0))
+    end = float(command.time_s[-1])
+    t = np.linspace(0.0, end + 1.0, 401)
+    varying = lambda time: (2 * math.pi * (7.0 + 0.5 * min(time, 0.3)), 0.02)  # noqa: E731 (changes while moving)
+    integrated = deflection(command, varying, t, np.array([]))
+    carried = deflection(command, varying, t, np.array([]), ((end, end + 1.0),))
+    scale = float(np.max(np.abs(integrated.deflection)))
+    assert np.max(np.abs(carried.deflection - integrated.deflection)) <= 1e-10 * scale
+    assert carried.evaluations < integrated.evaluations
+
+
+def test_the_true_plant_s_simulation_is_bounded_in_periods(monkeypatch: pytest.MonkeyPatch) -> None:
+    import optim.programs.cycle as cycle
+
+    monkeypatch.setattr(cycle, "MAX_VARYING_PERIODS", 3)
+    program = Program((X, TABLE_Y), (0.0, 0.0), (ProgramMove((0.3, 0.1), "synchronized"),))
+    with pytest.raises(InvalidParameter) as caught:
+        solve_program(program)
+    assert caught.value.field == "moves" and "periods" in caught.value.rule
