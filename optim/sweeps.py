@@ -20,7 +20,6 @@ the lines' JSON (a failed row carries the error, which the caller describes).
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import itertools
 import math
 import time
@@ -34,7 +33,7 @@ from optim.problem import Problem
 from optim.registry import FAMILIES
 from optim.results import Block
 from optim.synthesis import Result, nominal_percentage_vibration, synthesize
-from runtime.executor import Executor, PoolBusy
+from runtime.executor import Executor, PoolBusy, cancel_all
 
 T = TypeVar("T")
 
@@ -400,11 +399,7 @@ async def _run_round(
                 _release(state, [*open_pairs, *pairs], keep_failing)
             fill()
     finally:
-        for task in running:
-            task.cancel()
-        for task in running:
-            with contextlib.suppress(BaseException):
-                await task
+        await cancel_all(running)
 
 
 def _release(state: _State, pairs: Sequence[Pair], keep_failing: bool) -> None:

@@ -14,8 +14,9 @@ from __future__ import annotations
 
 import abc
 import asyncio
+import contextlib
 import logging
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator, Callable, Iterable
 from contextlib import AbstractAsyncContextManager, asynccontextmanager
 from typing import Any, Protocol, TypeVar, runtime_checkable
 
@@ -132,3 +133,13 @@ class HeldPlaces(abc.ABC):
 
     @abc.abstractmethod
     async def _run_held(self, fn: Callable[..., T], args: tuple[Any, ...], deadline_s: float) -> T: ...
+
+
+async def cancel_all(tasks: Iterable[asyncio.Future[Any]]) -> None:
+    """Cancel the tasks still running and wait for each to end (a client that went away: no orphan keeps a worker)."""
+    pending = list(tasks)
+    for task in pending:
+        task.cancel()
+    for task in pending:
+        with contextlib.suppress(BaseException):
+            await task

@@ -15,8 +15,7 @@ from app.settings import Settings
 from models.errors import InvalidParameter
 from optim.problem import MAX_MOVE, Limits, SettlingCriteria
 from optim.programs import PlantTable, Program, ProgramAxis, ProgramMove, TablePoint, positions
-from optim.programs.tables import TABLE_KINDS
-from optim.programs.types import MAX_AXES, MAX_DWELL_S, MAX_MOVES, MAX_TABLE_POINTS, check_axes
+from optim.programs.types import MAX_AXES, MAX_DWELL_S, MAX_MOVES, MAX_TABLE_POINTS, TABLE_KINDS, check_axes
 
 AXIS_NAME = r"^[A-Za-z_][A-Za-z0-9_]{0,31}$"
 Position = Annotated[float, Field(ge=-MAX_MOVE, le=MAX_MOVE)]
@@ -144,7 +143,10 @@ class PathOut(OutModel):
 class VaryingOut(OutModel):
     iterations: int = Field(description="Newton steps on the effective modes.")
     designs: int = Field(description="Designs of the move it took (each from the previous one's structure).")
-    residual: float = Field(description="The largest residual left on the true plant, of the axis's move.")
+    residual: float | None = Field(
+        description="The largest residual left on the true plant, of the axis's move (null: no design near the "
+        "first could be made)."
+    )
     converged: bool
 
 

@@ -6,7 +6,6 @@ a CSV cam table with one column per axis. The route (app.routers.programs), the 
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import time
 from collections.abc import AsyncIterator
 from typing import Any
@@ -28,7 +27,7 @@ from optim.programs.moves import MoveDesign
 from optim.programs.run import MoveOutcome, design_one
 from optim.programs.varying import VaryingFit
 from optim.tables import uniform_times
-from runtime.executor import Executor, InlineExecutor
+from runtime.executor import Executor, InlineExecutor, cancel_all
 
 Designed = tuple[MoveDesign, VaryingFit | None]
 
@@ -62,11 +61,7 @@ async def designed_moves(
         for next_done in asyncio.as_completed(tasks):
             yield await next_done
     finally:
-        for task in tasks:
-            task.cancel()
-        for task in tasks:
-            with contextlib.suppress(BaseException):
-                await task
+        await cancel_all(tasks)
 
 
 def finish(

@@ -175,11 +175,14 @@ def _designed(
     else:
         options = family.default_options(problem)
         if band is not None:
-            notes = (f"{family.name} designs for the plant at the stop; its mode changes by {band} Hz during the move",)
-    redesign = getattr(family, "redesign", None)
-    nearby = None if previous is None or redesign is None else redesign(problem, options, previous)
-    if previous is not None and nearby is None:
-        raise NoNearbyDesign(f"{family.name} has no design of this move near the previous one")
+            notes = (
+                f"{family.name} designs for the plant at the stop, not robust over the band its mode passes through "
+                f"during the move ({band[0]:.6g} to {band[1]:.6g} Hz)",
+            )
+    redesign = getattr(family, "redesign", None)  # (a family without one designs afresh: its closed forms are
+    nearby = None if previous is None or redesign is None else redesign(problem, options, previous)  # smooth)
+    if previous is not None and redesign is not None and nearby is None:
+        raise NoNearbyDesign(f"{family.name} has no design of this move near the previous one (a grid answer)")
     result = synthesize(family, problem, options) if nearby is None else evaluate(family, problem, nearby)
     command = result.design.command if result.design.command is not None else result.run.command
     return Designed(command, result.summary, result.solver, (*notes, *result.warnings), result.design)

@@ -19,7 +19,6 @@ from models.errors import InvalidParameter
 from optim.problem import TAIL_PERIODS, Problem, nice_period
 from optim.programs.cycle import AxisCycle, cycle
 from optim.programs.moves import MoveDesign
-from optim.programs.tables import check_kinds
 from optim.programs.types import Program, check_axes, check_moves
 from optim.programs.varying import VaryingFit, design_varying
 from optim.results import MetricsReport
@@ -71,7 +70,6 @@ def check_program(program: Program) -> None:
             )
         if axis.table is None:
             continue
-        check_kinds(axis.table, f"axes[{i}].plant_table")
         j = program.axis_index(axis.table.coordinate)
         low, high = axis.table.low, axis.table.high
         name = program.axes[j].name

@@ -14,23 +14,8 @@ import dataclasses
 import math
 from collections.abc import Callable
 
-from models.errors import InvalidParameter
 from models.plants import Mode, Plant, make_plant
 from optim.programs.types import PlantTable
-
-TABLE_KINDS = ("mode", "two_inertia")
-
-
-def check_kinds(table: PlantTable, where: str) -> None:
-    """Every point's plant of a kind a table may hold (TABLE_KINDS)."""
-    for j, point in enumerate(table.points):
-        if point.plant.kind not in TABLE_KINDS:
-            raise InvalidParameter(
-                f"{where}.points[{j}].plant.kind",
-                point.plant.kind,
-                f"a plant table holds {' or '.join(TABLE_KINDS)} plants (one spring and damper whose parameters "
-                "may change with the coordinate)",
-            )
 
 
 def plant_at(table: PlantTable, at: float) -> Plant:

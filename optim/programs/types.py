@@ -23,6 +23,9 @@ MAX_AXES = 8
 MAX_MOVES = 200
 MAX_TABLE_POINTS = 64
 MAX_DWELL_S = 1e4
+# The kinds a plant table holds: one spring and damper whose parameters may follow the coordinate, so that the
+# time-varying plant has one meaning (optim.programs.tables, models.varying_mode)
+TABLE_KINDS = ("mode", "two_inertia")
 
 
 @dataclass(frozen=True)
@@ -139,6 +142,13 @@ def _check_table(table: PlantTable, where: str, names: Mapping[str, int]) -> Non
         raise InvalidParameter(f"{where}.points", len(table.points), f"a table has 2 to {MAX_TABLE_POINTS} points")
     first = table.points[0].plant
     for j, point in enumerate(table.points):
+        if point.plant.kind not in TABLE_KINDS:
+            raise InvalidParameter(
+                f"{where}.points[{j}].plant.kind",
+                point.plant.kind,
+                f"a plant table holds {' or '.join(TABLE_KINDS)} plants (one spring and damper whose parameters "
+                "may change with the coordinate)",
+            )
         if not math.isfinite(point.at) or abs(point.at) > MAX_MOVE:
             raise InvalidParameter(f"{where}.points[{j}].at", point.at, f"must be finite and within +-{MAX_MOVE:g}")
         if j and not point.at > table.points[j - 1].at:

@@ -42,7 +42,7 @@ class VaryingFit:
 
     iterations: int
     designs: int
-    residual: float
+    residual: float | None  # None: no design near the first could be made (a grid answer)
     converged: bool
 
 
@@ -134,26 +134,28 @@ def design_varying(program: Program, k: int) -> tuple[MoveDesign, VaryingFit | N
         start += [mode.natural_frequency_rad_s, mode.damping_ratio]
     moves = _Moves(program, k, axes)
     moves.zetas = start[1::2]
-    worst, stretched = math.inf, False
+    worst, stretched, why = math.inf, False, f"within {MAX_ITERATIONS} Newton steps"
     for split in (False, True):
         if split and not stretched:
             break
         moves.split, moves.last = [split] * len(axes), None
         try:
             found, residual, stretched_axes = _search(moves, start)
-        except NoNearbyDesign:
+        except NoNearbyDesign as exc:
+            why = f"({exc})"
             break
         stretched = stretched or any(stretched_axes)
         if found is not None:
             return found
         worst = min(worst, residual)
+    left = None if math.isinf(worst) else worst
     note = (
-        f"the plant changes during the move and no effective mode left it still within {MAX_ITERATIONS} Newton "
-        f"steps{'' if math.isinf(worst) else f' ({worst:.2g} of the move left)'}: the design for the plant at the "
-        "stop, robust over the band"
+        f"the plant changes during the move and no effective mode left it still {why}"
+        f"{'' if left is None else f' ({left:.2g} of the move left)'}: the design for the plant at the stop"
+        f"{', robust over the band it passes through' if program.family == 'time_optimal' else ''}"
     )
     base = design_move(program, k)
-    return replace(base, warnings=(*base.warnings, note)), VaryingFit(MAX_ITERATIONS, moves.designs + 1, worst, False)
+    return replace(base, warnings=(*base.warnings, note)), VaryingFit(MAX_ITERATIONS, moves.designs + 1, left, False)
 
 
 def _search(moves: _Moves, start: list[float]) -> tuple[tuple[MoveDesign, VaryingFit] | None, float, list[bool]]:

@@ -208,9 +208,7 @@ def test_stretched_keeps_a_command_s_end_state() -> None:
 
 TABLE_Y = replace(
     Y,
-    table=PlantTable(
-        "x", (TablePoint(0.0, ModePlant(7.0 * 0.85, 0.02)), TablePoint(0.4, ModePlant(7.0 * 1.15, 0.02)))
-    ),
+    table=PlantTable("x", (TablePoint(0.0, ModePlant(7.0 * 0.85, 0.02)), TablePoint(0.4, ModePlant(7.0 * 1.15, 0.02)))),
 )
 
 
