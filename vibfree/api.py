@@ -181,7 +181,7 @@ def program(request: Mapping[str, Any] | str | bytes, *, settings: Settings | No
 
     body = _validate(ProgramIn, request)
     here = InlineExecutor()
-    answer, _ = _run(program_service.answer(body, settings or get_settings(), here, here))
+    answer: dict[str, Any] = _run(program_service.answer(body, settings or get_settings(), here, here))[0]
     return answer
 
 

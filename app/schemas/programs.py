@@ -78,8 +78,10 @@ class ProgramIn(StrictModel):
 
     UNSCHEMED_RULES: ClassVar[tuple[str, ...]] = (
         "axes[].name unique; start and every moves[].target name every axis once; a plant_table's coordinate "
-        "names an axis, its points strictly increasing in `at`, and every position its coordinate takes within "
-        "its range; each axis has plant or plant_table.",
+        "names an axis, its points strictly increasing in at, all mode or all two_inertia plants, and every "
+        "position its coordinate takes within its range; each axis has plant or plant_table.",
+        "The moves' durations times the fastest frequency of any plant_table: at most 20000 periods (the true "
+        "plant's simulation, bounded in work).",
     )
 
     @property

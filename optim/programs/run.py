@@ -27,6 +27,9 @@ from optim.synthesis import limit_violations, simulated_metrics
 Array = NDArray[np.float64]
 
 
+RINGING = 1e-6  # a still stop whose residual is above this fraction of the axis's largest move: named in a warning
+
+
 @dataclass(frozen=True)
 class AxisOutcome:
     """One axis in one move: its design's metrics (simulated on the plant it was designed for, from rest at the
@@ -99,6 +102,10 @@ def assemble(program: Program, designed: Sequence[tuple[MoveDesign, VaryingFit |
     """The cycle of the designed moves: the commands end to end, simulated, and each move's figures."""
     designs = [d for d, _ in designed]
     starts, axes = cycle(program, designs)
+    largest = [  # each axis's largest move in the program: the scale of a residual where it stays
+        max(abs(m.target[i] - program.stop(k)[i]) for k, m in enumerate(program.moves))
+        for i in range(len(program.axes))
+    ]
     warnings: list[str] = []
     moves = []
     for k, design in enumerate(designs):
@@ -120,6 +127,17 @@ def assemble(program: Program, designed: Sequence[tuple[MoveDesign, VaryingFit |
         fit = designed[k][1]
         moves.append(MoveOutcome(design, float(starts[k]), settled if still else None, tuple(outcomes), fit))
         warnings += [f"moves[{k}]: {w}" for w in design.warnings]
+        ringing = [
+            f"{a.axis} {o.stop_residual_amplitude / scale:.2g}"
+            for a, o, scale in zip(design.axes, outcomes, largest, strict=True)
+            if scale > 0.0 and o.stop_residual_amplitude > RINGING * scale
+        ]
+        if still and ringing:
+            warnings.append(
+                f"moves[{k}]: the load is not still at this stop ({', '.join(ringing)} of the axis's largest move): "
+                "vibration carried from a stop where it need not be still, or a design that could not cancel a "
+                "varying mode (above)"
+            )
     return ProgramResult(program, float(starts[-1]), tuple(moves), axes, tuple(warnings))
 
 

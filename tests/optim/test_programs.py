@@ -121,6 +121,9 @@ def test_a_stop_where_the_load_need_not_be_still_rings_on_into_the_next() -> Non
     decay = math.exp(-0.05 * 2 * math.pi * 5.0 * (0.2 + second.design.duration_s))
     assert second.axes[0].stop_residual_amplitude == pytest.approx(a0 * decay, rel=1e-9)
     assert second.axes[1].stop_residual_fraction is not None and second.axes[1].stop_residual_fraction < 1e-12
+    assert any(w.startswith("moves[1]: the load is not still at this stop (x ") for w in result.warnings), (
+        result.warnings
+    )
 
 
 def test_the_varying_mode_is_the_exact_response_when_the_mode_is_constant() -> None:
