@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from vibfree.api import (
         REQUEST_SCHEMAS,
+        ProgramAnswer,
         Sweep,
         Synthesis,
         VibfreeError,
@@ -33,6 +34,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "REQUEST_SCHEMAS",
+    "ProgramAnswer",
     "Sweep",
     "Synthesis",
     "VibfreeError",

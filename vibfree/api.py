@@ -173,16 +173,30 @@ def identify(record: str | bytes, *, settings: Settings | None = None, **params:
     return answer
 
 
-def program(request: Mapping[str, Any] | str | bytes, *, settings: Settings | None = None) -> dict[str, Any]:
-    """A machine program (several axes, a cycle of moves), as ``POST /v1/programs`` (its JSON answer); the moves
-    are designed here, one after the other."""
+@dataclass(frozen=True)
+class ProgramAnswer:
+    """A machine program's answer (``answer``: the JSON of ``POST /v1/programs``) and its cam table (``csv()``)."""
+
+    answer: dict[str, Any] = field(repr=False)
+    result: Any = field(repr=False)  # optim.programs.ProgramResult
+
+    def csv(self) -> str:
+        """The cam table, as ``?format=csv``: time_s and each axis's motor position at t_k = k * period."""
+        from app.services.programs import cam_text
+
+        return cam_text(self.result)
+
+
+def program(request: Mapping[str, Any] | str | bytes, *, settings: Settings | None = None) -> ProgramAnswer:
+    """A machine program (several axes, a cycle of moves), as ``POST /v1/programs``; the moves are designed here,
+    one after the other."""
     from app.schemas.programs import ProgramIn
     from app.services import programs as program_service
 
     body = _validate(ProgramIn, request)
     here = InlineExecutor()
-    answer: dict[str, Any] = _run(program_service.answer(body, settings or get_settings(), here, here))[0]
-    return answer
+    answer, result = _run(program_service.answer(body, settings or get_settings(), here, here))
+    return ProgramAnswer(answer, result)
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,5 @@
-"""``vibfree``: design, compare, identify and sweep from the command line, in-process or against a server (``--url``).
+"""``vibfree``: design, compare, identify, sweep and program from the command line, in-process or against a server
+(``--url``).
 
 Each command prints a short summary for a person (stderr when the data itself goes to stdout) and writes the
 answer as JSON (``--json FILE``, ``-`` for stdout) or the profile as CSV (``--csv FILE``). Exit status: 0 done,
@@ -12,16 +13,15 @@ import contextlib
 import logging
 import os
 import sys
-import urllib.error
-import urllib.parse
-import urllib.request
 from collections.abc import Iterator, Sequence
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any
 
 import orjson
 
 from app.family_names import SLUGS
+from vibfree.cli_io import Refused, in_process, post, post_lines, read, summary_stream, write
+from vibfree.cli_program import add_program_command
 from vibfree.summaries import compare_summary, design_summary, identify_summary
 
 # The flags of ``make serve`` (docs/deployment.md says why each); tests check they match the Makefile's.
@@ -42,7 +42,6 @@ SERVE_FLAGS = (
 # OpenBLAS's threads on the loaded machine, 0.47 ms without), and a solve's last bits depend on the thread count, so
 # the pool's rows equal a Dask worker's (whose nanny sets the same) bit for bit.
 SINGLE_THREADED_BLAS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
-HTTP_TIMEOUT_S = 300.0
 IDENTIFY_QUERY = ("displacement", "target_velocity", "max_velocity", "max_acceleration", "max_jerk", "target",
                   "format", "square_corner_velocity", "max_smoothing", "frequency_tolerance")  # fmt: skip
 SWEEP_OPTIONS = {  # the resonance test's settings (a sweep's or a resonance CSV's excitation): Klipper's names
@@ -62,14 +61,6 @@ def one_blas_thread() -> None:
     longer whenever another process ran beside them."""
     for name in SINGLE_THREADED_BLAS:
         os.environ.setdefault(name, "1")
-
-
-class Refused(Exception):
-    """The service (or the in-process pipeline) refused the request: ``problem`` is its problem+json."""
-
-    def __init__(self, problem: dict[str, Any]) -> None:
-        self.problem = problem
-        super().__init__(problem.get("detail", ""))
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -162,6 +153,7 @@ def _parser() -> argparse.ArgumentParser:
     sweep.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     sweep.set_defaults(run=_sweep)
 
+    add_program_command(commands)
     serve = commands.add_parser("serve", help="run the HTTP service (uvicorn, the flags of make serve)")
     serve.add_argument("--host", default="127.0.0.1")
     serve.add_argument("--port", type=int, default=8000)
@@ -188,43 +180,43 @@ def _common(parser: argparse.ArgumentParser) -> None:
 
 
 def _design(args: argparse.Namespace) -> int:
-    request = _read(args.request)
+    request = read(args.request)
     columns = None if args.columns is None else [c.strip() for c in args.columns.split(",") if c.strip()]
     if args.url:
         path = f"/v1/profiles/{args.family}"
-        answer = orjson.loads(_post(args.url, path, request))
+        answer = orjson.loads(post(args.url, path, request))
         csv = None
         if args.csv:
             query = {"format": "csv", **({"columns": ",".join(columns)} if columns else {})}
             if args.comments:
                 query["comments"] = "true"
-            csv = _post(args.url, path, request, query).decode()
+            csv = post(args.url, path, request, query).decode()
     else:
         from vibfree.api import synthesize
 
-        synthesis = _in_process(lambda: synthesize(args.family, request))
+        synthesis = in_process(lambda: synthesize(args.family, request))
         answer = orjson.loads(synthesis.json())
         csv = None
         if args.csv:
-            csv = _in_process(lambda: synthesis.csv(columns=columns, comments=args.comments))
-    out = _summary_stream(args.json, args.csv)
+            csv = in_process(lambda: synthesis.csv(columns=columns, comments=args.comments))
+    out = summary_stream(args.json, args.csv)
     print(design_summary(args.family, answer), file=out)
-    _write(args.json, orjson.dumps(answer, option=orjson.OPT_INDENT_2).decode() + "\n")
+    write(args.json, orjson.dumps(answer, option=orjson.OPT_INDENT_2).decode() + "\n")
     if csv is not None:
-        _write(args.csv, csv)
+        write(args.csv, csv)
     return 0
 
 
 def _compare(args: argparse.Namespace) -> int:
-    request = _read(args.request)
+    request = read(args.request)
     if args.url:
-        answer = orjson.loads(_post(args.url, "/v1/compare", request))
+        answer = orjson.loads(post(args.url, "/v1/compare", request))
     else:
         from vibfree.api import compare
 
-        answer = orjson.loads(orjson.dumps(_in_process(lambda: compare(request)), option=orjson.OPT_SERIALIZE_NUMPY))
-    print(compare_summary(answer), file=_summary_stream(args.json))
-    _write(args.json, orjson.dumps(answer, option=orjson.OPT_INDENT_2).decode() + "\n")
+        answer = orjson.loads(orjson.dumps(in_process(lambda: compare(request)), option=orjson.OPT_SERIALIZE_NUMPY))
+    print(compare_summary(answer), file=summary_stream(args.json))
+    write(args.json, orjson.dumps(answer, option=orjson.OPT_INDENT_2).decode() + "\n")
     return 0
 
 
@@ -233,13 +225,13 @@ def _identify(args: argparse.Namespace) -> int:
     names = (*IDENTIFY_QUERY, *SWEEP_OPTIONS)
     query = {name: getattr(args, name) for name in names if getattr(args, name) is not None}
     if args.url:
-        answer = orjson.loads(_post(args.url, "/v1/identify", record, query, content_type="text/csv"))
+        answer = orjson.loads(post(args.url, "/v1/identify", record, query, content_type="text/csv"))
     else:
         from vibfree.api import identify
 
-        answer = _in_process(lambda: identify(record, **query))
-    print(identify_summary(answer), file=_summary_stream(args.json))
-    _write(args.json, orjson.dumps(answer, option=orjson.OPT_INDENT_2 | orjson.OPT_SERIALIZE_NUMPY).decode() + "\n")
+        answer = in_process(lambda: identify(record, **query))
+    print(identify_summary(answer), file=summary_stream(args.json))
+    write(args.json, orjson.dumps(answer, option=orjson.OPT_INDENT_2 | orjson.OPT_SERIALIZE_NUMPY).decode() + "\n")
     return 0
 
 
@@ -275,7 +267,7 @@ def _sweep(args: argparse.Namespace) -> int:
     tqdm = _progress_bar(wanted=not args.no_progress)
     from vibfree.sweep_table import flat_rows, summary_text, write_table
 
-    request = _read(args.request)
+    request = read(args.request)
     lines: list[dict[str, Any]] = []
     # mininterval 0: every row redraws the bar (a handful a second at most), so its last state (100 %) is drawn even
     # when the last rows arrive within tqdm's default 0.1 s of each other (fast designs: certified ones take ms)
@@ -291,13 +283,13 @@ def _sweep(args: argparse.Namespace) -> int:
                 bar.update(1)
 
         if args.url:
-            for line in _post_lines(args.url, "/v1/sweeps", request):
+            for line in post_lines(args.url, "/v1/sweeps", request):
                 seen(line)
         else:
             from vibfree.api import sweep
 
-            _in_process(lambda: sweep(request, on_line=seen))
-    print(summary_text(lines), file=_summary_stream(args.out))
+            in_process(lambda: sweep(request, on_line=seen))
+    print(summary_text(lines), file=summary_stream(args.out))
     if args.out:
         write_table(args.out, flat_rows(lines))
     return 0
@@ -357,81 +349,6 @@ def _serve(args: argparse.Namespace) -> int:
 
 
 # --- I/O ---------------------------------------------------------------------------------------
-
-
-def _read(path: str) -> bytes:
-    data = sys.stdin.buffer.read() if path == "-" else Path(path).read_bytes()
-    try:
-        orjson.loads(data)
-    except orjson.JSONDecodeError as exc:
-        raise ValueError(f"{path}: not valid JSON ({exc})") from None
-    return data
-
-
-def _write(path: str | None, text: str) -> None:
-    if path is None:
-        return
-    if path == "-":
-        sys.stdout.write(text)
-    else:
-        Path(path).write_text(text)
-
-
-def _summary_stream(*outputs: str | None) -> TextIO:
-    """stderr when the data goes to stdout, else stdout."""
-    return sys.stderr if "-" in outputs else sys.stdout
-
-
-def _in_process(call: Any) -> Any:
-    from vibfree.api import VibfreeError
-
-    try:
-        return call()
-    except VibfreeError as exc:
-        raise Refused(exc.problem) from None
-
-
-def _post(
-    url: str, path: str, body: bytes, query: dict[str, Any] | None = None, content_type: str = "application/json"
-) -> bytes:
-    target = url.rstrip("/") + path + (f"?{urllib.parse.urlencode(query)}" if query else "")
-    request = urllib.request.Request(target, data=body, method="POST", headers={"content-type": content_type})
-    try:
-        with urllib.request.urlopen(request, timeout=HTTP_TIMEOUT_S) as response:
-            return bytes(response.read())
-    except urllib.error.HTTPError as exc:
-        raise _refused(exc) from None
-    except urllib.error.URLError as exc:
-        raise OSError(f"cannot reach {url}: {exc.reason}") from None
-
-
-def _refused(exc: urllib.error.HTTPError) -> Refused:
-    """The service's refusal: its problem+json (a Retry-After added to the detail)."""
-    payload = exc.read()
-    try:
-        problem = orjson.loads(payload)
-    except orjson.JSONDecodeError:
-        problem = {"status": exc.code, "title": exc.reason, "detail": payload.decode(errors="replace")[:500]}
-    if exc.code == 503 and exc.headers.get("Retry-After"):
-        problem.setdefault("detail", "")
-        problem["detail"] += f" (retry after {exc.headers['Retry-After']} s)"
-    return Refused(problem)
-
-
-def _post_lines(url: str, path: str, body: bytes) -> Iterator[dict[str, Any]]:
-    """POST and read the NDJSON answer line by line, as the service streams it."""
-    target = url.rstrip("/") + path
-    request = urllib.request.Request(target, data=body, method="POST", headers={"content-type": "application/json"})
-    try:
-        response = urllib.request.urlopen(request, timeout=HTTP_TIMEOUT_S)
-    except urllib.error.HTTPError as exc:
-        raise _refused(exc) from None
-    except urllib.error.URLError as exc:
-        raise OSError(f"cannot reach {url}: {exc.reason}") from None
-    with response:
-        for raw in response:
-            if raw.strip():
-                yield orjson.loads(raw)
 
 
 def _print_problem(problem: dict[str, Any]) -> None:

@@ -120,3 +120,28 @@ def _shaper_lines(recommendation: dict[str, Any]) -> list[str]:
 
 def precise(value: Any) -> str:
     return "-" if value is None else f"{value:.6g}"
+
+
+def program_summary(answer: dict[str, Any]) -> str:
+    """The cycle time, one line per move (its duration and each axis's residual at the stop, of its move), the
+    recipes' cycle times, the warnings."""
+    lines = [f"cycle {number(answer['cycle_time_s'], 's')}"]
+    for move in answer["moves"]:
+        residuals = ", ".join(f"{name} {_fraction(a['stop_residual_fraction'])}" for name, a in move["axes"].items())
+        lines.append(
+            f"move {move['index']:>3d} {move['coordination']:14s} {number(move['duration_s'], 's'):>11s}  "
+            f"residual at the stop: {residuals}"
+        )
+    for row in answer.get("comparison", []):
+        if row["cycle_time_s"] is None:
+            lines.append(f"{row['method']:12s} no answer: {row['reason']}")
+        else:
+            lines.append(
+                f"{row['method']:12s} cycle {number(row['cycle_time_s'], 's')} ({row['cycle_time_ratio']:.3f} x)"
+            )
+    lines += [f"warning: {w}" for w in answer.get("warnings", [])]
+    return "\n".join(lines)
+
+
+def _fraction(value: float | None) -> str:
+    return "stays" if value is None else f"{value:.1e}"

@@ -14,7 +14,7 @@ from app import problems
 from app.deps import PoolDep, SettingsDep, ThreadsDep
 from app.examples.programs import EXAMPLES
 from app.json_bodies import JSONRoute
-from app.responses import CSV_MEDIA_TYPE, NumpyJSONResponse, csv_rows, wants_csv
+from app.responses import CSV_MEDIA_TYPE, NumpyJSONResponse, wants_csv
 from app.schemas.programs import ProgramIn, ProgramOut
 from app.services import programs as use_case
 from optim.programs import Program
@@ -77,13 +77,8 @@ async def program(
         return StreamingResponse(_lines(body, program, settings, pool, threads), media_type=NDJSON)
     answer, result = await use_case.answer(body, settings, pool, threads)
     if format == "csv" or (format is None and wants_csv(request)):
-        columns, values, period = use_case.cam_table(result)
-        head = (
-            f"# machine program: {len(result.moves)} moves, cycle_time_s {result.cycle_time_s!r}; positions in each "
-            f"axis's motor units; sample_period_s {period!r}, time_s = k * sample_period_s\n" + ",".join(columns) + "\n"
-        )
         return Response(
-            head.encode() + csv_rows(values),
+            use_case.cam_text(result).encode(),
             media_type=CSV_MEDIA_TYPE,
             headers={"content-disposition": 'attachment; filename="program.csv"'},
         )

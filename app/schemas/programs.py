@@ -155,7 +155,8 @@ class VaryingOut(OutModel):
 class MoveAxisOut(OutModel):
     design: dict[str, Any] | None = Field(description="The family's design block (the path's on a straight line).")
     metrics: MetricsOut | None = Field(
-        description="The axis's command simulated on the plant it was designed for, from rest at the stop."
+        description="The axis's command simulated on the plant it was designed for (for an effective mode: the plant "
+        "at the stop, time-invariant), from rest at the stop; stop_residual_* are the true plant's."
     )
     solver: SolverOut | None = None
     stop_residual_amplitude: float = Field(
@@ -166,7 +167,7 @@ class MoveAxisOut(OutModel):
     band_hz: list[float] | None = Field(description="The band of the mode's frequency over the move (a table).")
     effective_mode: dict[str, float] | None = Field(
         description="A varying plant: the mode (natural_frequency_hz, damping_ratio) the design is made for, which "
-        "leaves the true plant still."
+        "leaves the true plant still (its damping ratio may be negative: a falling frequency feeds the vibration)."
     )
     stretched_from_s: float | None = Field(description="synchronized: the axis's own duration, before stretching.")
 

@@ -16,6 +16,7 @@ import orjson
 
 from app import problems
 from app.presenters import present
+from app.responses import csv_rows
 from app.schemas.programs import ProgramIn
 from app.services.sweeps import capacity_of
 from app.settings import Settings
@@ -187,3 +188,13 @@ def cam_table(result: ProgramResult) -> tuple[list[str], np.ndarray, float]:
     values = np.column_stack(columns)
     values[values == 0.0] = 0.0
     return ["time_s", *(a.name for a in axes)], values, period
+
+
+def cam_text(result: ProgramResult) -> str:
+    """The CSV of ``format=csv``: a comment line (what the table is), the header, one row per instant."""
+    columns, values, period = cam_table(result)
+    head = (
+        f"# machine program: {len(result.moves)} moves, cycle_time_s {result.cycle_time_s!r}; positions in each "
+        f"axis's motor units; sample_period_s {period!r}, time_s = k * sample_period_s\n" + ",".join(columns) + "\n"
+    )
+    return head + csv_rows(values).decode()

@@ -99,6 +99,25 @@ def coordinate_span(program: Program, k: int, coordinate: str) -> tuple[float, f
 Effective = Mapping[int, tuple[float, ...]]
 
 
+@dataclass(frozen=True)
+class EffectiveModePlant(ModePlant):
+    """A ``mode`` whose damping ratio may be negative: the effective mode of a plant that changes during a move
+    (optim.programs.varying), whose vibration the change may feed (a frequency that falls raises its amplitude). Only
+    designed for, never simulated as the machine's plant."""
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.damping_ratio) and -1.0 < self.damping_ratio < 1.0):
+            raise InvalidParameter("damping_ratio", self.damping_ratio, "an effective mode's lies in (-1, 1)")
+        ModePlant(self.natural_frequency_hz, 0.0)  # the frequency's own checks
+
+
+def effective_mode(omega_rad_s: float, zeta: float) -> ModePlant:
+    """The plant a design is made for in place of a varying one: a ``mode``, with a negative damping ratio where
+    the effective mode's is."""
+    hz = omega_rad_s / (2.0 * math.pi)
+    return ModePlant(hz, zeta) if zeta >= 0.0 else EffectiveModePlant(hz, zeta)
+
+
 def plant_of(
     program: Program, i: int, k: int, effective: Effective | None = None
 ) -> tuple[Plant, tuple[float, float] | None]:
@@ -107,7 +126,7 @@ def plant_of(
     axis = program.axes[i]
     if effective is not None and i in effective:
         omega, zeta = effective[i][:2]
-        return ModePlant(omega / (2.0 * math.pi), zeta), None
+        return effective_mode(omega, zeta), None
     if axis.table is None:
         return axis.plant, None
     a, b = coordinate_span(program, k, axis.table.coordinate)
@@ -179,11 +198,11 @@ def _designed(
                 f"{family.name} designs for the plant at the stop, not robust over the band its mode passes through "
                 f"during the move ({band[0]:.6g} to {band[1]:.6g} Hz)",
             )
-    redesign = getattr(family, "redesign", None)  # (a family without one designs afresh: its closed forms are
-    nearby = None if previous is None or redesign is None else redesign(problem, options, previous)  # smooth)
-    if previous is not None and redesign is not None and nearby is None:
-        raise NoNearbyDesign(f"{family.name} has no design of this move near the previous one (a grid answer)")
+    redesign = getattr(family, "redesign", None)  # the design from the previous one's structure, in milliseconds
+    nearby = None if previous is None or redesign is None else redesign(problem, options, previous)
     result = synthesize(family, problem, options) if nearby is None else evaluate(family, problem, nearby)
+    if previous is not None and getattr(result.summary, "method", None) == "grid":  # (afresh where the structure
+        raise NoNearbyDesign(f"{family.name}'s design here is a grid answer")  # changed: a grid answer's is not smooth)
     command = result.design.command if result.design.command is not None else result.run.command
     return Designed(command, result.summary, result.solver, (*notes, *result.warnings), result.design)
 
@@ -255,9 +274,7 @@ def design_move(
                 late, second = None, None
                 if len(chosen.get(i, ())) == 4:  # the delayed half designed for a mode of its own
                     omega, zeta = chosen[i][2:]
-                    half = _problem(
-                        program, ModePlant(omega / (2.0 * math.pi), zeta), deltas[i], program.axes[i].limits
-                    )
+                    half = _problem(program, effective_mode(omega, zeta), deltas[i], program.axes[i].limits)
                     prior = None if previous is None else previous.axes[i].second
                     with named(f"moves[{k}].target.{axis_move.axis}"):
                         done = _designed(program, half, None, move.still_at_stop, prior)
@@ -317,6 +334,8 @@ def _straight(
     direction = [d / length for d in deltas]
     limits = path_limits(program, moving, direction)
     plants_bands = {i: plant_of(program, i, k, effective) for i in moving}
+    if any(isinstance(p, EffectiveModePlant) for p, _ in plants_bands.values()):  # (no such transfer function)
+        raise NoNearbyDesign("a straight line's path plant takes no negative effective damping")
     bands = [b for _, b in plants_bands.values() if b is not None]
     band = (min(b[0] for b in bands), max(b[1] for b in bands)) if bands else None
     plant = path_plant([p for p, _ in plants_bands.values()])

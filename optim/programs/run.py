@@ -18,7 +18,7 @@ from models.commands import PiecewiseCommand
 from models.errors import InvalidParameter
 from optim.problem import TAIL_PERIODS, Problem, nice_period
 from optim.programs.cycle import AxisCycle, cycle
-from optim.programs.moves import MoveDesign
+from optim.programs.moves import MoveDesign, plant_of
 from optim.programs.types import Program, check_axes, check_moves
 from optim.programs.varying import VaryingFit, design_varying
 from optim.results import MetricsReport
@@ -142,13 +142,14 @@ def assemble(program: Program, designed: Sequence[tuple[MoveDesign, VaryingFit |
 
 
 def _metrics(program: Program, k: int, i: int, design: MoveDesign) -> MetricsReport:
-    """Axis i's command in move k simulated on the plant it was designed for, from rest at the stop, sampled
-    as a family endpoint samples its design (settling is checked at the samples)."""
+    """Axis i's command in move k simulated on the plant it was designed for (for an effective mode: the plant at
+    the stop), from rest at the stop, sampled as a family endpoint samples its design (settling is checked at the
+    samples)."""
     axis_move = design.axes[i]
     assert axis_move.command is not None
     command = axis_move.command
     problem = Problem(
-        plant=axis_move.plant,
+        plant=plant_of(program, i, k)[0] if axis_move.effective else axis_move.plant,
         displacement=program.moves[k].target[i] - program.stop(k)[i],
         limits=program.axes[i].limits,
         settling=program.settling,

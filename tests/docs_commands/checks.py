@@ -71,7 +71,7 @@ def check_table_iii_csv(ran: Ran) -> None:
 
 def check_help(ran: Ran) -> None:
     ok(ran)
-    for command in ("design", "compare", "identify", "sweep", "serve"):
+    for command in ("design", "compare", "identify", "sweep", "program", "serve"):
         assert re.search(rf"^\s+{command}\s", ran.stdout, re.M), ran
 
 
@@ -127,6 +127,20 @@ def check_sweep_table(ran: Ran) -> None:
     assert SWEEP_POINTS <= len(rows) <= SWEEP_POINTS + SWEEP_REFINED
     assert all(row[header.index("ok")] == "True" for row in rows)
     assert "table check" in ran.stdout and "100%" in ran.stderr, ran  # the check's summary; the progress bar
+
+
+def check_program_cam(ran: Ran) -> None:
+    """docs/programs.md's program: every stop still on every axis (its Y mode follows X: the true plant's
+    residual), the cam table's columns time_s and one per axis at t_k = k * period."""
+    ok(ran)
+    assert ran.written == {"cam.csv"}, ran.written
+    residuals = re.findall(r"residual at the stop: x (\S+), y (\S+)$", ran.stdout, re.M)
+    assert len(residuals) == 3 and all(float(v) < 1e-9 for pair in residuals for v in pair), ran
+    assert re.search(r"^ruckig_zvd\s+cycle", ran.stdout, re.M) and "warning" not in ran.stdout, ran
+    header, *rows = csv_rows((ran.cwd / "cam.csv").read_text())
+    assert header == ["time_s", "x", "y"] and len(rows) > 100
+    period = float(rows[1][0])
+    assert all(abs(float(r[0]) - k * period) <= 1e-12 for k, r in enumerate(rows))
 
 
 def check_sweep_parquet(ran: Ran) -> None:

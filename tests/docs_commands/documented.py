@@ -30,6 +30,12 @@ def documented_sweep(points: int, refined: int) -> dict:
     return sweep
 
 
+def documented_program() -> str:
+    """docs/programs.md's body (``program.json``: the program above)."""
+    (body,) = [b.body for b in blocks() if b.document == "docs/programs.md" and b.language == "json"]
+    return body
+
+
 def documented_table_columns() -> list[str]:
     """docs/sweeps.md: the table's columns after the axes' values."""
     text = (ROOT / "docs" / "sweeps.md").read_text()

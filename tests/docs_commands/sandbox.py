@@ -26,6 +26,7 @@ from tests.app.server import free_port, serving
 from tests.docs_commands.documented import (
     SWEEP_POINTS,
     SWEEP_REFINED,
+    documented_program,
     documented_request,
     documented_sweep,
     identification_record_script,
@@ -287,6 +288,7 @@ class Runs:
         self.inputs.mkdir()
         (self.inputs / "request.json").write_text(documented_request())
         (self.inputs / "sweep.json").write_text(json.dumps(documented_sweep(SWEEP_POINTS, SWEEP_REFINED), indent=2))
+        (self.inputs / "program.json").write_text(documented_program())
         record = subprocess.run(
             [sys.executable, "-"], input=identification_record_script(), cwd=self.inputs, text=True, timeout=60
         )

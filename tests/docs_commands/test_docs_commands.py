@@ -25,6 +25,7 @@ from tests.docs_commands.checks import (
     check_klipper_section,
     check_mkdocs_build,
     check_mkdocs_serve,
+    check_program_cam,
     check_readyz_loop,
     check_recommended_design,
     check_record_written,
@@ -77,6 +78,7 @@ COMMANDS: dict[str, Spec] = {
     "vibfree compare request.json": Run(check_compare),
     "vibfree identify record.csv --displacement 0.12 --max-velocity 0.5 --max-acceleration 10": Run(check_identify),
     "vibfree sweep sweep.json --out table.csv": Run(check_sweep_table, extras=("cli",)),
+    "vibfree program program.json --csv cam.csv": Run(check_program_cam),
     "vibfree serve --port 8000 --processes 2": IsTheServer(
         check_served,
         "the tests' server runs it (tests/app/server.py) on a free port with one process and one solver worker: "

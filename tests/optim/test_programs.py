@@ -231,13 +231,32 @@ def test_a_plant_that_changes_during_the_move_is_left_still_by_its_effective_mod
         assert move.design.axes[1].effective
         assert move.axes[1].stop_residual_fraction is not None and move.axes[1].stop_residual_fraction < 1e-10
     assert result.axes[1].method == "varying"
-    assert result.moves[0].design.axes[1].second is not None  # Y is stretched: its delayed half has its own mode
     from optim.programs.moves import design_move
     from optim.programs.varying import residuals
 
     band = design_move(program, 0)  # the plant at the stop, robust over the band it passes through
     assert band.axes[1].band_hz is not None
     assert np.max(np.abs(residuals(program, 0, band, [1]))) > 1e-4
+
+
+def test_a_stretched_axis_s_halves_may_be_designed_for_modes_of_their_own() -> None:
+    """design_move with two effective modes for Y (stretched, the faster axis): (p(t) + q(t - delta)) / 2 with p and
+    q Y's designs for each mode made apart, q's delay ending it with X; still within Y's limits."""
+    from optim.programs.moves import design_move
+
+    program = Program((X, TABLE_Y), (0.0, 0.0), (ProgramMove((0.3, 0.1), "synchronized"),))
+    w1, w2 = 2 * math.pi * 7.2, 2 * math.pi * 7.9
+    move = design_move(program, 0, {1: (w1, 0.02, w2, 0.02)})
+    p, q = (_design(ModePlant(w / (2 * math.pi), 0.02), 0.1, Y.limits) for w in (w1, w2))
+    y = move.design.axes[1] if hasattr(move, "design") else move.axes[1]
+    assert y.second is not None and y.command is not None
+    end = move.duration_s
+    assert end == pytest.approx(float(_design(X.plant, 0.3, X.limits).time_s[-1]), rel=1e-12)
+    delta = end - float(q.time_s[-1])
+    t = np.linspace(0.0, end, 1201)
+    want = 0.5 * (p.evaluate(0, t) + q.evaluate(0, t - delta))
+    assert np.max(np.abs(y.command.evaluate(0, t) - want)) <= 1e-12
+    assert y.command.max_abs(1) <= 0.8 * (1 + 1e-9) and y.command.max_abs(2) <= 3.0 * (1 + 1e-9)
 
 
 def test_where_no_effective_mode_is_found_the_band_design_and_its_residual_are_reported(

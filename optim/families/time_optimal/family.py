@@ -328,7 +328,7 @@ class TimeOptimalFamily(BaseFamily):
         bound is the switching function's certificate where it proves the command minimum-time, else the rigid
         floor (optim.programs' effective modes: many nearby designs)."""
         detail = previous.detail
-        if not isinstance(detail, _TimeOptimalDetail) or options.robustness:
+        if not isinstance(detail, _TimeOptimalDetail) or detail.solution.method == "grid" or options.robustness:
             return None
         chosen, _ = selected_modes(problem, options)
         spec = spec_of(problem, options, chosen)
