@@ -1,13 +1,16 @@
 """Moves whose plant changes while they run: a design that leaves the true, position-dependent plant still.
 
 An axis whose mode follows a coordinate that moves during the move is a linear time-varying system: no design
-for a fixed plant leaves it exactly still (a band design bounds its residual, typically to 1e-4 of the move).
-Its residual where the move ends is linear in the command, and the family's command for a fixed mode (w, zeta)
-depends smoothly on (w, zeta): so there is an effective mode, near the modes the move passes through, whose
-design leaves the varying plant with no residual. It is found by Newton's method on the residuals of every such
-axis at once (the deflection and its rate over w, by models.varying_mode, relative to the axis's move), the
-Jacobian by finite differences; each evaluation designs the whole move (the path, or every axis and the
-synchronization), so limits hold by construction. Bounded in work: at most MAX_ITERATIONS Newton steps.
+for a fixed plant leaves it exactly still (a band design leaves 1e-4 to 1e-3 of the move). Its residual where the
+move ends is linear in the command, and the family's command for a fixed mode (w, zeta) depends smoothly on
+(w, zeta) while its structure holds: so there is an effective mode, near the modes the move passes through, whose
+design leaves the varying plant with no residual (its zeta may be negative: a frequency that falls feeds the
+vibration). It is found by Newton's method on the residuals of every such axis at once (the deflection and its
+rate over w, by models.varying_mode, relative to the axis's move), the Jacobian by finite differences, a step that
+does not lower the residual halved; each evaluation designs the whole move (the path, or every axis and the
+synchronization), so limits hold by construction. Where one mode for a stretched axis does not converge, each of
+its halves gets a frequency of its own. Bounded in work: at most MAX_ITERATIONS steps of at most HALVINGS
+halvings, twice.
 """
 
 from __future__ import annotations
