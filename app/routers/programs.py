@@ -17,17 +17,24 @@ from app.json_bodies import JSONRoute
 from app.responses import CSV_MEDIA_TYPE, NumpyJSONResponse, wants_csv
 from app.schemas.programs import ProgramIn, ProgramOut
 from app.services import programs as use_case
+from app.services.sweeps import executor_for
+from app.settings import Settings
 from optim.programs import Program
+from runtime.pool import SolverPool
+from runtime.threads import ThreadLane
 
 router = APIRouter(prefix="/v1", tags=["programs"], route_class=JSONRoute)
 NDJSON = "application/x-ndjson"
 
 
 async def _lines(
-    body: ProgramIn, program: Program, settings: SettingsDep, pool: PoolDep, threads: ThreadsDep
+    body: ProgramIn, program: Program, settings: Settings, pool: SolverPool, threads: ThreadLane
 ) -> AsyncIterator[bytes]:
-    async for line in use_case.progress(body, program, settings, pool, threads):
-        yield orjson.dumps(line, option=orjson.OPT_SERIALIZE_NUMPY) + b"\n"
+    """The NDJSON lines, the moves on the pool or on the Dask cluster (``VIBFREE_DASK_SCHEDULER``, connected for
+    the stream: closed when it ends or the client goes away)."""
+    async with executor_for(settings.dask_scheduler, pool, None) as (executor, capacity):
+        async for line in use_case.progress(body, program, settings, executor, threads, capacity):
+            yield orjson.dumps(line, option=orjson.OPT_SERIALIZE_NUMPY) + b"\n"
 
 
 @router.post(
@@ -59,8 +66,9 @@ async def program(
     ] = None,
 ) -> Response:
     """Each move is designed by the family (time-optimal by default) from rest at its stop to rest at the next,
-    the moves in parallel on the solver pool: `straight_line` on one path parameter (each axis's limits projected
-    on the direction, every moving axis's modes cancelled), `synchronized` (each axis its own design; the faster
+    the moves in parallel on the solver pool (or with VIBFREE_DASK_SCHEDULER on that Dask cluster):
+    `straight_line` on one path parameter (each axis's limits projected on the direction, every moving axis's
+    modes cancelled), `synchronized` (each axis its own design; the faster
     ones averaged with themselves delayed, so that all start and arrive together, within their limits and still
     cancelled) or `independent`. An axis whose plant is a `plant_table` over a coordinate that moves during the
     move is designed for the effective mode that leaves its true, varying plant still (Newton's method on the
@@ -75,7 +83,8 @@ async def program(
     if format == "ndjson" or (format is None and NDJSON in request.headers.get("accept", "")):
         program = await use_case.program_of(body, settings, pool)  # a bad program is a 422 before the lines
         return StreamingResponse(_lines(body, program, settings, pool, threads), media_type=NDJSON)
-    answer, result = await use_case.answer(body, settings, pool, threads)
+    async with executor_for(settings.dask_scheduler, pool, None) as (executor, capacity):
+        answer, result = await use_case.answer(body, settings, executor, threads, capacity)
     if format == "csv" or (format is None and wants_csv(request)):
         return Response(
             use_case.cam_text(result).encode(),

@@ -74,12 +74,13 @@ def finish(
 
 
 async def answer(
-    body: ProgramIn, settings: Settings, pool: Executor, threads: Executor
+    body: ProgramIn, settings: Settings, pool: Executor, threads: Executor, capacity: int | None = None
 ) -> tuple[dict[str, Any], ProgramResult]:
-    """The whole answer (JSON), and the result it was made from (for the CSV)."""
+    """The whole answer (JSON), and the result it was made from (for the CSV); the moves designed on ``pool`` (the
+    solver pool, a Dask cluster, or here), ``capacity`` at a time (``capacity_of``)."""
     program = await program_of(body, settings, pool)
     found: dict[int, Designed] = {}
-    async for k, done, _ in designed_moves(program, pool, settings):
+    async for k, done, _ in designed_moves(program, pool, settings, capacity):
         found[k] = done
     designed = [found[k] for k in range(len(program.moves))]
     result, rows = await threads.run(finish, program, designed, body.compare, deadline_s=settings.thread_deadline_s)
@@ -87,23 +88,28 @@ async def answer(
 
 
 async def progress(
-    body: ProgramIn, program: Program, settings: Settings, pool: Executor, threads: Executor
+    body: ProgramIn,
+    program: Program,
+    settings: Settings,
+    pool: Executor,
+    threads: Executor,
+    capacity: int | None = None,
 ) -> AsyncIterator[dict[str, Any]]:
     """NDJSON lines for a checked program (``program_of``, before the answer starts): a ``move`` line per move as
     its design finishes, then the ``program`` line (the answer); a move without a design ends the lines with a
     ``problem`` line (the problem+json the JSON answer would be)."""
     try:
-        async for line in _progress(body, program, settings, pool, threads):
+        async for line in _progress(body, program, settings, pool, threads, capacity):
             yield line
     except DomainError as exc:
         yield {"line": "problem", **orjson.loads(problems.domain_problem(exc).body)}
 
 
 async def _progress(
-    body: ProgramIn, program: Program, settings: Settings, pool: Executor, threads: Executor
+    body: ProgramIn, program: Program, settings: Settings, pool: Executor, threads: Executor, capacity: int | None
 ) -> AsyncIterator[dict[str, Any]]:
     found: dict[int, Designed] = {}
-    async for k, done, seconds in designed_moves(program, pool, settings):
+    async for k, done, seconds in designed_moves(program, pool, settings, capacity):
         found[k] = done
         design, fit = done
         yield {

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import copy
 import io
+import re
 from typing import Any
 
 import numpy as np
@@ -100,3 +101,35 @@ def test_bad_programs_are_a_422_naming_the_field(client: TestClient, change: Any
     assert answer.status_code == 422, answer.text
     problem = answer.json()
     assert problem["field"] == field and words in problem["detail"], problem
+
+
+def test_the_same_program_on_a_local_dask_cluster_gives_the_same_answer() -> None:
+    """The moves designed on a Dask LocalCluster (as VIBFREE_DASK_SCHEDULER runs them) and here: the same answer,
+    every number (only the reported wall times differ: solve_time_s)."""
+    distributed = pytest.importorskip("distributed")
+    from app.schemas.programs import ProgramIn
+    from app.services import programs as use_case
+    from app.services.sweeps import executor_for
+    from app.settings import Settings
+    from runtime.executor import InlineExecutor
+    from tests import aio
+
+    body = ProgramIn.model_validate(LINE)
+    here = InlineExecutor()
+
+    async def on(address: str | None) -> dict[str, Any]:
+        async with executor_for(address, here, 1) as (executor, capacity):
+            answer, _ = await use_case.answer(body, Settings(), executor, here, capacity)
+        return answer
+
+    local = aio.run(on(None))
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=40
+    ) as cluster:
+        remote = aio.run(on(cluster.scheduler_address))
+
+    def numbers(answer: dict[str, Any]) -> bytes:
+        text = orjson.dumps(answer, option=orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_SORT_KEYS)
+        return re.sub(rb'"solve_time_s":[^,}]+', b"", text)
+
+    assert numbers(remote) == numbers(local)
