@@ -50,7 +50,7 @@ HERE = InlineExecutor()
 def solve(request: dict[str, Any]) -> tuple[dict[str, Any], Any, float]:
     body = ProgramIn.model_validate(request)
     started = time.perf_counter()
-    answer, result = _run(service.answer(body, SETTINGS, HERE, HERE))
+    answer, result = _run(service.answer(body, SETTINGS, HERE))
     return answer, result, time.perf_counter() - started
 
 

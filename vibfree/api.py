@@ -195,7 +195,7 @@ def program(request: Mapping[str, Any] | str | bytes, *, settings: Settings | No
 
     body = _validate(ProgramIn, request)
     here = InlineExecutor()
-    answer, result = _run(program_service.answer(body, settings or get_settings(), here, here))
+    answer, result = _run(program_service.answer(body, settings or get_settings(), here))
     return ProgramAnswer(answer, result)
 
 

@@ -11,7 +11,7 @@ from fastapi import APIRouter, Body, Query, Request
 from fastapi.responses import Response, StreamingResponse
 
 from app import problems
-from app.deps import PoolDep, SettingsDep, ThreadsDep
+from app.deps import PoolDep, SettingsDep
 from app.examples.programs import EXAMPLES
 from app.json_bodies import JSONRoute
 from app.responses import CSV_MEDIA_TYPE, NumpyJSONResponse, wants_csv
@@ -21,19 +21,16 @@ from app.services.sweeps import executor_for
 from app.settings import Settings
 from optim.programs import Program
 from runtime.pool import SolverPool
-from runtime.threads import ThreadLane
 
 router = APIRouter(prefix="/v1", tags=["programs"], route_class=JSONRoute)
 NDJSON = "application/x-ndjson"
 
 
-async def _lines(
-    body: ProgramIn, program: Program, settings: Settings, pool: SolverPool, threads: ThreadLane
-) -> AsyncIterator[bytes]:
+async def _lines(body: ProgramIn, program: Program, settings: Settings, pool: SolverPool) -> AsyncIterator[bytes]:
     """The NDJSON lines, the moves on the pool or on the Dask cluster (``VIBFREE_DASK_SCHEDULER``, connected for
     the stream: closed when it ends or the client goes away)."""
     async with executor_for(settings.dask_scheduler, pool, None) as (executor, capacity):
-        async for line in use_case.progress(body, program, settings, executor, threads, capacity):
+        async for line in use_case.progress(body, program, settings, executor, capacity):
             yield orjson.dumps(line, option=orjson.OPT_SERIALIZE_NUMPY) + b"\n"
 
 
@@ -59,7 +56,6 @@ async def program(
     body: Annotated[ProgramIn, Body(openapi_examples=EXAMPLES)],
     settings: SettingsDep,
     pool: PoolDep,
-    threads: ThreadsDep,
     format: Annotated[
         Literal["json", "csv", "ndjson"] | None,
         Query(description="json (default), csv (the cam table) or ndjson (progress lines, then the answer)."),
@@ -82,9 +78,9 @@ async def program(
     checks. format=csv: the cam table (time_s and each axis's motor position at t_k = k * period exactly)."""
     if format == "ndjson" or (format is None and NDJSON in request.headers.get("accept", "")):
         program = await use_case.program_of(body, settings, pool)  # a bad program is a 422 before the lines
-        return StreamingResponse(_lines(body, program, settings, pool, threads), media_type=NDJSON)
+        return StreamingResponse(_lines(body, program, settings, pool), media_type=NDJSON)
     async with executor_for(settings.dask_scheduler, pool, None) as (executor, capacity):
-        answer, result = await use_case.answer(body, settings, executor, threads, capacity)
+        answer, result = await use_case.answer(body, settings, executor, capacity)
     if format == "csv" or (format is None and wants_csv(request)):
         return Response(
             use_case.cam_text(result).encode(),

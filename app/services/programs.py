@@ -68,45 +68,43 @@ async def designed_moves(
 def finish(
     program: Program, designed: list[Designed], with_comparison: bool
 ) -> tuple[ProgramResult, tuple[RecipeRow, ...]]:
-    """The cycle and its checks, and the recipes' rows (the heavy, CPU-bound half: in a thread)."""
+    """The cycle and its checks, and the recipes' rows (module-level: a worker runs it)."""
     result = assemble(program, designed)
     return result, compare(program, result.cycle_time_s) if with_comparison else ()
 
 
 async def answer(
-    body: ProgramIn, settings: Settings, pool: Executor, threads: Executor, capacity: int | None = None
+    body: ProgramIn, settings: Settings, pool: Executor, capacity: int | None = None
 ) -> tuple[dict[str, Any], ProgramResult]:
     """The whole answer (JSON), and the result it was made from (for the CSV); the moves designed on ``pool`` (the
-    solver pool, a Dask cluster, or here), ``capacity`` at a time (``capacity_of``)."""
+    solver pool, a Dask cluster, or here), ``capacity`` at a time (``capacity_of``), then the cycle's simulation
+    there too (the true plant's integration is Python-heavy: not in the HTTP process)."""
     program = await program_of(body, settings, pool)
     found: dict[int, Designed] = {}
     async for k, done, _ in designed_moves(program, pool, settings, capacity):
         found[k] = done
     designed = [found[k] for k in range(len(program.moves))]
-    result, rows = await threads.run(finish, program, designed, body.compare, deadline_s=settings.thread_deadline_s)
+    result, rows = await engine.submit(
+        pool, finish, program, designed, body.compare, deadline_s=settings.solve_deadline_s
+    )
     return program_json(result, rows), result
 
 
 async def progress(
-    body: ProgramIn,
-    program: Program,
-    settings: Settings,
-    pool: Executor,
-    threads: Executor,
-    capacity: int | None = None,
+    body: ProgramIn, program: Program, settings: Settings, pool: Executor, capacity: int | None = None
 ) -> AsyncIterator[dict[str, Any]]:
     """NDJSON lines for a checked program (``program_of``, before the answer starts): a ``move`` line per move as
     its design finishes, then the ``program`` line (the answer); a move without a design ends the lines with a
     ``problem`` line (the problem+json the JSON answer would be)."""
     try:
-        async for line in _progress(body, program, settings, pool, threads, capacity):
+        async for line in _progress(body, program, settings, pool, capacity):
             yield line
     except DomainError as exc:
         yield {"line": "problem", **orjson.loads(problems.domain_problem(exc).body)}
 
 
 async def _progress(
-    body: ProgramIn, program: Program, settings: Settings, pool: Executor, threads: Executor, capacity: int | None
+    body: ProgramIn, program: Program, settings: Settings, pool: Executor, capacity: int | None
 ) -> AsyncIterator[dict[str, Any]]:
     found: dict[int, Designed] = {}
     async for k, done, seconds in designed_moves(program, pool, settings, capacity):
@@ -122,7 +120,9 @@ async def _progress(
             "elapsed_s": seconds,
         }
     designed = [found[k] for k in range(len(program.moves))]
-    result, rows = await threads.run(finish, program, designed, body.compare, deadline_s=settings.thread_deadline_s)
+    result, rows = await engine.submit(
+        pool, finish, program, designed, body.compare, deadline_s=settings.solve_deadline_s
+    )
     yield {"line": "program", **program_json(result, rows)}
 
 

@@ -119,7 +119,7 @@ def test_the_same_program_on_a_local_dask_cluster_gives_the_same_answer() -> Non
 
     async def on(address: str | None) -> dict[str, Any]:
         async with executor_for(address, here, 1) as (executor, capacity):
-            answer, _ = await use_case.answer(body, Settings(), executor, here, capacity)
+            answer, _ = await use_case.answer(body, Settings(), executor, capacity)
         return answer
 
     local = aio.run(on(None))
