@@ -27,10 +27,13 @@ class TablePointIn(StrictModel):
 
 
 class PlantTableIn(StrictModel):
-    """The axis's plant as a function of an axis's position (another's, or its own): between two points every
-    parameter is interpolated linearly; every position the coordinate visits must lie within the table."""
+    """The axis's plant as a function of an axis's position (another's, or its own) or of a parameter set per move
+    (a payload's mass): between two points every parameter is interpolated linearly; every value the coordinate
+    takes must lie within the table."""
 
-    coordinate: str = Field(pattern=AXIS_NAME, description="The axis whose position the plant depends on.")
+    coordinate: str = Field(
+        pattern=AXIS_NAME, description="The axis whose position the plant depends on, or a parameter's name."
+    )
     points: list[TablePointIn] = Field(
         min_length=2, max_length=MAX_TABLE_POINTS, description="Strictly increasing in `at`."
     )
@@ -56,6 +59,12 @@ class ProgramMoveIn(StrictModel):
         "together; independent: each axis its own design from the move's start.",
     )
     dwell_s: float = Field(0.0, ge=0.0, le=MAX_DWELL_S, description="Time spent at the stop after the move, s.")
+    parameters: dict[Annotated[str, Field(pattern=AXIS_NAME)], Position] | None = Field(
+        None,
+        max_length=8,
+        description="New values of a plant_table's coordinates that are no axis (a payload's mass), from this move "
+        "on: what was picked or placed at the stop before it.",
+    )
     still_at_stop: bool = Field(
         True,
         description="The load of every axis must be still at the stop (its modes cancelled); false: the rigid "
@@ -69,6 +78,12 @@ class ProgramIn(StrictModel):
     axes: list[ProgramAxisIn] = Field(min_length=1, max_length=MAX_AXES)
     start: dict[str, Position] = Field(description="Where every axis starts: one position per axis.")
     moves: list[ProgramMoveIn] = Field(min_length=1, max_length=MAX_MOVES)
+    parameters: dict[Annotated[str, Field(pattern=AXIS_NAME)], Position] = Field(
+        default_factory=dict,
+        max_length=8,
+        description="A plant_table's coordinates that are no axis (a payload's mass, a rope length set per move), "
+        "as they are at the start; a move's parameters change them from that move on.",
+    )
     family: FamilySlug | FamilyName = Field("time-optimal", description="The family that designs every move.")
     settling: SettlingIn = Field(default_factory=SettlingIn)
     sample_period_s: float | None = Field(
@@ -91,10 +106,15 @@ class ProgramIn(StrictModel):
     def to_program(self, settings: Settings) -> Program:
         axes = tuple(self._axis(i, a) for i, a in enumerate(self.axes))
         names = tuple(a.name for a in axes)
-        check_axes(axes)
+        given = [*self.parameters, *(n for m in self.moves for n in (m.parameters or {}))]
+        check_axes(axes, tuple(dict.fromkeys(given)))
         moves = tuple(
             ProgramMove(
-                positions(m.target, names, f"moves[{k}].target"), m.coordination, float(m.dwell_s), m.still_at_stop
+                positions(m.target, names, f"moves[{k}].target"),
+                m.coordination,
+                float(m.dwell_s),
+                m.still_at_stop,
+                tuple((n, float(v)) for n, v in (m.parameters or {}).items()),
             )
             for k, m in enumerate(self.moves)
         )
@@ -107,6 +127,7 @@ class ProgramIn(StrictModel):
             solver=settings.solve_caps,
             max_samples=settings.max_samples,
             sample_period_s=self.sample_period_s,
+            parameters=tuple((n, float(v)) for n, v in self.parameters.items()),
         )
 
     @staticmethod

@@ -121,15 +121,21 @@ def axis_cycle(program: Program, designs: Sequence[MoveDesign], i: int, starts: 
         load = np.vstack((response.load_position, response.load_velocity, response.load_acceleration))
         return AxisCycle(axis.name, command, t, profile, load, residuals, "exact", period)
     table = axis.table
-    coordinate = cycle_command(program, designs, program.axis_index(table.coordinate), starts)
-    position, mode_at_coordinate = position_function(coordinate), mode_function(table)
+    mode_at_coordinate = mode_function(table)
+    if table.coordinate in program.names:
+        coordinate = cycle_command(program, designs, program.axis_index(table.coordinate), starts)
+        position, breaks = position_function(coordinate), coordinate.time_s
+    else:  # a parameter: constant over each move (and the dwell after it), changing where the next move starts
+        values = [float(program.parameter(k, table.coordinate) or 0.0) for k in range(len(program.moves))]
+        bounds = starts[1:-1].tolist()
+        position, breaks = (lambda time: values[bisect.bisect_right(bounds, time)]), starts
 
     def mode_of_time(time: float) -> tuple[float, float]:
         return mode_at_coordinate(position(time))
 
     still = tuple((float(end), float(start)) for end, start in zip(stop_ends, starts[1:], strict=True) if start > end)
     try:
-        solved = deflection(command, mode_of_time, t, coordinate.time_s, (*still, (float(starts[-1]), float(t[-1]))))
+        solved = deflection(command, mode_of_time, t, breaks, (*still, (float(starts[-1]), float(t[-1]))))
     except ArithmeticError as exc:  # DOP853 failed (it does not on a mode and a piecewise-polynomial command)
         raise SolverFailed(SolverReport("integration_failed", 0, 0.0), str(exc)) from None
     modes = [mode_of_time(float(s)) for s in stop_ends]

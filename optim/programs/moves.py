@@ -89,7 +89,12 @@ class MoveDesign:
 
 
 def coordinate_span(program: Program, k: int, coordinate: str) -> tuple[float, float]:
-    """Where the coordinate axis starts and ends move ``k``."""
+    """Where the coordinate starts and ends move ``k``: an axis's positions, or a parameter's value (constant over a
+    move: it changes at a stop)."""
+    if coordinate not in program.names:
+        value = program.parameter(k, coordinate)
+        assert value is not None  # run.check_program
+        return value, value
     j = program.axis_index(coordinate)
     return program.stop(k)[j], program.moves[k].target[j]
 

@@ -62,7 +62,7 @@ class ProgramResult:
 def check_program(program: Program) -> None:
     """What the core refuses before designing (a 422 naming the field): see types.check_axes and check_moves, and
     each table's range holding the positions its coordinate goes to."""
-    check_axes(program.axes)
+    check_axes(program.axes, program.parameter_names)
     check_moves(program)
     for i, axis in enumerate(program.axes):
         if axis.limits.max_torque_nm is not None:
@@ -73,8 +73,11 @@ def check_program(program: Program) -> None:
             )
         if axis.table is None:
             continue
-        j = program.axis_index(axis.table.coordinate)
         low, high = axis.table.low, axis.table.high
+        if axis.table.coordinate not in program.names:
+            _check_parameter(program, i, axis.table.coordinate, low, high)
+            continue
+        j = program.axis_index(axis.table.coordinate)
         name = program.axes[j].name
         for field, value in (
             ("start", program.start[j]),
@@ -87,6 +90,22 @@ def check_program(program: Program) -> None:
                     f"is outside axes[{i}].plant_table's range [{low:g}, {high:g}] (the "
                     f"plant of axis {axis.name} is known there only)",
                 )
+
+
+def _check_parameter(program: Program, i: int, name: str, low: float, high: float) -> None:
+    """A parameter coordinate: known in every move (given at the start or by a move before), each value given within
+    the table's range."""
+    given = [("parameters", dict(program.parameters).get(name))]
+    given += [(f"moves[{k}].parameters", dict(m.parameters).get(name)) for k, m in enumerate(program.moves)]
+    for where, value in given:
+        if value is not None and not low <= value <= high:
+            raise InvalidParameter(
+                f"{where}.{name}", value, f"is outside axes[{i}].plant_table's range [{low:g}, {high:g}]"
+            )
+    if program.parameter(0, name) is None:
+        raise InvalidParameter(
+            f"parameters.{name}", None, f"axes[{i}].plant_table needs its value from the first move on (give it here)"
+        )
 
 
 def design_one(program: Program, k: int) -> tuple[MoveDesign, VaryingFit | None]:

@@ -73,6 +73,7 @@ class ProgramMove:
     coordination: Coordination = "synchronized"
     dwell_s: float = 0.0
     still_at_stop: bool = True
+    parameters: tuple[tuple[str, float], ...] = ()  # values from this move on (a payload picked at the stop before)
 
 
 @dataclass(frozen=True)
@@ -85,6 +86,7 @@ class Program:
     solver: SolveCaps = field(default_factory=SolveCaps)
     max_samples: int = 200_000
     sample_period_s: float | None = None  # of the returned series (default: about 2000 samples over the cycle)
+    parameters: tuple[tuple[str, float], ...] = ()  # a table's non-axis coordinates at the start (a payload's mass)
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -96,6 +98,20 @@ class Program:
 
     def axis_index(self, name: str) -> int:
         return self.names.index(name)
+
+    @property
+    def parameter_names(self) -> tuple[str, ...]:
+        """Every parameter the start or a move gives (a table's coordinate that is no axis)."""
+        given = [n for n, _ in self.parameters] + [n for m in self.moves for n, _ in m.parameters]
+        return tuple(dict.fromkeys(given))
+
+    def parameter(self, k: int, name: str) -> float | None:
+        """The parameter's value during move k: the last the move or those before it gave, else the start's."""
+        for move in reversed(self.moves[: k + 1]):
+            value = dict(move.parameters).get(name)
+            if value is not None:
+                return value
+        return dict(self.parameters).get(name)
 
 
 def positions(values: Mapping[str, float], names: Sequence[str], field_name: str) -> tuple[float, ...]:
@@ -120,9 +136,9 @@ def positions(values: Mapping[str, float], names: Sequence[str], field_name: str
     return tuple(out)
 
 
-def check_axes(axes: Sequence[ProgramAxis]) -> None:
-    """Unique names; each table's coordinate an axis, its points strictly increasing, one kind (a 422 naming
-    ``axes[i]...``)."""
+def check_axes(axes: Sequence[ProgramAxis], parameters: Sequence[str] = ()) -> None:
+    """Unique names; each table's coordinate an axis or a parameter, its points strictly increasing, one kind (a 422
+    naming ``axes[i]...``)."""
     if not 1 <= len(axes) <= MAX_AXES:
         raise InvalidParameter("axes", len(axes), f"a program has 1 to {MAX_AXES} axes")
     seen: dict[str, int] = {}
@@ -130,14 +146,19 @@ def check_axes(axes: Sequence[ProgramAxis]) -> None:
         if axis.name in seen:
             raise InvalidParameter(f"axes[{i}].name", axis.name, f"names axes[{seen[axis.name]}] already")
         seen[axis.name] = i
+    clash = [p for p in parameters if p in seen]
+    if clash:
+        raise InvalidParameter("parameters", clash[0], "a parameter may not take an axis's name")
     for i, axis in enumerate(axes):
         if axis.table is not None:
-            _check_table(axis.table, f"axes[{i}].plant_table", seen)
+            _check_table(axis.table, f"axes[{i}].plant_table", [*seen, *parameters])
 
 
-def _check_table(table: PlantTable, where: str, names: Mapping[str, int]) -> None:
+def _check_table(table: PlantTable, where: str, names: Sequence[str]) -> None:
     if table.coordinate not in names:
-        raise InvalidParameter(f"{where}.coordinate", table.coordinate, f"must name an axis ({', '.join(names)})")
+        raise InvalidParameter(
+            f"{where}.coordinate", table.coordinate, f"must name an axis or a parameter ({', '.join(names)})"
+        )
     if not 2 <= len(table.points) <= MAX_TABLE_POINTS:
         raise InvalidParameter(f"{where}.points", len(table.points), f"a table has 2 to {MAX_TABLE_POINTS} points")
     first = table.points[0].plant

@@ -54,7 +54,7 @@ def varying_axes(program: Program, k: int) -> list[int]:
     out = []
     start, target = program.stop(k), program.moves[k].target
     for i, axis in enumerate(program.axes):
-        if axis.table is None or start[i] == target[i]:
+        if axis.table is None or start[i] == target[i] or axis.table.coordinate not in program.names:
             continue
         j = program.axis_index(axis.table.coordinate)
         if start[j] != target[j]:

@@ -133,3 +133,27 @@ def test_the_same_program_on_a_local_dask_cluster_gives_the_same_answer() -> Non
         return re.sub(rb'"solve_time_s":[^,}]+', b"", text)
 
     assert numbers(remote) == numbers(local)
+
+
+def test_a_payload_table_over_http(client: TestClient) -> None:
+    """Y's plant over a payload picked at stop 0: the answer names the payload's plant in each move's design and
+    every stop is still; a payload outside the table is a 422 naming where it was given."""
+    body = copy.deepcopy(LINE)
+    body["axes"][1]["plant_table"] = {
+        "coordinate": "payload_kg",
+        "points": [
+            {"at": 0.0, "plant": {"kind": "mode", "natural_frequency_hz": 7.0, "damping_ratio": 0.02}},
+            {"at": 2.0, "plant": {"kind": "mode", "natural_frequency_hz": 5.0, "damping_ratio": 0.02}},
+        ],
+    }
+    body["parameters"] = {"payload_kg": 0.0}
+    body["moves"][1]["parameters"] = {"payload_kg": 1.0}
+    answer = client.post("/v1/programs", json=body)
+    assert answer.status_code == 200, answer.text
+    moves = answer.json()["moves"]
+    assert all(a["stop_residual_fraction"] < 1e-11 for m in moves for a in m["axes"].values())
+    modes = [m["axes"]["y"]["design"]["modes"][0]["natural_frequency_hz"] for m in moves[1:]]
+    assert modes == pytest.approx([6.0], rel=1e-12)  # 7 Hz less 1 Hz a kilogram (the table's line)
+    body["moves"][1]["parameters"] = {"payload_kg": 3.0}
+    refused = client.post("/v1/programs", json=body)
+    assert refused.status_code == 422 and refused.json()["field"] == "moves[1].parameters.payload_kg", refused.text

@@ -297,3 +297,63 @@ def test_the_true_plant_s_simulation_is_bounded_in_periods(monkeypatch: pytest.M
     with pytest.raises(InvalidParameter) as caught:
         solve_program(program)
     assert caught.value.field == "moves" and "periods" in caught.value.rule
+
+
+PAYLOAD = PlantTable(
+    "payload_kg", (TablePoint(0.0, ModePlant(7.0, 0.02)), TablePoint(2.0, ModePlant(5.0, 0.02)))
+)  # the heavier the payload, the lower Y's mode
+
+
+def test_a_plant_over_a_payload_changes_at_the_stops_where_it_is_picked_and_placed() -> None:
+    """The payload is picked at stop 0 (move 1 carries 1.5 kg) and placed at stop 1: each move is designed for the
+    plant of its payload (the table's interpolation: 7 - 1.5 Hz), its axis's command is that plant's single-axis
+    design (made apart here), and every stop is still on the true plant (the payload constant over each move)."""
+    y = replace(Y, plant=ModePlant(7.0, 0.02), table=PAYLOAD)
+    program = Program(
+        (X, y),
+        (0.0, 0.0),
+        (
+            ProgramMove((0.3, 0.1), "independent"),
+            ProgramMove((0.1, 0.0), "independent", parameters=(("payload_kg", 1.5),)),
+            ProgramMove((0.2, 0.1), "independent", parameters=(("payload_kg", 0.0),)),
+        ),
+        parameters=(("payload_kg", 0.0),),
+    )
+    result = solve_program(program)
+    loaded = _design(ModePlant(7.0 - 1.5, 0.02), -0.1, Y.limits)
+    command = result.moves[1].design.axes[1].command
+    assert command is not None and np.array_equal(command.time_s, loaded.time_s)
+    assert np.max(np.abs(command.derivatives[1:] - loaded.derivatives[1:])) <= 1e-12
+    assert result.moves[1].design.axes[1].plant.modes()[0].natural_frequency_hz == pytest.approx(5.5, rel=1e-12)
+    assert all(m.varying is None for m in result.moves)  # a payload does not change during a move
+    for move in result.moves:
+        assert move.axes[1].stop_residual_fraction is not None and move.axes[1].stop_residual_fraction < 1e-11
+    assert result.axes[1].method == "varying" and not result.warnings
+
+
+@pytest.mark.parametrize(
+    ("parameters", "moves_parameters", "field"),
+    [
+        ((), (), "axes[1].plant_table.coordinate"),  # never given: the coordinate names nothing
+        ((("payload_kg", 0.0),), (("payload_kg", 2.5),), "moves[0].parameters.payload_kg"),  # outside [0, 2]
+        ((("x", 0.0),), (), "parameters"),  # an axis's name
+    ],
+)
+def test_a_payload_s_values_are_checked_naming_where_they_were_given(
+    parameters: tuple[tuple[str, float], ...], moves_parameters: tuple[tuple[str, float], ...], field: str
+) -> None:
+    y = replace(Y, table=PAYLOAD)
+    program = Program(
+        (X, y), (0.0, 0.0), (ProgramMove((0.3, 0.1), parameters=moves_parameters),), parameters=parameters
+    )
+    with pytest.raises(InvalidParameter) as caught:
+        solve_program(program)
+    assert caught.value.field == field, caught.value
+
+
+def test_a_payload_given_only_later_is_missing_at_the_start() -> None:
+    y = replace(Y, table=PAYLOAD)
+    moves = (ProgramMove((0.3, 0.1)), ProgramMove((0.0, 0.0), parameters=(("payload_kg", 1.0),)))
+    with pytest.raises(InvalidParameter) as caught:
+        solve_program(Program((X, y), (0.0, 0.0), moves))
+    assert caught.value.field == "parameters.payload_kg" and "from the first move on" in caught.value.rule
