@@ -11,6 +11,7 @@ independent check of designs made for the plant at each stop.
 from __future__ import annotations
 
 import bisect
+import contextlib
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -19,11 +20,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from models.commands import MIN_STEP_S, PiecewiseCommand
-from models.errors import InvalidParameter, SolverFailed
+from models.errors import DomainError, InvalidParameter, SolverFailed
 from models.plants import Plant
 from models.simulation import simulate
 from models.varying_mode import deflection, free_amplitude
-from optim.problem import DEFAULT_SAMPLES, TAIL_PERIODS, nice_period
+from optim.problem import DEFAULT_SAMPLES, MIN_MOVE, TAIL_PERIODS, Problem, nice_period
 from optim.programs.moves import MoveDesign
 from optim.programs.tables import mode_function
 from optim.programs.types import Program
@@ -106,17 +107,22 @@ def _grid(program: Program, end_s: float, tail_s: float) -> tuple[Array, float]:
     return np.arange(count, dtype=float) * period, period
 
 
-def axis_cycle(program: Program, designs: Sequence[MoveDesign], i: int, starts: Array, tail_s: float) -> AxisCycle:
-    """Axis i's command, samples and stop residuals over the cycle (see the module's docstring)."""
+def axis_cycle(
+    program: Program, designs: Sequence[MoveDesign], i: int, starts: Array, tail_s: float, samples: bool = True
+) -> AxisCycle:
+    """Axis i's command, samples and stop residuals over the cycle (see the module's docstring); without
+    ``samples`` the stops' residuals only (the recipes' rows: no profile or load)."""
     axis = program.axes[i]
     command = cycle_command(program, designs, i, starts)
     stop_ends = np.array([float(s) + d.duration_s for s, d in zip(starts, designs, strict=False)])
-    grid, period = _grid(program, float(starts[-1]), tail_s)
+    grid, period = _grid(program, float(starts[-1]), tail_s) if samples else (np.zeros(1), 0.0)
     t = np.unique(np.concatenate((grid, stop_ends)))
-    profile = command.evaluate_at_instants(t, 4)
+    profile = command.evaluate_at_instants(t, 4) if samples else np.zeros((4, 0))
     if axis.table is None:
-        sampled = PiecewiseCommand(t, command.evaluate_at_instants(t, command.degree + 1), command.continuous_orders)
         residuals = np.array([stop_residual(axis.plant, command, float(end)) for end in stop_ends])
+        if not samples:
+            return AxisCycle(axis.name, command, t[:0], profile, np.zeros((3, 0)), residuals, "exact", period)
+        sampled = PiecewiseCommand(t, command.evaluate_at_instants(t, command.degree + 1), command.continuous_orders)
         response = simulate(axis.plant, sampled)
         load = np.vstack((response.load_position, response.load_velocity, response.load_acceleration))
         return AxisCycle(axis.name, command, t, profile, load, residuals, "exact", period)
@@ -143,6 +149,8 @@ def axis_cycle(program: Program, designs: Sequence[MoveDesign], i: int, starts: 
     residuals = free_amplitude(
         solved.deflection[at], solved.rate[at], np.array([m[0] for m in modes]), np.array([m[1] for m in modes])
     )
+    if not samples:
+        return AxisCycle(axis.name, command, t[:0], profile, np.zeros((3, 0)), residuals, "varying", period)
     omega = np.array([mode_of_time(float(x))[0] for x in t])
     zeta = np.array([mode_of_time(float(x))[1] for x in t])
     accel = -2.0 * zeta * omega * solved.rate - omega * omega * solved.deflection
@@ -190,14 +198,14 @@ def tail_s(program: Program, designs: Sequence[MoveDesign]) -> float:
 MAX_VARYING_PERIODS = 20_000  # periods of a table's fastest mode integrated per cycle, at most (about 10 s)
 
 
-def check_varying_work(program: Program, designs: Sequence[MoveDesign]) -> None:
+def check_varying_work(program: Program, durations_s: Sequence[float]) -> None:
     """Bound the true plant's integration in units of work: the moves' durations (dwells are carried in closed
     form) times the fastest frequency of any table, at most MAX_VARYING_PERIODS; else a 422 naming ``moves``."""
     tables = [a.table for a in program.axes if a.table is not None]
     if not tables:
         return
     fastest = max(p.plant.modes()[0].natural_frequency_hz for table in tables for p in table.points)
-    periods = sum(d.duration_s for d in designs) * fastest * len(tables)
+    periods = sum(durations_s) * fastest * len(tables)
     if periods > MAX_VARYING_PERIODS:
         raise InvalidParameter(
             "moves",
@@ -207,8 +215,32 @@ def check_varying_work(program: Program, designs: Sequence[MoveDesign]) -> None:
         )
 
 
-def cycle(program: Program, designs: Sequence[MoveDesign]) -> tuple[Array, tuple[AxisCycle, ...]]:
-    check_varying_work(program, designs)
+def cycle(program: Program, designs: Sequence[MoveDesign], samples: bool = True) -> tuple[Array, tuple[AxisCycle, ...]]:
+    """The moves end to end: when each starts (and the cycle's end), and each axis's ``AxisCycle`` (``samples``:
+    with its profile and load; without, the stops' residuals only)."""
+    check_varying_work(program, [d.duration_s for d in designs])
     starts = move_starts(program, designs)
     tail = tail_s(program, designs)
-    return starts, tuple(axis_cycle(program, designs, i, starts, tail) for i in range(len(program.axes)))
+    return starts, tuple(axis_cycle(program, designs, i, starts, tail, samples) for i in range(len(program.axes)))
+
+
+def check_before_designs(program: Program) -> None:
+    """The bounds of ``cycle`` checked before any design, on a floor of each move's duration (every axis's rigid
+    minimum time within its limits, Ruckig's: no design is shorter): the true plant's periods and, with a
+    sample_period_s, the samples. A program refused here would be refused after its designs too."""
+    floors = [move_floor_s(program, k) for k in range(len(program.moves))]
+    check_varying_work(program, floors)
+    if program.sample_period_s is not None:
+        span = sum(floors) + sum(m.dwell_s for m in program.moves)
+        _grid(program, span, 0.0)
+
+
+def move_floor_s(program: Program, k: int) -> float:
+    """No design of move k is shorter: the longest of its axes' rigid minimum times (0 where one is not known)."""
+    start, target = program.stop(k), program.moves[k].target
+    floors = [0.0]
+    for axis, a, b in zip(program.axes, start, target, strict=True):
+        if abs(b - a) >= MIN_MOVE:
+            with contextlib.suppress(DomainError):  # (a bad move is named by its design, with its field)
+                floors.append(Problem(axis.plant, b - a, limits=axis.limits).rigid_floor_s)
+    return max(floors)

@@ -140,7 +140,8 @@ def plant_of(
     return plant, (low, high) if high > low * (1.0 + BAND_MIN_SPREAD) else None
 
 
-def _problem(program: Program, plant: Plant, move: float, limits: Limits) -> Problem:
+def move_problem(program: Program, plant: Plant, move: float, limits: Limits) -> Problem:
+    """One axis's (or a path's) move as the family's problem, with the program's settling criteria and caps."""
     return Problem(
         plant=plant,
         displacement=move,
@@ -261,7 +262,7 @@ def design_move(
             designs[i] = replace(previous.axes[i], command=previous.axes[i].own, stretched_from_s=None)
             continue
         plant, band = plant_of(program, i, k, effective)
-        problem = _problem(program, plant, deltas[i], axis.limits)
+        problem = move_problem(program, plant, deltas[i], axis.limits)
         prior = None if previous is None else previous.axes[i].design
         with named(f"moves[{k}].target.{axis.name}"):
             done = _designed(program, problem, band, move.still_at_stop, prior)
@@ -279,7 +280,7 @@ def design_move(
                 late, second = None, None
                 if len(chosen.get(i, ())) == 4:  # the delayed half designed for a mode of its own
                     omega, zeta = chosen[i][2:]
-                    half = _problem(program, effective_mode(omega, zeta), deltas[i], program.axes[i].limits)
+                    half = move_problem(program, effective_mode(omega, zeta), deltas[i], program.axes[i].limits)
                     prior = None if previous is None else previous.axes[i].second
                     with named(f"moves[{k}].target.{axis_move.axis}"):
                         done = _designed(program, half, None, move.still_at_stop, prior)
@@ -344,7 +345,7 @@ def _straight(
     bands = [b for _, b in plants_bands.values() if b is not None]
     band = (min(b[0] for b in bands), max(b[1] for b in bands)) if bands else None
     plant = path_plant([p for p, _ in plants_bands.values()])
-    problem = _problem(program, plant, length, limits)
+    problem = move_problem(program, plant, length, limits)
     prior = None if previous is None else previous.axes[moving[0]].design
     with named(f"moves[{k}]"):
         done = _designed(program, problem, band, move.still_at_stop, prior)

@@ -16,9 +16,9 @@ from numpy.typing import NDArray
 
 from models.commands import PiecewiseCommand
 from models.errors import InvalidParameter
-from optim.problem import TAIL_PERIODS, Problem, nice_period
-from optim.programs.cycle import AxisCycle, cycle
-from optim.programs.moves import MoveDesign, plant_of
+from optim.problem import TAIL_PERIODS, nice_period
+from optim.programs.cycle import AxisCycle, check_before_designs, cycle
+from optim.programs.moves import MoveDesign, move_problem, plant_of
 from optim.programs.types import Program, check_axes, check_moves
 from optim.programs.varying import VaryingFit, design_varying
 from optim.results import MetricsReport
@@ -90,6 +90,7 @@ def check_program(program: Program) -> None:
                     f"is outside axes[{i}].plant_table's range [{low:g}, {high:g}] (the "
                     f"plant of axis {axis.name} is known there only)",
                 )
+    check_before_designs(program)  # the work's bounds, on the moves' floors
 
 
 def _check_parameter(program: Program, i: int, name: str, low: float, high: float) -> None:
@@ -167,12 +168,8 @@ def _metrics(program: Program, k: int, i: int, design: MoveDesign) -> MetricsRep
     axis_move = design.axes[i]
     assert axis_move.command is not None
     command = axis_move.command
-    problem = Problem(
-        plant=plant_of(program, i, k)[0] if axis_move.effective else axis_move.plant,
-        displacement=program.moves[k].target[i] - program.stop(k)[i],
-        limits=program.axes[i].limits,
-        settling=program.settling,
-    )
+    plant = plant_of(program, i, k)[0] if axis_move.effective else axis_move.plant
+    problem = move_problem(program, plant, program.moves[k].target[i] - program.stop(k)[i], program.axes[i].limits)
     end = float(command.time_s[-1])
     horizon = end + TAIL_PERIODS * problem.slowest_period_s
     shifted = command.derivatives.copy()
