@@ -198,7 +198,11 @@ class MoveOut(OutModel):
     start_s: float = Field(description="When the move starts in the cycle.")
     duration_s: float
     dwell_s: float
-    settling_time_s: float | None = Field(description="From the move's start until every axis's load has settled.")
+    settling_time_s: float | None = Field(
+        description="From the move's start until every axis's load has settled, by each axis's metrics (for an axis "
+        "whose plant changes during the move: on the plant at the stop, from rest there; null where the load need "
+        "not be still)."
+    )
     coordination: str
     still_at_stop: bool
     path: PathOut | None = None
