@@ -37,7 +37,19 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from optim.families.time_optimal.touch_points import (
+    BANG,
+    CORNER,
+    FIRST,
+    SECOND,
+    STATE_TOLERANCE,
+    TOUCH,
+    arc_states,
+    touches,
+)
 from optim.families.time_optimal.types import Arc, Spec
+
+__all__ = ["BANG", "CORNER", "FIRST", "SECOND", "TOUCH", "arc_states", "touches"]  # (re-exported)
 
 Array = NDArray[np.float64]
 CHECK_PER_PERIOD = 64  # sign checks per period of the fastest zero-residual mode, on every arc (and at each local
@@ -45,12 +57,11 @@ CHECK_PER_PERIOD = 64  # sign checks per period of the fastest zero-residual mod
 MIN_CHECKS = 16  # per arc, at least
 MAX_CHECKS = 200_000  # a command needing more checks is not certified here (its search answers)
 LEVEL_TOLERANCE = 1e-9  # of the unit: a level this close to -1, 0 or 1 is that level
-STATE_TOLERANCE = 1e-7  # of a limit: a derivative this close to it (or to 0) is on it (the arcs sum to it)
+
 JUNCTION_TOLERANCE = 1e-6  # of k(T): the junction conditions' residual for a consistent theta (a refined
 # structure's switching times are exact to about this: its duration is flat in them at the optimum)
 SIGN_TOLERANCE = 1e-6  # of max |sigma| (or of the density's scale): wrong-signed values next to a switch, from
 # switching times exact to about JUNCTION_TOLERANCE (they shift sigma's zero by that much: second order in distance)
-BANG, FIRST, SECOND = 0, 1, 2  # an arc's kind: a bang, a first-order constrained arc, a coast (second order)
 
 
 @dataclass(frozen=True)
@@ -138,26 +149,18 @@ def _near(value: float, target: float, limit: float) -> bool:
     return abs(value - target) <= STATE_TOLERANCE * limit
 
 
-def _kinds(spec: Spec, durations: Array, levels: Array) -> tuple[Array, Array] | None:
+def _kinds(spec: Spec, durations: Array, levels: Array, touched: NDArray[np.intp]) -> tuple[Array, Array] | None:
     """(kind, sign) of every arc: BANG with its level, FIRST at +-the limit one order below q, SECOND (q = 3) a coast
     at +-max_velocity; None if a rest is on no limit (a singular arc no constraint explains: not certifiable)."""
     below, velocity = arc_states(spec, durations, levels)
-    kind = np.full(levels.size, BANG)
-    sign = levels.copy()
-    for k in np.flatnonzero(levels == 0.0):
+    kind = touched.astype(np.float64)  # (as the signs: the kinds are small integers)
+    sign = np.where(touched == TOUCH, np.sign(velocity), np.where(touched == CORNER, np.sign(below), levels))
+    for k in np.flatnonzero((levels == 0.0) & (touched == BANG)):
         constrained = _constrained(spec, float(below[k]), float(velocity[k]))
         if constrained is None:
             return None
         kind[k], sign[k] = constrained
     return kind, sign
-
-
-def arc_states(spec: Spec, durations: Array, levels: Array) -> tuple[Array, Array]:
-    """At each arc's start, from rest: the derivative one order below q, and (q = 3) the velocity."""
-    rates = levels * spec.scale
-    below = np.concatenate(([0.0], np.cumsum(rates * durations)[:-1]))
-    grow = below * durations + rates * durations**2 / 2  # q = 3: each arc's velocity change
-    return below, np.concatenate(([0.0], np.cumsum(grow)[:-1]))
 
 
 def _constrained(spec: Spec, below: float, velocity: float) -> tuple[int, float] | None:
@@ -208,7 +211,8 @@ def _sweep(
     constrained arc: the line after it), the junction conditions (linear functions that must vanish) and the coasts'
     atoms (coast, time, mass)."""
     total = float(ends[-1])
-    width = _width(spec) + int(np.sum(kind == SECOND))
+    atomic = (kind == SECOND) | (kind == TOUCH) | (kind == CORNER)  # arcs with an unknown atom (of nu; mu's CORNER)
+    width = _width(spec) + int(np.sum(atomic))
     at_starts = _phis(spec, width, total - starts)  # phi(T - s1) of every arc
     zero: Linear = (np.zeros(width), 0.0)
     if np.all(kind == BANG):  # no rest on a limit: every line is 0, a switch sigma = phi = 0 at each arc's start
@@ -218,13 +222,26 @@ def _sweep(
     lines: list[tuple[Linear, Linear]] = [(zero, zero)] * kind.size
     conditions: list[Linear] = []
     atoms: list[tuple[int, float, Linear]] = []
-    column = width - int(np.sum(kind == SECOND))
+    column = width - int(np.sum(atomic))
     for k in range(kind.size - 1, -1, -1):
         s1, s2 = float(starts[k]), float(ends[k])
         lines[k] = (alpha, beta)
         phi = at_starts[k]
+        if kind[k] in (TOUCH, CORNER):  # an atom m at s1, no junction: nu's, sigma less m (s1 - s) before it (alpha
+            unknown = np.zeros(width)  # + m s1, beta - m); mu's, sigma less m before it (alpha + m)
+            unknown[column] = 1.0
+            column += 1
+            atoms.append((k, s1, (unknown, 0.0)))
+            moment = s1 if kind[k] == TOUCH else 1.0
+            alpha = (alpha[0] + moment * unknown, alpha[1])
+            beta = (beta[0] - unknown, beta[1]) if kind[k] == TOUCH else beta
+            continue
         if kind[k] == BANG:
-            if k > 0:  # sigma = 0 where this arc begins: a switch, or the exit of the constrained arc before it
+            if k > 0 and kind[k - 1] not in (
+                TOUCH,
+                CORNER,
+            ):  # sigma = 0 where this arc begins: a switch, or the exit of the
+                # constrained arc before it
                 conditions.append((phi[0] - alpha[0] - s1 * beta[0], phi[1] - alpha[1] - s1 * beta[1]))
             continue
         if kind[k] == SECOND:  # nu's exit atom: phi'(T - s2) + beta after; the entry's, an unknown
@@ -286,6 +303,7 @@ class _Switching:
     sigma: Array
     atoms: list[tuple[int, float, Linear]]
     total: float
+    origin: NDArray[np.intp]  # each arc's index among the command's (``touches`` splits some)
 
     def agreement(self) -> tuple[Array, float]:
         """level x sigma at each check point (+inf off the bang arcs: >= 0 where they agree) and max |sigma| on them
@@ -314,22 +332,23 @@ class _Switching:
         return np.where(second, self.sign[self.arc] * bend, np.inf), float(np.max(np.abs(bend)))
 
 
-_last: tuple[Spec, tuple[Arc, ...], _Switching | None] | None = None  # _switching's latest answer
+_last: tuple[Spec, tuple[Arc, ...], int, _Switching | None] | None = None  # _switching's latest answer
+VARIANTS = 3  # touches' variants
 
 
-def _switching(spec: Spec, arcs: tuple[Arc, ...]) -> _Switching | None:
+def _switching(spec: Spec, arcs: tuple[Arc, ...], variant: int = 0) -> _Switching | None:
     """_switching_of, remembered for the latest (spec, arcs): a chain asks wrong_sign where certificate has just
     failed, on the same command."""
     global _last
     last = _last
-    if last is not None and last[0] is spec and last[1] == arcs:
-        return last[2]
-    found = _switching_of(spec, arcs)
-    _last = (spec, arcs, found)
+    if last is not None and last[0] is spec and last[2] == variant and last[1] == arcs:
+        return last[3]
+    found = _switching_of(spec, arcs, variant)
+    _last = (spec, arcs, variant, found)
     return found
 
 
-def _switching_of(spec: Spec, arcs: tuple[Arc, ...]) -> _Switching | None:
+def _switching_of(spec: Spec, arcs: tuple[Arc, ...], variant: int) -> _Switching | None:
     """sigma of ``arcs`` with the multipliers that fit its junctions; None where the certificate does not apply, a
     level or a rest is off every limit, or no multipliers fit."""
     if not certificate_applies(spec) or not arcs:
@@ -337,8 +356,8 @@ def _switching_of(spec: Spec, arcs: tuple[Arc, ...]) -> _Switching | None:
     levels = _levels(spec, arcs)
     if levels is None:
         return None
-    durations = np.array([a.duration_s for a in arcs])
-    kinds = _kinds(spec, durations, levels)
+    durations, levels, origin, touched = touches(spec, np.array([a.duration_s for a in arcs]), levels, variant)
+    kinds = _kinds(spec, durations, levels, touched)
     if kinds is None:
         return None
     kind, sign = kinds
@@ -355,17 +374,36 @@ def _switching_of(spec: Spec, arcs: tuple[Arc, ...]) -> _Switching | None:
     alpha = np.array([line[0][0] @ z + line[0][1] for line in lines])
     beta = np.array([line[1][0] @ z + line[1][1] for line in lines])
     sigma = _phi(spec, total - s, step, theta) - alpha[arc] - beta[arc] * s
-    return _Switching(levels, kind, sign, s, arc, step, z, theta, beta, sigma, atoms, total)
+    return _Switching(levels, kind, sign, s, arc, step, z, theta, beta, sigma, atoms, total, origin)
 
 
 def certificate(spec: Spec, arcs: tuple[Arc, ...]) -> Certificate | None:
     """The proof that ``arcs`` (merged, meeting the end conditions and the limits: the caller checks) are the
-    minimum-time command of ``spec``, or None where this check does not apply or does not prove it."""
+    minimum-time command of ``spec``, or None where this check does not apply or does not prove it. Tried without
+    atoms at touch points first, then with them (``touches``' variants)."""
+    for variant in range(VARIANTS):
+        w = _switching(spec, arcs, variant)
+        proof = None if w is None else _proof(spec, w)
+        if proof is not None:
+            return proof
+        if variant == 0 and not _touches_any(spec, arcs):
+            return None
+    return None
+
+
+def _touches_any(spec: Spec, arcs: tuple[Arc, ...]) -> bool:
+    """Whether ``touches`` (variant 2) finds a touch point or a corner in ``arcs``."""
+    levels = _levels(spec, arcs)
+    if levels is None:
+        return False
+    durations = np.array([a.duration_s for a in arcs])
+    return bool(touches(spec, durations, levels, 2)[0].size > durations.size)
+
+
+def _proof(spec: Spec, w: _Switching) -> Certificate | None:
+    """The certificate of the multipliers ``w`` found, if every sign agrees (see ``certificate``)."""
     from optim.families.time_optimal.certify_kernels import bang_disagrees, density_disagrees  # (numba: as _phi)
 
-    w = _switching(spec, arcs)
-    if w is None:
-        return None
     sign, s, theta = w.sign, w.s, w.theta
     if bang_disagrees(w.sigma, w.arc, w.kind == BANG, w.levels, SIGN_TOLERANCE):  # agreement, with its minima
         return None
@@ -407,4 +445,4 @@ def wrong_sign(spec: Spec, arcs: tuple[Arc, ...]) -> tuple[int, float, float] | 
     before, after = np.flatnonzero(right[:worst]), np.flatnonzero(right[worst:])
     lo = int(before[-1]) + 1 if before.size else 0  # the run of wrong points around the worst
     hi = worst + int(after[0]) - 1 if after.size else right.size - 1
-    return k, float(w.s[lo]), float(w.s[hi])
+    return int(w.origin[k]), float(w.s[lo]), float(w.s[hi])  # (the arc among the command's: a touch splits one)

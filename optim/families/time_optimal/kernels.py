@@ -229,6 +229,57 @@ def bound_system(z: Array, structure: Structure, m: int, limit: float, times: Ar
 
 
 @njit(cache=True)
+def peak_system(z: Array, structure: Structure, limit: float, jac: bool) -> tuple[Array, Array]:
+    """With a held jerk, each arc's velocity where the acceleration crosses 0 inside it (refine's velocity_peaks:
+    v* = v_k + a_k tau + j_k tau^2 / 2 at tau = clip(-a_k / j_k, 0, d_k)), as 1 - v* / limit >= 0 (every arc), then
+    1 + v* / limit >= 0, and their Jacobian in z: d v_k / d d_m = a_m + j_m (s_k - s_m) and d a_k / d d_m = j_m
+    (m < k), plus a_k + j_k d_k on d_k where tau = d_k; in a free level m < k, u d_m (s_k - s_m - d_m / 2) and
+    u d_m, and u tau^2 / 2 in its own."""
+    count, t0, levels, free, unit, _, _, _, state, _, _, _ = structure
+    d, lv = _unpack(z, count, t0, levels, free)
+    jerk = lv * unit
+    start = np.zeros(count)
+    a = np.zeros(count)
+    v = np.zeros(count)
+    a[0], v[0] = state[2], state[1]
+    for k in range(1, count):
+        start[k] = start[k - 1] + d[k - 1]
+        a[k] = a[k - 1] + jerk[k - 1] * d[k - 1]
+        v[k] = v[k - 1] + a[k - 1] * d[k - 1] + jerk[k - 1] * d[k - 1] ** 2 / 2
+    values = np.zeros(2 * count)
+    out = np.zeros((2 * count, count + free.size))
+    for k in range(count):
+        tau, at_end = 0.0, False
+        if jerk[k] != 0.0:
+            crossing = -a[k] / jerk[k]
+            tau = min(max(crossing, 0.0), d[k])
+            at_end = crossing >= d[k]
+        peak = v[k] + a[k] * tau + jerk[k] * tau * tau / 2
+        values[k] = 1.0 - peak / limit
+        values[count + k] = 1.0 + peak / limit
+        if not jac:
+            continue
+        for m in range(k):
+            g = (a[m] + jerk[m] * (start[k] - start[m]) + tau * jerk[m]) * t0 / limit
+            out[k, m] = -g
+            out[count + k, m] = g
+        if at_end:
+            g = (a[k] + jerk[k] * d[k]) * t0 / limit
+            out[k, k] = -g
+            out[count + k, k] = g
+        for f in range(free.size):
+            m = free[f]
+            g = 0.0
+            if m < k:
+                g = unit * d[m] * (start[k] - start[m] - d[m] / 2 + tau) / limit
+            elif m == k:
+                g = unit * tau * tau / 2 / limit
+            out[k, count + f] = -g
+            out[count + k, count + f] = g
+    return values, out
+
+
+@njit(cache=True)
 def _square_system(v: Array, structure: Structure, rows: Rows) -> tuple[Array, Array]:
     """end_system's rows and bound_system's active rows (over the bounds in turn) at v, their Jacobian in the
     movable columns of z."""

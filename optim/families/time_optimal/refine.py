@@ -106,10 +106,11 @@ class _Model:
 
     def __init__(self, spec: Spec, durations: list[float], levels: list[float], free: list[bool], cuts: list[Cut]):
         # numba (~60 MiB) is imported by the first refinement, not by every process that imports the families
-        from optim.families.time_optimal.kernels import bound_system, end_system, moment_terms, polish
+        from optim.families.time_optimal.kernels import bound_system, end_system, moment_terms, peak_system, polish
 
         self.end_system: Any = end_system  # (numba's Dispatcher: typed by its arguments at run time)
         self.bound_system: Any = bound_system
+        self.peak_system: Any = peak_system
         self.moment_terms: Any = moment_terms
         self.polish_kernel: Any = polish
         self.spec = spec
@@ -151,6 +152,7 @@ class _Model:
             self.derivative_order,
             self.moment_scales,
         )
+        self.peaks = q == 3 and spec.max_velocity is not None and self.count >= 2  # velocity_peaks' rows
         self._last: dict[str, tuple[bytes, Array, Array]] = {}  # _remembered's
         # the same, for kernels.polish (per spec: _fixed), and no rows for a missing bound
         self.bound_m, self.bound_limit = (fixed.bound_m, fixed.bound_limit) if self.bounds else _NO_BOUNDS
@@ -197,9 +199,22 @@ class _Model:
             if want_jac:
                 jac = self._jac(per[:, None] * jd, per[:, None] * diff, 1.0)
                 jacs.append(-2.0 * np.real(np.conj(f)[:, None] * jac) / bound[:, None] ** 2)
+        if self.peaks:
+            peak, peak_jac = self.velocity_peaks(z, want_jac)
+            values_list.append(peak)
+            jacs.append(peak_jac)
         if not values_list:
             return np.zeros(0), np.zeros((0, z.size))
         return np.concatenate(values_list), (np.vstack(jacs) if want_jac else np.zeros(0))
+
+    def velocity_peaks(self, z: Array, want_jac: bool) -> tuple[Array, Array]:
+        """With a held jerk, the velocity where the acceleration crosses 0 inside an arc (its extremum there, which
+        the check points at arc ends and middles miss), as 1 -+ v* / max_velocity >= 0 per arc, and the Jacobian in z
+        (kernels.peak_system): an arc with no crossing gives an end's velocity (checked anyway); v* is continuous in
+        z, smooth where the crossing is inside. Without it SLSQP converged to commands over the limit there (the
+        exact check refused them: 7 of bench/programs.py's 48 designs answered the grid's command)."""
+        values, jac = self.peak_system(z, self.structure, float(self.spec.max_velocity or 1.0), want_jac)
+        return values, (jac if want_jac else np.zeros(0))
 
     def _remembered(self, z: Array, kind: str) -> tuple[Array, Array]:
         """_parts with the Jacobian, remembered for the latest z of each kind: SLSQP asks the values, then the
@@ -315,8 +330,11 @@ def _polish(model: _Model, z: Array, iterations: int = 20, stall: bool = False) 
         on_level |= near
     movable = np.flatnonzero(np.concatenate([z[: model.count] > 0.0, ~on_level]))
     ineq = model.inequalities(z)
-    active = np.abs(ineq) < ACTIVE
-    if model.cuts or not movable.size:
+    # after SLSQP, a bound it left broken (stopped at its cap) is brought onto it too; a predicted start's Newton holds
+    # only the bounds it starts on
+    active = np.abs(ineq) < ACTIVE if stall else ineq < ACTIVE
+    peak_active = model.peaks and bool(np.any(active[-2 * model.count :]))  # (rows the compiled polish has not)
+    if model.cuts or peak_active or not movable.size:
         return _polish_numpy(model, z, movable, np.flatnonzero(active), iterations, stall)
     rows = (model.bound_m, model.bound_limit, *model.bound_times, active, movable.astype(np.int64))
     z, ok = model.polish_kernel(z, model.structure, rows, iterations, stall, STALL_AFTER, DAMPING_HALVINGS, CONVERGED)
