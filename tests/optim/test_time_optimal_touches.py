@@ -105,3 +105,34 @@ def test_a_touch_point_command_is_certified_and_an_independent_lp_finds_none_sho
     reference = GridMove(abs(MOVE_M), (pole,), 0.8, 10.0, 1000.0)
     assert not reference.feasible(summary.duration_s * (1 - 1e-5), 1600)
     assert result.metrics.residual_amplitude < 1e-9 * abs(MOVE_M)
+
+
+def test_a_cruising_move_is_certified_from_the_cruise_structures_before_any_lp() -> None:
+    # bench/programs.py's x axis, move 1 of its 20-move program (14 Hz, zeta 0.03; 0.426 m within 1.5 m/s, 15 m/s^2,
+    # 1500 m/s^3: it cruises). No predicted structure converged certified and the search answered a refined local
+    # optimum, 395.937 ms, after 13 LPs (1.8 s). From structures.cruise_starts (a touch and dip of the velocity, a
+    # notch in the deceleration's hold), refined and repaired, the certificate proves 395.645 ms with no LP solved;
+    # the independent 800-step LP of bench/lp_reference.py finds no command 1e-5 shorter, and one 0.2 % longer (its
+    # own grid costs it up to a step, 0.05 %: the check can tell).
+    from optim.families.time_optimal.shaped import rigid_of
+    from optim.families.time_optimal.structures import cruise_starts
+
+    displacement = 0.42591696799107887
+    limits = Limits(max_velocity=1.5, max_acceleration=15.0, max_jerk=1500.0)
+    problem = Problem(ModePlant(14.0, 0.03), displacement=displacement, limits=limits)
+    options = TimeOptimalOptions()
+    spec = spec_of(problem, options, selected_modes(problem, options)[0])
+    starts = cruise_starts(spec, rigid_of(spec))
+    assert len(starts) == 2 and starts[1][1] == starts[0][1][::-1]
+    result = synthesize(FAMILIES["time_optimal"], problem, options)
+    summary = result.summary
+    assert "certifies" in summary.refinement and result.design.detail.solution.lp_solves == 0  # type: ignore[attr-defined]
+    assert summary.duration_s < 0.395937 * (1 - 5e-4)
+    pole = complex(-0.03 * 2 * math.pi * 14.0, 2 * math.pi * 14.0 * math.sqrt(1 - 0.03**2))
+    reference = GridMove(displacement, (pole,), 1.5, 15.0, 1500.0)
+    assert not reference.feasible(summary.duration_s * (1 - 1e-5), 800)
+    assert reference.feasible(summary.duration_s * (1 + 2e-3), 800)
+    assert result.metrics.residual_amplitude < 1e-9 * displacement
+    short = Problem(ModePlant(14.0, 0.03), displacement=0.02, limits=limits)  # no cruise: no such start
+    short_spec = spec_of(short, options, selected_modes(short, options)[0])
+    assert cruise_starts(short_spec, rigid_of(short_spec)) == []

@@ -42,7 +42,7 @@ from optim.families.time_optimal.by_modes import Proven, Relaxed, mode_by_mode
 from optim.families.time_optimal.candidates import Best, Found, LimitCheck, duration_s
 from optim.families.time_optimal.search import GridSearch, clip, project
 from optim.families.time_optimal.shaped import as_start, rigid_of, shaped_arcs, shapers
-from optim.families.time_optimal.structures import reversal_starts, three_switch_starts
+from optim.families.time_optimal.structures import cruise_starts, reversal_starts, three_switch_starts
 from optim.families.time_optimal.types import Arc, GridSolution, Solution, Spec
 
 Array = NDArray[np.float64]
@@ -247,6 +247,19 @@ def _near(best: Best, relaxed: Relaxed) -> bool:
     return best.offer(found.arcs, found.method, found.note)
 
 
+def _cruise(best: Best, rigid: RigidMove | None) -> bool:
+    """The cruise structures (structures.cruise_starts) refined apart from ``best`` (an unproven shorter best early
+    steers the search) and offered where the certificate proves one (True: no search is needed)."""
+    for start in cruise_starts(best.spec, rigid):
+        trial = Best(best.spec, best.search, best.check_limits)
+        trial.refine_from(start, " (from a cruise's structure: a touch and a dip of the velocity, a notch)")
+        trial.last_repairs()
+        found = trial.found
+        if trial.proof is not None and found is not None:
+            return best.offer(found.arcs, found.method, found.note, trial.proof)
+    return False
+
+
 def solve(spec: Spec, check_limits: LimitCheck | None = None, bound_spec: Spec | None = None) -> Solution:
     """The minimum-time command of ``spec`` (see the module's docstring). ``check_limits(arcs) -> bool`` tells
     whether a command meets the limits exactly (the caller's independent check); ``bound_spec`` is the problem
@@ -261,6 +274,8 @@ def solve(spec: Spec, check_limits: LimitCheck | None = None, bound_spec: Spec |
     near = certifies and best.proof is None and relaxed is not None and _near(best, relaxed)
     note = "Newton on the switching times of the rigid optimum with reversal pulses"
     held = best.predicted(reversal_starts(spec, rigid), note) if exact and best.proof is None and not near else []
+    if exact and certifies and best.proof is None and not near:
+        _cruise(best, rigid)
     grid = None if best.proof is not None or near else _search(best, search, rigid, held, note, relaxed)
     relaxed = relaxed if certifies else None
     found = best.found

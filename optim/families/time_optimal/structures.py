@@ -124,19 +124,69 @@ def mode_starts(spec: Spec, durations: list[float], levels: list[float], pole: c
     return out
 
 
-def reversal_starts(spec: Spec, rigid: RigidMove | None) -> list[Start]:
-    """The rigid optimum with one reversal per zero-residual pole (its derivative order 0), shortest reversal first;
-    none where the structure is not predicted (``predicts``)."""
+def rigid_arcs(spec: Spec, rigid: RigidMove | None) -> tuple[list[float], list[float]] | None:
+    """The rigid optimum's arcs (durations, levels in the unit: Ruckig's phases of zero duration dropped, equal
+    neighbours merged); None where the structures here do not apply (``predicts``) or it is not bang-coast-bang."""
     if rigid is None or not predicts(spec, rigid):
-        return []
-    kept = np.diff(rigid.edges_s) > 0.0  # Ruckig's phases of zero duration dropped, equal neighbours merged
+        return None
+    kept = np.diff(rigid.edges_s) > 0.0
     widths, unit = np.diff(rigid.edges_s)[kept], rigid.levels[kept] / spec.scale
     joined = np.concatenate(([True], np.abs(np.diff(unit)) > 1e-12))
     durations = np.add.reduceat(widths, np.flatnonzero(joined)).tolist()
     unit = unit[joined]
     if np.any(np.abs(unit - np.round(unit)) > 1e-6):
-        return []  # not a bang-coast-bang (none seen from Ruckig at rest-to-rest: a safeguard)
-    levels = np.round(unit).tolist()
+        return None  # not a bang-coast-bang (none seen from Ruckig at rest-to-rest: a safeguard)
+    return durations, np.round(unit).tolist()
+
+
+DIP, NOTCH, NOTCH_AFTER = 0.1, 0.2, 0.1  # cruise_starts' widths, in damped periods
+
+
+def cruise_starts(spec: Spec, rigid: RigidMove | None) -> list[Start]:
+    """With a held jerk and one mode, a rigid optimum that cruises at max_velocity between holds at +-A, with the
+    velocity touching the limit and dipping as the cruise begins and a notch in the deceleration's hold at -A (+J,
+    -J): the structure of the certified answers on bench/programs.py's cruising moves (the touch point is an atom
+    of the velocity limit's measure: optim.families.time_optimal.touch_points); and its mirror in time (the notch in
+    the acceleration's hold, the dip as the cruise ends). For SLSQP (their duration is not fixed by the end
+    conditions alone: optim.families.time_optimal.refine), tried before any LP."""
+    arcs = rigid_arcs(spec, rigid)
+    if arcs is None or spec.order != 3 or len(spec.zero_poles) != 1 or spec.max_velocity is None:
+        return []
+    durations, levels = arcs
+    if levels != [1.0, 0.0, -1.0, 0.0, -1.0, 0.0, 1.0]:  # +J, hold at A, -J, cruise, -J, hold at -A, +J
+        return []
+    period = 2.0 * math.pi / abs(spec.zero_poles[0].imag)
+    ramp, hold_up, _, cruise, _, hold_down, _ = durations
+    dip, notch, before = DIP * period, NOTCH * period, NOTCH_AFTER * period
+    if hold_down <= before + 2.0 * notch:
+        return []
+    first = (
+        [
+            ramp,
+            hold_up,
+            ramp + dip,
+            2.0 * dip,
+            dip,
+            cruise,
+            ramp,
+            before,
+            notch,
+            notch,
+            hold_down - before - 2 * notch,
+            ramp,
+        ],
+        [1.0, 0.0, -1.0, 1.0, -1.0, 0.0, -1.0, 0.0, 1.0, -1.0, 0.0, 1.0],
+    )
+    return [(d, lv, [False] * len(lv)) for d, lv in (first, (first[0][::-1], first[1][::-1]))]
+
+
+def reversal_starts(spec: Spec, rigid: RigidMove | None) -> list[Start]:
+    """The rigid optimum with one reversal per zero-residual pole (its derivative order 0), shortest reversal first;
+    none where the structure is not predicted (``predicts``)."""
+    arcs = rigid_arcs(spec, rigid)
+    if arcs is None:
+        return []
+    durations, levels = arcs
     ramp_s = _ramp_s(spec)
     # Where a mode's vibration decays within the move only the last switches' residual is left to cancel: reversals
     # near the end first; else Singh and Vadali's around a switch first (the undamped optimum).
