@@ -184,7 +184,7 @@ def reversal_starts(spec: Spec, rigid: RigidMove | None) -> list[Start]:
     """The rigid optimum with one reversal per zero-residual pole (its derivative order 0), shortest reversal first;
     none where the structure is not predicted (``predicts``)."""
     arcs = rigid_arcs(spec, rigid)
-    if arcs is None:
+    if arcs is None or rigid is None:
         return []
     durations, levels = arcs
     ramp_s = _ramp_s(spec)
