@@ -115,10 +115,7 @@ def synthesize_many(
     processes (vibfree.batch), with the same answers."""
     name, _ = _family(family)
     chosen = settings or get_settings()
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-    if isinstance(processes, bool) or not isinstance(processes, int) or not 1 <= processes <= cores:
-        detail = f"must be an integer from 1 to the {cores} cores this process may use, got {processes!r}"
-        raise VibfreeError(_problem("invalid-input", detail, "processes"))
+    processes = _processes(processes)
     if processes == 1:
         return _designs(name, requests, chosen)
     from vibfree.batch import in_processes
@@ -187,16 +184,34 @@ class ProgramAnswer:
         return cam_text(self.result)
 
 
-def program(request: Mapping[str, Any] | str | bytes, *, settings: Settings | None = None) -> ProgramAnswer:
-    """A machine program (several axes, a cycle of moves), as ``POST /v1/programs``; the moves are designed here,
-    one after the other."""
+def program(
+    request: Mapping[str, Any] | str | bytes, *, settings: Settings | None = None, processes: int = 1
+) -> ProgramAnswer:
+    """A machine program (several axes, a cycle of moves), as ``POST /v1/programs``. ``processes``: 1 designs the
+    moves here, one after the other; more (up to the cores this process may use) design them in that many worker
+    processes at once (vibfree.batch: run the call under ``if __name__ == "__main__":``), with the same answer."""
     from app.schemas.programs import ProgramIn
     from app.services import programs as program_service
 
     body = _validate(ProgramIn, request)
-    here = InlineExecutor()
-    answer, result = _run(program_service.answer(body, settings or get_settings(), here))
+    chosen = settings or get_settings()
+    count = _processes(processes)
+    if count == 1:
+        answer, result = _run(program_service.answer(body, chosen, InlineExecutor()))
+        return ProgramAnswer(answer, result)
+    from vibfree.batch import ProcessesExecutor
+
+    answer, result = _run(program_service.answer(body, chosen, ProcessesExecutor(count), capacity=2 * count))
     return ProgramAnswer(answer, result)
+
+
+def _processes(processes: object) -> int:
+    """``processes`` checked: an integer from 1 to the cores this process may use (more would only compete)."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    if isinstance(processes, bool) or not isinstance(processes, int) or not 1 <= processes <= cores:
+        detail = f"must be an integer from 1 to the {cores} cores this process may use, got {processes!r}"
+        raise VibfreeError(_problem("invalid-input", detail, "processes"))
+    return processes
 
 
 @dataclass(frozen=True)

@@ -13,6 +13,7 @@ order, which ``concurrent.futures.ProcessPoolExecutor`` does.
 
 from __future__ import annotations
 
+import asyncio
 import math
 import multiprocessing
 import os
@@ -24,6 +25,7 @@ from itertools import repeat
 from typing import Any, TypeVar
 
 T = TypeVar("T")
+R = TypeVar("R")
 CHUNK_MOVES = 16  # moves a job: fewer jobs than moves (each costs a round trip), enough to balance the workers
 
 _POOL: tuple[int, int, ProcessPoolExecutor] | None = None  # (the process that made it, its workers, the pool)
@@ -79,3 +81,20 @@ def in_processes(
             'again when a worker imports it (make the call under `if __name__ == "__main__":`)'
         ) from exc
     return [item for part in parts for item in part]
+
+
+class ProcessesExecutor:
+    """A ``runtime.executor.Executor`` on the kept pool of ``processes`` workers: a program's moves designed on every
+    core (``vibfree.program(..., processes=N)``). As ``InlineExecutor``, the deadline is not enforced (one caller
+    owns the processes; the solvers' own caps bound every solve)."""
+
+    def __init__(self, processes: int) -> None:
+        self.workers = processes
+        self.pool = _pool(processes)
+
+    async def run(self, fn: Callable[..., R], *args: Any, deadline_s: float) -> R:
+        try:
+            return await asyncio.wrap_future(self.pool.submit(fn, *args))
+        except BrokenProcessPool:
+            _discard(self.pool)
+            raise

@@ -19,6 +19,9 @@ def add_program_command(commands: Any) -> None:
     program.add_argument("--csv", metavar="FILE", help="write the cam table, one column per axis (- for stdout)")
     program.add_argument("--json", metavar="FILE", help="write the whole answer as JSON (- for stdout)")
     program.add_argument("--url", help="a running service (e.g. http://127.0.0.1:8000); default: in-process")
+    program.add_argument(
+        "--processes", type=int, default=1, help="in-process: design the moves in this many worker processes at once"
+    )
     program.set_defaults(run=run_program)
 
 
@@ -30,7 +33,7 @@ def run_program(args: argparse.Namespace) -> int:
     else:
         from vibfree.api import program
 
-        done = in_process(lambda: program(request))
+        done = in_process(lambda: program(request, processes=args.processes))
         answer = orjson.loads(orjson.dumps(done.answer, option=orjson.OPT_SERIALIZE_NUMPY))
         csv = done.csv() if args.csv else None
     print(program_summary(answer), file=summary_stream(args.json, args.csv))

@@ -74,6 +74,24 @@ def test_a_batch_on_two_processes_gives_the_serial_answers_in_order():
         assert refused.value.problem["field"] == "processes" and refused.value.status == 422
 
 
+def test_a_program_on_two_processes_gives_the_in_process_answer() -> None:
+    # The straight-line example's moves designed on two worker processes (vibfree.batch.ProcessesExecutor) and here
+    # one after the other: the same answer, every number but the reported wall times, and the same cam table.
+    from app.examples.programs import EXAMPLES
+
+    body = EXAMPLES["straight_line"]["value"]
+    here = vibfree.program(body, settings=TEST_SETTINGS)
+    parallel = vibfree.program(body, settings=TEST_SETTINGS, processes=2)
+    dumped = [
+        re.sub(rb'"solve_time_s":[^,}]+', b"", orjson.dumps(a.answer, option=orjson.OPT_SERIALIZE_NUMPY))
+        for a in (here, parallel)
+    ]
+    assert dumped[0] == dumped[1] and here.csv() == parallel.csv()
+    with pytest.raises(vibfree.VibfreeError) as refused:
+        vibfree.program(body, processes=(os.cpu_count() or 1) + 1)
+    assert refused.value.problem["field"] == "processes" and refused.value.status == 422
+
+
 def test_synthesize_gives_the_endpoints_answer_and_csv_byte_for_byte(client):
     # The same schemas, service layer and CSV writer: in-process and over HTTP agree exactly.
     design = vibfree.synthesize("stap", STAP, settings=TEST_SETTINGS)
