@@ -24,6 +24,7 @@ from optim.families.time_optimal.repair import NOTCH_SHARE, Where, bang_start, c
 from optim.families.time_optimal.search import GridSearch
 from optim.families.time_optimal.shaped import as_start
 from optim.families.time_optimal.shooting import shoot
+from optim.families.time_optimal.stationary import stationary
 from optim.families.time_optimal.structures import Start
 from optim.families.time_optimal.types import Arc, Spec
 
@@ -91,10 +92,24 @@ class Best:
         if total > self.spec.max_duration_s or not self.accepts(arcs):
             return False
         self.found = Found(merged(arcs), method, note)
-        self.proof = proof or certificate(self.spec, self.found.arcs)
+        self.proof = proof or certificate(self.spec, self.found.arcs) or self.made_stationary()
         if self.proof is None:
             self.repair(self.found.arcs)
         return True
+
+    def made_stationary(self) -> Certificate | None:
+        """The found command's switching times made stationary (optim.families.time_optimal.stationary) where its
+        certificate fails: kept, proven, where the certificate proves them (the proven minimum is never longer)."""
+        found = self.found
+        if found is None or found.method != "refined" or not certificate_applies(self.spec):
+            return None
+        exact = stationary(self.spec, found.arcs)
+        if exact is None or not self.accepts(exact):
+            return None
+        proof = certificate(self.spec, merged(exact))
+        if proof is not None:
+            self.found = Found(merged(exact), found.method, f"{found.note}; its switching times made stationary")
+        return proof
 
     def repair(self, arcs: tuple[Arc, ...]) -> None:
         """``arcs`` with their off-limit arcs made bang, or else a notch where sigma contradicts a bang arc

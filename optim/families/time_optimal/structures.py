@@ -139,7 +139,8 @@ def rigid_arcs(spec: Spec, rigid: RigidMove | None) -> tuple[list[float], list[f
     return durations, np.round(unit).tolist()
 
 
-DIP, NOTCH, NOTCH_AFTER = 0.1, 0.2, 0.1  # cruise_starts' widths, in damped periods
+CRUISE_WIDTHS = ((0.08, 0.17, 0.05), (0.05, 0.1, 0.05), (0.12, 0.2, 0.02), (0.1, 0.2, 0.1))  # cruise_starts': the
+# dip's, the notch's, and the hold before the notch, in damped periods (the certified answers' on bench/programs.py)
 
 
 def cruise_starts(spec: Spec, rigid: RigidMove | None) -> list[Start]:
@@ -147,8 +148,8 @@ def cruise_starts(spec: Spec, rigid: RigidMove | None) -> list[Start]:
     velocity touching the limit and dipping as the cruise begins and a notch in the deceleration's hold at -A (+J,
     -J): the structure of the certified answers on bench/programs.py's cruising moves (the touch point is an atom
     of the velocity limit's measure: optim.families.time_optimal.touch_points); and its mirror in time (the notch in
-    the acceleration's hold, the dip as the cruise ends). For SLSQP (their duration is not fixed by the end
-    conditions alone: optim.families.time_optimal.refine), tried before any LP."""
+    the acceleration's hold, the dip as the cruise ends), at each of CRUISE_WIDTHS. For SLSQP (their duration is
+    not fixed by the end conditions alone: optim.families.time_optimal.refine), tried before any LP."""
     arcs = rigid_arcs(spec, rigid)
     if arcs is None or spec.order != 3 or len(spec.zero_poles) != 1 or spec.max_velocity is None:
         return []
@@ -157,27 +158,16 @@ def cruise_starts(spec: Spec, rigid: RigidMove | None) -> list[Start]:
         return []
     period = 2.0 * math.pi / abs(spec.zero_poles[0].imag)
     ramp, hold_up, _, cruise, _, hold_down, _ = durations
-    dip, notch, before = DIP * period, NOTCH * period, NOTCH_AFTER * period
-    if hold_down <= before + 2.0 * notch:
-        return []
-    first = (
-        [
-            ramp,
-            hold_up,
-            ramp + dip,
-            2.0 * dip,
-            dip,
-            cruise,
-            ramp,
-            before,
-            notch,
-            notch,
-            hold_down - before - 2 * notch,
-            ramp,
-        ],
-        [1.0, 0.0, -1.0, 1.0, -1.0, 0.0, -1.0, 0.0, 1.0, -1.0, 0.0, 1.0],
-    )
-    return [(d, lv, [False] * len(lv)) for d, lv in (first, (first[0][::-1], first[1][::-1]))]
+    shape = [1.0, 0.0, -1.0, 1.0, -1.0, 0.0, -1.0, 0.0, 1.0, -1.0, 0.0, 1.0]
+    starts: list[Start] = []
+    for dip_p, notch_p, before_p in CRUISE_WIDTHS:
+        dip, notch, before = dip_p * period, notch_p * period, before_p * period
+        if hold_down > before + 2.0 * notch:
+            rest = hold_down - before - 2.0 * notch
+            lengths = [ramp, hold_up, ramp + dip, 2.0 * dip, dip, cruise, ramp, before, notch, notch, rest, ramp]
+            starts.append((lengths, shape, [False] * len(shape)))
+    mirrored = [(d[::-1], lv[::-1], f) for d, lv, f in starts[:1]]  # (certified none of the 48: one is tried)
+    return starts + mirrored
 
 
 def reversal_starts(spec: Spec, rigid: RigidMove | None) -> list[Start]:
