@@ -8,7 +8,9 @@
    frequency (never longer asked, move by move), both computed in the same run.
 2. The straight line of the other example against the single-axis design on its path parameter with the projected
    limits (the plant built here from the modes' quadratics): the largest difference of the axes' commands.
-3. A 20-move, 3-axis program's time against the same moves' single-axis designs alone, in the same run.
+3. A 20-move, 3-axis program's time in one process and in two (``vibfree.program(..., processes=2)``) against the
+   same moves' single-axis designs alone, in the same run; with a seed, that seed's program only
+   (``python bench/programs.py speed 29``).
 
     python bench/programs.py
 """
@@ -198,8 +200,8 @@ def straight_line() -> None:
     print(f"straight line vs the single-axis design on its path parameter: largest difference {worst:.1e} (1e-9 asked)")
 
 
-def twenty_moves() -> dict[str, Any]:
-    rng = np.random.default_rng(28)
+def twenty_moves(seed: int = 28) -> dict[str, Any]:
+    rng = np.random.default_rng(seed)
     axes = [
         {
             "name": "x",
@@ -252,22 +254,31 @@ def alone_problems(request: dict[str, Any], result: Any) -> list[Problem]:
     return out
 
 
-def speed() -> None:
-    request = twenty_moves()
+def speed(seed: int = 28) -> None:
+    import vibfree
+
+    request = twenty_moves(seed)
     solve(request)  # the first call builds the kernels
     _, result, seconds = solve(request)
+    vibfree.program(request, processes=2)  # the workers start
+    started = time.perf_counter()
+    vibfree.program(request, processes=2)
+    two = time.perf_counter() - started
     problems = alone_problems(request, result)
     started = time.perf_counter()
     for problem in problems:
         synthesize(FAMILIES["time_optimal"], problem, TimeOptimalOptions())
     alone = time.perf_counter() - started
     print(
-        f"20 moves, 3 axes: {seconds:.2f} s in-process (2 s asked); its {len(problems)} designs alone "
-        f"{alone:.2f} s: {seconds / alone:.2f} x"
+        f"20 moves, 3 axes (seed {seed}): {seconds:.2f} s in one process, {two:.2f} s in two (2 s asked); its "
+        f"{len(problems)} designs alone {alone:.2f} s: {seconds / alone:.2f} x"
     )
 
 
 if __name__ == "__main__":
-    pick_and_place()
-    straight_line()
-    speed()
+    if sys.argv[1:2] == ["speed"]:
+        speed(*(int(a) for a in sys.argv[2:3]))
+    else:
+        pick_and_place()
+        straight_line()
+        speed()

@@ -10,6 +10,9 @@ the limits exactly (the caller's check) and the bands on the dense check (optim.
 - the predicted structures (optim.families.time_optimal.structures), by damped Newton: one that its
   certificate proves minimum-time (optim.families.time_optimal.certify) is the answer, with nothing else computed
   (a proven minimum is never longer than the shaped rigid optimum); the others are offered after the search;
+- with a held jerk and one mode, a move that cruises: the cruise structures (structures.cruise_starts: the velocity
+  touching its limit and dipping as the cruise begins, a notch in the deceleration's hold), refined by SLSQP and
+  repaired apart from the search, the answer where the certificate proves one;
 - the shaped rigid optimum (optim.families.time_optimal.shaped), as it is and refined: the recipe's answer,
   feasible by construction, so that no answer is longer and no move it shows feasible is refused;
 - the grid optimum's structure (optim.families.time_optimal.search), or its early-acting vertex's;
