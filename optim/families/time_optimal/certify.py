@@ -20,7 +20,9 @@ right signs reaches the bound: no command of its duration goes further. Between 
 affine function of s (a constant for mu, a line for nu); sigma = 0 along a constrained arc fixes the measure's
 density there (mu: phi'(T - s) plus the line's slope; nu: phi''(T - s)), and a coast's ends may carry atoms of nu
 (they bend sigma without a jump: the one at the entry is an unknown of the junction system, the one at the exit
-follows). The kernels depend on T - s only, so the same multipliers, shifted with the end, bound every shorter
+follows). Where the velocity touches its limit at one instant inside a bang arc (the acceleration crossing 0 at
+v = +-V), nu may have an atom there too: one more unknown, no junction (sigma keeps the arc's sign through it;
+optim.families.time_optimal.touch_points), tried where the certificate without it fails. The kernels depend on T - s only, so the same multipliers, shifted with the end, bound every shorter
 duration strictly below D (a rest prefix is feasible and loses |sigma| on the first arc): the command is the
 minimum-time one.
 
@@ -39,7 +41,6 @@ from numpy.typing import NDArray
 
 from optim.families.time_optimal.touch_points import (
     BANG,
-    CORNER,
     FIRST,
     SECOND,
     STATE_TOLERANCE,
@@ -49,7 +50,7 @@ from optim.families.time_optimal.touch_points import (
 )
 from optim.families.time_optimal.types import Arc, Spec
 
-__all__ = ["BANG", "CORNER", "FIRST", "SECOND", "TOUCH", "arc_states", "touches"]  # (re-exported)
+__all__ = ["BANG", "FIRST", "SECOND", "TOUCH", "arc_states", "touches"]  # (re-exported)
 
 Array = NDArray[np.float64]
 CHECK_PER_PERIOD = 64  # sign checks per period of the fastest zero-residual mode, on every arc (and at each local
@@ -57,7 +58,6 @@ CHECK_PER_PERIOD = 64  # sign checks per period of the fastest zero-residual mod
 MIN_CHECKS = 16  # per arc, at least
 MAX_CHECKS = 200_000  # a command needing more checks is not certified here (its search answers)
 LEVEL_TOLERANCE = 1e-9  # of the unit: a level this close to -1, 0 or 1 is that level
-
 JUNCTION_TOLERANCE = 1e-6  # of k(T): the junction conditions' residual for a consistent theta (a refined
 # structure's switching times are exact to about this: its duration is flat in them at the optimum)
 SIGN_TOLERANCE = 1e-6  # of max |sigma| (or of the density's scale): wrong-signed values next to a switch, from
@@ -154,7 +154,7 @@ def _kinds(spec: Spec, durations: Array, levels: Array, touched: NDArray[np.intp
     at +-max_velocity; None if a rest is on no limit (a singular arc no constraint explains: not certifiable)."""
     below, velocity = arc_states(spec, durations, levels)
     kind = touched.astype(np.float64)  # (as the signs: the kinds are small integers)
-    sign = np.where(touched == TOUCH, np.sign(velocity), np.where(touched == CORNER, np.sign(below), levels))
+    sign = np.where(touched == TOUCH, np.sign(velocity), levels)
     for k in np.flatnonzero((levels == 0.0) & (touched == BANG)):
         constrained = _constrained(spec, float(below[k]), float(velocity[k]))
         if constrained is None:
@@ -211,7 +211,7 @@ def _sweep(
     constrained arc: the line after it), the junction conditions (linear functions that must vanish) and the coasts'
     atoms (coast, time, mass)."""
     total = float(ends[-1])
-    atomic = (kind == SECOND) | (kind == TOUCH) | (kind == CORNER)  # arcs with an unknown atom (of nu; mu's CORNER)
+    atomic = (kind == SECOND) | (kind == TOUCH)  # arcs with an unknown atom of nu
     width = _width(spec) + int(np.sum(atomic))
     at_starts = _phis(spec, width, total - starts)  # phi(T - s1) of every arc
     zero: Linear = (np.zeros(width), 0.0)
@@ -227,21 +227,16 @@ def _sweep(
         s1, s2 = float(starts[k]), float(ends[k])
         lines[k] = (alpha, beta)
         phi = at_starts[k]
-        if kind[k] in (TOUCH, CORNER):  # an atom m at s1, no junction: nu's, sigma less m (s1 - s) before it (alpha
-            unknown = np.zeros(width)  # + m s1, beta - m); mu's, sigma less m before it (alpha + m)
+        if kind[k] == TOUCH:  # an atom m of nu at s1, no junction: sigma less m (s1 - s) before it (alpha + m s1,
+            unknown = np.zeros(width)  # beta - m)
             unknown[column] = 1.0
             column += 1
             atoms.append((k, s1, (unknown, 0.0)))
-            moment = s1 if kind[k] == TOUCH else 1.0
-            alpha = (alpha[0] + moment * unknown, alpha[1])
-            beta = (beta[0] - unknown, beta[1]) if kind[k] == TOUCH else beta
+            alpha, beta = (alpha[0] + s1 * unknown, alpha[1]), (beta[0] - unknown, beta[1])
             continue
         if kind[k] == BANG:
-            if k > 0 and kind[k - 1] not in (
-                TOUCH,
-                CORNER,
-            ):  # sigma = 0 where this arc begins: a switch, or the exit of the
-                # constrained arc before it
+            if k > 0 and kind[k - 1] != TOUCH:  # sigma = 0 where this arc begins: a switch, or the exit of the
+                # constrained arc before it (a touch's bang arc goes on through it)
                 conditions.append((phi[0] - alpha[0] - s1 * beta[0], phi[1] - alpha[1] - s1 * beta[1]))
             continue
         if kind[k] == SECOND:  # nu's exit atom: phi'(T - s2) + beta after; the entry's, an unknown
@@ -332,31 +327,31 @@ class _Switching:
         return np.where(second, self.sign[self.arc] * bend, np.inf), float(np.max(np.abs(bend)))
 
 
-_last: tuple[Spec, tuple[Arc, ...], int, _Switching | None] | None = None  # _switching's latest answer
-VARIANTS = 3  # touches' variants
+_last: tuple[Spec, tuple[Arc, ...], bool, _Switching | None] | None = None  # _switching's latest answer
 
 
-def _switching(spec: Spec, arcs: tuple[Arc, ...], variant: int = 0) -> _Switching | None:
-    """_switching_of, remembered for the latest (spec, arcs): a chain asks wrong_sign where certificate has just
-    failed, on the same command."""
+def _switching(spec: Spec, arcs: tuple[Arc, ...], with_atoms: bool = False) -> _Switching | None:
+    """_switching_of, remembered for the latest (spec, arcs, with_atoms): a chain asks wrong_sign where certificate
+    has just failed, on the same command."""
     global _last
     last = _last
-    if last is not None and last[0] is spec and last[2] == variant and last[1] == arcs:
+    if last is not None and last[0] is spec and last[2] == with_atoms and last[1] == arcs:
         return last[3]
-    found = _switching_of(spec, arcs, variant)
-    _last = (spec, arcs, variant, found)
+    found = _switching_of(spec, arcs, with_atoms)
+    _last = (spec, arcs, with_atoms, found)
     return found
 
 
-def _switching_of(spec: Spec, arcs: tuple[Arc, ...], variant: int) -> _Switching | None:
-    """sigma of ``arcs`` with the multipliers that fit its junctions; None where the certificate does not apply, a
-    level or a rest is off every limit, or no multipliers fit."""
+def _switching_of(spec: Spec, arcs: tuple[Arc, ...], with_atoms: bool) -> _Switching | None:
+    """sigma of ``arcs`` with the multipliers that fit its junctions (``with_atoms``: with an atom of nu at each
+    touch point, ``touches``); None where the certificate does not apply, a level or a rest is off every limit, or
+    no multipliers fit."""
     if not certificate_applies(spec) or not arcs:
         return None
     levels = _levels(spec, arcs)
     if levels is None:
         return None
-    durations, levels, origin, touched = touches(spec, np.array([a.duration_s for a in arcs]), levels, variant)
+    durations, levels, origin, touched = touches(spec, np.array([a.duration_s for a in arcs]), levels, with_atoms)
     kinds = _kinds(spec, durations, levels, touched)
     if kinds is None:
         return None
@@ -380,24 +375,22 @@ def _switching_of(spec: Spec, arcs: tuple[Arc, ...], variant: int) -> _Switching
 def certificate(spec: Spec, arcs: tuple[Arc, ...]) -> Certificate | None:
     """The proof that ``arcs`` (merged, meeting the end conditions and the limits: the caller checks) are the
     minimum-time command of ``spec``, or None where this check does not apply or does not prove it. Tried without
-    atoms at touch points first, then with them (``touches``' variants)."""
-    for variant in range(VARIANTS):
-        w = _switching(spec, arcs, variant)
-        proof = None if w is None else _proof(spec, w)
-        if proof is not None:
-            return proof
-        if variant == 0 and not _touches_any(spec, arcs):
-            return None
-    return None
+    atoms at touch points first, then, where the velocity touches its limit, with them (``touches``)."""
+    w = _switching(spec, arcs)
+    proof = None if w is None else _proof(spec, w)
+    if proof is not None or not _touches_any(spec, arcs):
+        return proof
+    w = _switching(spec, arcs, with_atoms=True)
+    return None if w is None else _proof(spec, w)
 
 
 def _touches_any(spec: Spec, arcs: tuple[Arc, ...]) -> bool:
-    """Whether ``touches`` (variant 2) finds a touch point or a corner in ``arcs``."""
+    """Whether the velocity touches its limit inside a bang arc of ``arcs`` (``touches``)."""
     levels = _levels(spec, arcs)
     if levels is None:
         return False
     durations = np.array([a.duration_s for a in arcs])
-    return bool(touches(spec, durations, levels, 2)[0].size > durations.size)
+    return bool(touches(spec, durations, levels, True)[0].size > durations.size)
 
 
 def _proof(spec: Spec, w: _Switching) -> Certificate | None:
