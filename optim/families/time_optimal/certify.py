@@ -22,9 +22,9 @@ density there (mu: phi'(T - s) plus the line's slope; nu: phi''(T - s)), and a c
 (they bend sigma without a jump: the one at the entry is an unknown of the junction system, the one at the exit
 follows). Where the velocity touches its limit at one instant inside a bang arc (the acceleration crossing 0 at
 v = +-V), nu may have an atom there too: one more unknown, no junction (sigma keeps the arc's sign through it;
-optim.families.time_optimal.touch_points), tried where the certificate without it fails. The kernels depend on T - s only, so the same multipliers, shifted with the end, bound every shorter
-duration strictly below D (a rest prefix is feasible and loses |sigma| on the first arc): the command is the
-minimum-time one.
+optim.families.time_optimal.touch_points), tried where the certificate without it fails. The kernels depend on
+T - s only, so the same multipliers, shifted with the end, bound every shorter duration strictly below D (a rest
+prefix is feasible and loses |sigma| on the first arc): the command is the minimum-time one.
 
 ``certificate`` finds theta and the entry atoms from the junctions (sigma = 0 at every switch and every constrained
 arc's exit, by least squares) and checks the signs on CHECK_PER_PERIOD points per period of the fastest mode on every
