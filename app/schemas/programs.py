@@ -185,6 +185,11 @@ class MoveAxisOut(OutModel):
         "on the true, position-dependent plant for a plant_table."
     )
     stop_residual_fraction: float | None = Field(description="The same over the axis's move (null: it stays).")
+    settling_time_s: float | None = Field(
+        description="From the move's start until this axis's load has settled (the metrics' criteria): for a "
+        "plant_table, on the true plant over the cycle (the load during the move, its free vibration from the stop "
+        "on the plant there), else the metrics' own; null where the axis stays or its load never settles."
+    )
     band_hz: list[float] | None = Field(description="The band of the mode's frequency over the move (a table).")
     effective_mode: dict[str, float] | None = Field(
         description="A varying plant: the mode (natural_frequency_hz, damping_ratio) the design is made for, which "
@@ -199,9 +204,8 @@ class MoveOut(OutModel):
     duration_s: float
     dwell_s: float
     settling_time_s: float | None = Field(
-        description="From the move's start until every axis's load has settled, by each axis's metrics (for an axis "
-        "whose plant changes during the move: on the plant at the stop, from rest there; null where the load need "
-        "not be still)."
+        description="From the move's start until every axis's load has settled: the latest of the axes' "
+        "settling_time_s (for a plant_table, on the true plant); null where the load need not be still."
     )
     coordination: str
     still_at_stop: bool

@@ -165,6 +165,7 @@ def _move_json(program: Program, k: int, outcome: MoveOutcome) -> dict[str, Any]
             "solver": None if axis_move.solver is None else present(axis_move.solver),
             "stop_residual_amplitude": axis_outcome.stop_residual_amplitude,
             "stop_residual_fraction": axis_outcome.stop_residual_fraction,
+            "settling_time_s": axis_outcome.settling_time_s,
             "band_hz": None if axis_move.band_hz is None else list(axis_move.band_hz),
             "effective_mode": effective,
             "stretched_from_s": axis_move.stretched_from_s,

@@ -25,7 +25,8 @@ from models.plants import Plant
 from models.simulation import simulate
 from models.varying_mode import deflection, free_amplitude
 from optim.problem import DEFAULT_SAMPLES, MIN_MOVE, TAIL_PERIODS, Problem, nice_period
-from optim.programs.moves import MoveDesign
+from optim.programs.moves import MoveDesign, move_problem, plant_of
+from optim.programs.settling import StopCriteria, TrueMotion, settled_s
 from optim.programs.tables import mode_function
 from optim.programs.types import Program
 from optim.solver import SolverReport
@@ -46,6 +47,7 @@ class AxisCycle:
     stop_residuals: Array  # one per move, at its end
     method: str
     period_s: float  # the samples' grid (the stops' ends added to it)
+    settling_s: tuple[float | None, ...] | None = None  # "varying": per move, its settling on the true plant
 
 
 def move_starts(program: Program, designs: Sequence[MoveDesign]) -> Array:
@@ -155,7 +157,38 @@ def axis_cycle(
     zeta = np.array([mode_of_time(float(x))[1] for x in t])
     accel = -2.0 * zeta * omega * solved.rate - omega * omega * solved.deflection
     load = np.vstack((profile[0] + solved.deflection, profile[1] + solved.rate, accel))
-    return AxisCycle(axis.name, command, t, profile, load, residuals, "varying", period)
+    motion = TrueMotion(t, profile, solved.deflection, solved.rate, omega, zeta)
+    settling = tuple(
+        _true_settling(program, designs, i, k, motion, float(starts[k]), float(stop_ends[k]), float(residuals[k]))
+        for k in range(len(designs))
+    )
+    return AxisCycle(axis.name, command, t, profile, load, residuals, "varying", period, settling)
+
+
+def _true_settling(
+    program: Program,
+    designs: Sequence[MoveDesign],
+    i: int,
+    k: int,
+    motion: TrueMotion,
+    start_s: float,
+    end_s: float,
+    residual: float,
+) -> float | None:
+    """Axis i's settling in move k on its true plant (optim.programs.settling), with the criteria of its problem
+    on the plant at the stop; None where it does not move."""
+    target = program.moves[k].target[i]
+    delta = target - program.stop(k)[i]
+    if delta == 0.0 or designs[k].axes[i].command is None:
+        return None
+    during = (motion.time_s >= start_s) & (motion.time_s <= end_s)
+    excursion = float(np.max(np.abs(motion.profile[0][during] + motion.deflection[during] - program.stop(k)[i])))
+    plant = plant_of(program, i, k)[0]
+    problem = move_problem(program, plant, delta, program.axes[i].limits)
+    band = program.settling.position_tolerance * max(abs(delta), excursion)
+    at = int(np.searchsorted(motion.time_s, end_s))  # the mode at the stop, as the integration has it
+    criteria = StopCriteria(band, problem.vibration_window, float(motion.omega_rad_s[at]), float(motion.zeta[at]))
+    return settled_s(motion, start_s, end_s, target, residual, criteria)
 
 
 def stop_residual(plant: Plant, command: PiecewiseCommand, end_s: float) -> float:

@@ -33,12 +33,14 @@ RINGING = 1e-6  # a still stop whose residual is above this fraction of the axis
 @dataclass(frozen=True)
 class AxisOutcome:
     """One axis in one move: its design's metrics (simulated on the plant it was designed for, from rest at the
-    stop), the residual at the stop in the cycle (carried vibration included; the true plant for a table) and
-    that residual over the axis's move."""
+    stop), the residual at the stop in the cycle (carried vibration included; the true plant for a table), that
+    residual over the axis's move, and when its load settles (the metrics', or on the true plant for a table:
+    optim.programs.settling; None where it does not move or never settles)."""
 
     metrics: MetricsReport | None
     stop_residual_amplitude: float
     stop_residual_fraction: float | None
+    settling_time_s: float | None = None
 
 
 @dataclass(frozen=True)
@@ -133,15 +135,17 @@ def assemble(program: Program, designed: Sequence[tuple[MoveDesign, VaryingFit |
         settling: list[float | None] = []
         for i, axis_move in enumerate(design.axes):
             delta = abs(program.moves[k].target[i] - program.stop(k)[i])
-            report = None
+            report, settled_here = None, None
             if axis_move.command is not None:
                 report = _metrics(program, k, i, design)
-                settling.append(report.metrics.settling.time_s)
+                true = axes[i].settling_s  # on the true plant, where it changes during the moves
+                settled_here = report.metrics.settling.time_s if true is None else true[k]
+                settling.append(settled_here)
                 violations = limit_violations(program.axes[i].limits, report.metrics)
                 if violations:  # a defect: every design is within its limits (the pipeline checks each)
                     raise AssertionError(f"moves[{k}] axis {axis_move.axis}: {'; '.join(violations)}")
             residual = float(axes[i].stop_residuals[k])
-            outcomes.append(AxisOutcome(report, residual, residual / delta if delta else None))
+            outcomes.append(AxisOutcome(report, residual, residual / delta if delta else None, settled_here))
         still = program.moves[k].still_at_stop
         settled = None if any(s is None for s in settling) else max((s for s in settling if s is not None), default=0.0)
         fit = designed[k][1]

@@ -231,6 +231,12 @@ def test_a_plant_that_changes_during_the_move_is_left_still_by_its_effective_mod
         assert move.design.axes[1].effective
         assert move.axes[1].stop_residual_fraction is not None and move.axes[1].stop_residual_fraction < 1e-10
     assert result.axes[1].method == "varying"
+    for move in result.moves:  # settled on the true plant at the command's end (within a sample of the cycle's
+        # grid); the same command on the plant at the stop, time-invariant, would ring for seconds (the metrics')
+        true = move.axes[1].settling_time_s
+        assert true is not None and move.settling_time_s is not None and move.settling_time_s >= true
+        assert true <= move.design.duration_s + result.axes[1].period_s
+        assert move.axes[1].metrics is not None and move.axes[1].metrics.metrics.settling.time_s > 3.0
     from optim.programs.moves import design_move
     from optim.programs.varying import residuals
 
@@ -329,6 +335,11 @@ def test_a_plant_over_a_payload_changes_at_the_stops_where_it_is_picked_and_plac
     for move in result.moves:
         assert move.axes[1].stop_residual_fraction is not None and move.axes[1].stop_residual_fraction < 1e-11
     assert result.axes[1].method == "varying" and not result.warnings
+    for move in result.moves:  # the plant constant over each move: the true settling is the metrics' (both checked
+        # at their samples during the command: within the cycle's grid, the coarser)
+        true, own = move.axes[1].settling_time_s, move.axes[1].metrics
+        assert true is not None and own is not None and own.metrics.settling.time_s is not None
+        assert true == pytest.approx(own.metrics.settling.time_s, abs=result.axes[1].period_s)
 
 
 @pytest.mark.parametrize(
