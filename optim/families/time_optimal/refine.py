@@ -37,6 +37,8 @@ STALL_AFTER = 4  # Newton iterations after which a residual that no longer halve
 DAMPING_HALVINGS = 3  # a predicted start's Newton step is halved at most this often before it gives up
 CONVERGED = 1e-12  # the scaled residual of a solved structure (round-off: 1e-16 to 1e-13)
 ACTIVE = 1e-7  # a scaled inequality within this of its bound is held as an equality by the polish
+BROKEN = 1e-10  # a polished command over a velocity peak by more than this (scaled: the family's exact check refuses
+# it) is polished again with the broken rows held
 
 
 @dataclass(frozen=True)
@@ -152,7 +154,8 @@ class _Model:
             self.derivative_order,
             self.moment_scales,
         )
-        self.peaks = q == 3 and spec.max_velocity is not None and self.count >= 2  # velocity_peaks' rows
+        self.peak_rows = np.arange(self.count) if q == 3 and spec.max_velocity is not None else _NOT_FREE
+        self.peaks = self.peak_rows.size > 0  # velocity_peaks' rows (every arc's)
         self._last: dict[str, tuple[bytes, Array, Array]] = {}  # _remembered's
         # the same, for kernels.polish (per spec: _fixed), and no rows for a missing bound
         self.bound_m, self.bound_limit = (fixed.bound_m, fixed.bound_limit) if self.bounds else _NO_BOUNDS
@@ -209,12 +212,15 @@ class _Model:
 
     def velocity_peaks(self, z: Array, want_jac: bool) -> tuple[Array, Array]:
         """With a held jerk, the velocity where the acceleration crosses 0 inside an arc (its extremum there, which
-        the check points at arc ends and middles miss), as 1 -+ v* / max_velocity >= 0 per arc, and the Jacobian in z
-        (kernels.peak_system): an arc with no crossing gives an end's velocity (checked anyway); v* is continuous in
-        z, smooth where the crossing is inside. Without it SLSQP converged to commands over the limit there (the
-        exact check refused them: 7 of bench/programs.py's 48 designs answered the grid's command)."""
+        the check points at arc ends and middles miss), as 1 -+ v* / max_velocity >= 0 per arc, and the Jacobian in
+        z (kernels.peak_system): an arc with no crossing gives an end's velocity (checked anyway); v* is continuous
+        in z, smooth where the crossing is inside. Without it SLSQP converged to commands over the limit there (the
+        exact check refused them: 7 of bench/programs.py's 48 designs answered the grid's command). (Rows for the
+        arcs crossing 0 at the start only lost two of those certificates and a random move's 0.16 %; rows that
+        vanish without a crossing, three and a grid answer: a row per arc is kept.)"""
         values, jac = self.peak_system(z, self.structure, float(self.spec.max_velocity or 1.0), want_jac)
-        return values, (jac if want_jac else np.zeros(0))
+        rows = np.concatenate((self.peak_rows, self.count + self.peak_rows))
+        return values[rows], (jac[rows] if want_jac else np.zeros(0))
 
     def _remembered(self, z: Array, kind: str) -> tuple[Array, Array]:
         """_parts with the Jacobian, remembered for the latest z of each kind: SLSQP asks the values, then the
@@ -272,7 +278,11 @@ def refine(
     # converged: the polish brings it onto the equalities or drops it, and the caller checks every limit exactly.
     if not result.success and result.status != ITERATION_CAP:
         return None
-    z = _polish(model, np.asarray(result.x, dtype=float))
+    x = np.asarray(result.x, dtype=float)
+    z = _polish(model, x)
+    if z is not None and model.peaks and float(np.min(model.velocity_peaks(z, False)[0])) < -BROKEN:
+        held = _polish(model, x, hold_broken=True)  # over a velocity peak SLSQP left broken (stopped at its cap):
+        z = held if held is not None else z  # polished again with the broken rows held
     if z is None:
         return None
     tiny = (z[: model.count] > 0.0) & (z[: model.count] < TINY_ARC)
@@ -316,7 +326,9 @@ def _arcs(spec: Spec, model: _Model, z: Array) -> tuple[Arc, ...]:
     return tuple(Arc(s, d, level) for s, d, level in rows)  # (Python floats: the same values as float(x))
 
 
-def _polish(model: _Model, z: Array, iterations: int = 20, stall: bool = False) -> Array | None:
+def _polish(
+    model: _Model, z: Array, iterations: int = 20, stall: bool = False, hold_broken: bool = False
+) -> Array | None:
     """Newton (minimal-norm steps) on the equalities and the active inequalities, from SLSQP's point (or a predicted
     start: with ``stall``, it gives up once its residual no longer halves); None if it does not converge. Compiled
     (kernels.polish) where the model has no band cuts, else ``_polish_numpy``: the same steps."""
@@ -330,10 +342,9 @@ def _polish(model: _Model, z: Array, iterations: int = 20, stall: bool = False) 
         on_level |= near
     movable = np.flatnonzero(np.concatenate([z[: model.count] > 0.0, ~on_level]))
     ineq = model.inequalities(z)
-    # after SLSQP, a bound it left broken (stopped at its cap) is brought onto it too; a predicted start's Newton holds
-    # only the bounds it starts on
-    active = np.abs(ineq) < ACTIVE if stall else ineq < ACTIVE
-    peak_active = model.peaks and bool(np.any(active[-2 * model.count :]))  # (rows the compiled polish has not)
+    active = ineq < ACTIVE if hold_broken else np.abs(ineq) < ACTIVE  # (hold_broken: the broken rows too)
+    peak_active = model.peaks and bool(np.any(active[-2 * model.peak_rows.size :]))  # (rows the compiled polish
+    # has not)
     if model.cuts or peak_active or not movable.size:
         return _polish_numpy(model, z, movable, np.flatnonzero(active), iterations, stall)
     rows = (model.bound_m, model.bound_limit, *model.bound_times, active, movable.astype(np.int64))
