@@ -27,7 +27,7 @@ from models.varying_mode import deflection, free_amplitude
 from optim.problem import DEFAULT_SAMPLES, MIN_MOVE, TAIL_PERIODS, Problem, nice_period
 from optim.programs.moves import MoveDesign, move_problem, plant_of
 from optim.programs.settling import StopCriteria, TrueMotion, settled_s
-from optim.programs.tables import mode_function
+from optim.programs.tables import mode_function, modes_at
 from optim.programs.types import Program
 from optim.solver import SolverReport
 
@@ -133,10 +133,13 @@ def axis_cycle(
     if table.coordinate in program.names:
         coordinate = cycle_command(program, designs, program.axis_index(table.coordinate), starts)
         position, breaks = position_function(coordinate), coordinate.time_s
+        at_samples = coordinate.evaluate_at_instants(t, 1)[0]  # (the integration's position, vectorised)
     else:  # a parameter: constant over each move (and the dwell after it), changing where the next move starts
         values = [float(program.parameter(k, table.coordinate) or 0.0) for k in range(len(program.moves))]
         bounds = starts[1:-1].tolist()
         position, breaks = (lambda time: values[bisect.bisect_right(bounds, time)]), starts
+        at_samples = np.asarray(values)[np.searchsorted(bounds, t, side="right")]
+    omega, zeta = modes_at(table, at_samples)  # the mode at every sample (t holds every stop's end)
 
     def mode_of_time(time: float) -> tuple[float, float]:
         return mode_at_coordinate(position(time))
@@ -146,18 +149,13 @@ def axis_cycle(
         solved = deflection(command, mode_of_time, t, breaks, (*still, (float(starts[-1]), float(t[-1]))))
     except ArithmeticError as exc:  # DOP853 failed (it does not on a mode and a piecewise-polynomial command)
         raise SolverFailed(SolverReport("integration_failed", 0, 0.0), str(exc)) from None
-    modes = [mode_of_time(float(s)) for s in stop_ends]
     at = np.searchsorted(t, stop_ends)
-    residuals = free_amplitude(
-        solved.deflection[at], solved.rate[at], np.array([m[0] for m in modes]), np.array([m[1] for m in modes])
-    )
+    residuals = free_amplitude(solved.deflection[at], solved.rate[at], omega[at], zeta[at])
     if not samples:
         return AxisCycle(axis.name, command, t[:0], profile, np.zeros((3, 0)), residuals, "varying", period)
-    omega = np.array([mode_of_time(float(x))[0] for x in t])
-    zeta = np.array([mode_of_time(float(x))[1] for x in t])
     accel = -2.0 * zeta * omega * solved.rate - omega * omega * solved.deflection
     load = np.vstack((profile[0] + solved.deflection, profile[1] + solved.rate, accel))
-    motion = TrueMotion(t, profile, solved.deflection, solved.rate, omega, zeta)
+    motion = TrueMotion.of(t, profile, solved.deflection, solved.rate, omega, zeta)
     settling = tuple(
         _true_settling(program, designs, i, k, motion, float(starts[k]), float(stop_ends[k]), float(residuals[k]))
         for k in range(len(designs))
@@ -181,7 +179,8 @@ def _true_settling(
     delta = target - program.stop(k)[i]
     if delta == 0.0 or designs[k].axes[i].command is None:
         return None
-    during = (motion.time_s >= start_s) & (motion.time_s <= end_s)
+    first, end = np.searchsorted(motion.time_s, [start_s, end_s], side="left")
+    during = slice(int(first), int(end) + 1)  # (end_s is a sample: the stop)
     excursion = float(np.max(np.abs(motion.profile[0][during] + motion.deflection[during] - program.stop(k)[i])))
     plant = plant_of(program, i, k)[0]
     problem = move_problem(program, plant, delta, program.axes[i].limits)

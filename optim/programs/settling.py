@@ -36,6 +36,11 @@ class TrueMotion:
     rate: Array
     omega_rad_s: Array
     zeta: Array
+    envelope: Array  # the vibration envelope at each sample (``envelope``): once for every move
+
+    @classmethod
+    def of(cls, time_s: Array, profile: Array, deflection: Array, rate: Array, omega: Array, zeta: Array) -> TrueMotion:
+        return cls(time_s, profile, deflection, rate, omega, zeta, envelope(profile, deflection, rate, omega, zeta))
 
 
 @dataclass(frozen=True)
@@ -48,13 +53,12 @@ class StopCriteria:
     zeta: float
 
 
-def envelope(motion: TrueMotion) -> Array:
+def envelope(profile: Array, deflection: Array, rate: Array, w: Array, zeta: Array) -> Array:
     """The vibration envelope at each sample (see the module)."""
-    w, zeta = motion.omega_rad_s, motion.zeta
-    accel, jerk = motion.profile[2], motion.profile[3]
+    accel, jerk = profile[2], profile[3]
     quasi = -accel / w**2 + 2.0 * zeta * jerk / w**3
     quasi_rate = -jerk / w**2
-    free = free_amplitude(motion.deflection - quasi, motion.rate - quasi_rate, w, zeta)
+    free = free_amplitude(deflection - quasi, rate - quasi_rate, w, zeta)
     return np.asarray(free + np.abs(quasi), dtype=float)
 
 
@@ -64,11 +68,11 @@ def settled_s(
     """From ``start_s`` until the load stays settled about ``target`` (the move ends at ``end_s``, where its free
     vibration's amplitude is ``residual``); None if an undamped mode rings above the band for ever."""
     t = motion.time_s
-    during = (t >= start_s) & (t < end_s)  # (at end_s the profile is the next move's start: after it, closed form)
-    error = np.abs(motion.profile[0] + motion.deflection - target)
-    outside = during & (error > criteria.band)
+    first, end = np.searchsorted(t, [start_s, end_s])  # the move's samples (at end_s the profile is the next move's
+    during = slice(int(first), int(end))  # start: from there on, the closed form)
+    outside = np.abs(motion.profile[0][during] + motion.deflection[during] - target) > criteria.band
     if criteria.window is not None:
-        outside |= during & (envelope(motion) > criteria.window)
+        outside |= motion.envelope[during] > criteria.window
     decay = criteria.zeta * criteria.omega_rad_s
     after = 0.0
     for bound in (criteria.band, criteria.window):
@@ -81,4 +85,4 @@ def settled_s(
     last = np.flatnonzero(outside)
     if not last.size:
         return 0.0
-    return float(t[min(last[-1] + 1, t.size - 1)]) - start_s
+    return float(t[min(int(first) + int(last[-1]) + 1, t.size - 1)]) - start_s

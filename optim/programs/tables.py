@@ -14,6 +14,9 @@ import dataclasses
 import math
 from collections.abc import Callable
 
+import numpy as np
+from numpy.typing import NDArray
+
 from models.plants import Mode, Plant, make_plant
 from optim.programs.types import PlantTable
 
@@ -57,17 +60,32 @@ def frequency_spread(table: PlantTable, low: float, high: float) -> float:
     return hi / lo - 1.0 if lo > 0 else math.inf
 
 
+def _columns(table: PlantTable) -> tuple[str, tuple[str, ...]]:
+    """The table's kind and the parameters its mode is made of (interpolated linearly, as plant_at does)."""
+    kind = table.points[0].plant.kind
+    if kind == "mode":
+        return kind, ("natural_frequency_hz", "damping_ratio")
+    return kind, ("stiffness_nm_per_rad", "damping_nms_per_rad", "load_inertia_kgm2")
+
+
+def modes_at(table: PlantTable, coordinates: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(w rad/s, zeta) of ``plant_at(table, c)``'s mode at every one of ``coordinates``, at once (``mode_function``'s
+    formulas on arrays: the samples of a cycle)."""
+    kind, names = _columns(table)
+    ats = [p.at for p in table.points]
+    x = [np.interp(coordinates, ats, [float(getattr(p.plant, n)) for p in table.points]) for n in names]
+    if kind == "mode":
+        return 2.0 * math.pi * x[0], x[1]
+    omega = np.sqrt(x[0] / x[2])
+    return omega, x[1] / (2.0 * x[2] * omega)
+
+
 def mode_function(table: PlantTable) -> Callable[[float], tuple[float, float]]:
     """c -> (w rad/s, zeta) of ``plant_at(table, c)``'s mode, in plain float arithmetic (the varying mode's
     integration calls it at every step): the parameters interpolated as plant_at does, then the kind's formula
     (``mode``: w = 2 pi f; ``two_inertia``: w = sqrt(k / J_L), zeta = c / (2 J_L w), Cusimano eqs. 1 and 3)."""
     ats = [p.at for p in table.points]
-    kind = table.points[0].plant.kind
-    names = (
-        ("natural_frequency_hz", "damping_ratio")
-        if kind == "mode"
-        else ("stiffness_nm_per_rad", "damping_nms_per_rad", "load_inertia_kgm2")
-    )
+    kind, names = _columns(table)
     values = [[float(getattr(p.plant, n)) for p in table.points] for n in names]
 
     def at(c: float) -> tuple[float, float]:

@@ -17,7 +17,7 @@ from optim.families.time_optimal.options import TimeOptimalOptions
 from optim.problem import Limits, Problem
 from optim.programs import PlantTable, Program, ProgramAxis, ProgramMove, TablePoint, positions, solve_program
 from optim.programs.moves import stretched
-from optim.programs.tables import mode_function, plant_at
+from optim.programs.tables import mode_function, modes_at, plant_at
 from optim.registry import FAMILIES
 from optim.synthesis import synthesize
 
@@ -140,7 +140,8 @@ def test_the_varying_mode_is_the_exact_response_when_the_mode_is_constant() -> N
 
 def test_a_table_interpolates_each_parameter_linearly() -> None:
     """plant_at: a mode's frequency and damping ratio halfway are the points' means; mode_function (plain floats)
-    is plant_at's mode to round-off, two_inertia's w = sqrt(k / J_L) of the interpolated k and J_L."""
+    is plant_at's mode to round-off (and modes_at, on arrays), two_inertia's w = sqrt(k / J_L) of the interpolated
+    k and J_L."""
     table = PlantTable("x", (TablePoint(0.0, ModePlant(10.0, 0.02)), TablePoint(0.4, ModePlant(14.0, 0.04))))
     half = plant_at(table, 0.2)
     assert half.natural_frequency_hz == pytest.approx(12.0) and half.damping_ratio == pytest.approx(0.03)  # type: ignore[attr-defined]
@@ -153,9 +154,12 @@ def test_a_table_interpolates_each_parameter_linearly() -> None:
     )
     for table_ in (table, two):
         f = mode_function(table_)
-        for c in np.linspace(table_.low, table_.high, 7):
+        coordinates = np.linspace(table_.low, table_.high, 7)
+        omegas, zetas = modes_at(table_, coordinates)  # the same on arrays (a cycle's samples)
+        for c, omega, zeta in zip(coordinates, omegas, zetas, strict=True):
             mode = plant_at(table_, float(c)).modes()[0]
             assert f(float(c)) == pytest.approx((mode.natural_frequency_rad_s, mode.damping_ratio), rel=1e-12)
+            assert (omega, zeta) == pytest.approx((mode.natural_frequency_rad_s, mode.damping_ratio), rel=1e-12)
     k, j = 0.75 * 50.0 + 0.25 * 80.0, 0.75 * 2e-3 + 0.25 * 6e-3
     assert mode_function(two)(-0.5)[0] == pytest.approx(math.sqrt(k / j), rel=1e-12)
 
