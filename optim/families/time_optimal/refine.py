@@ -154,8 +154,7 @@ class _Model:
             self.derivative_order,
             self.moment_scales,
         )
-        self.peak_rows = np.arange(self.count) if q == 3 and spec.max_velocity is not None else _NOT_FREE
-        self.peaks = self.peak_rows.size > 0  # velocity_peaks' rows (every arc's)
+        self.peaks = q == 3 and spec.max_velocity is not None  # velocity_peaks' rows (two per arc)
         self._last: dict[str, tuple[bytes, Array, Array]] = {}  # _remembered's
         # the same, for kernels.polish (per spec: _fixed), and no rows for a missing bound
         self.bound_m, self.bound_limit = (fixed.bound_m, fixed.bound_limit) if self.bounds else _NO_BOUNDS
@@ -219,8 +218,7 @@ class _Model:
         arcs crossing 0 at the start only lost two of those certificates and a random move's 0.16 %; rows that
         vanish without a crossing, three and a grid answer: a row per arc is kept.)"""
         values, jac = self.peak_system(z, self.structure, float(self.spec.max_velocity or 1.0), want_jac)
-        rows = np.concatenate((self.peak_rows, self.count + self.peak_rows))
-        return values[rows], (jac[rows] if want_jac else np.zeros(0))
+        return values, (jac if want_jac else np.zeros(0))
 
     def _remembered(self, z: Array, kind: str) -> tuple[Array, Array]:
         """_parts with the Jacobian, remembered for the latest z of each kind: SLSQP asks the values, then the
@@ -343,8 +341,7 @@ def _polish(
     movable = np.flatnonzero(np.concatenate([z[: model.count] > 0.0, ~on_level]))
     ineq = model.inequalities(z)
     active = ineq < ACTIVE if hold_broken else np.abs(ineq) < ACTIVE  # (hold_broken: the broken rows too)
-    peak_active = model.peaks and bool(np.any(active[-2 * model.peak_rows.size :]))  # (rows the compiled polish
-    # has not)
+    peak_active = model.peaks and bool(np.any(active[-2 * model.count :]))  # (rows the compiled polish has not)
     if model.cuts or peak_active or not movable.size:
         return _polish_numpy(model, z, movable, np.flatnonzero(active), iterations, stall)
     rows = (model.bound_m, model.bound_limit, *model.bound_times, active, movable.astype(np.int64))
