@@ -7,7 +7,9 @@
 - ``synchronized``: each axis its own design; the faster ones averaged with themselves delayed (a convolution with
   two half impulses, ``stretched``), so that every axis starts and arrives together. Each stretched command is a
   convex combination of the design, so it keeps its limits, and its residual at each mode is the design's times
-  the two impulses' transform: zero where the design's was.
+  the two impulses' transform: zero where the design's was. The axes are designed longest rigid move first; an
+  axis whose shaped rigid optimum (ZV-shaped Ruckig) is no longer than a design already made is given that, with no
+  search (TimeOptimalOptions.sufficient_duration_s): it is stretched to the same end whatever its own duration.
 - ``independent``: each axis its own design from the move's start; the move lasts as long as the slowest.
 
 An axis whose plant is a table over a coordinate is designed for the plant at the stop, robust over the band
@@ -182,10 +184,16 @@ class Designed:
 
 
 def _designed(
-    program: Program, problem: Problem, band: tuple[float, float] | None, still: bool, previous: Design | None = None
+    program: Program,
+    problem: Problem,
+    band: tuple[float, float] | None,
+    still: bool,
+    previous: Design | None = None,
+    sufficient_s: float | None = None,
 ) -> Designed:
     """The family's design, from ``previous``'s structure where the family can (``redesign``: a nearby problem), or
-    the rigid optimum where the load need not be still."""
+    the rigid optimum where the load need not be still; ``sufficient_s``: a duration another axis sets the pace of
+    (the time-optimal family stops at a command no longer: TimeOptimalOptions.sufficient_duration_s)."""
     if not still:
         lim = problem.limits
         rigid = problem.rigid_move(lim.max_velocity, lim.max_acceleration, lim.max_jerk)
@@ -196,7 +204,8 @@ def _designed(
     family = FAMILIES[program.family]
     notes: tuple[str, ...] = ()
     if family.name == "time_optimal":
-        options: Any = TimeOptimalOptions(robustness=None if band is None else Robustness(frequency_range_hz=band))
+        robust = None if band is None else Robustness(frequency_range_hz=band)
+        options: Any = TimeOptimalOptions(robustness=robust, sufficient_duration_s=sufficient_s)
     else:
         options = family.default_options(problem)
         if band is not None:
@@ -254,23 +263,32 @@ def design_move(
     if move.coordination == "straight_line" and len(moving) > 1:
         return _straight(program, k, moving, deltas, effective, previous)
     designs: dict[int, AxisMove] = {}
-    warnings: list[str] = []
+    notes: dict[int, list[str]] = {}
     chosen = effective or {}
+    problems = {}
     for i in moving:
+        plant, band = plant_of(program, i, k, effective)
+        problems[i] = (plant, band, move_problem(program, plant, deltas[i], program.axes[i].limits))
+    paced = move.coordination == "synchronized" and move.still_at_stop
+    pace_s = 0.0  # synchronized: the longest design so far (the axes with the longest rigid moves first)
+    for i in sorted(moving, key=lambda i: -problems[i][2].rigid_floor_s) if paced else moving:
         axis = program.axes[i]
         if previous is not None and i not in chosen and previous.axes[i].own is not None:
             designs[i] = replace(previous.axes[i], command=previous.axes[i].own, stretched_from_s=None)
+            pace_s = max(pace_s, _end_s(designs[i]))
             continue
-        plant, band = plant_of(program, i, k, effective)
-        problem = move_problem(program, plant, deltas[i], axis.limits)
+        plant, band, problem = problems[i]
         prior = None if previous is None else previous.axes[i].design
+        sufficient = pace_s if paced and pace_s > 0.0 and band is None and i not in chosen else None
         with named(f"moves[{k}].target.{axis.name}"):
-            done = _designed(program, problem, band, move.still_at_stop, prior)
+            done = _designed(program, problem, band, move.still_at_stop, prior, sufficient)
         own = _absolute(done.command, start[i])
         designs[i] = AxisMove(
             axis.name, own, plant, done.summary, done.solver, band, None, i in chosen, done.design, own
         )
-        warnings += [f"{axis.name}: {note}" for note in done.notes]
+        pace_s = max(pace_s, _end_s(designs[i]))
+        notes[i] = [f"{axis.name}: {note}" for note in done.notes]
+    warnings = [note for i in moving for note in notes.get(i, [])]
     duration = max((_end_s(a) for a in designs.values()), default=0.0)
     if move.coordination == "synchronized":
         for i, axis_move in designs.items():

@@ -64,14 +64,24 @@ def test_a_straight_line_is_the_single_axis_design_on_its_path_parameter() -> No
 
 
 def test_synchronized_axes_start_and_arrive_together_within_their_limits_and_still() -> None:
-    """Each axis's own design (made apart here); the faster one is (p(t) + p(t - delta)) / 2 (evaluated here from
-    the design), so both end at the slower's duration; limits and a zero residual hold (exact simulation)."""
+    """The move lasts as long as the slower axis's own minimum-time design (both made apart here); the faster
+    axis's is the shaped rigid optimum (its design with the slower's duration as sufficient_duration_s, made apart),
+    as (p(t) + p(t - delta)) / 2 (evaluated here), so both end together; limits and a zero residual hold (exact
+    simulation)."""
     result = solve_program(_program(ProgramMove((0.3, 0.05), "synchronized")))
-    own = [_design(ModePlant(5.0, 0.05), 0.3, X.limits), _design(ModePlant(7.0, 0.02), 0.05, Y.limits)]
-    ends = [float(c.time_s[-1]) for c in own]
+    alone = [_design(ModePlant(5.0, 0.05), 0.3, X.limits), _design(ModePlant(7.0, 0.02), 0.05, Y.limits)]
+    ends = [float(c.time_s[-1]) for c in alone]
     move = result.moves[0]
     assert move.design.duration_s == pytest.approx(max(ends), rel=1e-12)
     slow, fast = (0, 1) if ends[0] > ends[1] else (1, 0)
+    enough = TimeOptimalOptions(sufficient_duration_s=ends[slow])
+    problem = Problem(ModePlant(*((5.0, 0.05), (7.0, 0.02))[fast]), (0.3, 0.05)[fast], limits=(X, Y)[fast].limits)
+    paced = synthesize(TIME_OPTIMAL, problem, enough)
+    assert paced.design.command is not None and paced.summary.method == "shaped_rigid"
+    assert getattr(move.design.axes[fast].summary, "method", None) == "shaped_rigid"
+    own = {fast: paced.design.command, slow: alone[slow]}
+    ends[fast] = float(own[fast].time_s[-1])
+    assert ends[fast] <= ends[slow]
     delta = ends[slow] - ends[fast]
     t = np.linspace(-0.01, max(ends) + 0.01, 1501)
     got = move.design.axes[fast].command

@@ -6,6 +6,7 @@ Seering 1990), bounds every answer from above; the double-S alone bounds it from
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -147,3 +148,28 @@ def test_a_refinement_stopped_at_its_iteration_cap_still_shortens_a_near_rigid_t
     result = _design(problem)
     assert 0.46565 < result.summary.duration_s < 0.4666 * 1.002
     assert result.metrics.residual_amplitude < 1e-9 * 0.2209
+
+
+@pytest.mark.parametrize(("hz", "zeta", "d", "v", "a", "j"), JERK_MOVES[2:4])
+def test_a_sufficient_duration_is_met_by_zv_shaped_ruckig_without_a_search(
+    hz: float, zeta: float, d: float, v: float, a: float, j: float
+) -> None:
+    """sufficient_duration_s (a synchronized program axis another axis sets the pace of): at or above the recipe's
+    duration, computed here in closed form (the double-S plus half a damped period), the answer is the recipe, with
+    no LP and the kinematic floor as its bound; just below it, the answer is the search's, as without the option
+    (the same design: the searches are deterministic)."""
+    problem = Problem(ModePlant(hz, zeta), displacement=d, limits=Limits(v, a, j))
+    rigid = double_s_s(d, v, a, j)
+    recipe = rigid + _zv_s(hz, zeta)
+    options = TimeOptimalOptions(sufficient_duration_s=recipe * (1 + 1e-9))
+    result = synthesize(FAMILIES["time_optimal"], problem, options)
+    design = result.summary
+    assert design.method == "shaped_rigid" and result.limit_violations == ()
+    assert design.duration_s == pytest.approx(recipe, rel=1e-9)  # round-off of Ruckig's and the shaper's times
+    assert design.search.lp_solves == 0 and "sufficient_duration_s" in design.refinement
+    assert design.lower_bound_s == pytest.approx(rigid, rel=1e-12)
+    assert _residual(result, 2 * math.pi * hz, zeta) < 1e-6 * a / (2 * math.pi * hz) ** 2
+    searched = _design(problem).summary
+    below = synthesize(FAMILIES["time_optimal"], problem, replace(options, sufficient_duration_s=recipe * 0.999))
+    assert below.summary.duration_s == searched.duration_s < recipe
+    assert below.summary.method == searched.method

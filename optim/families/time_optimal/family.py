@@ -123,6 +123,7 @@ def spec_of(problem: Problem, options: TimeOptimalOptions, chosen: tuple[int, ..
         floor_s=floor,
         upper_guess_s=min(upper, cap),
         max_duration_s=cap,
+        sufficient_s=options.sufficient_duration_s,
         lp_time_limit_s=problem.solver.max_wall_time_s,
         start_velocity=sign * start.velocity,
         start_acceleration=sign * start.acceleration,

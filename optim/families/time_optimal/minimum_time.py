@@ -43,7 +43,7 @@ from models.rigid_motion import RigidMove
 from optim.families.time_optimal.arcs import arcs_of
 from optim.families.time_optimal.by_modes import Proven, Relaxed, mode_by_mode
 from optim.families.time_optimal.candidates import Best, Found, LimitCheck, duration_s
-from optim.families.time_optimal.search import GridSearch, clip, project
+from optim.families.time_optimal.search import KINEMATIC, GridSearch, clip, project
 from optim.families.time_optimal.shaped import as_start, rigid_of, shaped_arcs, shapers
 from optim.families.time_optimal.structures import cruise_starts, reversal_starts, three_switch_starts
 from optim.families.time_optimal.types import Arc, GridSolution, Solution, Spec
@@ -80,6 +80,27 @@ def shaped_rigid(best: Best) -> Found | None:
         )
         if best.offer(arcs, "shaped_rigid", note):
             return best.found
+    return None
+
+
+def sufficient(best: Best) -> Found | None:
+    """The first shaped rigid optimum (``shapers``) no longer than spec.sufficient_s that meets the limits exactly,
+    taken as it is (no repair, no certificate: no search follows), or None."""
+    spec = best.spec
+    limit_s = spec.sufficient_s
+    if limit_s is None or spec.torque is not None:
+        return None
+    for shaper in shapers(spec):
+        rigid = rigid_of(spec, shaper)
+        if rigid is None:
+            continue
+        arcs = shaped_arcs(rigid, shaper)
+        if duration_s(arcs) <= limit_s and best.accepts(arcs):
+            note = (
+                f"the rigid time-optimal move (Ruckig) shaped by {shaper.count} positive impulses: no longer than "
+                f"the {limit_s:.6g} s asked (sufficient_duration_s), so not searched further (not proven minimum-time)"
+            )
+            return Found(arcs, "shaped_rigid", note)
     return None
 
 
@@ -273,6 +294,9 @@ def solve(spec: Spec, check_limits: LimitCheck | None = None, bound_spec: Spec |
     rigid = rigid_of(spec)
     exact = spec.torque is None and not spec.bands  # a torque limit or a band: the grid optimum (or the shaped one)
     certifies = bound_spec is None or bound_spec is spec  # (a tightened limit's answers bound nothing of the problem)
+    best.found = sufficient(best)
+    if best.found is not None:
+        return _solution(spec, best.found, spec.floor_s, KINEMATIC, search, None, began)
     relaxed = _by_modes(best, rigid, check_limits)  # first: all modes' predicted structures rarely converge
     near = certifies and best.proof is None and relaxed is not None and _near(best, relaxed)
     note = "Newton on the switching times of the rigid optimum with reversal pulses"
@@ -294,11 +318,17 @@ def solve(spec: Spec, check_limits: LimitCheck | None = None, bound_spec: Spec |
         bound, method = search.lower_bound(found.duration_s, bound_spec)
         if relaxed is not None and relaxed.bound_s > bound:
             bound, method = relaxed.bound_s, relaxed.describe()
+    return _solution(spec, found, bound, method, search, grid, began)
+
+
+def _solution(
+    spec: Spec, found: Found, bound_s: float, method: str, search: GridSearch, grid: GridSolution | None, began: float
+) -> Solution:
     return Solution(
         arcs=found.arcs,
         order=spec.order,
         duration_s=found.duration_s,
-        lower_bound_s=min(bound, found.duration_s),
+        lower_bound_s=min(bound_s, found.duration_s),
         lower_bound_method=method,
         grid=grid,
         method=found.method,

@@ -35,6 +35,9 @@ class TimeOptimalOptions:
     modes: tuple[int, ...] | None = None
     tradeoff: tuple[float, ...] | None = None
     max_duration_s: float | None = None
+    # a command this short is enough (a synchronized program axis that another axis's longer move sets the pace
+    # of): the shaped rigid optimum is the answer where it is no longer, with no search (not proven minimum-time)
+    sufficient_duration_s: float | None = None
 
 
 def zetas_of(robust: Robustness | None, mode: Mode) -> tuple[float, ...]:

@@ -44,6 +44,7 @@ PHASE_STEP = 1.2
 DENSE_PHASE_STEP = 0.15  # rad: the dense start, added after COARSE_ROUNDS rounds of one LP
 COARSE_ROUNDS = 5
 MAX_INITIAL_POINTS = 200
+KINEMATIC = "kinematic floor (the rigid time-optimal move within the limits)"
 
 
 class GridSearch:
@@ -162,7 +163,7 @@ class GridSearch:
         with a limit tightened)."""
         spec = spec or self.spec
         lo, hi = spec.floor_s, found_s
-        method = "kinematic floor (the rigid time-optimal move within the limits)"
+        method = KINEMATIC
         step = found_s / RELAXED_STEPS
         if spec.max_acceleration is None or hi - lo <= 4.0 * step:  # nothing the relaxation could prove
             return lo, method

@@ -59,6 +59,7 @@ class Spec:
     floor_s: float  # a proven lower bound on the duration (the rigid kinematics)
     upper_guess_s: float  # a duration at which a command is expected to exist (the search starts there)
     max_duration_s: float
+    sufficient_s: float | None = None  # TimeOptimalOptions.sufficient_duration_s
     lp_time_limit_s: float = 10.0  # each LP's wall-clock last resort (HiGHS's time_limit): reached, SolverTimedOut
     # A rest-to-rest move may start and end in motion (the motor's velocity and acceleration, in the move's
     # direction; the load quasi-static in that motion): the accelerations are 0 unless the jerk is held.
