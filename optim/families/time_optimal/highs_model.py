@@ -105,6 +105,15 @@ class LpModel:
         self.highs.passModel(model)
         self.warm = False  # rows were added since the model was passed: a run starts from the last basis
 
+    def basis(self) -> Any:
+        """HiGHS's basis after the last run (for ``start_from`` on another model of the same shape)."""
+        return self.highs.getBasis()
+
+    def start_from(self, basis: Any) -> None:
+        """The next run starts from ``basis`` (another model's of the same shape: its rows and columns alike)."""
+        self.highs.setBasis(basis)
+        self.warm = True  # (where HiGHS cannot go on from it, the run is repeated from nothing: ``solve``)
+
     def add_band(self, weights: CArray, bounds: Array) -> None:
         """|weights_p . x| <= bounds_p at more band points (SparseLp.band's inscribed 16-gon), kept warm."""
         count = weights.shape[0]
