@@ -311,8 +311,8 @@ def test_a_probe_s_lp_starts_from_the_last_basis_on_as_many_steps_and_ends_at_th
     # bench/programs.py's seed-28 move 16, x axis (14 Hz, zeta 0.03; 0.3984 m within 1.5 m/s, 15 m/s^2, 1500 m/s^3):
     # its probes solve the weighted LP on 364 steps at step lengths 0.2 % apart. Started from the last one's basis
     # (GridSearch.bases), HiGHS ends at the vertex the LP solved from nothing ends at (to 1e-8 of the unit box:
-    # HiGHS's feasibility tolerance 1e-7 on rows scaled to 1 leaves the same vertex's values to round-off, 5e-10
-    # seen) in a fifth of the simplex iterations (239 against 2205 seen).
+    # HiGHS's feasibility tolerance 1e-7 on rows scaled to 1 leaves the same vertex's values to round-off, 3e-11
+    # seen) in a fifth of the simplex iterations (255 against 1973 seen).
     from models.plants import ModePlant
     from optim.families.time_optimal.family import selected_modes, spec_of
     from optim.families.time_optimal.options import TimeOptimalOptions
