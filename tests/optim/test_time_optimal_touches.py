@@ -174,3 +174,39 @@ def test_switching_times_made_stationary_turn_slsqps_near_optimum_into_a_certifi
     assert [a.duration_s for a in exact] == pytest.approx([a.duration_s for a in found], abs=1e-12)
     assert trial.found.duration_s == pytest.approx(alone.found.duration_s, rel=1e-9)
     assert trial.found.duration_s <= alone.found.duration_s * (1 + 1e-12)
+
+
+def test_a_touch_point_the_certificate_refuses_becomes_a_short_cruise_that_it_proves() -> None:
+    # bench/programs.py's seed-28 move 19, z axis (-0.0787 m): the search's answer, 189.59649 ms, touched the
+    # velocity limit where its acceleration crosses 0 inside a -J arc, and no multipliers proved it (with the atom,
+    # sigma has the wrong sign around the touch, 5e-3 of its size). repair.touch_cruises puts a cruise of
+    # CRUISE_SHARE of the duration there (here: the arcs before, from those times); refined, it rides the limit
+    # 0.067 ms and the certificate proves it, 189.59632 ms (0.33 s of search before, now 0.02). The independent
+    # 800-step LP of bench/lp_reference.py finds no command 1e-5 shorter, and one 0.2 % longer.
+    from optim.families.time_optimal.repair import CRUISE_SHARE, touch_cruises
+
+    displacement = -0.07868467750781113
+    spec = _spec(displacement)
+    durations = [0.01, 0.0620547, 0.0080362, 0.0071636, 0.0191274, 0.0055623, 0.0056697, 0.0056697, 0.0563129, 0.01]
+    levels = [1.0, 0.0, -1.0, 1.0, -1.0, 0.0, 1.0, -1.0, 0.0, 1.0]
+    start = touch_cruises(spec, durations, levels)
+    assert start is not None
+    cruise_d, cruise_l, free = start
+    total = sum(durations)
+    assert cruise_l == [*levels[:5], 0.0, -1.0, *levels[5:]] and not any(free)
+    assert cruise_d[5] == pytest.approx(CRUISE_SHARE * total, rel=1e-12) and sum(cruise_d) == pytest.approx(total)
+    assert touch_cruises(spec, [0.01, 0.07, 0.01], [1.0, 0.0, -1.0]) is None  # (0.75 m/s at most: no touch)
+    problem = Problem(ModePlant(35.0, 0.05), displacement=displacement, limits=LIMITS)
+    result = synthesize(FAMILIES["time_optimal"], problem, TimeOptimalOptions())
+    summary = result.summary
+    assert "certifies" in summary.refinement and summary.duration_s < 0.18959649 * (1 - 5e-7)
+    arcs = merged(result.design.detail.solution.arcs)  # type: ignore[attr-defined]
+    lengths = np.array([a.duration_s for a in arcs])
+    below, velocity = arc_states(spec, lengths, np.array([a.level for a in arcs]) / spec.scale)
+    cruising = (np.array([a.level for a in arcs]) == 0.0) & (np.abs(below) < 1e-9) & (np.abs(velocity) > 0.8 - 1e-9)
+    assert np.any(cruising) and float(np.max(lengths[cruising])) > 1e-5
+    pole = complex(-0.05 * 2 * math.pi * 35.0, 2 * math.pi * 35.0 * math.sqrt(1 - 0.05**2))
+    reference = GridMove(abs(displacement), (pole,), 0.8, 10.0, 1000.0)
+    assert not reference.feasible(summary.duration_s * (1 - 1e-5), 800)
+    assert reference.feasible(summary.duration_s * (1 + 2e-3), 800)
+    assert result.metrics.residual_amplitude < 1e-9 * abs(displacement)

@@ -21,6 +21,12 @@ constraint's multiplier has the wrong sign on an arc at the limit one order belo
 are certified so, in minimum_time's chain before any LP). A coast at +-max_velocity with a held jerk where the
 second-order constraint's multiplier has the wrong sign gets a dip.
 
+``touch_cruises``: with a held jerk, a command whose velocity touches +-max_velocity at one instant inside a bang
+arc (certify.touches) gets a short cruise there (a coast at the limit, CRUISE_SHARE of the duration) for SLSQP to
+size: the certificate with an atom at the touch finds sigma of the wrong sign around it, and the optimum rides the
+limit for a while instead (bench/programs.py's seed-28 move 19, z axis: a 0.067 ms cruise, certified 9e-7 shorter;
+three of the 144 designs of seeds 28-30 certified so, none before).
+
 ``coast_dips``: a held acceleration whose move lasts many periods of its mode and rides the velocity limit ends its
 coast, in the LP's optimum, with a train of dips (-A, +A), one a damped period, growing towards the deceleration
 (bench/time_optimal_random.py's move 150: 11 dips on 3,200 steps); a local optimum holds one or none. The coast's
@@ -36,9 +42,11 @@ import numpy as np
 from optim.families.time_optimal.certify import (
     LEVEL_TOLERANCE,
     SECOND,
+    TOUCH,
     arc_states,
     constraints,
     on_a_limit,
+    touches,
     wrong_sign,
 )
 from optim.families.time_optimal.shaped import as_start
@@ -47,6 +55,7 @@ from optim.families.time_optimal.types import Arc, Spec
 
 DIP_WIDTH = 0.08  # of a period: each dip's -A and +A arcs start this long (SLSQP sizes them)
 NOTCH_SHARE = 0.1  # of the wrong-signed run: the notch's starting width (SLSQP sizes it)
+CRUISE_SHARE = 1e-3  # of the duration: a touch point's cruise's starting width (1e-4 and 1e-2 certified the same)
 Where = tuple[int, float, float]  # certify.wrong_sign's answer: the arc, the first and the last time of its run
 
 
@@ -150,13 +159,34 @@ def notched(
     return [float(d) for d in out_d], [float(v) for v in out_l], [False] * len(out_l)
 
 
+def touch_cruises(spec: Spec, durations: Sequence[float], levels: Sequence[float]) -> Start | None:
+    """The arcs (``levels`` in the unit) with a cruise of CRUISE_SHARE of the duration at each touch point of the
+    velocity limit (certify.touches; taken half from each side of the split bang arc), all levels fixed; None if
+    the velocity touches its limit nowhere."""
+    length, level, _, kind = touches(spec, np.asarray(durations, dtype=float), np.asarray(levels, dtype=float), True)
+    at = np.flatnonzero(kind == TOUCH)
+    if at.size == 0:
+        return None
+    width = CRUISE_SHARE * float(np.sum(length))
+    for k in at.tolist():  # (a touch is strictly inside its arc: both halves are there)
+        take = min(0.5 * width, 0.5 * length[k - 1], 0.5 * length[k + 1])
+        length[k - 1] -= take
+        length[k + 1] -= take
+        length[k] = 2.0 * take
+    return [float(d) for d in length], [float(v) for v in level], [False] * level.size
+
+
 def next_repair(spec: Spec, arcs: tuple[Arc, ...], notching: bool) -> tuple[Start | None, Where | None]:
     """The start of the next repair of ``arcs``: their off-limit arcs made bang (``bang_start``); else, with
-    ``notching``, a notch where the multipliers contradict them (``notched``), and that place (certify.wrong_sign:
-    None for the former); (None, None) where neither applies."""
+    ``notching``, a cruise at each touch point of the velocity limit (``touch_cruises``), else a notch where the
+    multipliers contradict them (``notched``), and that place (certify.wrong_sign: None for the others); (None,
+    None) where none applies."""
     durations, levels, _ = as_start(spec, arcs)
     start = bang_start(spec, durations, levels)
     if start is not None or not notching:
         return start, None
+    cruise = touch_cruises(spec, durations, levels)
+    if cruise is not None:
+        return cruise, None
     where = wrong_sign(spec, arcs)
     return (None if where is None else notched(spec, durations, levels, *where)), where
