@@ -88,7 +88,8 @@ def _example(route: str, name: str) -> tuple[Any, Any, Any]:
         ("pseudo_polynomial", "shortest_with_limits"),  # a duration search: tens of solves
         ("stap", "robust_optimized"),  # multistart
         ("stap", "damped_optimized"),  # multistart on a damped mode
-        ("time_optimal", "jerk_limited"),  # a bisection over LPs (the known answer is certified with none)
+        ("time_optimal", "robust_band"),  # a bisection over LPs with cutting planes (the jerk-limited and known
+        # answers are certified with none)
         ("time_optimal", "tradeoff"),  # the design and its trade-off rows
     ],
 )
