@@ -164,15 +164,27 @@ def _grid_answer(best: Best, search: GridSearch, grid: GridSolution) -> GridSolu
         return grid  # a refined held acceleration shorter than the grid's own command: the finer grid cost 2.5x
     struggling = found is not None and found.method == "refined" and found.duration_s > coarse_s and not spec.bands
     fine = _finer(best, search, grid, FALLBACK_FINER)
-    return _finer(best, search, grid, UNREFINED_FINER) if struggling else fine
+    return _finer(best, search, grid, UNREFINED_FINER, fine) if struggling else fine
 
 
-def _finer(best: Best, search: GridSearch, grid: GridSolution, finer: int) -> GridSolution:
+def _finer(
+    best: Best, search: GridSearch, grid: GridSolution, finer: int, known: GridSolution | None = None
+) -> GridSolution:
     """The grid optimum on steps ``finer`` times shorter: its structures refined in turn (another local optimum than
     the coarse grid's: 1028.8 ms instead of 1032.4 on bench/time_optimal.py's 5 Hz cruise with a jerk limit), and
-    itself the answer where nothing exact checks out or it is shorter; the grid it used."""
+    itself the answer where nothing exact checks out or it is shorter; the grid it used. ``known``: a grid optimum on
+    steps a whole number of these (the 4x grid's, for the 8x one): its duration is the bisection's upper count,
+    solved only where no shorter count is feasible (GridSearch.bisect: one LP of the finest size saved, the same
+    counts solved after it), and the full range again where that count is not feasible here."""
     spec = best.spec
-    fine = search.bisect(grid.step_s / finer, finer * grid.infeasible_steps, finer * grid.steps)
+    dt = grid.step_s / finer
+    lo, hi = finer * grid.infeasible_steps, finer * grid.steps
+    if known is not None and known is not grid:
+        ratio = round(known.step_s / dt)
+        hi = min(hi, ratio * known.steps) if known.step_s == ratio * dt and ratio * known.steps > lo else hi
+    fine = search.bisect(dt, lo, hi)
+    if fine is None and hi < finer * grid.steps:
+        fine = search.bisect(dt, lo, finer * grid.steps)
     if fine is None:
         fine = grid
     values = clip(spec, project(spec, fine))
