@@ -3,6 +3,8 @@
 Candidates, each refined to exact switching times (optim.families.time_optimal.refine) and kept only if it meets
 the limits exactly (the caller's check) and the bands on the dense check (optim.families.time_optimal.check):
 
+- with ``sufficient_duration_s`` (a program's synchronized axis that another axis sets the pace of): the shaped
+  rigid optimum where it is no longer, first and alone (``sufficient``: not proven minimum-time, not needed to be);
 - with two modes or more, first mode by mode (optim.families.time_optimal.by_modes): the lower modes' proven
   command with a reversal of the next, by Newton; a proven one is the answer. Else the lower modes' proven minimum
   bounds the answer from below, and where a command within NEAR of that bound is found (it shaped by ZV at the
@@ -167,6 +169,14 @@ def _grid_answer(best: Best, search: GridSearch, grid: GridSolution) -> GridSolu
     return _finer(best, search, grid, UNREFINED_FINER, fine) if struggling else fine
 
 
+def _steps_of(known: GridSolution, dt: float, lo: int) -> int | None:
+    """``known``'s duration in steps of ``dt``, where its step is a whole number of them (exactly: the 4x grid's is
+    twice the 8x grid's) and that count is above ``lo``; else None."""
+    ratio = round(known.step_s / dt)
+    count = ratio * known.steps
+    return count if ratio >= 1 and known.step_s == ratio * dt and count > lo else None
+
+
 def _finer(
     best: Best, search: GridSearch, grid: GridSolution, finer: int, known: GridSolution | None = None
 ) -> GridSolution:
@@ -178,13 +188,11 @@ def _finer(
     counts solved after it), and the full range again where that count is not feasible here."""
     spec = best.spec
     dt = grid.step_s / finer
-    lo, hi = finer * grid.infeasible_steps, finer * grid.steps
-    if known is not None and known is not grid:
-        ratio = round(known.step_s / dt)
-        hi = min(hi, ratio * known.steps) if known.step_s == ratio * dt and ratio * known.steps > lo else hi
+    lo, top = finer * grid.infeasible_steps, finer * grid.steps
+    hi = top if known is None or known is grid else min(top, _steps_of(known, dt, lo) or top)
     fine = search.bisect(dt, lo, hi)
-    if fine is None and hi < finer * grid.steps:
-        fine = search.bisect(dt, lo, finer * grid.steps)
+    if fine is None and hi < top:
+        fine = search.bisect(dt, lo, top)
     if fine is None:
         fine = grid
     values = clip(spec, project(spec, fine))
