@@ -115,8 +115,9 @@ def test_refined_candidates_longer_than_the_grid_send_the_fallback_to_a_finer_gr
     # that grid's, 657.79 ms, 0.23 % above the independent 800-step LP (bench/lp_reference.py, GridMove.minimum_s over
     # [0.64, 0.67] s: 656.2703 ms). With the 8x grid the answer was refined, within the 0.05 % of that LP (it
     # cannot be shorter than the LP's by more than the LP's own grid error: 0.05 % too); since the refinements of
-    # later sessions the 4x grid's structure refines within it, and the 8x grid is not searched here. With one BLAS thread, as the
-    # service's workers (tests/conftest.py sets it); with two, SLSQP's last bits lead elsewhere: 657.21 ms.
+    # later sessions the 4x grid's structure refines within it, and the 8x grid is not searched here. With one BLAS
+    # thread, as the service's workers (tests/conftest.py sets it); with two, SLSQP's last bits lead elsewhere:
+    # 657.21 ms.
     from tests.conftest import NUMPY_BEFORE_CONFTEST
 
     assert not NUMPY_BEFORE_CONFTEST and os.environ["OPENBLAS_NUM_THREADS"] == "1"
