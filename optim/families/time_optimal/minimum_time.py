@@ -35,6 +35,7 @@ optimum where it is shorter.
 from __future__ import annotations
 
 import time
+from collections.abc import Iterator
 from functools import partial
 
 import numpy as np
@@ -69,38 +70,37 @@ def _predicted(rigid: RigidMove | None, check_limits: LimitCheck | None, spec: S
     return None if best.found is None or best.proof is None else (best.found.arcs, best.proof)
 
 
+def _shaped_commands(spec: Spec) -> Iterator[tuple[tuple[Arc, ...], str]]:
+    """Each shaped rigid optimum (the shapers of ``shapers``, shortest first) and its description."""
+    for shaper in shapers(spec):
+        rigid = rigid_of(spec, shaper)
+        if rigid is not None:
+            yield (
+                shaped_arcs(rigid, shaper),
+                f"the rigid time-optimal move (Ruckig) shaped by {shaper.count} positive impulses",
+            )
+
+
 def shaped_rigid(best: Best) -> Found | None:
-    """The first shaped rigid optimum that checks out (the shapers of ``shapers``), offered to ``best``."""
-    for shaper in shapers(best.spec):
-        rigid = rigid_of(best.spec, shaper)
-        if rigid is None:
-            continue
-        arcs = shaped_arcs(rigid, shaper)
-        note = (
-            f"the rigid time-optimal move (Ruckig) shaped by {shaper.count} positive impulses "
-            "(no shorter command found)"
-        )
-        if best.offer(arcs, "shaped_rigid", note):
+    """The first shaped rigid optimum that checks out (``_shaped_commands``), offered to ``best``."""
+    for arcs, what in _shaped_commands(best.spec):
+        if best.offer(arcs, "shaped_rigid", f"{what} (no shorter command found)"):
             return best.found
     return None
 
 
 def sufficient(best: Best) -> Found | None:
-    """The first shaped rigid optimum (``shapers``) no longer than spec.sufficient_s that meets the limits exactly,
-    taken as it is (no repair, no certificate: no search follows), or None."""
+    """The first shaped rigid optimum (``_shaped_commands``) no longer than spec.sufficient_s that meets the limits
+    exactly, taken as it is (no repair, no certificate: no search follows), or None."""
     spec = best.spec
     limit_s = spec.sufficient_s
     if limit_s is None or spec.torque is not None:
         return None
-    for shaper in shapers(spec):
-        rigid = rigid_of(spec, shaper)
-        if rigid is None:
-            continue
-        arcs = shaped_arcs(rigid, shaper)
+    for arcs, what in _shaped_commands(spec):
         if duration_s(arcs) <= limit_s and best.accepts(arcs):
             note = (
-                f"the rigid time-optimal move (Ruckig) shaped by {shaper.count} positive impulses: no longer than "
-                f"the {limit_s:.6g} s asked (sufficient_duration_s), so not searched further (not proven minimum-time)"
+                f"{what}: no longer than the {limit_s:.6g} s asked (sufficient_duration_s), so not searched further "
+                "(not proven minimum-time)"
             )
             return Found(arcs, "shaped_rigid", note)
     return None
