@@ -34,11 +34,16 @@ async function loadExamples() {
   } catch (error) {
     examples = {};
   }
-  if (!$("program").value && examples.pick_and_place) setExample("pick_and_place");
+  if (!$("program").value && examples.pick_and_place) fillExample("pick_and_place");
 }
 
-function setExample(name) {
+function fillExample(name) {
   if (examples[name]) $("program").value = JSON.stringify(examples[name].value, null, 2);
+}
+
+async function setExample(name) {
+  await examplesLoaded; // a click before the examples arrive fills the box once they have
+  fillExample(name);
 }
 
 async function design(event) {
@@ -246,6 +251,6 @@ function stopsTable(answer, names) {
 }
 
 $("program-form").addEventListener("submit", design);
+const examplesLoaded = loadExamples();
 $("example-line").addEventListener("click", () => setExample("straight_line"));
 $("example-pick").addEventListener("click", () => setExample("pick_and_place"));
-loadExamples();

@@ -41,7 +41,9 @@ def test_a_program_is_drawn_with_its_stops_and_recipes(page, screenshots):
 
 def test_a_bad_program_names_the_field(page):
     page.goto("/programs")
-    page.get_by_role("button", name="Load the straight-line example").click()
+    page.get_by_role("button", name="Load the straight-line example").click()  # (at once: before the examples
+    box = page.get_by_label("Axes, start, moves")  # arrive, the click fills the box when they do)
+    expect(box).to_have_value(re.compile('"coordination": "straight_line"'))
     body = json.loads(page.get_by_label("Axes, start, moves").input_value())
     body["axes"][1]["name"] = "x"
     page.get_by_label("Axes, start, moves").fill(json.dumps(body))
