@@ -42,13 +42,16 @@ def test_time_outs_in_compare_are_time_outs_never_infeasible_nor_a_row_left_out(
         with pytest.raises(SolverTimedOut):
             run_compare(problem, [name])
     # The time-optimal move is certified from its predicted structures before any LP (the wall clock is checked in
-    # the LP search only): the same design as without the cap. With a jerk limit its search runs, and times out.
-    capped, _ = run_compare(problem, ["time_optimal"])
-    free, _ = run_compare(CompareIn.model_validate(INCERTI_MOVE).to_problem(Settings()), ["time_optimal"])
-    assert capped[0].result.summary.duration_s == free[0].result.summary.duration_s
+    # the LP search only): the same design as without the cap; with a jerk limit too, from a cruise's two dips
+    # (structures.two_dip_starts). Where the velocity limit is out of reach (no cruise) its search runs, and times out.
     jerk_limited = {**INCERTI_MOVE, "limits": {**INCERTI_MOVE["limits"], "max_jerk": 20000.0}}
+    for move in (INCERTI_MOVE, jerk_limited):
+        capped, _ = run_compare(CompareIn.model_validate(move).to_problem(TINY_CAP), ["time_optimal"])
+        free, _ = run_compare(CompareIn.model_validate(move).to_problem(Settings()), ["time_optimal"])
+        assert capped[0].result.summary.duration_s == free[0].result.summary.duration_s
+    no_cruise = {**jerk_limited, "limits": {**jerk_limited["limits"], "max_velocity": 1000.0}}
     with pytest.raises(SolverTimedOut):
-        run_compare(CompareIn.model_validate(jerk_limited).to_problem(TINY_CAP), ["time_optimal"])
+        run_compare(CompareIn.model_validate(no_cruise).to_problem(TINY_CAP), ["time_optimal"])
     # A family that needs no solve still gives its rows under the same cap.
     rows, unavailable = run_compare(problem, ["input_shaped"])
     assert rows and not unavailable

@@ -264,8 +264,8 @@ def test_damped_newton_reaches_a_certified_structure_the_full_steps_miss(monkeyp
     # falls) solves a predicted structure that is certified: no LP. With the full step only (one try), no
     # predicted structure converges and the search runs its LPs; its answer is never shorter than the certified one
     # (measured: 118.19229 ms, uncertified, before the grid's fractional levels were also made bang; now 118.19170,
-    # the certified duration to 1e-9). The cruise structures and the stationary switching times (issue 28) also
-    # certify it with the full step: they are off here, so that this checks the damped steps alone.
+    # the certified duration to 1e-9). The cruise structures (one dip or two) and the stationary switching times
+    # (issue 28) also certify it with the full step: they are off here, so that this checks the damped steps alone.
     import optim.families.time_optimal.candidates as candidates
     import optim.families.time_optimal.minimum_time as minimum_time
     import optim.families.time_optimal.refine as refine
@@ -275,6 +275,7 @@ def test_damped_newton_reaches_a_certified_structure_the_full_steps_miss(monkeyp
     monkeypatch.setattr(refine, "DAMPING_HALVINGS", 1)
     monkeypatch.setattr(candidates, "REPAIRS", 0)
     monkeypatch.setattr(minimum_time, "cruise_starts", lambda spec, rigid: [])
+    monkeypatch.setattr(minimum_time, "two_dip_starts", lambda spec, rigid: [])
     monkeypatch.setattr(candidates, "stationary", lambda spec, arcs: None)
     full = synthesize(FAMILIES["time_optimal"], problem, TimeOptimalOptions()).summary
     assert damped.search.lp_solves == 0 and "certifies" in damped.refinement

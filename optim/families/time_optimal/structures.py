@@ -142,23 +142,36 @@ def rigid_arcs(spec: Spec, rigid: RigidMove | None) -> tuple[list[float], list[f
 CRUISE_WIDTHS = ((0.08, 0.17, 0.05), (0.05, 0.1, 0.05), (0.12, 0.2, 0.02))  # cruise_starts': the dip's, the
 # notch's, and the hold before the notch, in damped periods (the certified answers' on bench/programs.py; of 96
 # designs of two seeds, 9 certified from these, 4, 4 and 1; none from a fourth width, (0.1, 0.2, 0.1), or the mirror)
+# cruise_starts' two dips, in damped periods: the first dip's half-width and the cruise before it (0: the dip at the
+# entry), the second dip's half-width and the cruise after it, the hold before the deceleration's notch and the notch
+# (read off the 600-step LP's optima at their minimum duration: seed 28's move 38, whose certified answer has 0.042,
+# 0.081, 0.113, 0.477, 0.035, 0.226, and seed 30's)
+TWO_DIPS = ((0.042, 0.08, 0.113, 0.48, 0.035, 0.2255), (0.08, 0.0, 0.113, 0.45, 0.04, 0.22))
+
+
+def _cruising(spec: Spec, rigid: RigidMove | None) -> tuple[list[float], float] | None:
+    """With a held jerk and one mode, the durations of a rigid optimum that cruises at max_velocity between holds at
+    +-A (+J, hold at A, -J, cruise, -J, hold at -A, +J) and the mode's damped period; else None."""
+    arcs = rigid_arcs(spec, rigid)
+    if arcs is None or spec.order != 3 or len(spec.zero_poles) != 1 or spec.max_velocity is None:
+        return None
+    durations, levels = arcs
+    if levels != [1.0, 0.0, -1.0, 0.0, -1.0, 0.0, 1.0]:
+        return None
+    return durations, 2.0 * math.pi / abs(spec.zero_poles[0].imag)
 
 
 def cruise_starts(spec: Spec, rigid: RigidMove | None) -> list[Start]:
-    """With a held jerk and one mode, a rigid optimum that cruises at max_velocity between holds at +-A, with the
-    velocity touching the limit and dipping as the cruise begins and a notch in the deceleration's hold at -A (+J,
-    -J): the structure of the certified answers on bench/programs.py's cruising moves (the touch point is an atom
-    of the velocity limit's measure: optim.families.time_optimal.touch_points), at each of CRUISE_WIDTHS. For SLSQP
-    (their duration is not fixed by the end conditions alone: optim.families.time_optimal.refine), tried before any
-    LP. (Its mirror in time, the notch in the acceleration's hold and the dip as the cruise ends, certified none.)"""
-    arcs = rigid_arcs(spec, rigid)
-    if arcs is None or spec.order != 3 or len(spec.zero_poles) != 1 or spec.max_velocity is None:
+    """A rigid optimum that cruises (``_cruising``), with the velocity touching the limit and dipping as the cruise
+    begins and a notch in the deceleration's hold at -A (+J, -J): the structure of the certified answers on
+    bench/programs.py's cruising moves (the touch point is an atom of the velocity limit's measure:
+    optim.families.time_optimal.touch_points), at each of CRUISE_WIDTHS. For SLSQP (their duration is not fixed by
+    the end conditions alone: optim.families.time_optimal.refine), tried before any LP. (Its mirror in time, the
+    notch in the acceleration's hold and the dip as the cruise ends, certified none.)"""
+    cruising = _cruising(spec, rigid)
+    if cruising is None:
         return []
-    durations, levels = arcs
-    if levels != [1.0, 0.0, -1.0, 0.0, -1.0, 0.0, 1.0]:  # +J, hold at A, -J, cruise, -J, hold at -A, +J
-        return []
-    period = 2.0 * math.pi / abs(spec.zero_poles[0].imag)
-    ramp, hold_up, _, cruise, _, hold_down, _ = durations
+    (ramp, hold_up, _, cruise, _, hold_down, _), period = cruising
     shape = [1.0, 0.0, -1.0, 1.0, -1.0, 0.0, -1.0, 0.0, 1.0, -1.0, 0.0, 1.0]
     starts: list[Start] = []
     for dip_p, notch_p, before_p in CRUISE_WIDTHS:
@@ -168,6 +181,36 @@ def cruise_starts(spec: Spec, rigid: RigidMove | None) -> list[Start]:
             lengths = [ramp, hold_up, ramp + dip, 2.0 * dip, dip, cruise, ramp, before, notch, notch, rest, ramp]
             starts.append((lengths, shape, [False] * len(shape)))
     return starts
+
+
+def two_dip_starts(spec: Spec, rigid: RigidMove | None) -> list[Start]:
+    """A rigid optimum that cruises (``_cruising``) with two dips in its cruise, at each of TWO_DIPS (``_two_dips``)."""
+    cruising = _cruising(spec, rigid)
+    if cruising is None:
+        return []
+    durations, period = cruising
+    return [_two_dips(durations, [share * period for share in shares]) for shares in TWO_DIPS]
+
+
+def _two_dips(rigid: list[float], widths_s: list[float]) -> Start:
+    """The cruise of ``rigid`` (Ruckig's seven arcs) with two dips (-J, +J, -J back to the limit) and a notch in the
+    deceleration's hold, of ``widths_s`` (TWO_DIPS' order; a first dip with no cruise before it is entered from the
+    acceleration: the velocity overshoots); the cruises and the hold shortened by what the dips and the notch take,
+    each to a tenth of it at least (SLSQP sizes them). The structure of the LP's optimum where no single dip's was
+    certified (seed 28's move 38: the 600-step LP's vertex at its minimum duration)."""
+    ramp, hold_up, _, cruise, _, hold_down, _ = rigid
+    first, ahead, second, after, before, notch = widths_s
+    after = min(after, 0.4 * cruise)
+    between = max(cruise - ahead - after - 4.0 * (first + second) - 2.0 * notch, 0.1 * cruise)
+    rest = max(hold_down - before - 2.0 * notch, 0.1 * hold_down)
+    if ahead > 0.0:
+        entry, entry_levels = [ramp, ahead, first, 2.0 * first, first], [-1.0, 0.0, -1.0, 1.0, -1.0]
+    else:
+        entry, entry_levels = [ramp + first, 2.0 * first, first], [-1.0, 1.0, -1.0]
+    middle = [between, second, 2.0 * second, second, after]
+    lengths = [ramp, hold_up, *entry, *middle, ramp, before, notch, notch, rest, ramp]
+    levels = [1.0, 0.0, *entry_levels, 0.0, -1.0, 1.0, -1.0, 0.0, -1.0, 0.0, 1.0, -1.0, 0.0, 1.0]
+    return lengths, levels, [False] * len(levels)
 
 
 def reversal_starts(spec: Spec, rigid: RigidMove | None) -> list[Start]:
