@@ -297,14 +297,11 @@ def _cruise(best: Best, rigid: RigidMove | None) -> bool:
     offered where the certificate proves one (True: no search is needed): one dip (structures.cruise_starts), each
     answer repaired (REPAIRS: four of 144 program designs certified only so), then two (structures.two_dip_starts:
     their repairs certified none of those and cost 0.2 s on each seed's 48)."""
-    note = " (from a cruise's structure: a touch and a dip of the velocity, a notch)"
-    one = [(start, True) for start in cruise_starts(best.spec, rigid)]
-    two = [(start, False) for start in two_dip_starts(best.spec, rigid)]
-    for start, repaired in one + two:
+    one = [(start, True, "a touch and a dip") for start in cruise_starts(best.spec, rigid)]
+    two = [(start, False, "two dips") for start in two_dip_starts(best.spec, rigid)]
+    for start, repaired, what in one + two:
         trial = Best(best.spec, best.search, best.check_limits)
-        trial.refine_from(
-            start, note if repaired else " (from a cruise's structure: two dips of the velocity, a notch)"
-        )
+        trial.refine_from(start, f" (from a cruise's structure: {what} of the velocity, a notch)")
         if repaired:
             trial.last_repairs()
         found = trial.found

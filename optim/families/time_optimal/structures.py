@@ -142,7 +142,7 @@ def rigid_arcs(spec: Spec, rigid: RigidMove | None) -> tuple[list[float], list[f
 CRUISE_WIDTHS = ((0.08, 0.17, 0.05), (0.05, 0.1, 0.05), (0.12, 0.2, 0.02))  # cruise_starts': the dip's, the
 # notch's, and the hold before the notch, in damped periods (the certified answers' on bench/programs.py; of 96
 # designs of two seeds, 9 certified from these, 4, 4 and 1; none from a fourth width, (0.1, 0.2, 0.1), or the mirror)
-# cruise_starts' two dips, in damped periods: the first dip's half-width and the cruise before it (0: the dip at the
+# two_dip_starts' widths, in damped periods: the first dip's half-width and the cruise before it (0: the dip at the
 # entry), the second dip's half-width and the cruise after it, the hold before the deceleration's notch and the notch
 # (read off the 600-step LP's optima at their minimum duration: seed 28's move 38, whose certified answer has 0.042,
 # 0.081, 0.113, 0.477, 0.035, 0.226, and seed 30's)
