@@ -139,8 +139,10 @@ def test_the_8x_grid_s_bisection_is_bounded_by_the_4x_grid_s_optimum() -> None:
     # candidate is longer than the coarse grid's command, so the 4x and then the 8x grid are searched, and the
     # answer is the 8x grid's optimum. Its bisection starts below the 4x optimum's duration (twice its steps,
     # feasible on the 8x grid too), not below the coarse grid's: no 8x LP at or above it (a 668-step LP, 0.23 s, saved);
-    # the answer is the least feasible count of the 8x grid that the search found.
+    # the answer is the least feasible count of the 8x grid that the search found. (The 4x grid's command at its least
+    # duration, minimum_time._least, proves this move before any 8x LP: it is off here.)
     from models.plants import ModePlant
+    from optim.families.time_optimal import minimum_time
     from optim.families.time_optimal.options import TimeOptimalOptions
     from optim.families.time_optimal.search import GridSearch
     from optim.problem import Limits, Problem
@@ -162,6 +164,7 @@ def test_the_8x_grid_s_bisection_is_bounded_by_the_4x_grid_s_optimum() -> None:
     problem = Problem(plant, 0.39874664910835217, limits=limits)
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(GridSearch, "feasible", recorded)
+        patch.setattr(minimum_time, "_least", lambda best, search, fine: False)  # (it proves this move: no 8x grid)
         result = synthesize(FAMILIES["time_optimal"], problem, TimeOptimalOptions())
     dt8 = min(dt for _, dt, _ in solved)
     best4 = min(steps for steps, dt, found in solved if found and dt == 2.0 * dt8)

@@ -44,10 +44,11 @@ from numpy.typing import NDArray
 
 from models.errors import SolverFailed, SolverTimedOut
 from models.rigid_motion import RigidMove
-from optim.families.time_optimal.arcs import arcs_of
+from optim.families.time_optimal.arcs import arcs_of, structure
 from optim.families.time_optimal.by_modes import Proven, Relaxed, mode_by_mode
 from optim.families.time_optimal.candidates import Best, Found, LimitCheck, duration_s
-from optim.families.time_optimal.search import KINEMATIC, GridSearch, clip, project
+from optim.families.time_optimal.repair import switched
+from optim.families.time_optimal.search import KINEMATIC, GridSearch, clip, project, without_chatter
 from optim.families.time_optimal.shaped import as_start, rigid_of, shaped_arcs, shapers
 from optim.families.time_optimal.structures import cruise_starts, reversal_starts, three_switch_starts, two_dip_starts
 from optim.families.time_optimal.types import Arc, GridSolution, Solution, Spec
@@ -154,20 +155,22 @@ def _refined(best: Best, search: GridSearch, grid: GridSolution | None, rigid: R
 
 
 def _grid_answer(best: Best, search: GridSearch, grid: GridSolution) -> GridSolution:
-    """The grid optimum on a grid FALLBACK_FINER times finer (``_finer``). Searched where no structure was refined,
-    where the refined one is longer than the coarse grid's own command (a local optimum: 509.9 ms against the
-    finer grid's 504.2 on bench/time_optimal.py's two-mode case), or with a held jerk (whose refined structures are
-    often local optima); the grid it used. Where the refined candidates are all longer than the coarse grid's command
-    (no band: there none is refined), then also on a grid UNREFINED_FINER times finer (the 25 Hz held-jerk move of
-    docs/benchmarks.md's nested bands: 657.79 ms from the 4x grid, 0.23 % above the 800-step LP's 656.27; 656.53 from
-    the 8x grid's structure, with one BLAS thread as the service's workers run)."""
+    """The grid optimum on a grid FALLBACK_FINER times finer (``_finer``; where the refined candidates are all
+    longer than the coarse grid's command, its command at its least duration first: ``_least``, proven, no more
+    search). Searched where no structure was refined, where the refined one is longer than the coarse grid's own
+    command (a local optimum: 509.9 ms against the finer grid's 504.2 on bench/time_optimal.py's two-mode case), or
+    with a held jerk (whose refined structures are often local optima); the grid it used. Where the refined
+    candidates are all longer than the coarse grid's command (no band: there none is refined), then also on a grid
+    UNREFINED_FINER times finer (the 25 Hz held-jerk move of docs/benchmarks.md's nested bands: 657.79 ms from the 4x
+    grid, 0.23 % above the 800-step LP's 656.27; 656.53 from the 8x grid's structure, with one BLAS thread as the
+    service's workers run)."""
     spec, found = best.spec, best.found
     coarse_s = grid.steps * grid.step_s
     if found is not None and found.method == "refined" and spec.order == 2 and found.duration_s <= coarse_s:
         return grid  # a refined held acceleration shorter than the grid's own command: the finer grid cost 2.5x
     struggling = found is not None and found.method == "refined" and found.duration_s > coarse_s and not spec.bands
-    fine = _finer(best, search, grid, FALLBACK_FINER)
-    return _finer(best, search, grid, UNREFINED_FINER, fine) if struggling else fine
+    fine = _finer(best, search, grid, FALLBACK_FINER, least=struggling)
+    return _finer(best, search, grid, UNREFINED_FINER, fine) if struggling and best.proof is None else fine
 
 
 def _steps_of(known: GridSolution, dt: float, lo: int) -> int | None:
@@ -178,8 +181,26 @@ def _steps_of(known: GridSolution, dt: float, lo: int) -> int | None:
     return count if ratio >= 1 and known.step_s == ratio * dt and count > lo else None
 
 
+def _least(best: Best, search: GridSearch, fine: GridSolution) -> bool:
+    """With a held jerk: ``fine``'s command at its least duration on as many steps (GridSearch.least_duration), its
+    cruise's chatter removed (search.without_chatter), its structure's switches inside a step split
+    (repair.switched), refined; True where the certificate proves it."""
+    if best.spec.order != 3:
+        return False
+    least = search.least_duration(fine)
+    values = without_chatter(best.spec, clip(best.spec, project(best.spec, least)), least.step_s)
+    start = switched(*structure(values, least.step_s))
+    best.refine_from(start, " (from the finer grid's vertex at its least duration, without chatter)")
+    return best.proof is not None
+
+
 def _finer(
-    best: Best, search: GridSearch, grid: GridSolution, finer: int, known: GridSolution | None = None
+    best: Best,
+    search: GridSearch,
+    grid: GridSolution,
+    finer: int,
+    known: GridSolution | None = None,
+    least: bool = False,
 ) -> GridSolution:
     """The grid optimum on steps ``finer`` times shorter: its structures refined in turn (another local optimum than
     the coarse grid's: 1028.8 ms instead of 1032.4 on bench/time_optimal.py's 5 Hz cruise with a jerk limit), and
@@ -196,6 +217,8 @@ def _finer(
         fine = search.bisect(dt, lo, top)
     if fine is None:
         fine = grid
+    if least and spec.torque is None and not spec.bands and _least(best, search, fine):
+        return fine  # proven: the refined command is the answer
     values = clip(spec, project(spec, fine))
     if spec.torque is None and not spec.bands:
         note = " (from the finer grid's structure)"

@@ -83,6 +83,26 @@ def bang_start(spec: Spec, durations: Sequence[float], levels: Sequence[float]) 
     return out_durations, out_levels, [False] * len(out_levels)
 
 
+def switched(durations: Sequence[float], levels: Sequence[float], free: Sequence[bool]) -> Start:
+    """A grid structure (arcs.structure) whose free arcs between two fixed neighbours on different levels, their
+    level between them, are the switch inside (split in proportion, each side joined to its neighbour); the other
+    arcs as they are (a coast stays a coast: bang_start would notch one not yet exactly on its limit)."""
+    out_d: list[float] = []
+    out_l: list[float] = []
+    out_f: list[bool] = []
+    for k, (duration, level) in enumerate(zip(durations, levels, strict=True)):
+        inner = 0 < k < len(levels) - 1 and free[k] and not free[k - 1] and not free[k + 1]
+        pieces = _switch(duration, level, levels[k - 1], levels[k + 1]) if inner else []
+        for piece, piece_level in pieces or [(duration, level)]:
+            if out_l and out_l[-1] == piece_level and not out_f[-1] and (pieces or not free[k]):
+                out_d[-1] += piece
+            else:
+                out_d.append(piece)
+                out_l.append(piece_level)
+                out_f.append(free[k] and not pieces)
+    return out_d, out_l, out_f
+
+
 def _switch(duration: float, level: float, left: float | None, right: float | None) -> list[tuple[float, float]]:
     """The switch from ``left`` to ``right`` inside the arc, if its level lies between them; [] otherwise."""
     if left is None or right is None or left == right or not min(left, right) <= level <= max(left, right):

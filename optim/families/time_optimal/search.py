@@ -46,6 +46,9 @@ DENSE_PHASE_STEP = 0.15  # rad: the dense start, added after COARSE_ROUNDS round
 COARSE_ROUNDS = 5
 MAX_INITIAL_POINTS = 200
 KINEMATIC = "kinematic floor (the rigid time-optimal move within the limits)"
+LEAST_RTOL = 1e-5  # least_duration's bisection (1e-4 lost 29:34's certified structure on bench/programs.py, seed 29)
+CRUISING = 1e-3  # without_chatter: a node within this share of max_velocity and ...
+CHATTER = 0.1  # ... within this share of max_acceleration of no acceleration cruises
 
 
 class GridSearch:
@@ -99,6 +102,25 @@ class GridSearch:
         if x is not None:
             self.bases[lp.steps] = lp.model.basis()
         return x
+
+    def least_duration(self, grid: GridSolution) -> GridSolution:
+        """``grid``'s command at the least duration on as many steps, to LEAST_RTOL: the step bisected between
+        ``grid``'s and the one of a step less in all, each LP from nothing (from the last one's basis, 0.1 s less,
+        the vertex of bench/programs.py's seed-28 move 2 led SLSQP to another local optimum); a band's grid as it is.
+        Near its least duration the LP's feasible set is nearly a point: its vertex has the optimum's arcs, where
+        one with a step's slack dithers (a three-mode cruise's three dips, lost in a chatter of one-step pulses)."""
+        if self.dense:
+            return grid
+        steps, values = grid.steps, grid.values
+        low, high = grid.step_s * (steps - 1) / steps, grid.step_s
+        while high - low > LEAST_RTOL * high:
+            mid = 0.5 * (low + high)
+            x = GridLp(self.spec, steps, mid, self.cuts, self.counter).solve()
+            if x is None:
+                low = mid
+            else:
+                high, values = mid, x
+        return GridSolution(high, steps, values, grid.infeasible_steps)
 
     def new_cuts(self, start: Array, end: Array, level: Array, total: float) -> list[Cut]:
         """The band points where the command breaks a band on the dense check (none: it meets every band)."""
@@ -280,6 +302,23 @@ def equality_system(spec: Spec, steps: int, dt: float) -> tuple[Array, Array]:
             rows += [row.real / scale, row.imag / scale]
             rhs += [0.0, 0.0]
     return np.vstack(rows) if rows else np.zeros((0, steps)), np.asarray(rhs)
+
+
+def without_chatter(spec: Spec, values: Array, dt: float) -> Array:
+    """The held-jerk grid command with no jerk on the steps that cruise (both nodes within CRUISING of max_velocity
+    and CHATTER of no acceleration): a vertex dithers there (one-step pulses that move the velocity by 2e-4 of
+    its limit), arcs no optimum has; the values themselves without a held jerk or a velocity limit."""
+    limit_v, limit_a = spec.max_velocity, spec.max_acceleration
+    if spec.order != 3 or limit_v is None or limit_a is None:
+        return values
+    start, end = pieces(values.size, dt)
+    nodes = np.arange(values.size + 1, dtype=float) * dt
+    velocity = spec.scale * integrated_box(nodes, start, end, 2) @ values + spec.free_motion(1, nodes)
+    acceleration = spec.scale * integrated_box(nodes, start, end, 1) @ values + spec.free_motion(2, nodes)
+    cruising = (np.abs(velocity) >= limit_v * (1.0 - CRUISING)) & (np.abs(acceleration) < CHATTER * limit_a)
+    out = values.copy()
+    out[cruising[:-1] & cruising[1:]] = 0.0
+    return out
 
 
 def clip(spec: Spec, values: Array) -> Array:
