@@ -30,7 +30,7 @@ FROM_ENTRY = [1, 0, -1, 1, -1, 0, -1, 1, -1, 0, -1, 0, 1, -1, 0, 1]  # the veloc
 @pytest.mark.parametrize(
     ("displacement", "before_s", "levels", "cruises"),
     [(-0.3984145401724464, 0.3794841171820951, SEPARATE, 3), (0.3896394864452512, 0.374565, FROM_ENTRY, 2)],
-    ids=["seed-28-move-38", "seed-30-move-38"],
+    ids=["seed-28-design-38", "seed-30-design-38"],
 )
 def test_a_cruise_that_dips_twice_is_certified_before_any_lp(
     displacement: float, before_s: float, levels: list[int], cruises: int
@@ -68,7 +68,7 @@ def test_a_cruise_that_dips_twice_is_certified_before_any_lp(
 
 
 def test_two_dip_starts_are_the_cruise_with_two_dips_and_a_notch_and_none_without_a_cruise() -> None:
-    # Ruckig's optimum of seed 28's move 38 cruises 155.6 ms between 90 ms holds (its seven arcs); each start keeps
+    # Ruckig's optimum of seed 28's design 38 cruises 155.6 ms between 90 ms holds (its seven arcs); each start keeps
     # the ramps, has the levels of SEPARATE or FROM_ENTRY, and sizes every arc positive. A 2 cm move never cruises.
     problem = Problem(PLANT, displacement=0.3984145401724464, limits=LIMITS)
     spec = spec_of(problem, TimeOptimalOptions(), selected_modes(problem, TimeOptimalOptions())[0])

@@ -144,7 +144,7 @@ CRUISE_WIDTHS = ((0.08, 0.17, 0.05), (0.05, 0.1, 0.05), (0.12, 0.2, 0.02))  # cr
 # designs of two seeds, 9 certified from these, 4, 4 and 1; none from a fourth width, (0.1, 0.2, 0.1), or the mirror)
 # two_dip_starts' widths, in damped periods: the first dip's half-width and the cruise before it (0: the dip at the
 # entry), the second dip's half-width and the cruise after it, the hold before the deceleration's notch and the notch
-# (read off the 600-step LP's optima at their minimum duration: seed 28's move 38, whose certified answer has 0.042,
+# (read off the 600-step LP's optima at their minimum duration: seed 28's design 38, whose certified answer has 0.042,
 # 0.081, 0.113, 0.477, 0.035, 0.226, and seed 30's)
 TWO_DIPS = ((0.042, 0.08, 0.113, 0.48, 0.035, 0.2255), (0.08, 0.0, 0.113, 0.45, 0.04, 0.22))
 
@@ -197,7 +197,7 @@ def _two_dips(rigid: list[float], widths_s: list[float]) -> Start:
     deceleration's hold, of ``widths_s`` (TWO_DIPS' order; a first dip with no cruise before it is entered from the
     acceleration: the velocity overshoots); the cruises and the hold shortened by what the dips and the notch take,
     each to a tenth of it at least (SLSQP sizes them). The structure of the LP's optimum where no single dip's was
-    certified (seed 28's move 38: the 600-step LP's vertex at its minimum duration)."""
+    certified (seed 28's design 38: the 600-step LP's vertex at its minimum duration)."""
     ramp, hold_up, _, cruise, _, hold_down, _ = rigid
     first, ahead, second, after, before, notch = widths_s
     after = min(after, 0.4 * cruise)
