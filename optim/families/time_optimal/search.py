@@ -46,7 +46,7 @@ DENSE_PHASE_STEP = 0.15  # rad: the dense start, added after COARSE_ROUNDS round
 COARSE_ROUNDS = 5
 MAX_INITIAL_POINTS = 200
 KINEMATIC = "kinematic floor (the rigid time-optimal move within the limits)"
-LEAST_RTOL = 1e-5  # least_duration's bisection (1e-4 lost 29:34's certified structure on bench/programs.py, seed 29)
+LEAST_RTOL = 1e-5  # least_duration's bisection (at 1e-4 seed 29's design 34 of bench/programs.py lost its structure)
 CRUISING = 1e-3  # without_chatter: a node within this share of max_velocity and ...
 CHATTER = 0.1  # ... within this share of max_acceleration of no acceleration cruises
 
