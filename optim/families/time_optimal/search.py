@@ -269,16 +269,22 @@ def project_values(spec: Spec, grid: GridSolution, values: Array) -> Array:
 def _nodes_within(spec: Spec, grid: GridSolution, values: Array) -> bool:
     """The velocity (and, with a held jerk, the acceleration) of the grid command within its limits at the
     nodes: snapping moves them by up to SNAP x the unit x the duration, more than the LP's margin."""
-    start, end = pieces(grid.steps, grid.step_s)
     nodes = np.arange(1, grid.steps + 1, dtype=float) * grid.step_s
     for m, limit in ((1, spec.max_velocity), (2, spec.max_acceleration if spec.order == 3 else None)):
         if limit is None:
             continue
-        motion = spec.scale * integrated_box(nodes, start, end, spec.order - m) @ values + spec.free_motion(m, nodes)
-        peak = float(np.max(np.abs(motion)))
+        peak = float(np.max(np.abs(_node_motion(spec, values, grid.step_s, nodes, m))))
         if peak > limit * (1.0 - 0.5 * MARGIN):
             return False
     return True
+
+
+def _node_motion(spec: Spec, values: Array, dt: float, nodes: Array, m: int) -> Array:
+    """The grid command's m-th derivative (1: velocity, 2: acceleration) at ``nodes``: its held values integrated
+    (weights.integrated_box) plus the start state's free motion."""
+    start, end = pieces(values.size, dt)
+    motion: Array = spec.scale * integrated_box(nodes, start, end, spec.order - m) @ values + spec.free_motion(m, nodes)
+    return motion
 
 
 def equality_system(spec: Spec, steps: int, dt: float) -> tuple[Array, Array]:
@@ -311,10 +317,8 @@ def without_chatter(spec: Spec, values: Array, dt: float) -> Array:
     limit_v, limit_a = spec.max_velocity, spec.max_acceleration
     if spec.order != 3 or limit_v is None or limit_a is None:
         return values
-    start, end = pieces(values.size, dt)
     nodes = np.arange(values.size + 1, dtype=float) * dt
-    velocity = spec.scale * integrated_box(nodes, start, end, 2) @ values + spec.free_motion(1, nodes)
-    acceleration = spec.scale * integrated_box(nodes, start, end, 1) @ values + spec.free_motion(2, nodes)
+    velocity, acceleration = (_node_motion(spec, values, dt, nodes, m) for m in (1, 2))
     cruising = (np.abs(velocity) >= limit_v * (1.0 - CRUISING)) & (np.abs(acceleration) < CHATTER * limit_a)
     out = values.copy()
     out[cruising[:-1] & cruising[1:]] = 0.0
