@@ -126,8 +126,9 @@ def _grid(search: GridSearch, shaped: Found | None) -> GridSolution | None:
 
 
 def _refined(best: Best, search: GridSearch, grid: GridSolution | None, rigid: RigidMove | None) -> None:
-    """Every exact candidate offered to ``best``: the grid's structures, the shaped rigid optimum's, the known
-    structures, then the probes."""
+    """Every exact candidate offered to ``best``, until one is proven: the grid's structures, the known structures,
+    the probes, then the shaped rigid optimum's (after the probes: on bench/programs.py's 144 designs its
+    refinement proved none of the 27 it ran on, the probes 17; 3 % of their time saved, every answer the same)."""
     spec = best.spec
     shaped = best.found
     if grid is not None:
@@ -136,10 +137,6 @@ def _refined(best: Best, search: GridSearch, grid: GridSolution | None, rigid: R
             late = search.late_vertex(grid.steps, grid.step_s)
             if late is not None:
                 best.refine_grid(clip(spec, late), grid.step_s)
-    if best.proof is not None:
-        return
-    if shaped is not None:
-        best.refine_from(as_start(spec, shaped.arcs), " (from the shaped rigid optimum)")
     for start in three_switch_starts(spec, rigid):
         if best.proof is None:
             best.refine_from(start, " (from the symmetric three-switch structure)")
@@ -152,6 +149,8 @@ def _refined(best: Best, search: GridSearch, grid: GridSolution | None, rigid: R
             break
         if best.proof is not None:
             break
+    if shaped is not None and best.proof is None:
+        best.refine_from(as_start(spec, shaped.arcs), " (from the shaped rigid optimum)")
 
 
 def _grid_answer(best: Best, search: GridSearch, grid: GridSolution) -> GridSolution:
