@@ -142,6 +142,30 @@ def test_bound_system_is_the_derivative_within_its_limit_at_the_points(rng: np.r
     _close(jac, _central(lambda x: bound_system(x, structure, 1, limit, times, False)[0], z))
 
 
+def test_refines_inequalities_are_the_bound_and_peak_rows_in_turn() -> None:
+    # refine._Model's inequalities come from one compiled call (kernels.inequality_system) and its Jacobian only when
+    # SLSQP asks for it: the same bits as bound_system at each bound's check points (velocity, then acceleration)
+    # followed by peak_system, whichever is asked first (SLSQP's search and its answers depend on them bit for bit).
+    from models.plants import ModePlant
+    from optim.families.time_optimal import refine
+    from optim.families.time_optimal.kernels import peak_system
+    from optim.problem import Limits, Problem
+
+    spec = _spec_of(Problem(ModePlant(25.0, 0.02), displacement=0.3, limits=Limits(0.5, 10.0, 2000.0)))
+    durations = [0.004, 0.02, 0.004, 0.03, 0.006, 0.02, 0.006]
+    model = refine._Model(spec, durations, [1.0, 0.0, -1.0, 0.0, -1.0, 0.4, 1.0], [False] * 5 + [True, False], [])
+    z = model.z0 * (1.0 + 0.01 * np.sin(np.arange(model.z0.size)))
+    parts = [bound_system(z, model.structure, m, limit, at, True) for m, limit, at in model.bounds]
+    parts.append(peak_system(z, model.structure, float(spec.max_velocity), True))
+    assert [m for m, _, _ in model.bounds] == [1, 2] and model.peaks
+    values = model.inequalities(z)  # the values first, as SLSQP asks them
+    assert np.array_equal(values, np.concatenate([v for v, _ in parts]))
+    assert np.array_equal(model.inequality_jacobian(z), np.vstack([j for _, j in parts]))
+    again = refine._Model(spec, durations, [1.0, 0.0, -1.0, 0.0, -1.0, 0.4, 1.0], [False] * 5 + [True, False], [])
+    assert np.array_equal(again.inequality_jacobian(z), np.vstack([j for _, j in parts]))  # the Jacobian first
+    assert np.array_equal(again.inequalities(z), values)
+
+
 def _spec_of(problem):  # type: ignore[no-untyped-def]
     from optim.families.time_optimal.family import selected_modes, spec_of
     from optim.families.time_optimal.options import TimeOptimalOptions

@@ -280,6 +280,40 @@ def peak_system(z: Array, structure: Structure, limit: float, jac: bool) -> tupl
 
 
 @njit(cache=True)
+def inequality_system(
+    z: Array,
+    structure: Structure,
+    bound_m: NDArray[np.int64],
+    bound_limit: Array,
+    times_a: Array,
+    times_b: Array,
+    peaks: bool,
+    peak_limit: float,
+    jac: bool,
+) -> tuple[Array, Array]:
+    """The refinement's inequalities in one call: bound_system's rows for each bound in turn (its check points
+    ``times_a``, then ``times_b``), then with ``peaks`` peak_system's, and their Jacobian in z (zeros without
+    ``jac``): the same values as the kernels' one by one, concatenated."""
+    count, free = structure[0], structure[3]
+    rows = 2 * count if peaks else 0
+    for b in range(bound_m.size):
+        rows += 2 * (times_a if b == 0 else times_b).shape[0]
+    values = np.zeros(rows)
+    out = np.zeros((rows, count + free.size))
+    row = 0
+    for b in range(bound_m.size + (1 if peaks else 0)):
+        if b < bound_m.size:
+            part, part_jac = bound_system(z, structure, bound_m[b], bound_limit[b], times_a if b == 0 else times_b, jac)
+        else:
+            part, part_jac = peak_system(z, structure, peak_limit, jac)
+        values[row : row + part.size] = part
+        if jac:
+            out[row : row + part.size] = part_jac
+        row += part.size
+    return values, out
+
+
+@njit(cache=True)
 def _square_system(v: Array, structure: Structure, rows: Rows) -> tuple[Array, Array]:
     """end_system's rows and bound_system's active rows (over the bounds in turn) at v, their Jacobian in the
     movable columns of z."""

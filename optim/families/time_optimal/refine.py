@@ -108,10 +108,18 @@ class _Model:
 
     def __init__(self, spec: Spec, durations: list[float], levels: list[float], free: list[bool], cuts: list[Cut]):
         # numba (~60 MiB) is imported by the first refinement, not by every process that imports the families
-        from optim.families.time_optimal.kernels import bound_system, end_system, moment_terms, peak_system, polish
+        from optim.families.time_optimal.kernels import (
+            bound_system,
+            end_system,
+            inequality_system,
+            moment_terms,
+            peak_system,
+            polish,
+        )
 
         self.end_system: Any = end_system  # (numba's Dispatcher: typed by its arguments at run time)
         self.bound_system: Any = bound_system
+        self.inequality_system: Any = inequality_system
         self.peak_system: Any = peak_system
         self.moment_terms: Any = moment_terms
         self.polish_kernel: Any = polish
@@ -155,7 +163,7 @@ class _Model:
             self.moment_scales,
         )
         self.peaks = q == 3 and spec.max_velocity is not None  # velocity_peaks' rows (two per arc)
-        self._last: dict[str, tuple[bytes, Array, Array]] = {}  # _remembered's
+        self._last: dict[str, tuple[bytes, Array, Array | None]] = {}  # _remembered's
         # the same, for kernels.polish (per spec: _fixed), and no rows for a missing bound
         self.bound_m, self.bound_limit = (fixed.bound_m, fixed.bound_limit) if self.bounds else _NO_BOUNDS
         self.bound_times = [at for _, _, at in self.bounds]
@@ -186,6 +194,12 @@ class _Model:
         spec, u = self.spec, self.spec.scale
         if kind == "eq":
             values, jac = self.end_system(z, self.structure, want_jac)
+            return values, (jac if want_jac else np.zeros(0))
+        if not self.cuts:  # (the bounds' and the peaks' rows in one compiled call)
+            peak_limit = float(spec.max_velocity or 1.0)
+            values, jac = self.inequality_system(
+                z, self.structure, self.bound_m, self.bound_limit, *self.bound_times, self.peaks, peak_limit, want_jac
+            )
             return values, (jac if want_jac else np.zeros(0))
         parts = [self.bound_system(z, self.structure, m, bound, at, want_jac) for m, bound, at in self.bounds]
         values_list = [part[0] for part in parts]
@@ -220,28 +234,32 @@ class _Model:
         values, jac = self.peak_system(z, self.structure, float(self.spec.max_velocity or 1.0), want_jac)
         return values, (jac if want_jac else np.zeros(0))
 
-    def _remembered(self, z: Array, kind: str) -> tuple[Array, Array]:
-        """_parts with the Jacobian, remembered for the latest z of each kind: SLSQP asks the values, then the
-        Jacobian, at the same point (66 evaluations at 18 points on a held-jerk chain's refine)."""
+    def _remembered(self, z: Array, kind: str, want_jac: bool) -> tuple[Array, Array]:
+        """_parts remembered for the latest z of each kind, the Jacobian computed only when asked: SLSQP asks the
+        values at each point of its line search (three a major iteration on bench/programs.py's designs), the
+        Jacobian only at the point it accepts (the last one whose values it asked). The values do not depend on
+        whether the Jacobian is computed (the same bits: kernels)."""
         key = z.tobytes()
         last = self._last.get(kind)
-        if last is None or last[0] != key:
-            last = (key, *self._parts(z, kind))
+        if last is None or last[0] != key or (want_jac and last[2] is None):
+            values, jac = self._parts(z, kind, want_jac)
+            last = (key, values, jac if want_jac else None)
             self._last[kind] = last
-        return last[1].copy(), last[2].copy()  # (the caller may write to them)
+        jac_or_none = last[2]
+        return last[1].copy(), (np.zeros(0) if jac_or_none is None else jac_or_none.copy())  # (the caller may write)
 
     def equalities(self, z: Array) -> Array:
-        return self._remembered(z, "eq")[0]
+        return self._remembered(z, "eq", False)[0]
 
     def equality_jacobian(self, z: Array) -> Array:
-        return self._remembered(z, "eq")[1]
+        return self._remembered(z, "eq", True)[1]
 
     def inequalities(self, z: Array) -> Array:
         """>= 0 when met (scaled)."""
-        return self._remembered(z, "ineq")[0]
+        return self._remembered(z, "ineq", False)[0]
 
     def inequality_jacobian(self, z: Array) -> Array:
-        return self._remembered(z, "ineq")[1]
+        return self._remembered(z, "ineq", True)[1]
 
 
 def refine(
