@@ -25,7 +25,7 @@ from optim import sweeps as engine
 from optim.programs import Program, ProgramResult, assemble, check_program
 from optim.programs.compare import RecipeRow, compare
 from optim.programs.moves import MoveDesign
-from optim.programs.run import MoveOutcome, design_one
+from optim.programs.run import MoveOutcome, design_one, heaviest_first
 from optim.programs.varying import VaryingFit
 from optim.tables import uniform_times
 from runtime.executor import Executor, InlineExecutor, cancel_all
@@ -57,7 +57,7 @@ async def designed_moves(
             done = await engine.submit(executor, design_one, program, k, deadline_s=settings.solve_deadline_s)
             return k, done, time.perf_counter() - started
 
-    tasks = [asyncio.ensure_future(one(k)) for k in range(len(program.moves))]
+    tasks = [asyncio.ensure_future(one(k)) for k in heaviest_first(program)]  # (the semaphore serves them in turn)
     try:
         for next_done in asyncio.as_completed(tasks):
             yield await next_done

@@ -36,7 +36,7 @@ from optim.problem import MIN_MOVE, Limits, Problem
 from optim.programs.tables import frequency_range_hz, plant_at
 from optim.programs.types import Program
 from optim.registry import FAMILIES
-from optim.results import Block
+from optim.results import Block, MetricsReport
 from optim.synthesis import evaluate, synthesize
 
 SAME_TIME_RTOL = 1e-12  # an axis this close to the move's duration is not stretched
@@ -88,6 +88,8 @@ class MoveDesign:
     axes: tuple[AxisMove, ...]
     path: PathReport | None
     warnings: tuple[str, ...]
+    # each axis's metrics (None where it stays), where computed beside the design (optim.programs.run.design_one)
+    metrics: tuple[MetricsReport | None, ...] | None = None
 
 
 def coordinate_span(program: Program, k: int, coordinate: str) -> tuple[float, float]:

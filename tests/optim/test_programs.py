@@ -15,8 +15,9 @@ from models.simulation import simulate
 from models.varying_mode import deflection
 from optim.families.time_optimal.options import TimeOptimalOptions
 from optim.problem import Limits, Problem
-from optim.programs import PlantTable, Program, ProgramAxis, ProgramMove, TablePoint, positions, solve_program
+from optim.programs import PlantTable, Program, ProgramAxis, ProgramMove, TablePoint, assemble, positions, solve_program
 from optim.programs.moves import stretched
+from optim.programs.run import design_moves, heaviest_first
 from optim.programs.tables import mode_function, modes_at, plant_at
 from optim.registry import FAMILIES
 from optim.synthesis import synthesize
@@ -382,3 +383,28 @@ def test_a_payload_given_only_later_is_missing_at_the_start() -> None:
     with pytest.raises(InvalidParameter) as caught:
         solve_program(Program((X, y), (0.0, 0.0), moves))
     assert caught.value.field == "parameters.payload_kg" and "from the first move on" in caught.value.rule
+
+
+def test_the_pool_starts_the_designs_that_cancel_the_most_modes_first() -> None:
+    """X and Y have a mode each: the straight line moving both cancels two in one design and is started first; the
+    others (one mode a design: one axis moving, or each axis its own design) keep their program order."""
+    program = _program(
+        ProgramMove((0.3, 0.0), "synchronized"),  # x alone: one mode
+        ProgramMove((0.0, 0.1), "independent"),  # both, one design each: one mode a design
+        ProgramMove((0.2, 0.2), "straight_line"),  # both on one path: two modes
+        ProgramMove((0.2, 0.3), "straight_line"),  # y alone: one mode
+    )
+    assert heaviest_first(program) == [2, 0, 1, 3]
+
+
+def test_the_metrics_made_beside_each_design_are_the_ones_assemble_would_make() -> None:
+    """design_one simulates each moving axis's metrics where the move is designed (a worker); the cycle assembled
+    from the designs without them (assemble simulating them itself) reports the same metrics, field for field."""
+    program = _program(ProgramMove((0.3, 0.05), "synchronized", 0.1), ProgramMove((0.0, 0.0), "straight_line"))
+    designed = design_moves(program)
+    assert all(d.metrics is not None and len(d.metrics) == 2 for d, _ in designed)
+    with_them = assemble(program, designed)
+    without = assemble(program, [(replace(d, metrics=None), fit) for d, fit in designed])
+    for ours, theirs in zip(with_them.moves, without.moves, strict=True):
+        assert [a.metrics for a in ours.axes] == [a.metrics for a in theirs.axes]
+        assert all(a.metrics is not None for a in ours.axes)
