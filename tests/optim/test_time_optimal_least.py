@@ -80,3 +80,31 @@ def test_switched_splits_a_free_arc_between_two_levels_and_keeps_a_coast() -> No
     assert switched([1.0, 1.0, 1.0], [1.0, 0.5, -1.0], [False, True, False]) == ([1.75, 1.25], [1.0, -1.0], [False] * 2)
     kept = ([1.0, 2.0, 1.0], [0.0, 0.3, 0.0], [False, True, False])
     assert switched(*kept) == ([1.0, 2.0, 1.0], [0.0, 0.3, 0.0], [False, True, False])
+
+
+def test_the_least_duration_is_bisected_warm_and_its_vertex_solved_from_nothing() -> None:
+    # The seed-29 straight line's coarse grid (96 steps): GridSearch.least_duration bisects the step with each LP
+    # started from the last feasible one's basis, then solves the least duration's LP from nothing. The same
+    # bisection with every LP from nothing (written here) reaches the same step length and the same vertex, bit for
+    # bit: the warm LPs decide feasibility as the cold ones, and the vertex the refinement starts from is the cold one.
+    from optim.families.time_optimal.lp import GridLp
+    from optim.families.time_optimal.search import LEAST_RTOL
+
+    plant = path_plant([ModePlant(*mode) for mode in MODES])
+    limits = Limits(1.5022455108882162, 15.022455108882161, 1502.2455108882161)
+    problem = Problem(plant, 0.39874664910835217, limits=limits)
+    spec = spec_of(problem, TimeOptimalOptions(), selected_modes(problem, TimeOptimalOptions())[0])
+    search = GridSearch(spec)
+    grid = search.grid_optimum(spec.upper_guess_s)
+    before = search.counter.solves
+    least = search.least_duration(grid)
+    low, high, values = grid.step_s * (grid.steps - 1) / grid.steps, grid.step_s, grid.values
+    cold = 0
+    while high - low > LEAST_RTOL * high:
+        mid = 0.5 * (low + high)
+        x = GridLp(spec, grid.steps, mid, [], search.counter).solve()
+        cold += 1
+        low, high, values = (mid, high, values) if x is None else (low, mid, x)
+    assert least.step_s == high < grid.step_s  # (shorter than the grid optimum's: the bisection moved)
+    assert np.array_equal(least.values, values)
+    assert search.counter.solves - before - cold == cold + 1  # as many warm LPs, and the vertex's from nothing

@@ -105,21 +105,29 @@ class GridSearch:
 
     def least_duration(self, grid: GridSolution) -> GridSolution:
         """``grid``'s command at the least duration on as many steps, to LEAST_RTOL: the step bisected between
-        ``grid``'s and the one of a step less in all, each LP from nothing (from the last one's basis, 0.1 s less,
-        the vertex of bench/programs.py's seed-28 move 2 led SLSQP to another local optimum); a band's grid as it is.
-        Near its least duration the LP's feasible set is nearly a point: its vertex has the optimum's arcs, where
-        one with a step's slack dithers (a three-mode cruise's three dips, lost in a chatter of one-step pulses)."""
+        ``grid``'s and the one of a step less in all, each LP from the last feasible one's basis (a third of the time
+        of LPs from nothing), then the vertex at the least duration found from nothing (a warm LP's vertex there, on
+        bench/programs.py's seed-28 move 2, led SLSQP to another local optimum); a band's grid as it is. Near its
+        least duration the LP's feasible set is nearly a point: its vertex has the optimum's arcs, where one with a
+        step's slack dithers (a three-mode cruise's three dips, lost in a chatter of one-step pulses)."""
         if self.dense:
             return grid
         steps, values = grid.steps, grid.values
         low, high = grid.step_s * (steps - 1) / steps, grid.step_s
+        basis = None
         while high - low > LEAST_RTOL * high:
             mid = 0.5 * (low + high)
-            x = GridLp(self.spec, steps, mid, self.cuts, self.counter).solve()
+            lp = GridLp(self.spec, steps, mid, self.cuts, self.counter)
+            if basis is not None:
+                lp.model.start_from(basis)
+            x = lp.solve()
             if x is None:
                 low = mid
             else:
-                high, values = mid, x
+                high, values, basis = mid, x, lp.model.basis()
+        if basis is not None:  # (the same LP as the warm one: feasible, unless at HiGHS's tolerance)
+            cold = GridLp(self.spec, steps, high, self.cuts, self.counter).solve()
+            values = values if cold is None else cold
         return GridSolution(high, steps, values, grid.infeasible_steps)
 
     def new_cuts(self, start: Array, end: Array, level: Array, total: float) -> list[Cut]:
