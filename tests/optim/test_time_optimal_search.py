@@ -10,16 +10,26 @@ import numpy as np
 import pytest
 
 
-@pytest.mark.parametrize(("least", "asked"), [(7, [8, 6, 7]), (12, [8, 10, 11, 12]), (None, [8, 10, 11, 12])])
+@pytest.mark.parametrize(
+    ("least", "bands", "asked"),
+    [
+        (7, False, [7, 6]),
+        (12, False, [7, 9, 10, 11, 12]),
+        (None, False, [7, 9, 10, 11, 12]),
+        (7, True, [8, 6, 7]),
+        (12, True, [8, 10, 11, 12]),
+    ],
+)
 def test_bisection_solves_its_upper_count_only_where_no_shorter_count_is_feasible(
-    least: int | None, asked: list[int]
+    least: int | None, bands: bool, asked: list[int]
 ) -> None:
-    # GridSearch.bisect on (5, 12] with feasibility from ``least`` steps on (None: nowhere): the bisection's own
-    # counts (8, then 6 and 7, or 10 and 11), and the upper count 12 only where none below it is feasible; the least
-    # feasible count, or None.
+    # GridSearch.bisect on (5, 12] with feasibility from ``least`` steps on (None: nowhere): its first count 7
+    # (FIRST_PROBE = 0.15 of the 7 counts above 5, rounded up), with bands 8 (halves throughout), then halves (6, or
+    # 9, 10 and 11), and the upper count 12 only where none below it is feasible; the least feasible count, or None.
     from optim.families.time_optimal.search import GridSearch
 
     search = object.__new__(GridSearch)
+    search.dense = [object()] if bands else []  # type: ignore[list-item]
     seen: list[int] = []
 
     def feasible(steps: int, dt: float, weights: object = None) -> np.ndarray | None:
@@ -34,6 +44,32 @@ def test_bisection_solves_its_upper_count_only_where_no_shorter_count_is_feasibl
     else:
         assert found is not None
         assert (found.steps, found.infeasible_steps, found.values.size) == (least, least - 1, least)
+
+
+@pytest.mark.parametrize(("shortest_s", "least_steps", "upper_asked"), [(0.9, 87, 0), (1.5, 72, 1)])
+def test_the_grid_optimum_solves_its_upper_guess_last(shortest_s: float, least_steps: int, upper_asked: int) -> None:
+    # GridSearch.grid_optimum from 1 s on 96 steps, the rigid floor 0.8 s, a command only from ``shortest_s`` on:
+    # at 0.9 s the least count is ceil(0.9 * 96) = 87 and the 96 steps over the guess are never solved; at 1.5 s
+    # none is feasible on steps of 1/96 s (96 solved last, once), the guess is doubled and on steps of 2/96 s the
+    # least count is 1.5 * 48 = 72.
+    from types import SimpleNamespace
+
+    from optim.families.time_optimal.search import STEPS, GridSearch
+
+    search = object.__new__(GridSearch)
+    search.dense = []
+    search.spec = SimpleNamespace(floor_s=0.8, upper_guess_s=1.0, max_duration_s=10.0)  # type: ignore[assignment]
+    seen: list[tuple[int, float]] = []
+
+    def feasible(steps: int, dt: float, weights: object = None) -> np.ndarray | None:
+        seen.append((steps, dt))
+        return np.full(steps, 0.5) if steps * dt >= shortest_s * (1 - 1e-12) else None
+
+    search.feasible = feasible  # type: ignore[method-assign]
+    found = search.grid_optimum(1.0)
+    assert found.steps == least_steps and found.step_s == (1.0 if upper_asked == 0 else 2.0) / STEPS
+    assert sum(1 for steps, dt in seen if steps == STEPS and dt == 1.0 / STEPS) == upper_asked
+    assert all(steps < STEPS for steps, dt in seen if dt != 1.0 / STEPS)
 
 
 def test_the_band_check_merges_a_grid_command_into_runs_with_the_same_ratios() -> None:
