@@ -201,7 +201,8 @@ def program(
         return ProgramAnswer(answer, result)
     from vibfree.batch import ProcessesExecutor
 
-    answer, result = _run(program_service.answer(body, chosen, ProcessesExecutor(count), capacity=2 * count))
+    pool = ProcessesExecutor(count)
+    answer, result = _run(program_service.answer(body, chosen, pool, capacity=2 * count, assembler=InlineExecutor()))
     return ProgramAnswer(answer, result)
 
 
