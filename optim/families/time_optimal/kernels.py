@@ -43,15 +43,16 @@ def _ramp(t: float, r: int) -> float:
 @njit(cache=True)
 def state_terms(times: Array, d: Array, lv: Array, r: int, jac: bool) -> tuple[Array, Array, Array]:
     """At each point p (time t_p = times[p] . d): sum_j lv_j (R(t_p - s_j) - R(t_p - e_j)), R(tau) = tau_+^r / r!,
-    s_j and e_j the arcs' start and end (prefix sums of d); its Jacobian in d (zeros without ``jac``) and the
-    per-arc differences (its Jacobian in lv)."""
+    s_j and e_j the arcs' start and end (prefix sums of d); its Jacobian in d and the per-arc differences (its
+    Jacobian in lv), both with no rows without ``jac``."""
     points, count = times.shape
     start = np.zeros(count)
     for j in range(1, count):
         start[j] = start[j - 1] + d[j - 1]
     value = np.zeros(points)
-    diff = np.zeros((points, count))
-    jac_d = np.zeros((points, count))
+    rows = points if jac else 0  # (without ``jac`` only the values: SLSQP's line search asks them alone)
+    diff = np.zeros((rows, count))
+    jac_d = np.zeros((rows, count))
     rise = np.zeros(count)
     fall = np.zeros(count)
     for p in range(points):
@@ -62,9 +63,10 @@ def state_terms(times: Array, d: Array, lv: Array, r: int, jac: bool) -> tuple[A
         for j in range(count):
             t1 = t - start[j]
             t2 = t1 - d[j]
-            diff[p, j] = _ramp(t1, r) - _ramp(t2, r)
-            total += lv[j] * diff[p, j]
+            difference = _ramp(t1, r) - _ramp(t2, r)
+            total += lv[j] * difference
             if jac:
+                diff[p, j] = difference
                 rise[j] = lv[j] * _ramp(t1, r - 1)
                 fall[j] = lv[j] * _ramp(t2, r - 1)
         value[p] = total
@@ -156,13 +158,14 @@ Rows = tuple[NDArray[np.int64], Array, Array, Array, NDArray[np.bool_], NDArray[
 def end_system(z: Array, structure: Structure, jac: bool) -> tuple[Array, Array]:
     """The equalities of a structure in z = (d / t0, free levels), scaled, and their Jacobian in z: the end state
     (unit x state_terms + the start's drift - target, over ``scales``, for each derivative in ``orders``), then for
-    each n <= derivative_order the real and the imaginary parts of F_n at every pole (over ``moment_scales[n]``)."""
+    each n <= derivative_order the real and the imaginary parts of F_n at every pole (over ``moment_scales[n]``)
+    (the Jacobian: no rows without ``jac``)."""
     count, t0, levels, free, unit, orders, targets, scales, state, poles, derivative_order, moment_scales = structure
     d, lv = _unpack(z, count, t0, levels, free)
     q = state.size
     rows = orders.size + 2 * (derivative_order + 1) * poles.size
     values = np.zeros(rows)
-    out = np.zeros((rows, count + free.size))
+    out = np.zeros((rows if jac else 0, count + free.size))
     total = 0.0
     for i in range(count):
         total += d[i]
@@ -200,14 +203,14 @@ def end_system(z: Array, structure: Structure, jac: bool) -> tuple[Array, Array]
 @njit(cache=True)
 def bound_system(z: Array, structure: Structure, m: int, limit: float, times: Array, jac: bool) -> tuple[Array, Array]:
     """The m-th derivative within +-limit at the points ``times`` . d, as 1 - x / limit >= 0 (every point), then
-    1 + x / limit >= 0, and their Jacobian in z."""
+    1 + x / limit >= 0, and their Jacobian in z (no rows without ``jac``)."""
     count, t0, levels, free, unit, _, _, _, state, _, _, _ = structure
     d, lv = _unpack(z, count, t0, levels, free)
     q = state.size
     points = times.shape[0]
     v, jd, diff = state_terms(times, d, lv, q - m, jac)
     values = np.zeros(2 * points)
-    out = np.zeros((2 * points, count + free.size))
+    out = np.zeros((2 * points if jac else 0, count + free.size))
     for p in range(points):
         t = 0.0
         for i in range(count):
@@ -247,7 +250,7 @@ def peak_system(z: Array, structure: Structure, limit: float, jac: bool) -> tupl
         a[k] = a[k - 1] + jerk[k - 1] * d[k - 1]
         v[k] = v[k - 1] + a[k - 1] * d[k - 1] + jerk[k - 1] * d[k - 1] ** 2 / 2
     values = np.zeros(2 * count)
-    out = np.zeros((2 * count, count + free.size))
+    out = np.zeros((2 * count if jac else 0, count + free.size))
     for k in range(count):
         tau, at_end = 0.0, False
         if jerk[k] != 0.0:
@@ -292,14 +295,14 @@ def inequality_system(
     jac: bool,
 ) -> tuple[Array, Array]:
     """The refinement's inequalities in one call: bound_system's rows for each bound in turn (its check points
-    ``times_a``, then ``times_b``), then with ``peaks`` peak_system's, and their Jacobian in z (zeros without
+    ``times_a``, then ``times_b``), then with ``peaks`` peak_system's, and their Jacobian in z (no rows without
     ``jac``): the same values as the kernels' one by one, concatenated."""
     count, free = structure[0], structure[3]
     rows = 2 * count if peaks else 0
     for b in range(bound_m.size):
         rows += 2 * (times_a if b == 0 else times_b).shape[0]
     values = np.zeros(rows)
-    out = np.zeros((rows, count + free.size))
+    out = np.zeros((rows if jac else 0, count + free.size))
     row = 0
     for b in range(bound_m.size + (1 if peaks else 0)):
         if b < bound_m.size:
