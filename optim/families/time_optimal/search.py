@@ -106,8 +106,8 @@ class GridSearch:
 
     def least_duration(self, grid: GridSolution) -> GridSolution:
         """``grid``'s command at the least duration on as many steps, to LEAST_RTOL: the step bisected between
-        ``grid``'s and the one of a step less in all, each LP from the last feasible one's basis (a third of the time
-        of LPs from nothing), then the vertex at the least duration found from nothing (a warm LP's vertex there, on
+        ``grid``'s and the one of a step less in all, each LP from the last feasible one's basis (about half the time
+        of one from nothing), then the vertex at the least duration found from nothing (a warm LP's vertex there, on
         bench/programs.py's seed-28 move 2, led SLSQP to another local optimum); a band's grid as it is. Near its
         least duration the LP's feasible set is nearly a point: its vertex has the optimum's arcs, where one with a
         step's slack dithers (a three-mode cruise's three dips, lost in a chatter of one-step pulses)."""
