@@ -245,6 +245,11 @@ def stretched(command: PiecewiseCommand, end_s: float, late: PiecewiseCommand | 
     return PiecewiseCommand(times, rows, min(command.continuous_orders, second.continuous_orders))
 
 
+def moving_axes(program: Program, k: int) -> list[int]:
+    """The axes move ``k`` moves (its target differs from its stop)."""
+    return [i for i, (a, b) in enumerate(zip(program.stop(k), program.moves[k].target, strict=True)) if b != a]
+
+
 def design_move(
     program: Program, k: int, effective: Effective | None = None, previous: MoveDesign | None = None
 ) -> MoveDesign:
@@ -261,7 +266,7 @@ def design_move(
                 move.target[i],
                 f"moves the axis by {abs(d):.3g}: a move is 0 or at least {MIN_MOVE:g}",
             )
-    moving = [i for i, d in enumerate(deltas) if d != 0.0]
+    moving = moving_axes(program, k)
     if move.coordination == "straight_line" and len(moving) > 1:
         return _straight(program, k, moving, deltas, effective, previous)
     designs: dict[int, AxisMove] = {}

@@ -18,7 +18,7 @@ from models.commands import PiecewiseCommand
 from models.errors import InvalidParameter
 from optim.problem import TAIL_PERIODS, nice_period
 from optim.programs.cycle import AxisCycle, check_before_designs, cycle
-from optim.programs.moves import MoveDesign, move_problem, plant_of
+from optim.programs.moves import MoveDesign, move_problem, moving_axes, plant_of
 from optim.programs.types import Program, check_axes, check_moves
 from optim.programs.varying import VaryingFit, design_varying
 from optim.results import MetricsReport
@@ -128,15 +128,8 @@ def heaviest_first(program: Program) -> list[int]:
     ties in program order. The answer does not depend on it (each move is designed alone)."""
 
     def modes(k: int) -> int:
-        move, stop = program.moves[k], program.stop(k)
-        counts = [
-            len(axis.plant.modes())
-            for axis, target, at in zip(program.axes, move.target, stop, strict=True)
-            if target != at
-        ]
-        if move.coordination == "straight_line":
-            return sum(counts)
-        return max(counts, default=0)
+        counts = [len(program.axes[i].plant.modes()) for i in moving_axes(program, k)]
+        return sum(counts) if program.moves[k].coordination == "straight_line" else max(counts, default=0)
 
     return sorted(range(len(program.moves)), key=lambda k: -modes(k))
 
